@@ -1,0 +1,20 @@
+"""Kinematics of sixplus3: the RU/2-RUS leg (paper §III-IV)."""
+
+from kinematics.leg import (
+    DEFAULT_MODE,
+    SINGULAR_TOL,
+    AssemblyMode,
+    LegEval,
+    LegState,
+    leg_eval,
+    leg_fk,
+    leg_fk_point,
+    leg_ik,
+    leg_ik_point,
+    status_reason,
+)
+
+__all__ = [
+    "DEFAULT_MODE", "SINGULAR_TOL", "AssemblyMode", "LegEval", "LegState", "leg_eval",
+    "leg_fk", "leg_fk_point", "leg_ik", "leg_ik_point", "status_reason",
+]
