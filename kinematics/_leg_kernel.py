@@ -256,9 +256,10 @@ def jacobian_point(geo, mass_g, accel_g, out, margin_ii=True):
     """J, K (paper §III-C), J tilde (Prop. 1), M = K^T J^-T, determinants, margins, tau_ext.
 
     Reads the IK fields of ``out``; ``mass_g`` = m g [N], ``accel_g`` the required
-    acceleration in g.  ``margin_ii=False`` skips the sigma_min type II margin (left 0).  J is stored row-scaled as J' = diag(1, det Jp, det Jp) J, which
-    stays finite at type I configurations where J_p (and so J) blows up; det J =
-    det J' / det(Jp)^2 and tau = K^T J^-T f = K^T S J'^-T f with S = diag(1, dJp, dJp).
+    acceleration in g.  ``margin_ii=False`` skips the sigma_min type II margin (left 0).
+    J is stored row-scaled as J' = diag(1, det Jp, det Jp) J, which stays finite at type I
+    configurations where J_p (and so J) blows up; det J = det J' / det(Jp)^2 and
+    tau = K^T J^-T f = K^T S J'^-T f with S = diag(1, det Jp, det Jp).
     """
     l1, l2, l3, l4, l5, dp = geo[0], geo[1], geo[2], geo[3], geo[4], geo[7]
     dy, dz = out[PD + 1], out[PD + 2]
@@ -441,6 +442,11 @@ def _fk_newton(theta, geo, ts2, ts3, out, maxit):
         fhx, fhy, fhz = out[PF] - hx, out[PF + 1] - hy, out[PF + 2] - hz
         re = 0.5 * (egx * egx + egy * egy + egz * egz - l4 * l4)
         rf = 0.5 * (fhx * fhx + fhy * fhy + fhz * fhz - l5 * l5)
+        # Converged when both link-length errors (re / l4, rf / l5 [m]) are at rounding
+        # level.  Tested before stepping: near a type II singularity the 2x2 Jacobian is
+        # nearly singular and a rounding-level residual would produce a large step.
+        if abs(re) < 1e-15 * l4 and abs(rf) < 1e-15 * l5:
+            return True, ts2, ts3
         wx, wy, wz = out[QM + 2], out[QM + 5], out[QM + 8]
         # d e / d ts2 = x_f x (e - d);  d e / d ts3 = w x (e - d).
         a11 = egy * (-ez) + egz * ey

@@ -183,10 +183,13 @@ class LegState:
     @property
     def J(self) -> np.ndarray:
         """(n, 3, 3) the paper's J [m].  Unbounded at type I (det Jp = 0): use J_scaled."""
-        scale = np.ones((len(self), 3, 1))
+        den = np.ones((len(self), 3, 1))
+        den[:, 1:, 0] = self.det_Jp[:, None]
         with np.errstate(divide="ignore", invalid="ignore"):
-            scale[:, 1:, 0] = 1.0 / self.det_Jp[:, None]
-            return np.where(self.ok[:, None, None], self.J_scaled * scale, 0.0)
+            J = self.J_scaled / den
+        # Exactly at type I: +-inf where J' != 0, and 0 (not 0/0) where J' = 0.
+        J[np.isnan(J)] = 0.0
+        return np.where(self.ok[:, None, None], J, 0.0)
 
     def dtheta_dp(self) -> np.ndarray:
         """(n, 3, 3) K^-1 J, the IK Jacobian d theta / d p [rad/m] (0 where unsolved)."""

@@ -1,0 +1,1 @@
+"""Optimal leg design and workspace analysis (paper §V)."""

@@ -1,0 +1,129 @@
+"""The ``sixplus3`` command line.
+
+Thin wiring only: every command imports the library (numpy, numba, pinocchio, ...) inside
+its body, so that ``sixplus3 --help`` answers without loading them.  Exit codes: 0 ok,
+2 bad input / unreachable / invalid file (one-line message on stderr).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from typing import Any
+
+import click
+
+# Negative numbers are positional values here (``sixplus3 leg -0.1 0.4 0.2``): let click
+# pass tokens such as ``-0.1`` through instead of treating them as unknown options.
+_NUMERIC_ARGS = {"ignore_unknown_options": True, "help_option_names": ["-h", "--help"]}
+
+
+def _fail(message: str) -> None:
+    """One-line error on stderr, exit code 2."""
+    click.echo(f"error: {message}", err=True)
+    sys.exit(2)
+
+
+def _json_default(obj: Any) -> Any:
+    import numpy as np
+
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    raise TypeError(type(obj))
+
+
+def _finite_json(value: float) -> float | None:
+    """JSON has no inf/NaN: a singular tau_ext is reported as null."""
+    return value if math.isfinite(value) else None
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="sixplus3")
+def main() -> None:
+    """sixplus3: kinematics, dynamics, design and planning for the (6+3)-DoF robot."""
+
+
+@main.command(context_settings=_NUMERIC_ARGS)
+@click.argument("x", type=float)
+@click.argument("y", type=float)
+@click.argument("z", type=float)
+@click.option("--force", nargs=3, type=float, default=None, metavar="FX FY FZ",
+              help="Force at P in the leg frame [N].")
+@click.option("--mode", default="default", show_default=True,
+              help="Assembly mode: four of +/- for (th1, th_s3, th2, th3), or 'default'.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def leg(x: float, y: float, z: float, force: tuple[float, float, float] | None, mode: str,
+        as_json: bool) -> None:
+    """Leg report at P = (X, Y, Z) [m] in the leg frame (paper §III-IV).
+
+    Prints the actuated and passive angles, det J, det K, the singularity margins and
+    type, the static torques for --force, and tau_ext (the largest torque needed for a
+    2 g acceleration of 0.5 kg at P against gravity in any direction).
+    """
+    import numpy as np
+
+    from kinematics.leg import SINGULAR_TOL, AssemblyMode, leg_ik_point
+    from sixplus3.errors import Sixplus3Error
+
+    try:
+        m = AssemblyMode.parse(mode)
+        state = leg_ik_point([x, y, z], mode=m)
+    except Sixplus3Error as exc:
+        _fail(str(exc))
+        return
+    theta = state.theta[0]
+    theta_s = state.theta_s[0]
+    sing = str(state.singularity()[0])
+    tau = None
+    if force is not None:
+        if not all(math.isfinite(v) for v in force):
+            _fail(f"--force must be finite, got {list(force)}")
+        if not math.isfinite(state.tau_ext[0]):
+            _fail("type II singularity at this point: no finite torques balance a general force")
+        tau = state.torques(np.array(force))[0]
+    if as_json:
+        out: dict[str, Any] = {
+            "p": [x, y, z], "mode": m.name,
+            "theta": theta, "theta_s": theta_s,
+            "det_J": float(state.det_J[0]), "det_K": float(state.det_K[0]),
+            "margin_I": float(state.margin_I[0]), "margin_II": float(state.margin_II[0]),
+            "singularity": sing, "tau_ext": _finite_json(float(state.tau_ext[0])),
+        }
+        if tau is not None:
+            out["tau"] = tau
+        click.echo(json.dumps(out, default=_json_default))
+        return
+    deg = np.degrees
+    click.echo(f"leg at p = ({x:.4f}, {y:.4f}, {z:.4f}) m, assembly mode {m.name}")
+    click.echo("  theta   [rad]  " + "  ".join(f"{v:+.6f}" for v in theta))
+    click.echo("  theta   [deg]  " + "  ".join(f"{v:+.3f}" for v in deg(theta)))
+    click.echo("  theta_s [deg]  " + "  ".join(f"{v:+.3f}" for v in deg(theta_s))
+               + "   (th_s2, th_s3)")
+    click.echo(f"  det J = {state.det_J[0]:+.6e} m^3   det K = {state.det_K[0]:+.6e} m^6")
+    click.echo(f"  margins: type I {state.margin_I[0]:.4f}   type II {state.margin_II[0]:.4f}"
+               f"   (0 singular .. 1 best; singular below {SINGULAR_TOL:g})")
+    click.echo(f"  singularity: {sing}")
+    if tau is not None:
+        click.echo("  tau [N m] for f = (" + ", ".join(f"{v:g}" for v in force)  # type: ignore[union-attr]
+                   + ") N:  " + "  ".join(f"{v:+.4f}" for v in tau))
+    click.echo(f"  tau_ext = {state.tau_ext[0]:.4f} N m  (F = F_g + 2 m g B^3, m = 0.5 kg)")
+
+
+@main.command()
+@click.option("--ws-step", default=0.005, show_default=True, type=float,
+              help="Workspace grid step of the usable-area report [m].")
+def demo(ws_step: float) -> None:
+    """Main job on built-in defaults: a report of the paper's leg design."""
+    from sixplus3.report import leg_report
+
+    try:
+        click.echo(leg_report(ws_step=ws_step))
+    except ValueError as exc:
+        _fail(str(exc))
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,68 @@
+"""The sixplus3 command line: arguments, JSON contract, exit codes, lazy imports."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+from click.testing import CliRunner
+
+from sixplus3.cli import main
+
+
+def run(*args: str):
+    return CliRunner().invoke(main, list(args))
+
+
+def test_help_does_not_import_the_heavy_libraries() -> None:
+    code = ("import sys; from sixplus3.cli import main\n"
+            "heavy = [m for m in ('numpy', 'numba', 'pinocchio', 'casadi', 'meshcat', "
+            "'matplotlib') if m in sys.modules]\n"
+            "print(','.join(heavy))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == ""
+    res = subprocess.run([sys.executable, "-m", "sixplus3.cli", "--help"],
+                         capture_output=True, text=True, check=True)
+    assert "leg" in res.stdout
+
+
+def test_leg_accepts_negative_numbers_and_prints_a_report() -> None:
+    res = run("leg", "-0.1", "0.4", "0.2", "--force", "0", "-5", "0")
+    assert res.exit_code == 0, res.output
+    for word in ("theta   [rad]", "theta   [deg]", "theta_s", "det J", "det K", "margins",
+                 "singularity: none", "tau [N m]", "tau_ext"):
+        assert word in res.output
+
+
+def test_leg_json_contract_and_physics() -> None:
+    p = np.array([-0.1, 0.4, 0.2])
+    f = np.array([1.5, -5.0, 2.0])
+    res = run("leg", *map(str, p), "--force", *map(str, f), "--json", "--mode", "++++")
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    assert {"theta", "theta_s", "det_J", "det_K", "singularity", "tau", "tau_ext"} <= set(out)
+    assert len(out["theta"]) == 3 and len(out["theta_s"]) == 2 and len(out["tau"]) == 3
+    assert out["singularity"] in ("none", "type1", "type2")
+    # Collinear motors: the torques add up to the moment of f about the actuated axis.
+    assert abs(sum(out["tau"]) - np.cross(p, f)[0]) < 1e-9
+    assert isinstance(out["tau_ext"], float) and out["tau_ext"] > 0
+    no_force = json.loads(run("leg", *map(str, p), "--json").output)
+    assert "tau" not in no_force and no_force["theta"] == out["theta"]
+
+
+def test_leg_unreachable_exits_2_with_one_line() -> None:
+    res = run("leg", "0", "1.5", "0")
+    assert res.exit_code == 2
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "RU chain" in lines[0]
+    bad_mode = run("leg", "0", "0.4", "0.1", "--mode", "++x+")
+    assert bad_mode.exit_code == 2 and "assembly mode" in bad_mode.output
+
+
+def test_demo_prints_the_leg_report() -> None:
+    res = run("demo", "--ws-step", "0.02")
+    assert res.exit_code == 0, res.output
+    assert "design half-plane" in res.output and "tau_ext <= 10 N m" in res.output
