@@ -1,0 +1,1 @@
+"""Dynamics of sixplus3: Pinocchio closed-loop model, constrained forward/inverse dynamics."""

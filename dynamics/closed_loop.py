@@ -1,0 +1,234 @@
+"""Constrained dynamics of the closed-loop robot with Pinocchio 4.
+
+Notation: q (nq = 37), v, a (nv = 36) of the spanning tree; S selects the 9 actuated
+velocity coordinates; the closures r(q) = 0 have Jacobian Jc = [J_act, J_pas] (27 x 36,
+columns split by actuated / passive coordinates).
+
+- Independent coordinates are the actuated angles: v = G theta_dot with
+  G = dq/dtheta = [I ; -J_pas^-1 J_act] (rows ordered as v), so S G = I.
+- Constrained inverse dynamics (virtual work; G^T Jc^T = 0 removes the closure forces):
+      tau = (S G)^-T G^T rnea(q, v, a) = G^T rnea(q, v, a).
+  Valid for a consistent motion (Jc v = 0, Jc a + gamma = 0).  A singular J_pas (the
+  actuators locked, the mechanism can still move: a parallel singularity) raises
+  :class:`SingularityError`.
+- Constrained forward dynamics: Pinocchio ``constraintDynamics`` with the 27 CONTACT_3D
+  constraints and Baumgarte stabilisation; a step is RK4 (or semi-implicit Euler)
+  followed by a projection onto the closure manifold.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from robot_description.model import ClosedLoopModel, load_model
+from sixplus3.errors import InputError, SingularityError
+
+#: Parallel-singularity threshold on sigma_min / sigma_max of J_pas.
+SINGULAR_RCOND = 1e-10
+
+
+@dataclass(frozen=True)
+class ForwardResult:
+    a: np.ndarray  # (nv,) tree acceleration
+    forces: np.ndarray  # (27,) constraint forces (Pinocchio's contact forces, LOCAL frames)
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    t: np.ndarray  # (n,) [s]
+    q: np.ndarray  # (n, nq)
+    v: np.ndarray  # (n, nv)
+    kinetic: np.ndarray  # (n,) [J]
+    potential: np.ndarray  # (n,) [J]
+    residual: np.ndarray  # (n,) max closure residual [m]
+
+    @property
+    def energy(self) -> np.ndarray:
+        return self.kinetic + self.potential
+
+
+class ClosedLoopDynamics:
+    """Dynamics of a :class:`ClosedLoopModel` (one instance per thread: it owns data)."""
+
+    def __init__(self, clm: ClosedLoopModel | None = None, kp: float = 400.0,
+                 kd: float = 40.0, mu: float = 1e-10) -> None:
+        self.clm = clm or load_model()
+        self.model = self.clm.model
+        self.data = self.model.createData()
+        self.cmodels = self.clm.constraint_models
+        for cm in self.cmodels:
+            cm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(kp, kd))
+        self.cdatas = pin.StdVec_RigidConstraintData()
+        for cm in self.cmodels:
+            self.cdatas.append(cm.createData())
+        pin.initConstraintDynamics(self.model, self.data, self.cmodels, self.cdatas)
+        self.prox = pin.ProximalSettings(1e-12, mu, 10)
+        self._act = self.clm.idx_v_act
+        self._pas = self.clm.idx_v_pas
+
+    # ------------------------------------------------------------------ kinematics
+    def _check_state(self, q: np.ndarray, *vs: np.ndarray) -> None:
+        m = self.model
+        if q.shape != (m.nq,) or not np.all(np.isfinite(q)):
+            raise InputError(f"q must be {m.nq} finite numbers, got shape {q.shape}")
+        for v in vs:
+            if v.shape != (m.nv,) or not np.all(np.isfinite(v)):
+                raise InputError(f"v and a must be {m.nv} finite numbers, got {v.shape}")
+
+    def G(self, q: np.ndarray) -> np.ndarray:
+        """(nv, 9) dv/dtheta_dot; raises SingularityError at a parallel singularity."""
+        Jc = self.clm.constraint_jacobian(q)
+        Jp = Jc[:, self._pas]
+        sv = np.linalg.svd(Jp, compute_uv=False)
+        if sv[-1] <= SINGULAR_RCOND * sv[0]:
+            raise SingularityError(
+                f"parallel singularity: the closure Jacobian of the passive joints has "
+                f"sigma_min/sigma_max = {sv[-1] / sv[0]:.2e} <= {SINGULAR_RCOND:g}; the "
+                "actuators cannot determine the motion, no torque is defined")
+        G = np.zeros((self.model.nv, len(self._act)))
+        G[self._act] = np.eye(len(self._act))
+        G[self._pas] = -np.linalg.solve(Jp, Jc[:, self._act])
+        return G
+
+    def consistent_state(self, q: np.ndarray, theta_dot: np.ndarray,
+                         theta_ddot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(v, a) of the tree for actuated rates [rad/s] and accelerations [rad/s^2] at q.
+
+        v = G theta_dot;  a = G theta_ddot + a_0, with a_0 the passive-only correction
+        that cancels the drift: J_pas a_0,pas = -gamma(q, v).
+        """
+        G = self.G(q)
+        v = G @ theta_dot
+        gamma = self.clm.drift(q, v)
+        Jp = self.clm.constraint_jacobian(q)[:, self._pas]
+        a = G @ theta_ddot
+        a[self._pas] -= np.linalg.solve(Jp, gamma)
+        return v, a
+
+    # ------------------------------------------------------------------ inverse dynamics
+    def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray,
+                         f_ext: dict[str, np.ndarray] | None = None) -> np.ndarray:
+        """The 9 actuator torques [N m] producing the consistent motion (q, v, a).
+
+        ``f_ext`` maps frame names to world-frame forces [N] applied at those frame
+        origins (e.g. ``{"leg0_P": f}``); tau balances them too.
+        """
+        q, v, a = (np.asarray(x, dtype=float) for x in (q, v, a))
+        self._check_state(q, v, a)
+        G = self.G(q)
+        h = pin.rnea(self.model, self.data, q, v, a)
+        if f_ext:
+            h = h - self._external_generalized_force(q, f_ext)
+        return G.T @ h
+
+    def _external_generalized_force(self, q: np.ndarray, f_ext: dict[str, np.ndarray]):
+        m, d = self.model, self.data
+        pin.computeJointJacobians(m, d, q)
+        pin.updateFramePlacements(m, d)
+        out = np.zeros(m.nv)
+        for name, f in f_ext.items():
+            if not m.existFrame(name):
+                raise InputError(f"unknown frame {name!r} for an external force")
+            J = pin.getFrameJacobian(m, d, m.getFrameId(name), pin.LOCAL_WORLD_ALIGNED)[:3]
+            out += J.T @ np.asarray(f, dtype=float)
+        return out
+
+    def gravity_torques(self, q: np.ndarray) -> np.ndarray:
+        """Static actuator torques holding the robot still at q [N m]."""
+        z = np.zeros(self.model.nv)
+        return self.inverse_dynamics(q, z, z)
+
+    # ------------------------------------------------------------------ forward dynamics
+    def forward_dynamics(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> ForwardResult:
+        """Tree acceleration under actuator torques tau (9,) [N m] and the 27 closures."""
+        q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
+        self._check_state(q, v)
+        tau_full = np.zeros(self.model.nv)
+        tau_full[self._act] = tau
+        a = pin.constraintDynamics(self.model, self.data, q, v, tau_full, self.cmodels,
+                                   self.cdatas, self.prox)
+        return ForwardResult(a=a.copy(), forces=self.data.lambda_c.copy())
+
+    def step(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
+             method: str = "rk4", project: bool = True):
+        """One step of length dt [s] under constant tau: (q+, v+).
+
+        ``method``: "rk4" (classical Runge-Kutta on the configuration Lie group, default)
+        or "euler" (semi-implicit: v+ = v + a dt, q+ = q (+) v+ dt).  Baumgarte keeps the
+        closures attracting inside a step; ``project`` then removes what drift is left
+        (q by Gauss-Newton on r(q) = 0, v onto Jc v = 0, both minimum-norm).
+        """
+        m = self.model
+
+        def acc(qq, vv):
+            return self.forward_dynamics(qq, vv, tau).a
+
+        if method == "euler":
+            v_next = v + acc(q, v) * dt
+            q_next = pin.integrate(m, q, v_next * dt)
+        elif method == "rk4":
+            a1 = acc(q, v)
+            v2 = v + 0.5 * dt * a1
+            a2 = acc(pin.integrate(m, q, 0.5 * dt * v), v2)
+            v3 = v + 0.5 * dt * a2
+            a3 = acc(pin.integrate(m, q, 0.5 * dt * v2), v3)
+            v4 = v + dt * a3
+            a4 = acc(pin.integrate(m, q, dt * v3), v4)
+            q_next = pin.integrate(m, q, dt / 6.0 * (v + 2 * v2 + 2 * v3 + v4))
+            v_next = v + dt / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
+        else:
+            raise InputError(f"unknown integration method {method!r}: use 'rk4' or 'euler'")
+        if project:
+            q_next, v_next = self.project(q_next, v_next)
+        return q_next, v_next
+
+    def project(self, q: np.ndarray, v: np.ndarray, tol: float = 1e-12, max_iter: int = 5):
+        """Closest consistent state: r(q) = 0 by Gauss-Newton, then Jc v = 0 [m, m/s]."""
+        m = self.model
+        for _ in range(max_iter):
+            r = self.clm.residual(q)
+            if np.abs(r).max() < tol:
+                break
+            Jc = self.clm.constraint_jacobian(q)
+            q = pin.integrate(m, q, -np.linalg.lstsq(Jc, r, rcond=None)[0])
+        Jc = self.clm.constraint_jacobian(q)
+        v = v - np.linalg.lstsq(Jc, Jc @ v, rcond=None)[0]
+        return q, v
+
+    def energy(self, q: np.ndarray, v: np.ndarray) -> tuple[float, float]:
+        """(kinetic, potential) energy [J]; potential is zero at z = 0."""
+        k = pin.computeKineticEnergy(self.model, self.data, q, v)
+        u = pin.computePotentialEnergy(self.model, self.data, q)
+        return float(k), float(u)
+
+    def simulate(self, q0: np.ndarray, v0: np.ndarray, duration: float, dt: float,
+                 tau=None, method: str = "rk4", project: bool = True) -> Trajectory:
+        """Integrate from (q0, v0) for ``duration`` [s] at step ``dt`` [s].
+
+        ``tau`` is None (unactuated), a (9,) constant or a callable (t, q, v) -> (9,).
+        """
+        if not (math.isfinite(dt) and dt > 0 and math.isfinite(duration) and duration > 0):
+            raise InputError(f"dt and duration must be positive, got {dt}, {duration}")
+        n = int(round(duration / dt)) + 1
+        q, v = np.array(q0, dtype=float), np.array(v0, dtype=float)
+        qs, vs = np.zeros((n, self.model.nq)), np.zeros((n, self.model.nv))
+        ke, pe, res = np.zeros(n), np.zeros(n), np.zeros(n)
+        for k in range(n):
+            qs[k], vs[k] = q, v
+            ke[k], pe[k] = self.energy(q, v)
+            res[k] = np.abs(self.clm.residual(q)).max()
+            if k == n - 1:
+                break
+            t = k * dt
+            if tau is None:
+                u = np.zeros(len(self._act))
+            elif callable(tau):
+                u = np.asarray(tau(t, q, v), dtype=float)
+            else:
+                u = np.asarray(tau, dtype=float)
+            q, v = self.step(q, v, u, dt, method, project)
+        return Trajectory(np.arange(n) * dt, qs, vs, ke, pe, res)

@@ -1,0 +1,388 @@
+"""Whole-robot kinematics: platform pose + 3 crank angles <-> 9 actuated angles.
+
+Inverse (closed form, batched): the crank tips P_i follow from the platform pose and the
+redundant crank angles psi_i; each leg's IK (paper §III-B) gives its five angles at P_i;
+the two U joints of each RUS chain follow from the distal link directions.  The result is
+the full Pinocchio configuration of the spanning tree, whose 27 closure residuals vanish.
+
+Forward: from the 9 actuated angles and a previous configuration (branch hint), Newton on
+the 27 closure equations over the 27 passive velocity coordinates.
+
+Singularity measures (all scale-free, 0 = singular): each leg's type I and type II
+margins (:mod:`kinematics.leg`) and the platform margin, the inverse condition number of
+the 9x9 Jacobian mapping (platform twist, crank rates) to the three P_i velocities, with
+angular columns scaled by the platform radius and crank columns by the crank length.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from kinematics.leg import DEFAULT_MODE, AssemblyMode, LegState, failing_chain, leg_ik, status_reason
+from robot_description.robot import NUM_LEGS, RobotGeometry
+from robot_description.urdf import SPHERICAL_LIMIT
+from sixplus3.errors import ConvergenceError, InputError, UnreachableError
+
+DEFAULT_ROBOT = RobotGeometry()
+#: Height of the platform centre at the home pose [m]: the highest 5 cm step at which
+#: every leg still meets the paper's 2 g criterion (tau_ext < 10 N m; 9.4 N m at 0.30 m).
+HOME_HEIGHT = 0.30
+#: Crank angles at the home pose [rad]: cranks at 90 deg to their radius.
+HOME_PSI = (math.pi / 2,) * NUM_LEGS
+
+
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """R = Rz(yaw) Ry(pitch) Rx(roll) (URDF/ROS fixed-axis convention) [rad]."""
+    return Rotation.from_euler("xyz", [roll, pitch, yaw]).as_matrix()
+
+
+@dataclass(frozen=True)
+class RobotMargins:
+    """Scale-free singularity margins, batched: 0 singular, 1 ideal."""
+
+    leg_type1: np.ndarray  # (n, 3)
+    leg_type2: np.ndarray  # (n, 3)
+    platform: np.ndarray  # (n,)
+
+    @property
+    def minimum(self) -> np.ndarray:
+        """(n,) the smallest of all seven margins."""
+        return np.minimum(np.minimum(self.leg_type1.min(axis=1), self.leg_type2.min(axis=1)),
+                          self.platform)
+
+    def as_dict(self, i: int = 0) -> dict[str, object]:
+        return {"leg_type1": self.leg_type1[i].tolist(), "leg_type2": self.leg_type2[i].tolist(),
+                "platform": float(self.platform[i]), "minimum": float(self.minimum[i])}
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    """Batched whole-robot configurations (leading axis n)."""
+
+    status: np.ndarray  # (n,) bit i set when leg i failed; 0 = solved
+    leg_status: np.ndarray  # (n, 3) each leg's status bitmask (kinematics.leg)
+    position: np.ndarray  # (n, 3) platform centre [m]
+    rotation: np.ndarray  # (n, 3, 3) platform orientation
+    psi: np.ndarray  # (n, 3) crank angles [rad]
+    theta: np.ndarray  # (n, 9) actuated angles [rad], legs 0..2 each A, B, C
+    P: np.ndarray  # (n, 3, 3) spherical joint centres P_i in the robot frame [m]
+    q: np.ndarray  # (n, nq) Pinocchio configuration of the spanning tree
+    legs: tuple[LegState, ...]  # per leg, batched
+    margins: RobotMargins
+
+    def __len__(self) -> int:
+        return int(self.status.shape[0])
+
+    @property
+    def ok(self) -> np.ndarray:
+        return self.status == 0
+
+
+# --------------------------------------------------------------------- q layout
+@functools.lru_cache(maxsize=1)
+def _layout() -> dict[str, int]:
+    """q index of every joint of the committed URDF (from Pinocchio), and the nq."""
+    from robot_description.model import load_model
+
+    m = load_model().model
+    out = {m.names[j]: int(m.joints[j].idx_q) for j in range(1, m.njoints)}
+    out["__nq__"] = int(m.nq)
+    return out
+
+
+def _u_joint_angles(theta_crank: np.ndarray, link_dir: np.ndarray):
+    """U joint (about x, then z) angles so that R_x(theta + a) R_z(b) y = link_dir.
+
+    R_x(a) R_z(b) y = (-sin b, cos b cos a, cos b sin a) in the crank frame; the branch
+    cos b > 0 is taken (the distal link never points along x_f in practice).
+    """
+    c, s = np.cos(theta_crank), np.sin(theta_crank)
+    ux = link_dir[:, 0]
+    uy = c * link_dir[:, 1] + s * link_dir[:, 2]  # R_x(theta)^T u
+    uz = -s * link_dir[:, 1] + c * link_dir[:, 2]
+    a = np.arctan2(uz, uy)
+    b = np.arctan2(-ux, np.hypot(uy, uz))
+    return a, b
+
+
+def platform_margin(rotation: np.ndarray, P: np.ndarray, position: np.ndarray,
+                    geom: RobotGeometry = DEFAULT_ROBOT) -> np.ndarray:
+    """(n,) sigma_min / sigma_max of the column-scaled 9x9 platform Jacobian.
+
+    v_Pi = v_O + omega x (P_i - O) + psi_dot_i z_p x (P_i - R_i); angular columns are
+    multiplied by L = sqrt(rho^2 + c^2) and crank columns by c to make them [m/s].
+    Zero when a crank is parallel to its radius (the platform can spin while the cranks
+    counter-rotate).
+    """
+    n = rotation.shape[0]
+    L = math.hypot(geom.platform_radius, geom.platform_crank)
+    c = geom.platform_crank
+    z = rotation[:, :, 2]  # (n, 3)
+    J = np.zeros((n, 9, 9))
+    for i in range(NUM_LEGS):
+        r = P[:, i] - position  # (n, 3)
+        R_i = position + np.einsum("nij,j->ni", rotation, geom.crank_axis_position(i))
+        s = P[:, i] - R_i
+        rows = slice(3 * i, 3 * i + 3)
+        J[:, rows, 0:3] = np.eye(3)
+        # omega x r = -[r]x omega
+        J[:, rows, 3:6] = -_skew(r) / L
+        J[:, rows, 6 + i] = np.cross(z, s) / c
+    sv = np.linalg.svd(J, compute_uv=False)
+    return sv[:, -1] / sv[:, 0]
+
+
+def _rot_x(a: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotations about x by angles a (n,) [rad]."""
+    c, s = np.cos(a), np.sin(a)
+    R = np.zeros((a.shape[0], 3, 3))
+    R[:, 0, 0] = 1.0
+    R[:, 1, 1], R[:, 1, 2], R[:, 2, 1], R[:, 2, 2] = c, -s, s, c
+    return R
+
+
+def _rot_z(a: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotations about z by angles a (n,) [rad]."""
+    c, s = np.cos(a), np.sin(a)
+    R = np.zeros((a.shape[0], 3, 3))
+    R[:, 2, 2] = 1.0
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1] = c, -s, s, c
+    return R
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    out = np.zeros((*v.shape[:-1], 3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
+
+def _as_batch(position, rotation, psi):
+    position = np.atleast_2d(np.asarray(position, dtype=float))
+    rotation = np.asarray(rotation, dtype=float)
+    if rotation.ndim == 2:
+        rotation = rotation[None]
+    n = max(position.shape[0], rotation.shape[0])
+    psi = np.broadcast_to(np.asarray(psi, dtype=float), (n, NUM_LEGS))
+    position = np.broadcast_to(position, (n, 3))
+    rotation = np.broadcast_to(rotation, (n, 3, 3))
+    if position.shape[-1] != 3 or rotation.shape[-2:] != (3, 3):
+        raise InputError("position must be (n, 3) [m] and rotation (n, 3, 3)")
+    for name, arr in (("position", position), ("rotation", rotation), ("psi", psi)):
+        if not np.all(np.isfinite(arr)):
+            raise InputError(f"{name} must be finite (got NaN or inf)")
+    err = np.abs(np.einsum("nji,njk->nik", rotation, rotation) - np.eye(3)).max()
+    if err > 1e-6:
+        raise InputError(f"rotation is not orthonormal (|R^T R - I| = {err:.2e})")
+    return np.ascontiguousarray(position), np.ascontiguousarray(rotation), np.array(psi)
+
+
+def crank_tips(position, rotation, psi, geom: RobotGeometry = DEFAULT_ROBOT) -> np.ndarray:
+    """(n, 3, 3) P_i in the robot frame for platform poses and crank angles [m]."""
+    n = position.shape[0]
+    P = np.empty((n, NUM_LEGS, 3))
+    for i in range(NUM_LEGS):
+        b = geom.crank_axis_angle(i) + psi[:, i]
+        local = geom.crank_axis_position(i) + geom.platform_crank * np.c_[
+            np.cos(b), np.sin(b), np.zeros(n)]
+        P[:, i] = position + np.einsum("nij,nj->ni", rotation, local)
+    return P
+
+
+def robot_ik(position, rotation, psi=HOME_PSI, geom: RobotGeometry = DEFAULT_ROBOT,
+             mode: AssemblyMode | str = DEFAULT_MODE) -> RobotConfig:
+    """Batched closed-form IK: platform pose (n, 3) [m], (n, 3, 3) and psi (n, 3) [rad].
+
+    Failed samples have ``status != 0`` (bit i: leg i), zeros in q and theta, margins 0.
+    """
+    position, rotation, psi = _as_batch(position, rotation, psi)
+    mode = AssemblyMode.parse(mode)
+    n = position.shape[0]
+    lay = _layout()
+    leg = geom.leg
+    P = crank_tips(position, rotation, psi, geom)
+    q = np.zeros((n, lay["__nq__"]))
+    theta = np.zeros((n, 3 * NUM_LEGS))
+    status = np.zeros(n, dtype=np.int64)
+    leg_status = np.zeros((n, NUM_LEGS), dtype=np.int64)
+    legs = []
+    for i in range(NUM_LEGS):
+        s = leg_ik(geom.to_leg(i, P[:, i]), leg, mode)
+        legs.append(s)
+        leg_status[:, i] = s.status
+        status |= np.where(s.ok, 0, 1 << i)
+        theta[:, 3 * i:3 * i + 3] = s.theta
+        a_g, b_g = _u_joint_angles(s.theta[:, 1], (s.e - s.g) / leg.l4)
+        a_h, b_h = _u_joint_angles(s.theta[:, 2], (s.f - s.h) / leg.l5)
+        for name, val in (("A", s.theta[:, 0]), ("Ds2", s.theta_s[:, 0]),
+                          ("Ds3", s.theta_s[:, 1]), ("B", s.theta[:, 1]), ("Ga", a_g),
+                          ("Gb", b_g), ("C", s.theta[:, 2]), ("Ha", a_h), ("Hb", b_h)):
+            q[:, lay[f"leg{i}_{name}"]] = val
+    iq = lay["platform_free"]
+    q[:, iq:iq + 3] = position
+    q[:, iq + 3:iq + 7] = Rotation.from_matrix(rotation).as_quat()  # (x, y, z, w)
+    for i in range(NUM_LEGS):
+        q[:, lay[f"platform_crank{i}"]] = psi[:, i]
+    bad = status != 0
+    q[bad] = 0.0
+    q[bad, iq + 6] = 1.0  # keep a valid unit quaternion
+    theta[bad] = 0.0
+    margins = RobotMargins(
+        leg_type1=np.stack([s.margin_I for s in legs], axis=1),
+        leg_type2=np.stack([s.margin_II for s in legs], axis=1),
+        platform=np.where(bad, 0.0, platform_margin(rotation, P, position, geom)),
+    )
+    return RobotConfig(status=status, leg_status=leg_status, position=position,
+                       rotation=rotation, psi=psi, theta=theta, P=P, q=q, legs=tuple(legs),
+                       margins=margins)
+
+
+def robot_ik_pose(position, rpy=(0.0, 0.0, 0.0), psi=HOME_PSI,
+                  geom: RobotGeometry = DEFAULT_ROBOT,
+                  mode: AssemblyMode | str = DEFAULT_MODE) -> RobotConfig:
+    """IK of one pose (position [m], roll/pitch/yaw [rad]); raises naming the failing leg."""
+    pos = np.asarray(position, dtype=float)
+    if pos.shape != (3,) or np.asarray(rpy).shape != (3,) or np.asarray(psi).shape != (3,):
+        raise InputError("position, rpy and psi must each be 3 numbers")
+    cfg = robot_ik(pos, rpy_matrix(*rpy), psi, geom, mode)
+    if cfg.status[0]:
+        for i in range(NUM_LEGS):
+            st = int(cfg.leg_status[0, i])
+            if st:
+                raise UnreachableError(
+                    f"leg {i} {failing_chain(st)}", tuple(cfg.P[0, i].round(6).tolist()),
+                    f"{status_reason(st)} (P_{i} in the robot frame [m])")
+    return cfg
+
+
+def home(geom: RobotGeometry = DEFAULT_ROBOT) -> RobotConfig:
+    """The home pose: platform horizontal at HOME_HEIGHT above the base, psi = 90 deg."""
+    return robot_ik_pose((0.0, 0.0, HOME_HEIGHT), (0.0, 0.0, 0.0), HOME_PSI, geom)
+
+
+# --------------------------------------------------------------------- spherical joints
+@functools.lru_cache(maxsize=4)
+def _spherical_reference(geom: RobotGeometry) -> np.ndarray:
+    """Mounting axes of the S joints, fixed in their bodies, from the home pose.
+
+    Returns (3 legs, 3 joints E/F/P, 2 sides, 3): for E and F, (axis in the leg body
+    frame, axis in the distal link frame); for P, (axis in the leg body frame, axis in the
+    platform crank frame).  The joint is mounted centred at home: tilt 0.
+    """
+    h = home(geom)
+    ref = np.zeros((NUM_LEGS, 3, 2, 3))
+    frames = _body_frames(h, geom)
+    for i in range(NUM_LEGS):
+        body, dist_b, dist_c, crank = (f[0] for f in frames[i])
+        for j, other in enumerate((dist_b, dist_c)):
+            axis = other[:, 1]  # distal link direction in the world
+            ref[i, j] = (body.T @ axis, other.T @ axis)
+        axis = body[:, 0]  # D -> P
+        ref[i, 2] = (body.T @ axis, crank.T @ axis)
+    return ref
+
+
+def _body_frames(cfg: RobotConfig, geom: RobotGeometry):
+    """World rotations (n, 3, 3) of leg body, distal B, distal C, platform crank i."""
+    out = []
+    lay = _layout()
+    for i in range(NUM_LEGS):
+        Rl = geom.leg_rotation(i)
+        s = cfg.legs[i]
+        q = cfg.q
+        body = Rl @ s.Q
+        distal = []
+        for crank_joint, ua, ub in (("B", "Ga", "Gb"), ("C", "Ha", "Hb")):
+            ang = q[:, lay[f"leg{i}_{crank_joint}"]] + q[:, lay[f"leg{i}_{ua}"]]
+            b = q[:, lay[f"leg{i}_{ub}"]]
+            distal.append(Rl @ _rot_x(ang) @ _rot_z(b))
+        crank = cfg.rotation @ _rot_z(geom.crank_axis_angle(i) + cfg.psi[:, i])
+        out.append((body, distal[0], distal[1], crank))
+    return out
+
+
+def spherical_tilts(cfg: RobotConfig, geom: RobotGeometry = DEFAULT_ROBOT) -> np.ndarray:
+    """(n, 3, 3) tilt [rad] of every spherical joint (leg, E/F/P) from its home axis.
+
+    The range check of SPEC.md: each must stay below 150 deg (``SPHERICAL_LIMIT``).
+    """
+    ref = _spherical_reference(geom)
+    frames = _body_frames(cfg, geom)
+    tilt = np.zeros((len(cfg), NUM_LEGS, 3))
+    for i in range(NUM_LEGS):
+        body, dist_b, dist_c, crank = frames[i]
+        for j, other in enumerate((dist_b, dist_c, crank)):
+            a = body @ ref[i, j, 0]
+            b = other @ ref[i, j, 1]
+            tilt[:, i, j] = np.arccos(np.clip(np.sum(a * b, axis=1), -1.0, 1.0))
+    return np.where(cfg.ok[:, None, None], tilt, 0.0)
+
+
+def spherical_ok(cfg: RobotConfig, geom: RobotGeometry = DEFAULT_ROBOT) -> np.ndarray:
+    """(n,) every spherical joint within +-150 deg."""
+    return np.all(spherical_tilts(cfg, geom) <= SPHERICAL_LIMIT, axis=(1, 2))
+
+
+# --------------------------------------------------------------------- forward kinematics
+@dataclass(frozen=True)
+class RobotFK:
+    q: np.ndarray  # (nq,) full tree configuration
+    position: np.ndarray  # (3,) platform centre [m]
+    rotation: np.ndarray  # (3, 3)
+    psi: np.ndarray  # (3,) crank angles [rad]
+    residual: float  # max closure residual [m]
+    iterations: int
+
+
+def robot_fk(theta, q_hint=None, tol: float = 1e-12, max_iter: int = 50,
+             model=None) -> RobotFK:
+    """9 actuated angles [rad] -> full configuration, by Newton on the 27 closures.
+
+    ``q_hint`` (a previous configuration, default: home) selects the assembly branch; the
+    actuated coordinates are overwritten by ``theta`` and only the 27 passive velocity
+    coordinates move.  Raises :class:`ConvergenceError` when the closure residual does not
+    drop below ``tol`` [m] within ``max_iter`` Gauss-Newton steps.
+    """
+    import pinocchio as pin
+
+    from robot_description.model import load_model
+
+    clm = model or load_model()
+    theta = np.asarray(theta, dtype=float)
+    if theta.shape != (9,) or not np.all(np.isfinite(theta)):
+        raise InputError(f"theta must be 9 finite angles [rad], got shape {theta.shape}")
+    q = (home().q[0] if q_hint is None else np.array(q_hint, dtype=float)).copy()
+    if q.shape != (clm.model.nq,):
+        raise InputError(f"q_hint must have {clm.model.nq} entries, got {q.shape}")
+    q[clm.idx_q_act] = theta
+    pas = clm.idx_v_pas
+    res = math.inf
+    for it in range(max_iter + 1):
+        r = clm.residual(q)
+        res = float(np.abs(r).max())
+        if res < tol:
+            break
+        if it == max_iter or not math.isfinite(res):
+            raise ConvergenceError(
+                f"robot forward kinematics did not converge: closure residual {res:.3e} m "
+                f"after {it} iterations (tolerance {tol:g} m); theta may be unreachable or "
+                "the hint is on another assembly branch")
+        Jp = clm.constraint_jacobian(q)[:, pas]
+        dv = np.zeros(clm.model.nv)
+        dv[pas] = -np.linalg.lstsq(Jp, r, rcond=None)[0]
+        step = np.abs(dv).max()
+        if step > 0.3:  # damp steps beyond ~17 deg / 0.3 m
+            dv *= 0.3 / step
+        q = pin.integrate(clm.model, q, dv)
+    iq = clm.q_index("platform_free")
+    quat = q[iq + 3:iq + 7]
+    psi = np.array([q[clm.q_index(f"platform_crank{i}")] for i in range(NUM_LEGS)])
+    return RobotFK(q=q, position=q[iq:iq + 3].copy(),
+                   rotation=Rotation.from_quat(quat).as_matrix(), psi=psi, residual=res,
+                   iterations=it)

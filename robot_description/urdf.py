@@ -1,0 +1,313 @@
+"""Generate the robot's URDF (a spanning tree) and its loop closures (Extended URDF YAML).
+
+    python -m robot_description.urdf            # (re)write robot_description/urdf/*
+    python -m robot_description.urdf --check    # exit 1 if the committed files are stale
+
+Tree (every joint named here is in the URDF):
+
+- ``base_link``, fixed;
+- leg i: ``leg{i}_A`` (actuated, R at A about x_f) -> ``leg{i}_proximal`` -> U at D as
+  ``leg{i}_Ds2`` (about x, th_s2) and ``leg{i}_Ds3`` (about z, th_s3, mounted at
+  R_z(-pi/2) so that the body frame is Q of paper eq. 1) -> ``leg{i}_body`` (DEFP);
+  ``leg{i}_B`` (actuated) -> ``leg{i}_crankB`` -> U at G as ``leg{i}_Ga`` (about x) and
+  ``leg{i}_Gb`` (about z) -> ``leg{i}_distalB`` (along its y, E at its tip); the same for
+  C, H and F;
+- ``platform_free`` (floating) -> ``platform`` -> ``platform_crank{i}`` (about z_p,
+  psi_i = 0 along the outward radius) -> ``platform_crank{i}_link`` (P_i at its tip).
+
+Closures (all spherical, 3D point coincidence): for leg i, k = 3i + (0: E, 1: F, 2: P):
+``closedloop{k}_A`` on the leg body at E / F / P, ``closedloop{k}_B`` at the tip of
+distal link B / distal link C / platform crank i.  36 tree DoF - 27 constraint rows = 9.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from robot_description.robot import NUM_LEGS, POINT_MASS, MassModel, RobotGeometry
+
+URDF_DIR = Path(__file__).resolve().parent / "urdf"
+URDF_PATH = URDF_DIR / "sixplus3.urdf"
+CLOSURES_PATH = URDF_DIR / "sixplus3_closures.yaml"
+POINT_MASS_URDF_PATH = URDF_DIR / "sixplus3_pointmass.urdf"
+
+#: Actuated joint range [rad]: 0..270 deg; (270, 360) deg hits the base plate (paper §V-A).
+ACTUATED_LIMITS = (0.0, 1.5 * math.pi)
+#: Actuator torque limit [N m] (5 N m motors through 72/34 belts, limited to 10).
+TORQUE_LIMIT = 10.0
+#: Joint speed limit [rad/s]: 300 rpm rated motor speed through the 72/34 belt.
+VELOCITY_LIMIT = 300.0 * 2.0 * math.pi / 60.0 * 34.0 / 72.0
+#: Spherical joint range [rad] (Schreiber's 4-DoF spherical joints, paper §VI): a check.
+SPHERICAL_LIMIT = math.radians(150.0)
+
+ROD_RADIUS = 0.008
+JOINT_SPHERE = 0.014
+
+
+def actuated_joint_names() -> list[str]:
+    """The 9 actuated joints, legs 0..2, each in the order A, B, C."""
+    return [f"leg{i}_{s}" for i in range(NUM_LEGS) for s in "ABC"]
+
+
+def closure_pairs() -> list[tuple[str, str]]:
+    return [(f"closedloop{k}_A", f"closedloop{k}_B") for k in range(3 * NUM_LEGS)]
+
+
+def _f(x: float) -> str:
+    """Shortest repr that round-trips exactly (closure residuals must reach 1e-12 m)."""
+    return repr(float(x)) if x != 0 else "0"
+
+
+def _vec(v) -> str:
+    return " ".join(_f(x) for x in v)
+
+
+def _rod_inertia(mass: float, start: np.ndarray, end: np.ndarray, radius: float):
+    """COM and inertia tensor (about the COM, link axes) of a uniform rod."""
+    start, end = np.asarray(start, float), np.asarray(end, float)
+    axis = end - start
+    length = float(np.linalg.norm(axis))
+    u = axis / length
+    i_perp = mass * length**2 / 12.0 + mass * radius**2 / 4.0
+    i_axis = mass * radius**2 / 2.0
+    inertia = i_perp * (np.eye(3) - np.outer(u, u)) + i_axis * np.outer(u, u)
+    return (start + end) / 2.0, inertia
+
+
+@dataclass
+class _Builder:
+    geom: RobotGeometry
+    masses: MassModel
+    root: ET.Element
+
+    # ------------------------------------------------------------------ elements
+    def link(self, name: str, mass: float = 0.0, com=(0, 0, 0), inertia=None) -> ET.Element:
+        el = ET.SubElement(self.root, "link", name=name)
+        if mass > 0.0 or inertia is not None:
+            inertial = ET.SubElement(el, "inertial")
+            ET.SubElement(inertial, "origin", xyz=_vec(com), rpy="0 0 0")
+            ET.SubElement(inertial, "mass", value=_f(mass))
+            inn = np.zeros((3, 3)) if inertia is None else inertia
+            ET.SubElement(inertial, "inertia", ixx=_f(inn[0, 0]), ixy=_f(inn[0, 1]),
+                          ixz=_f(inn[0, 2]), iyy=_f(inn[1, 1]), iyz=_f(inn[1, 2]),
+                          izz=_f(inn[2, 2]))
+        return el
+
+    def rod_link(self, name: str, mass: float, start, end, material: str,
+                 radius: float = ROD_RADIUS) -> ET.Element:
+        if self.masses.point_mass:
+            el = self.link(name)
+        else:
+            com, inertia = _rod_inertia(mass, start, end, radius)
+            el = self.link(name, mass, com, inertia)
+        self.cylinder(el, start, end, radius, material)
+        return el
+
+    def cylinder(self, link: ET.Element, start, end, radius: float, material: str) -> None:
+        start, end = np.asarray(start, float), np.asarray(end, float)
+        axis = end - start
+        length = float(np.linalg.norm(axis))
+        u = axis / length
+        # rotate the URDF cylinder axis (z) onto u: pitch then yaw
+        pitch = math.acos(max(-1.0, min(1.0, u[2])))
+        yaw = math.atan2(u[1], u[0])
+        vis = ET.SubElement(link, "visual")
+        ET.SubElement(vis, "origin", xyz=_vec((start + end) / 2), rpy=_vec((0.0, pitch, yaw)))
+        geo = ET.SubElement(vis, "geometry")
+        ET.SubElement(geo, "cylinder", radius=_f(radius), length=_f(length))
+        ET.SubElement(vis, "material", name=material)
+
+    def sphere(self, link: ET.Element, center, radius: float, material: str) -> None:
+        vis = ET.SubElement(link, "visual")
+        ET.SubElement(vis, "origin", xyz=_vec(center), rpy="0 0 0")
+        geo = ET.SubElement(vis, "geometry")
+        ET.SubElement(geo, "sphere", radius=_f(radius))
+        ET.SubElement(vis, "material", name=material)
+
+    def joint(self, name: str, kind: str, parent: str, child: str, xyz=(0, 0, 0),
+              rpy=(0, 0, 0), axis=None, limits=None, effort=0.0, velocity=0.0) -> None:
+        el = ET.SubElement(self.root, "joint", name=name, type=kind)
+        ET.SubElement(el, "parent", link=parent)
+        ET.SubElement(el, "child", link=child)
+        ET.SubElement(el, "origin", xyz=_vec(xyz), rpy=_vec(rpy))
+        if axis is not None:
+            ET.SubElement(el, "axis", xyz=_vec(axis))
+        if limits is not None:
+            ET.SubElement(el, "limit", lower=_f(limits[0]), upper=_f(limits[1]),
+                          effort=_f(effort), velocity=_f(velocity))
+
+    def frame(self, name: str, parent: str, xyz) -> None:
+        """A massless frame link on ``parent`` (Pinocchio turns it into a frame)."""
+        self.link(name)
+        self.joint(f"{name}_fixed", "fixed", parent, name, xyz=xyz)
+
+    def passive(self, name: str, parent: str, child: str, axis, xyz=(0, 0, 0),
+                rpy=(0, 0, 0), limit: float = math.pi) -> None:
+        self.joint(name, "revolute", parent, child, xyz=xyz, rpy=rpy, axis=axis,
+                   limits=(-limit, limit), effort=0.0, velocity=100.0)
+
+
+def build_urdf(geom: RobotGeometry | None = None, masses: MassModel | None = None,
+               name: str = "sixplus3") -> str:
+    """The URDF text of the spanning tree."""
+    geom = geom or RobotGeometry()
+    masses = masses or MassModel()
+    leg = geom.leg
+    root = ET.Element("robot", name=name)
+    for mat, rgba in (("base", "0.25 0.25 0.28 1"), ("motor", "0.1 0.1 0.1 1"),
+                      ("alu", "0.75 0.77 0.80 1"), ("carbon", "0.15 0.15 0.15 1"),
+                      ("joint", "0.85 0.45 0.10 1"), ("platform", "0.20 0.45 0.80 1")):
+        m = ET.SubElement(root, "material", name=mat)
+        ET.SubElement(m, "color", rgba=rgba)
+    b = _Builder(geom, masses, root)
+
+    base = b.link("base_link")
+    plate = ET.SubElement(base, "visual")
+    ET.SubElement(plate, "origin", xyz="0 0 -0.04", rpy="0 0 0")
+    ET.SubElement(ET.SubElement(plate, "geometry"), "cylinder", radius="0.2", length="0.02")
+    ET.SubElement(plate, "material", name="base")
+    for p in geom.actuated_joint_positions():
+        # motor housings along the actuated axes (visual only)
+        b.sphere(base, p, 0.022, "motor")
+
+    pm = masses.point_mass
+    for i in range(NUM_LEGS):
+        A = geom.leg_origin(i)
+        x = geom.leg_rotation(i)[:, 0]
+        yaw = (0.0, 0.0, geom.leg_yaw(i))
+        act = {"limits": ACTUATED_LIMITS, "effort": TORQUE_LIMIT, "velocity": VELOCITY_LIMIT}
+        b.cylinder(base, A - (leg.l7 + 0.03) * x, A + (leg.l6 + 0.03) * x, 0.012, "motor")
+        # RU chain
+        b.rod_link(f"leg{i}_proximal", masses.proximal, (0, 0, 0), (0, leg.l1, 0), "alu")
+        b.joint(f"leg{i}_A", "revolute", "base_link", f"leg{i}_proximal", xyz=A, rpy=yaw,
+                axis=(1, 0, 0), **act)
+        ucross_d = b.link(f"leg{i}_ucrossD", 0.0 if pm else masses.ucross, (0, 0, 0),
+                          None if pm else np.eye(3) * 1e-6)
+        b.sphere(ucross_d, (0, 0, 0), JOINT_SPHERE, "joint")
+        b.passive(f"leg{i}_Ds2", f"leg{i}_proximal", f"leg{i}_ucrossD", (1, 0, 0),
+                  xyz=(0, leg.l1, 0))
+        if pm:
+            body = b.link(f"leg{i}_body", masses.point_mass_value, (leg.dp, 0, 0),
+                          np.zeros((3, 3)))
+        else:
+            com, inertia = _rod_inertia(masses.body, (0, 0, 0), (leg.dp, 0, 0), ROD_RADIUS)
+            body = b.link(f"leg{i}_body", masses.body, com, inertia)
+        b.cylinder(body, (0, 0, 0), (leg.dp, 0, 0), ROD_RADIUS, "alu")
+        b.cylinder(body, (0, 0, 0), leg.e_b, ROD_RADIUS * 0.8, "alu")
+        b.cylinder(body, (0, 0, 0), leg.f_b, ROD_RADIUS * 0.8, "alu")
+        for pt in (leg.e_b, leg.f_b, (leg.dp, 0, 0)):
+            b.sphere(body, pt, JOINT_SPHERE, "joint")
+        b.passive(f"leg{i}_Ds3", f"leg{i}_ucrossD", f"leg{i}_body", (0, 0, 1),
+                  rpy=(0, 0, -math.pi / 2))
+        b.frame(f"closedloop{3 * i}_A", f"leg{i}_body", leg.e_b)
+        b.frame(f"closedloop{3 * i + 1}_A", f"leg{i}_body", leg.f_b)
+        b.frame(f"closedloop{3 * i + 2}_A", f"leg{i}_body", (leg.dp, 0, 0))
+        b.frame(f"leg{i}_P", f"leg{i}_body", (leg.dp, 0, 0))
+        # RUS chains at B (closing at E) and C (closing at F)
+        for side, off, crank, link_len, k in (("B", leg.l6, leg.l2, leg.l4, 3 * i),
+                                              ("C", -leg.l7, leg.l3, leg.l5, 3 * i + 1)):
+            uj = "G" if side == "B" else "H"
+            b.rod_link(f"leg{i}_crank{side}", masses.crank, (0, 0, 0), (0, crank, 0), "alu")
+            b.joint(f"leg{i}_{side}", "revolute", "base_link", f"leg{i}_crank{side}",
+                    xyz=A + off * x, rpy=yaw, axis=(1, 0, 0), **act)
+            ucross = b.link(f"leg{i}_ucross{uj}", 0.0 if pm else masses.ucross, (0, 0, 0),
+                            None if pm else np.eye(3) * 1e-6)
+            b.sphere(ucross, (0, 0, 0), JOINT_SPHERE, "joint")
+            b.passive(f"leg{i}_{uj}a", f"leg{i}_crank{side}", f"leg{i}_ucross{uj}", (1, 0, 0),
+                      xyz=(0, crank, 0))
+            b.rod_link(f"leg{i}_distal{side}", masses.distal, (0, 0, 0), (0, link_len, 0),
+                       "carbon", radius=ROD_RADIUS * 0.75)
+            b.passive(f"leg{i}_{uj}b", f"leg{i}_ucross{uj}", f"leg{i}_distal{side}", (0, 0, 1))
+            b.frame(f"closedloop{k}_B", f"leg{i}_distal{side}", (0, link_len, 0))
+
+    # platform
+    if pm:
+        platform = b.link("platform")
+    else:
+        r, h, m = geom.platform_radius + 0.01, 0.01, masses.platform
+        ixx = m * (3 * r * r + h * h) / 12.0
+        platform = b.link("platform", m, (0, 0, 0), np.diag([ixx, ixx, m * r * r / 2.0]))
+    vis = ET.SubElement(platform, "visual")
+    ET.SubElement(vis, "origin", xyz="0 0 0", rpy="0 0 0")
+    ET.SubElement(ET.SubElement(vis, "geometry"), "cylinder",
+                  radius=_f(geom.platform_radius + 0.012), length="0.01")
+    ET.SubElement(vis, "material", name="platform")
+    b.joint("platform_free", "floating", "base_link", "platform")
+    for i in range(NUM_LEGS):
+        beta = geom.crank_axis_angle(i)
+        c = geom.platform_crank
+        b.rod_link(f"platform_crank{i}_link", masses.platform_crank, (0, 0, 0), (c, 0, 0),
+                   "platform")
+        b.passive(f"platform_crank{i}", "platform", f"platform_crank{i}_link", (0, 0, 1),
+                  xyz=geom.crank_axis_position(i), rpy=(0, 0, beta))
+        b.frame(f"closedloop{3 * i + 2}_B", f"platform_crank{i}_link", (c, 0, 0))
+
+    ET.indent(root, space="  ")
+    header = ("<?xml version=\"1.0\"?>\n<!-- Generated by robot_description/urdf.py from the "
+              "parametric geometry; do not edit. Loop closures: sixplus3_closures.yaml -->\n")
+    return header + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def build_closures_yaml() -> str:
+    """Loop closures in the Extended URDF schema of Gepetto's example-parallel-robots."""
+    pairs = closure_pairs()
+    lines = [
+        "# Loop closures of sixplus3.urdf (Extended URDF schema of Gepetto's",
+        "# example-parallel-robots). Generated by robot_description/urdf.py; do not edit.",
+        "# Every closure is a spherical joint: 3D coincidence of the two frame origins.",
+        "closed_loop: [" + ", ".join(f"['{a}', '{b}']" for a, b in pairs) + "]",
+        "type: [" + ", ".join("'3d'" for _ in pairs) + "]",
+        "name_mot: [" + ", ".join(f"'{n}'" for n in actuated_joint_names()) + "]",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def generated_files() -> dict[Path, str]:
+    return {
+        URDF_PATH: build_urdf(),
+        POINT_MASS_URDF_PATH: build_urdf(masses=POINT_MASS, name="sixplus3_pointmass"),
+        CLOSURES_PATH: build_closures_yaml(),
+    }
+
+
+def check() -> list[Path]:
+    """The committed files that differ from what the generator makes now."""
+    return [p for p, text in generated_files().items()
+            if not p.exists() or p.read_text() != text]
+
+
+def write() -> list[Path]:
+    URDF_DIR.mkdir(parents=True, exist_ok=True)
+    out = []
+    for path, text in generated_files().items():
+        tmp = path.with_suffix(path.suffix + ".tmp")
+        tmp.write_text(text)
+        tmp.replace(path)  # atomic
+        out.append(path)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description="Generate the sixplus3 URDF and closures.")
+    ap.add_argument("--check", action="store_true",
+                    help="exit 1 if the committed files differ from the generator")
+    args = ap.parse_args(argv)
+    if args.check:
+        stale = check()
+        for p in stale:
+            print(f"stale: {p}", file=sys.stderr)
+        return 1 if stale else 0
+    for p in write():
+        print(f"wrote {p}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
