@@ -23,7 +23,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from kinematics.leg import DEFAULT_MODE, AssemblyMode, LegState, failing_chain, leg_ik, status_reason
+from kinematics.leg import (
+    DEFAULT_MODE,
+    AssemblyMode,
+    LegState,
+    failing_chain,
+    leg_ik,
+    status_reason,
+)
 from robot_description.robot import NUM_LEGS, RobotGeometry
 from robot_description.urdf import SPHERICAL_LIMIT
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError

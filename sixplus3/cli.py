@@ -112,6 +112,124 @@ def leg(x: float, y: float, z: float, force: tuple[float, float, float] | None, 
     click.echo(f"  tau_ext = {state.tau_ext[0]:.4f} N m  (F = F_g + 2 m g B^3, m = 0.5 kg)")
 
 
+@main.group()
+def robot() -> None:
+    """The whole robot: URDF + closures, inverse kinematics, statics."""
+
+
+@robot.command("check")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def robot_check(as_json: bool) -> None:
+    """Load the URDF and closures and check the home pose."""
+    import numpy as np
+
+    from dynamics.closed_loop import ClosedLoopDynamics
+    from kinematics.robot import HOME_HEIGHT, home, spherical_tilts
+    from robot_description.model import load_model
+    from robot_description.urdf import check as urdf_stale
+    from sixplus3.errors import Sixplus3Error
+
+    try:
+        clm = load_model()
+        h = home()
+        q = h.q[0]
+        residual = float(np.abs(clm.residual(q)).max())
+        rank = int(np.linalg.matrix_rank(clm.constraint_jacobian(q), tol=1e-9))
+        tau = ClosedLoopDynamics(clm).gravity_torques(q)
+    except Sixplus3Error as exc:
+        _fail(str(exc))
+        return
+    out = {
+        "urdf": str(clm.urdf_path), "closures_file": str(clm.closures_path),
+        "generated_files_fresh": not urdf_stale(),
+        "nq": clm.model.nq, "nv": clm.model.nv, "actuated": len(clm.actuated_names),
+        "closures": len(clm.pairs), "constraint_rows": clm.n_constraints,
+        "constraint_rank_home": rank, "mobility": clm.model.nv - rank,
+        "home_height_m": HOME_HEIGHT, "home_residual_m": residual,
+        "margins": h.margins.as_dict(),
+        "max_spherical_tilt_deg": float(np.degrees(spherical_tilts(h).max())),
+        "tau_gravity_home": tau, "total_mass_kg": clm.total_mass(),
+    }
+    if as_json:
+        click.echo(json.dumps(out, default=_json_default))
+        return
+    click.echo(f"URDF      {out['urdf']}\nclosures  {out['closures_file']}"
+               f"   (generated files fresh: {out['generated_files_fresh']})")
+    click.echo(f"tree DoF  nq = {out['nq']}, nv = {out['nv']}; {out['actuated']} actuated joints")
+    click.echo(f"closures  {out['closures']} spherical, {out['constraint_rows']} rows, rank "
+               f"{rank} at home -> mobility {out['mobility']}")
+    click.echo(f"home      platform at z = {HOME_HEIGHT} m, psi = 90 deg; closure residual "
+               f"{residual:.2e} m")
+    m = out["margins"]
+    click.echo("margins   leg type I " + " ".join(f"{v:.3f}" for v in m["leg_type1"])
+               + " | leg type II " + " ".join(f"{v:.3f}" for v in m["leg_type2"])
+               + f" | platform {m['platform']:.3f}")
+    click.echo("tau_g     " + " ".join(f"{v:+.3f}" for v in tau) + "  N m (home)")
+    click.echo(f"mass      {out['total_mass_kg']:.3f} kg")
+
+
+@robot.command("ik", context_settings=_NUMERIC_ARGS)
+@click.argument("x", type=float)
+@click.argument("y", type=float)
+@click.argument("z", type=float)
+@click.argument("roll", type=float)
+@click.argument("pitch", type=float)
+@click.argument("yaw", type=float)
+@click.option("--redundancy", nargs=3, type=float, default=(90.0, 90.0, 90.0),
+              show_default=True, metavar="A1 A2 A3", help="Crank angles psi_i [deg].")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def robot_ik_cmd(x: float, y: float, z: float, roll: float, pitch: float, yaw: float,
+                 redundancy: tuple[float, float, float], as_json: bool) -> None:
+    """Inverse kinematics of the platform pose X Y Z [m], ROLL PITCH YAW [deg].
+
+    Prints the 9 actuated angles (legs 0..2, each A, B, C), the closure residual, the
+    singularity margins and the static gravity torques.
+    """
+    import numpy as np
+
+    from dynamics.closed_loop import ClosedLoopDynamics
+    from kinematics.robot import robot_ik_pose, spherical_tilts
+    from robot_description.model import load_model
+    from robot_description.urdf import SPHERICAL_LIMIT
+    from sixplus3.errors import Sixplus3Error
+
+    values = (x, y, z, roll, pitch, yaw, *redundancy)
+    if not all(math.isfinite(v) for v in values):
+        _fail(f"pose and redundancy must be finite numbers, got {list(values)}")
+    try:
+        cfg = robot_ik_pose((x, y, z), np.radians([roll, pitch, yaw]),
+                            np.radians(redundancy))
+        clm = load_model()
+        q = cfg.q[0]
+        residual = float(np.abs(clm.residual(q)).max())
+        tau = ClosedLoopDynamics(clm).gravity_torques(q)
+    except Sixplus3Error as exc:
+        _fail(str(exc))
+        return
+    tilt = float(spherical_tilts(cfg).max())
+    out = {
+        "theta": cfg.theta[0], "residual": residual, "margins": cfg.margins.as_dict(),
+        "tau_gravity": tau, "max_spherical_tilt_deg": math.degrees(tilt),
+        "spherical_ok": tilt <= SPHERICAL_LIMIT,
+        "actuated_range_ok": bool(np.all((cfg.theta[0] >= 0) & (cfg.theta[0] <= 1.5 * math.pi))),
+    }
+    if as_json:
+        click.echo(json.dumps(out, default=_json_default))
+        return
+    th = np.degrees(cfg.theta[0]).reshape(3, 3)
+    for i in range(3):
+        click.echo(f"leg {i}  theta A B C = " + "  ".join(f"{v:8.3f}" for v in th[i]) + " deg")
+    click.echo(f"closure residual {residual:.2e} m")
+    m = out["margins"]
+    click.echo("margins  leg type I " + " ".join(f"{v:.3f}" for v in m["leg_type1"])
+               + " | leg type II " + " ".join(f"{v:.3f}" for v in m["leg_type2"])
+               + f" | platform {m['platform']:.3f}")
+    click.echo("tau_g    " + " ".join(f"{v:+.3f}" for v in tau) + "  N m")
+    click.echo(f"spherical joints: max tilt {out['max_spherical_tilt_deg']:.1f} deg "
+               f"({'ok' if out['spherical_ok'] else 'OVER 150 deg'}); actuated range "
+               f"{'ok' if out['actuated_range_ok'] else 'OUTSIDE [0, 270] deg'}")
+
+
 @main.command()
 @click.option("--ws-step", default=0.005, show_default=True, type=float,
               help="Workspace grid step of the usable-area report [m].")

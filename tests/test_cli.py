@@ -66,3 +66,35 @@ def test_demo_prints_the_leg_report() -> None:
     res = run("demo", "--ws-step", "0.02")
     assert res.exit_code == 0, res.output
     assert "design half-plane" in res.output and "tau_ext <= 10 N m" in res.output
+
+
+def test_robot_check_reports_the_model() -> None:
+    res = run("robot", "check", "--json")
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    assert (out["nq"], out["nv"], out["actuated"], out["closures"]) == (37, 36, 9, 9)
+    assert out["constraint_rank_home"] == 27 and out["mobility"] == 9
+    assert out["home_residual_m"] < 1e-10 and out["generated_files_fresh"]
+    assert out["margins"]["minimum"] > 0.1 and 1.0 < out["total_mass_kg"] < 3.0
+    text = run("robot", "check")
+    assert text.exit_code == 0 and "mobility 9" in text.output
+
+
+def test_robot_ik_with_negative_numbers_and_json() -> None:
+    res = run("robot", "ik", "0.05", "-0.02", "0.30", "-30", "0", "10", "--json")
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    assert len(out["theta"]) == 9 and len(out["tau_gravity"]) == 9
+    assert out["residual"] < 1e-10
+    assert set(out["margins"]) >= {"leg_type1", "leg_type2", "platform", "minimum"}
+    red = json.loads(run("robot", "ik", "0.05", "-0.02", "0.30", "-30", "0", "10",
+                         "--redundancy", "60", "100", "120", "--json").output)
+    assert red["theta"] != out["theta"]  # the redundancy changes the actuated angles
+    assert red["margins"]["platform"] != out["margins"]["platform"]
+
+
+def test_robot_ik_unreachable_exits_2_naming_the_leg() -> None:
+    res = run("robot", "ik", "0", "0", "1.2", "0", "0", "0")
+    assert res.exit_code == 2
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "leg 0" in lines[0] and "RU chain" in lines[0]

@@ -1,0 +1,95 @@
+"""Robot description: generated URDF + closures, loading in yourdfpy and Pinocchio."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import yourdfpy
+
+from robot_description import urdf as gen
+from robot_description.model import load_model, load_model_from, parse_closures
+from robot_description.robot import POINT_MASS, MassModel, RobotGeometry
+from sixplus3.errors import GeometryError, InputError
+
+
+def test_committed_files_match_the_generator() -> None:
+    assert gen.check() == [], "run: python -m robot_description.urdf"
+    assert gen.main(["--check"]) == 0
+
+
+def test_urdf_validates_in_yourdfpy() -> None:
+    for path in (gen.URDF_PATH, gen.POINT_MASS_URDF_PATH):
+        robot = yourdfpy.URDF.load(str(path))
+        assert robot.validate()
+        names = {j.name for j in robot.robot.joints}
+        assert set(gen.actuated_joint_names()) <= names
+        # 27 leg revolute joints + 3 platform cranks + the floating platform
+        assert len(robot.actuated_joints) == 31
+        for name in gen.actuated_joint_names():
+            lim = robot.joint_map[name].limit
+            assert (lim.lower, lim.upper, lim.effort) == (0.0, 1.5 * math.pi, 10.0)
+
+
+def test_pinocchio_model_dimensions_and_closures() -> None:
+    clm = load_model()
+    m = clm.model
+    assert (m.nq, m.nv) == (37, 36)  # free-flyer platform (7/6) + 30 revolute joints
+    assert clm.actuated_names == gen.actuated_joint_names()
+    assert len(clm.constraint_models) == 9
+    assert all(cm.residualSize() == 3 for cm in clm.constraint_models)
+    assert clm.n_constraints == 27 and clm.mobility == 9
+    pairs, types, mot = parse_closures(gen.CLOSURES_PATH)
+    assert pairs == gen.closure_pairs() and types == ["3d"] * 9 and len(mot) == 9
+
+
+def test_masses_match_the_mass_model() -> None:
+    assert load_model().total_mass() == pytest.approx(MassModel().total, abs=1e-9)
+    assert MassModel().leg_total == pytest.approx(0.5)
+    pm = load_model(point_mass=True)
+    assert pm.total_mass() == pytest.approx(1.5)
+    leg_bodies = [pm.model.inertias[pm.model.getJointId(f"leg{i}_Ds3")] for i in range(3)]
+    for inertia in leg_bodies:
+        assert inertia.mass == pytest.approx(POINT_MASS.point_mass_value)
+        np.testing.assert_allclose(inertia.lever, [RobotGeometry().leg.dp, 0, 0])
+
+
+def test_layout_matches_the_spec() -> None:
+    g = RobotGeometry()
+    A = np.array([g.leg_origin(i) for i in range(3)])
+    for i in range(3):
+        for j in range(i + 1, 3):
+            assert np.linalg.norm(A[i] - A[j]) == pytest.approx(0.143)
+        R = g.leg_rotation(i)
+        np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-15)
+        # y points to the centre, x is tangent
+        np.testing.assert_allclose(R[:, 1], -A[i] / np.linalg.norm(A[i]), atol=1e-15)
+    # cranks at 90 deg to the radius: the P_i form the paper's triangle of side 0.173 m
+    P = np.array([g.crank_tip(i, math.pi / 2) for i in range(3)])
+    assert np.linalg.norm(P[0] - P[1]) == pytest.approx(0.173, abs=5e-4)
+
+
+def test_bad_inputs_are_named() -> None:
+    with pytest.raises(GeometryError) as err:
+        RobotGeometry(platform_crank=-0.1)
+    assert err.value.parameter == "platform_crank"
+    with pytest.raises(GeometryError):
+        MassModel(body=-1.0)
+
+
+def test_malformed_closures_file_is_refused(tmp_path) -> None:
+    bad = tmp_path / "c.yaml"
+    bad.write_text("closed_loop: [['a', 'b']]\ntype: ['6d']\nname_mot: []\n")
+    with pytest.raises(InputError, match="only '3d'"):
+        parse_closures(bad)
+    bad.write_text("closed_loop: [['a']]\ntype: ['3d']\nname_mot: []\n")
+    with pytest.raises(InputError, match="two frame names"):
+        parse_closures(bad)
+    bad.write_text(": not yaml : [")
+    with pytest.raises(InputError):
+        parse_closures(bad)
+    text = gen.build_closures_yaml().replace("closedloop4_B", "nowhere")
+    bad.write_text(text)
+    with pytest.raises(InputError, match="nowhere"):
+        load_model_from(gen.URDF_PATH, bad)
