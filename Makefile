@@ -23,6 +23,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_leg.py
 	$(BIN)/python benchmarks/bench_robot.py
+	$(BIN)/python benchmarks/bench_design.py
 
 lint: $(STAMP)
 	$(BIN)/python -m pip install --quiet ruff

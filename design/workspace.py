@@ -39,10 +39,27 @@ def halfplane_grid(geometry: LegGeometry, step: float) -> np.ndarray:
     return pts
 
 
+def theta_within(theta: np.ndarray, theta_max: float = THETA_MAX, zero: float = 0.0,
+                 direction: int = 1) -> np.ndarray:
+    """(n,) every actuated angle in [0, theta_max] in a reading's angle convention.
+
+    theta_reading = (direction * theta - zero) mod 2 pi in [0, 2 pi), as the paper counts
+    them (collision in (270, 360) deg).  With zero = 0, direction = +1 (SPEC.md) this is
+    0 <= theta <= theta_max for our theta in [-90, 270) deg.
+    """
+    t = np.mod(direction * np.asarray(theta) - zero, 2.0 * math.pi)
+    return np.all(t <= theta_max, axis=-1)
+
+
 def counted(ev: LegEval, load: LegLoad, theta_max: float = THETA_MAX) -> np.ndarray:
-    """(n,) bool: the points that count toward the design objective."""
-    th = ev.theta
-    return (ev.ok & np.all(th >= 0.0, axis=1) & np.all(th <= theta_max, axis=1)
+    """(n,) the points that count toward the design objective (SPEC.md reading)."""
+    return ev.ok & theta_within(ev.theta, theta_max) & (ev.tau_ext <= load.torque_limit)
+
+
+def counted_reading(ev, load: LegLoad, reading) -> np.ndarray:
+    """:func:`counted` under a :class:`design.search.Reading`'s angle convention."""
+    return (ev.ok & theta_within(ev.theta, reading.theta_max, reading.theta_zero,
+                                 reading.theta_direction)
             & (ev.tau_ext <= load.torque_limit))
 
 
@@ -64,8 +81,7 @@ def usable_area(geometry: LegGeometry, step: float = 0.005,
     ev = leg_eval_packed(pts, geometry.packed(), AssemblyMode.parse(mode), load,
                          margin_ii=False)
     cell = step * step
-    th = ev.theta
-    th_ok = ev.ok & np.all(th >= 0.0, axis=1) & np.all(th <= theta_max, axis=1)
+    th_ok = ev.ok & theta_within(ev.theta, theta_max)
     return AreaReport(
         step=step, disk_area=len(pts) * cell, reachable_area=float(ev.ok.sum()) * cell,
         theta_ok_area=float(th_ok.sum()) * cell,

@@ -230,6 +230,91 @@ def robot_ik_cmd(x: float, y: float, z: float, roll: float, pitch: float, yaw: f
                f"{'ok' if out['actuated_range_ok'] else 'OUTSIDE [0, 270] deg'}")
 
 
+@main.group()
+def design() -> None:
+    """Optimal leg design and workspace (paper §V)."""
+
+
+def _reading_option(f):
+    return click.option("--reading", default="spec", show_default=True,
+                        help="Reading of the paper's conventions (see docs/design.md): "
+                        "one of " + ", ".join(_reading_names()))(f)
+
+
+def _reading_names() -> list[str]:
+    # Static so that --help does not import numba; tests check it equals READINGS.
+    return ["spec", "paper-match", "spec-no-theta-limit"]
+
+
+def _reading(name: str):
+    from design.readings import READINGS
+
+    if name not in READINGS:
+        _fail(f"unknown reading {name!r}: choose one of {', '.join(sorted(READINGS))}")
+    return READINGS[name]
+
+
+@design.command("optimize")
+@click.option("--coarse-step", default=0.01, show_default=True, type=float,
+              help="Stage-1 grid of the design variables [m].")
+@click.option("--fine-step", default=0.001, show_default=True, type=float,
+              help="Stage-2 grid around the best coarse design [m].")
+@click.option("--ws-step", default=0.005, show_default=True, type=float,
+              help="Workspace grid of the half-plane [m].")
+@_reading_option
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def design_optimize(coarse_step: float, fine_step: float, ws_step: float, reading: str,
+                    as_json: bool) -> None:
+    """Two-stage grid search of (l2 = l3, l4 = l5, ex = fx) maximising the usable area."""
+    from design.search import PAPER_DESIGN, optimize
+
+    rd = _reading(reading)
+    try:
+        res = optimize(coarse_step, fine_step, ws_step, rd, progress=not as_json)
+    except ValueError as exc:
+        _fail(str(exc))
+        return
+    if as_json:
+        out = {"found": res.found, "l2": res.l2, "l4": res.l4, "ex": res.ex,
+               "area_m2": res.area_m2, "paper_design_area_m2": res.paper_design_area_m2,
+               "evaluations": res.evaluations, "point_evaluations": res.point_evaluations,
+               "seconds": res.seconds, "reading": rd.name, "ws_step": ws_step}
+        click.echo(json.dumps(out, default=lambda x: None))
+        return
+    click.echo(f"reading '{rd.name}': {rd.description}")
+    if res.found:
+        click.echo(f"optimum      l2 = {res.l2:.3f}  l4 = {res.l4:.3f}  ex = {res.ex:.3f} m   "
+                   f"area {res.area_m2:.4f} m^2")
+    else:
+        click.echo("optimum      none: no feasible design has a counted point")
+    click.echo(f"paper        l2 = {PAPER_DESIGN[0]:.3f}  l4 = {PAPER_DESIGN[1]:.3f}  "
+               f"ex = {PAPER_DESIGN[2]:.3f} m   area {res.paper_design_area_m2:.4f} m^2 "
+               "(under our model)")
+    click.echo(f"{res.evaluations} designs ({res.feasible_designs} feasible), "
+               f"{res.point_evaluations:,} point evaluations in {res.seconds:.1f} s "
+               f"({res.evaluations / res.seconds:,.0f} designs/s)")
+
+
+@design.command("figures")
+@click.option("--out", "out_dir", default="figures", show_default=True,
+              type=click.Path(file_okay=False), help="Output directory.")
+@_reading_option
+@click.option("--ws-step", default=0.0025, show_default=True, type=float,
+              help="Half-plane grid of the leg figures [m].")
+def design_figures(out_dir: str, reading: str, ws_step: float) -> None:
+    """Write the §V figures (det J/K, tau_ext, COW, encoder resolution) as PNG."""
+    from design.figures import make_figures
+
+    rd = _reading(reading)
+    s = make_figures(out_dir, rd, ws_step=ws_step)
+    for f in s.files:
+        click.echo(f"wrote {f}")
+    click.echo(f"counted area {s.counted_area_m2:.4f} m^2; COW projected area / footprint: "
+               + ", ".join(f"{k} {v:.2f}" for k, v in s.cow_ratios.items())
+               + f" (paper {s.paper_cow_ratio}); worst encoder resolution "
+               f"{s.worst_resolution_m:.2e} m (paper {s.paper_resolution_m:.1e} m)")
+
+
 @main.command()
 @click.option("--ws-step", default=0.005, show_default=True, type=float,
               help="Workspace grid step of the usable-area report [m].")
