@@ -175,8 +175,9 @@ def _as_batch(position, rotation, psi):
     rotation = np.asarray(rotation, dtype=float)
     if rotation.ndim == 2:
         rotation = rotation[None]
-    n = max(position.shape[0], rotation.shape[0])
-    psi = np.broadcast_to(np.asarray(psi, dtype=float), (n, NUM_LEGS))
+    psi = np.asarray(psi, dtype=float)
+    n = max(position.shape[0], rotation.shape[0], psi.shape[0] if psi.ndim == 2 else 1)
+    psi = np.broadcast_to(psi, (n, NUM_LEGS))
     position = np.broadcast_to(position, (n, 3))
     rotation = np.broadcast_to(rotation, (n, 3, 3))
     if position.shape[-1] != 3 or rotation.shape[-2:] != (3, 3):
@@ -393,3 +394,68 @@ def robot_fk(theta, q_hint=None, tol: float = 1e-12, max_iter: int = 50,
     return RobotFK(q=q, position=q[iq:iq + 3].copy(),
                    rotation=Rotation.from_quat(quat).as_matrix(), psi=psi, residual=res,
                    iterations=it)
+
+
+# --------------------------------------------------------------------- leg interference
+#: Radius of the capsule around every leg link used by the interference check [m]
+#: (the visual rods are 8 mm; 15 mm leaves room for joints and housings).
+LINK_RADIUS = 0.015
+
+
+def _segment_distance(p1, q1, p2, q2):
+    """(n,) distance between segments [p1, q1] and [p2, q2] (batched, (n, 3) each)."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a = np.sum(d1 * d1, axis=1)
+    e = np.sum(d2 * d2, axis=1)
+    f = np.sum(d2 * r, axis=1)
+    c = np.sum(d1 * r, axis=1)
+    b = np.sum(d1 * d2, axis=1)
+    den = a * e - b * b
+    s = np.where(den > 1e-14, np.clip((b * f - c * e) / np.maximum(den, 1e-300), 0, 1), 0.0)
+    t = (b * s + f) / np.maximum(e, 1e-300)
+    t_c = np.clip(t, 0, 1)
+    s = np.where(t < 0, np.clip(-c / np.maximum(a, 1e-300), 0, 1),
+                 np.where(t > 1, np.clip((b - c) / np.maximum(a, 1e-300), 0, 1), s))
+    diff = (p1 + d1 * s[:, None]) - (p2 + d2 * t_c[:, None])
+    return np.linalg.norm(diff, axis=1)
+
+
+def leg_segments(cfg: RobotConfig, geom: RobotGeometry = DEFAULT_ROBOT) -> np.ndarray:
+    """(n, 3 legs, 6 links, 2 ends, 3) link segments in the robot frame [m]:
+    AD, DP, BG, GE, CH, HF."""
+    out = np.zeros((len(cfg), NUM_LEGS, 6, 2, 3))
+    for i in range(NUM_LEGS):
+        s = cfg.legs[i]
+        a = np.zeros_like(s.d)
+        b = np.zeros_like(s.d)
+        b[:, 0] = geom.leg.l6
+        c = np.zeros_like(s.d)
+        c[:, 0] = -geom.leg.l7
+        pairs = ((a, s.d), (s.d, s.p), (b, s.g), (s.g, s.e), (c, s.h), (s.h, s.f))
+        for k, (u, v) in enumerate(pairs):
+            out[:, i, k, 0] = geom.from_leg(i, u)
+            out[:, i, k, 1] = geom.from_leg(i, v)
+    return out
+
+
+def leg_clearance(cfg: RobotConfig, geom: RobotGeometry = DEFAULT_ROBOT) -> np.ndarray:
+    """(n,) smallest surface distance between links of different legs [m] (negative:
+    interference), with every link a capsule of radius ``LINK_RADIUS``.
+
+    Only the moving upper links are compared (AD, DP, GE, HF): the short cranks BG, CH of
+    adjacent legs start 1.3 cm apart at the corners of the base triangle by design
+    (l6 = l7 = 0.13 m, the paper's minimum from its CAD), which is the base layout's
+    business, not the motion's.
+    """
+    seg = leg_segments(cfg, geom)
+    best = np.full(len(cfg), np.inf)
+    upper = (0, 1, 3, 5)
+    for i in range(NUM_LEGS):
+        for j in range(i + 1, NUM_LEGS):
+            for a in upper:
+                for b in upper:
+                    d = _segment_distance(seg[:, i, a, 0], seg[:, i, a, 1],
+                                          seg[:, j, b, 0], seg[:, j, b, 1])
+                    best = np.minimum(best, d)
+    return np.where(cfg.ok, best - 2 * LINK_RADIUS, -np.inf)
+

@@ -1,0 +1,354 @@
+"""Symbolic (CasADi) kinematics and dynamics of the whole robot in minimal coordinates.
+
+pinocchio.casadi is not in the pip wheel (LIBRARY-NOTES.md), so the dynamics are built
+here from two ingredients that cannot drift from the numeric model:
+
+1. the closed-form inverse kinematics (SPEC.md conventions, same branches as
+   :mod:`kinematics.leg`) written with CasADi symbols, giving every tree joint as a
+   function of the minimal coordinates x = (platform position p [m], rotation vector r
+   [rad], crank angles psi [rad]);
+2. a symbolic forward kinematics of the spanning tree that reads the joint placements,
+   joint types and body inertias from the *Pinocchio model of the URDF*.
+
+Dynamics: a symbolic recursive Newton-Euler pass over the tree (world frame, joint
+rates qd = Jq xd from the IK) gives the tree's generalized forces; by virtual work
+Q(x, xd, xdd) = Jq^T tau_tree + (platform force, E^T platform moment) and the actuator
+torques satisfy tau^T d(theta) = Q^T dx, i.e. tau = (d theta / d x)^-T Q.
+tests/test_planner.py
+checks tau against Pinocchio's constrained inverse dynamics (tau = G^T rnea).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from kinematics.leg import DEFAULT_MODE, AssemblyMode
+from kinematics.robot import HOME_HEIGHT, HOME_PSI, _spherical_reference
+from robot_description.robot import NUM_LEGS, RobotGeometry
+
+NX = 9  # minimal coordinates: p (3), r (3), psi (3)
+
+
+def rotvec_matrix(r):
+    """R = exp([r]x) (Rodrigues), smooth at r = 0 (series branch below |r|^2 = 1e-8)."""
+    a = ca.dot(r, r)
+    th = ca.sqrt(a + 1e-30)
+    A = ca.if_else(a < 1e-8, 1 - a / 6 + a * a / 120, ca.sin(th) / th)
+    B = ca.if_else(a < 1e-8, 0.5 - a / 24 + a * a / 720, (1 - ca.cos(th)) / (th * th + 1e-300))
+    K = ca.skew(r)
+    return ca.SX.eye(3) + A * K + B * (K @ K)
+
+
+def _rx(q):
+    c, s = ca.cos(q), ca.sin(q)
+    return ca.vertcat(ca.horzcat(1, 0, 0), ca.horzcat(0, c, -s), ca.horzcat(0, s, c))
+
+
+def _rz(q):
+    c, s = ca.cos(q), ca.sin(q)
+    return ca.vertcat(ca.horzcat(c, -s, 0), ca.horzcat(s, c, 0), ca.horzcat(0, 0, 1))
+
+
+def _solve_rus(rx, ry, rz, crank, link, sign):
+    """cos/sin of the crank angle (kinematics._leg_kernel._solve_rus, symbolically).
+
+    Returns (c, s, q2) with q2 = r^2 - k^2 >= 0 the reachability measure.
+    """
+    r2 = ry * ry + rz * rz
+    k = (rx * rx + r2 + crank * crank - link * link) / (2 * crank)
+    q2 = r2 - k * k
+    q = sign * ca.sqrt(ca.fmax(q2, 0) + 1e-30)
+    return (ry * k - rz * q) / r2, (rz * k + ry * q) / r2, q2
+
+
+def _angle(c, s):
+    """Actuated angle in (-90, 270] deg, continuous through 0..270 (cut: pointing down)."""
+    return math.pi / 2 + ca.atan2(-c, s)
+
+
+@dataclass(frozen=True)
+class SymbolicRobot:
+    """CasADi functions of the robot in minimal coordinates (all SX, cached)."""
+
+    theta: ca.Function  # x -> theta (9)
+    theta_dot: ca.Function  # (x, xd) -> theta_dot (9)
+    theta_ddot: ca.Function  # (x, xd, xdd) -> theta_ddot (9)
+    tau: ca.Function  # (x, xd, xdd) -> actuator torques (9) [N m]
+    gen_force: ca.Function  # (x, xd, xdd) -> Q (9): generalized inertia + gravity force
+    jac_theta: ca.Function  # x -> d theta / d x (9, 9)
+    q: ca.Function  # x -> Pinocchio configuration (37)
+    reach: ca.Function  # x -> (9,) q2 >= 0 reachability measures, 3 per leg
+    margins: ca.Function  # x -> (leg type I (9,), leg type II det (3,), platform line det)
+    spherical_cos: ca.Function  # x -> (9,) cosines of the S-joint tilts
+    P: ca.Function  # x -> (3, 3) sphere centres (columns)
+    node: ca.Function  # (x, xd, u, tau) -> the 67 path-constraint rows of one node
+
+    #: Row layout of ``node``: name -> (start, stop)
+    NODE_ROWS = {"dynamics": (0, 9), "theta_dot": (9, 18), "theta_ddot": (18, 27),
+                 "theta": (27, 36), "reach": (36, 45), "spherical_cos": (45, 54),
+                 "type1": (54, 63), "type2_det": (63, 66), "platform_det": (66, 67)}
+
+    @staticmethod
+    def rotvec_from_matrix(R: np.ndarray) -> np.ndarray:
+        from scipy.spatial.transform import Rotation
+
+        return Rotation.from_matrix(R).as_rotvec()
+
+
+def _leg_symbolic(p_leg, geom: RobotGeometry, mode: AssemblyMode):
+    """Closed-form IK of one leg with CasADi symbols; returns a dict of expressions."""
+    lg = geom.leg
+    s1_, s3_, s2_, s4_ = mode.signs
+    x, y, z = p_leg[0], p_leg[1], p_leg[2]
+    c1, s1, q_ru = _solve_rus(x, y, z, lg.l1, lg.dp, s1_)
+    d = ca.vertcat(0, lg.l1 * c1, lg.l1 * s1)
+    v = (p_leg - d) / lg.dp
+    rho = ca.sqrt(v[1] ** 2 + v[2] ** 2 + 1e-30)
+    cs3 = s3_ * rho
+    cp = -s3_ * v[1] / rho
+    sp = -s3_ * v[2] / rho
+    ss3 = v[0]
+    Q = ca.vertcat(ca.horzcat(ss3, cs3, 0), ca.horzcat(-cp * cs3, cp * ss3, -sp),
+                   ca.horzcat(-sp * cs3, sp * ss3, cp))
+    e = d + Q @ ca.DM(lg.e_b)
+    f = d + Q @ ca.DM(lg.f_b)
+    c2, s2, q_b = _solve_rus(e[0] - lg.l6, e[1], e[2], lg.l2, lg.l4, s2_)
+    c3, s3, q_c = _solve_rus(f[0] + lg.l7, f[1], f[2], lg.l3, lg.l5, s4_)
+    g = ca.vertcat(lg.l6, lg.l2 * c2, lg.l2 * s2)
+    h = ca.vertcat(-lg.l7, lg.l3 * c3, lg.l3 * s3)
+    th = ca.vertcat(_angle(c1, s1), _angle(c2, s2), _angle(c3, s3))
+    ts2 = ca.atan2(sp * c1 - cp * s1, cp * c1 + sp * s1)
+    ts3 = ca.atan2(ss3, cs3)
+
+    def u_angles(c, s, w):
+        uy = c * w[1] + s * w[2]
+        uz = -s * w[1] + c * w[2]
+        return ca.atan2(uz, uy), ca.atan2(-w[0], ca.sqrt(uy * uy + uz * uz + 1e-30))
+
+    ga, gb = u_angles(c2, s2, (e - g) / lg.l4)
+    ha, hb = u_angles(c3, s3, (f - h) / lg.l5)
+    # Jacobian ingredients (kinematics._leg_kernel.jacobian_point, symbolically)
+    pd = p_leg - d
+    eg = e - g
+    fh = f - h
+    u1 = ca.vertcat(0, -d[2], d[1])
+    u2 = ca.vertcat(0, -g[2], g[1])
+    u3 = ca.vertcat(0, -h[2], h[1])
+    k11 = ca.dot(pd, u1)
+    k22 = ca.dot(eg, u2)
+    k33 = ca.dot(fh, u3)
+    w = Q[:, 2]
+    xf = ca.DM([1.0, 0.0, 0.0])
+    a0 = ca.cross(xf, p_leg)
+    a1 = ca.cross(xf, pd)
+    a2 = ca.cross(w, pd)
+    r0, r1, r2 = ca.cross(a1, a2), ca.cross(a2, a0), ca.cross(a0, a1)
+    ne = ca.cross(e - d, eg)
+    nf = ca.cross(f - d, fh)
+    j1 = ne[0] * (r0 + r1) + ca.dot(ne, w) * r2
+    j2 = nf[0] * (r0 + r1) + ca.dot(nf, w) * r2
+
+    def unit(vv):
+        return vv / ca.sqrt(ca.dot(vv, vv) + 1e-30)
+
+    det_hat = ca.dot(unit(pd), ca.cross(unit(j1), unit(j2)))
+    return {
+        "theta": th, "ts2": ts2, "ts3": ts3, "ga": ga, "gb": gb, "ha": ha, "hb": hb,
+        "reach": ca.vertcat(q_ru, q_b, q_c),
+        "type1": ca.vertcat(k11 / (lg.dp * lg.l1), k22 / (lg.l4 * lg.l2),
+                            k33 / (lg.l5 * lg.l3)),
+        "type2_det": det_hat, "Q": Q,
+    }
+
+
+def platform_line_det(psi, geom: RobotGeometry):
+    """det of the platform's crank-line matrix B, divided by its value at psi = 90 deg.
+
+    In the platform plane the crank rates eliminate, leaving the three lines along the
+    cranks (through R_i and P_i): rows [s_i, (P_i x s_i)_z / L] with s_i the unit crank
+    direction, L = sqrt(rho^2 + c^2).  B is singular when the lines are concurrent or
+    parallel: the in-plane platform singularity (e.g. psi = (0, 90, 90) deg).  A smooth
+    proxy of the platform margin of :func:`kinematics.robot.platform_margin` (which the
+    planner re-checks on its result).  Works with numbers or CasADi symbols.
+    """
+    L = math.hypot(geom.platform_radius, geom.platform_crank)
+    rows = []
+    for i in range(NUM_LEGS):
+        b = geom.crank_axis_angle(i) + psi[i]
+        sx, sy = ca.cos(b), ca.sin(b)
+        Pi = geom.crank_axis_position(i) + geom.platform_crank * ca.vertcat(sx, sy, 0)
+        rows.append(ca.horzcat(sx, sy, (Pi[0] * sy - Pi[1] * sx) / L))
+    B = ca.vertcat(*rows)
+    return ca.det(B) / _LINE_DET_HOME
+
+
+_LINE_DET_HOME = 1.8371173070873836  # det B at psi = 90 deg for the default platform
+
+
+@functools.lru_cache(maxsize=4)
+def symbolic_robot(mode_name: str = DEFAULT_MODE.name, point_mass: bool = False) -> SymbolicRobot:
+    """Build (once) the CasADi functions for the committed robot in an assembly mode."""
+    from robot_description.model import load_model
+
+    clm = load_model(point_mass)
+    model = clm.model
+    geom = RobotGeometry()
+    mode = AssemblyMode.parse(mode_name)
+    x = ca.SX.sym("x", NX)
+    xd = ca.SX.sym("xd", NX)
+    xdd = ca.SX.sym("xdd", NX)
+    p, r, psi = x[0:3], x[3:6], x[6:9]
+    R = rotvec_matrix(r)
+    joint_val: dict[str, ca.SX] = {}
+    P_list, thetas, reach, type1, type2, leg_Q = [], [], [], [], [], []
+    for i in range(NUM_LEGS):
+        b = geom.crank_axis_angle(i) + psi[i]
+        local = ca.DM(geom.crank_axis_position(i)) + geom.platform_crank * ca.vertcat(
+            ca.cos(b), ca.sin(b), 0)
+        Pi = p + R @ local
+        P_list.append(Pi)
+        Rl = ca.DM(geom.leg_rotation(i))
+        p_leg = Rl.T @ (Pi - ca.DM(geom.leg_origin(i)))
+        leg = _leg_symbolic(p_leg, geom, mode)
+        thetas.append(leg["theta"])
+        reach.append(leg["reach"])
+        type1.append(leg["type1"])
+        type2.append(leg["type2_det"])
+        leg_Q.append(Rl @ leg["Q"])
+        for name, val in (("A", leg["theta"][0]), ("Ds2", leg["ts2"]), ("Ds3", leg["ts3"]),
+                          ("B", leg["theta"][1]), ("Ga", leg["ga"]), ("Gb", leg["gb"]),
+                          ("C", leg["theta"][2]), ("Ha", leg["ha"]), ("Hb", leg["hb"])):
+            joint_val[f"leg{i}_{name}"] = val
+        joint_val[f"platform_crank{i}"] = psi[i]
+    theta = ca.vertcat(*thetas)
+
+    # Symbolic tree forward kinematics from the Pinocchio model.
+    oR = [ca.SX.eye(3)] * model.njoints
+    ot = [ca.SX.zeros(3, 1)] * model.njoints
+    qvec = [ca.SX(0)] * model.nq
+    for j in range(1, model.njoints):
+        name = model.names[j]
+        jm = model.joints[j]
+        par = model.parents[j]
+        M = model.jointPlacements[j]
+        Rp = oR[par] @ ca.DM(M.rotation)
+        tp = ot[par] + oR[par] @ ca.DM(M.translation)
+        kind = jm.shortname()
+        if kind == "JointModelFreeFlyer":
+            oR[j], ot[j] = R, p
+            # q of the free-flyer: position and quaternion (x, y, z, w) of R
+            qvec[jm.idx_q:jm.idx_q + 3] = [p[0], p[1], p[2]]
+            th_r = ca.sqrt(ca.dot(r, r) + 1e-30)
+            sinc = ca.if_else(ca.dot(r, r) < 1e-8, 0.5 - ca.dot(r, r) / 48,
+                              ca.sin(th_r / 2) / th_r)
+            qvec[jm.idx_q + 3:jm.idx_q + 7] = [r[0] * sinc, r[1] * sinc, r[2] * sinc,
+                                               ca.cos(th_r / 2)]
+            continue
+        val = joint_val[name]
+        qvec[jm.idx_q] = val
+        if kind == "JointModelRX":
+            oR[j] = Rp @ _rx(val)
+        elif kind == "JointModelRZ":
+            oR[j] = Rp @ _rz(val)
+        else:  # pragma: no cover - the generator only makes RX / RZ / free-flyer
+            raise NotImplementedError(kind)
+        ot[j] = tp
+
+    # Generalized forces by a symbolic recursive Newton-Euler pass over the tree, in the
+    # world frame, with joint rates from the IK: qd = Jq xd, qdd = Jq xdd + (dJq/dt) xd.
+    rev = [j for j in range(1, model.njoints)
+           if model.joints[j].shortname() != "JointModelFreeFlyer"]
+    qv = ca.vertcat(*[joint_val[model.names[j]] for j in rev])
+    Jq = ca.jacobian(qv, x)
+    qd_all = Jq @ xd
+    qdd_all = Jq @ xdd + ca.jtimes(qd_all, x, xd)
+    qd = {j: qd_all[k] for k, j in enumerate(rev)}
+    qdd = {j: qdd_all[k] for k, j in enumerate(rev)}
+    rd, rdd = xd[3:6], xdd[3:6]
+    Rdot = ca.reshape(ca.jtimes(ca.reshape(R, 9, 1), r, rd), 3, 3)
+    W = Rdot @ R.T
+    w_plat = ca.vertcat(W[2, 1], W[0, 2], W[1, 0])
+    E = ca.jacobian(w_plat, rd)  # omega = E(r) r_dot
+    a_plat = ca.jtimes(w_plat, r, rd) + E @ rdd
+    grav = ca.DM(np.asarray(model.gravity.linear))
+    zero = ca.SX.zeros(3, 1)
+    om, al, acc = [zero] * model.njoints, [zero] * model.njoints, [zero] * model.njoints
+    axes = {}
+    com, F, N = {}, {}, {}
+    for j in range(1, model.njoints):
+        par = model.parents[j]
+        kind = model.joints[j].shortname()
+        if kind == "JointModelFreeFlyer":
+            om[j], al[j], acc[j] = w_plat, a_plat, xdd[0:3]
+        else:
+            ax = oR[j][:, 0] if kind == "JointModelRX" else oR[j][:, 2]
+            axes[j] = ax
+            d = ot[j] - ot[par]
+            om[j] = om[par] + ax * qd[j]
+            al[j] = al[par] + ax * qdd[j] + ca.cross(om[par], ax * qd[j])
+            acc[j] = acc[par] + ca.cross(al[par], d) + ca.cross(om[par], ca.cross(om[par], d))
+        Y = model.inertias[j]
+        lever = oR[j] @ ca.DM(Y.lever)
+        com[j] = lever
+        ac = acc[j] + ca.cross(al[j], lever) + ca.cross(om[j], ca.cross(om[j], lever))
+        Iw = oR[j] @ ca.DM(Y.inertia) @ oR[j].T
+        F[j] = Y.mass * (ac - grav)
+        N[j] = Iw @ al[j] + ca.cross(om[j], Iw @ om[j])
+    f = {j: F[j] for j in range(1, model.njoints)}
+    n = {j: N[j] + ca.cross(com[j], F[j]) for j in range(1, model.njoints)}  # about t_j
+    for j in range(model.njoints - 1, 0, -1):
+        par = model.parents[j]
+        if par > 0:
+            f[par] = f[par] + f[j]
+            n[par] = n[par] + n[j] + ca.cross(ot[j] - ot[par], f[j])
+    tau_tree = ca.vertcat(*[ca.dot(axes[j], n[j]) for j in rev])
+    ff = next(j for j in range(1, model.njoints)
+              if model.joints[j].shortname() == "JointModelFreeFlyer")
+    Q = Jq.T @ tau_tree + ca.vertcat(f[ff], E.T @ n[ff], ca.SX.zeros(3, 1))
+    Jth = ca.jacobian(theta, x)
+    tau = ca.solve(Jth.T, Q)
+    th_dot = Jth @ xd
+    th_ddot = ca.jtimes(th_dot, x, xd) + Jth @ xdd
+
+    # Spherical-joint tilt cosines (kinematics.robot.spherical_tilts), 3 per leg: E, F, P.
+    ref = _spherical_reference(geom)
+    sph = []
+    for i in range(NUM_LEGS):
+        body = leg_Q[i]
+        jb = model.getJointId(f"leg{i}_Gb")
+        jh = model.getJointId(f"leg{i}_Hb")
+        jc = model.getJointId(f"platform_crank{i}")
+        for k, other in enumerate((oR[jb], oR[jh], oR[jc])):
+            sph.append(ca.dot(body @ ca.DM(ref[i, k, 0]), other @ ca.DM(ref[i, k, 1])))
+
+    margins_out = [ca.vertcat(*type1), ca.vertcat(*type2), platform_line_det(psi, geom)]
+    opts = {"cse": True}
+    tau_sym = ca.SX.sym("tau", NX)
+    node = ca.Function(
+        "node", [x, xd, xdd, tau_sym],
+        [ca.vertcat(Jth.T @ tau_sym - Q, th_dot, th_ddot, theta, ca.vertcat(*reach),
+                    ca.vertcat(*sph), *margins_out)], opts)
+    return SymbolicRobot(
+        theta=ca.Function("theta", [x], [theta], opts),
+        theta_dot=ca.Function("theta_dot", [x, xd], [th_dot], opts),
+        theta_ddot=ca.Function("theta_ddot", [x, xd, xdd], [th_ddot], opts),
+        tau=ca.Function("tau", [x, xd, xdd], [tau], opts),
+        gen_force=ca.Function("gen_force", [x, xd, xdd], [Q], opts),
+        jac_theta=ca.Function("jac_theta", [x], [Jth], opts),
+        q=ca.Function("q", [x], [ca.vertcat(*qvec)], opts),
+        reach=ca.Function("reach", [x], [ca.vertcat(*reach)], opts),
+        margins=ca.Function("margins", [x], margins_out, opts),
+        spherical_cos=ca.Function("spherical_cos", [x], [ca.vertcat(*sph)], opts),
+        P=ca.Function("P", [x], [ca.horzcat(*P_list)], opts),
+        node=node,
+    )
+
+
+def home_x() -> np.ndarray:
+    """Minimal coordinates of the home pose."""
+    return np.r_[0.0, 0.0, HOME_HEIGHT, 0.0, 0.0, 0.0, HOME_PSI]
