@@ -1,0 +1,165 @@
+"""The planner: CasADi model vs Pinocchio, task validation, solving, infeasibility."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dynamics.closed_loop import ClosedLoopDynamics
+from kinematics.robot import leg_clearance, robot_ik, spherical_tilts
+from planner.model import home_x, symbolic_robot
+from planner.ocp import InfeasibleTaskError, PlannerOptions, Problem, dense_check, plan
+from planner.task import TaskError, load_task, task_from_dict
+
+EXAMPLES = sorted(__import__("pathlib").Path(__file__).parents[1].joinpath("examples")
+                  .glob("*.yaml"))
+
+
+def random_states(n: int, seed: int):
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        x = np.r_[rng.uniform(-0.06, 0.06, 2), rng.uniform(0.25, 0.38),
+                  rng.uniform(-0.5, 0.5, 3), rng.uniform(0.8, 2.3, 3)]
+        yield x, rng.normal(scale=0.5, size=9), rng.normal(scale=5.0, size=9)
+
+
+def test_casadi_torques_agree_with_pinocchio() -> None:
+    """tau from the CasADi model (IK + symbolic RNEA + virtual work) vs tau = G^T rnea."""
+    sr = symbolic_robot()
+    dyn = ClosedLoopDynamics()
+    checked = 0
+    for x, xd, xdd in random_states(12, seed=0):
+        q = np.array(sr.q(x)).ravel()
+        if np.abs(dyn.clm.residual(q)).max() > 1e-10:
+            continue  # outside the workspace
+        thd = np.array(sr.theta_dot(x, xd)).ravel()
+        thdd = np.array(sr.theta_ddot(x, xd, xdd)).ravel()
+        v, a = dyn.consistent_state(q, thd, thdd)
+        tau_pin = dyn.inverse_dynamics(q, v, a)
+        tau_ca = np.array(sr.tau(x, xd, xdd)).ravel()
+        assert np.abs(tau_ca - tau_pin).max() <= 1e-6 * np.abs(tau_pin).max()
+        # the linear form used in the OCP: J_theta^T tau = Q
+        res = np.array(sr.node(x, xd, xdd, tau_pin)).ravel()[0:9]
+        assert np.abs(res).max() < 1e-8
+        checked += 1
+    assert checked >= 8
+
+
+def test_casadi_kinematics_agree_with_the_numeric_model() -> None:
+    sr = symbolic_robot()
+    from scipy.spatial.transform import Rotation
+
+    for x, _, _ in random_states(8, seed=1):
+        cfg = robot_ik(x[0:3], Rotation.from_rotvec(x[3:6]).as_matrix(), x[6:9])
+        if not cfg.ok[0]:
+            continue
+        np.testing.assert_allclose(np.array(sr.q(x)).ravel(), cfg.q[0], atol=1e-12)
+        np.testing.assert_allclose(np.array(sr.theta(x)).ravel(), cfg.theta[0], atol=1e-12)
+        m1, m2, _ = (np.array(v).ravel() for v in sr.margins(x))
+        assert np.abs(m1).reshape(3, 3).min(axis=1) == pytest.approx(cfg.margins.leg_type1[0])
+        # det of the unit-row J bounds its sigma_min from above (3 sigma_min >= |det|)
+        assert np.all(np.abs(m2) <= 3 * cfg.margins.leg_type2[0] + 1e-12)
+        cos = np.array(sr.spherical_cos(x)).ravel().reshape(3, 3)
+        np.testing.assert_allclose(np.arccos(np.clip(cos, -1, 1)), spherical_tilts(cfg)[0],
+                                   atol=1e-7)
+
+
+def test_bad_task_files_name_the_field(tmp_path) -> None:
+    cases = [
+        ({"waypoints": [{"position": [0, 0, 0.3]}]}, "waypoints"),
+        ({"waypoints": [{"position": [0, 0]}, {"position": [0, 0, 0.3]}]},
+         "waypoints[0].position"),
+        ({"waypoints": [{"position": [0, 0, 0.3], "rpy": [0, 0, 200]},
+                        {"position": [0, 0, 0.3]}]}, "waypoints[0].rpy[2]"),
+        ({"waypoints": [{"position": [0, 0, 0.3]}, {"position": [0, 0, 0.3]}],
+          "limits": {"torque": 12}}, "limits.torque"),
+        ({"waypoints": [{"position": [0, 0, 0.3]}, {"position": [0, 0, 0.3]}],
+          "speed": 3}, "(top level)"),
+        ({"waypoints": [{"position": [0, 0, 0.3], "quaternion": [0, 0, 0, 2]},
+                        {"position": [0, 0, 0.3]}]}, "waypoints[0].quaternion"),
+        ({"waypoints": [{"position": [0, 0, 0.3], "psi": [0, 90, 90]},
+                        {"position": [0, 0, 0.3]}]}, "waypoints[0].psi"),
+    ]
+    for doc, field in cases:
+        with pytest.raises(TaskError) as err:
+            task_from_dict(doc)
+        assert field in str(err.value), (field, str(err.value))
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("waypoints: [\n  - {position: [0, 0")
+    with pytest.raises(TaskError, match="not valid YAML"):
+        load_task(bad)
+    with pytest.raises(TaskError, match="cannot read"):
+        load_task(tmp_path / "missing.yaml")
+
+
+def test_example_tasks_are_valid() -> None:
+    assert len(EXAMPLES) >= 6
+    for path in EXAMPLES:
+        task = load_task(path)
+        assert task.n_segments >= 1
+
+
+SMALL = {"name": "small", "waypoints": [{"position": [0, 0, 0.30]},
+                                        {"position": [0.03, 0.0, 0.33], "rpy": [10, 0, 0]}],
+         "nodes_per_segment": 6}
+
+
+@pytest.fixture(scope="module")
+def small_solution():
+    return plan(task_from_dict(SMALL))
+
+
+def test_small_task_solves_and_passes_a_10x_pinocchio_check(small_solution) -> None:
+    sol = small_solution
+    assert sol.found and sol.is_feasible()
+    assert 0.0 < sol.final_time < 2.0 and sol.iterations > 0 and sol.solve_time > 0
+    assert sol.residuals["dynamics"] < 1e-6 and sol.residuals["waypoints"] < 1e-9
+    chk = dense_check(sol, factor=10)  # independent: Pinocchio ID + numeric margins
+    assert chk.samples == 10 * (len(sol.t) - 1) + 1
+    assert chk.ok and chk.max_torque_ratio <= 1.0 and chk.min_margin >= 0.05
+    assert chk.max_torque_ratio > 0.8  # time-optimal: the torque limit is what binds
+    assert any(a.startswith(("torque", "acceleration", "velocity"))
+               for a in sol.active_limits)
+    # at rest at both ends, through the waypoints
+    assert np.abs(sol.xd[0]).max() < 1e-9 and np.abs(sol.xd[-1]).max() < 1e-9
+    np.testing.assert_allclose(sol.x[-1, 0:3], [0.03, 0.0, 0.33], atol=1e-9)
+    x, xd, _ = sol.sample(np.array([0.0, sol.final_time]))
+    np.testing.assert_allclose(x, sol.x[[0, -1]], atol=1e-12)
+
+
+def test_locking_the_redundancy_is_not_faster(small_solution) -> None:
+    locked = plan(task_from_dict(SMALL), PlannerOptions(lock_redundancy=True))
+    assert locked.is_feasible()
+    assert np.allclose(locked.x[:, 6:9], math.pi / 2)
+    assert locked.final_time >= small_solution.final_time * (1 - 1e-3)
+
+
+def test_infeasible_tasks_raise_naming_the_waypoint_or_limit() -> None:
+    far = {"waypoints": [{"position": [0, 0, 0.30]}, {"position": [0, 0, 1.2]}]}
+    with pytest.raises(InfeasibleTaskError) as err:
+        plan(task_from_dict(far))
+    assert err.value.waypoint == 1 and err.value.limit == "reach"
+    assert "waypoint 1" in str(err.value) and "RU" in str(err.value)
+    heavy = {"waypoints": [{"position": [0, 0, 0.30]}, {"position": [0, 0, 0.32]}],
+             "limits": {"torque": 0.2}}
+    with pytest.raises(InfeasibleTaskError) as err:
+        plan(task_from_dict(heavy))
+    assert err.value.waypoint == 0 and err.value.limit == "torque"
+    assert "0.2 N m" in str(err.value)
+    picky = {"waypoints": [{"position": [0, 0, 0.30]}, {"position": [0.1, 0, 0.45],
+                                                          "rpy": [0, 60, 0]}],
+             "limits": {"margin": 0.45}}
+    with pytest.raises(InfeasibleTaskError) as err:
+        plan(task_from_dict(picky))
+    assert err.value.limit == "margin" and "margin" in str(err.value)
+
+
+def test_leg_clearance_and_home_x() -> None:
+    from kinematics.robot import home
+
+    assert leg_clearance(home())[0] > 0.05
+    np.testing.assert_allclose(np.array(symbolic_robot().q(home_x())).ravel(), home().q[0],
+                               atol=1e-12)
+    assert Problem(task_from_dict(SMALL)).task.name == "small"
