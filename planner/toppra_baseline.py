@@ -1,0 +1,81 @@
+"""TOPP-RA on a fixed geometric path in minimal coordinates: baseline and certificate.
+
+The path is x(s), s in [0, 1] (a cubic spline through samples).  One second-order
+constraint carries the actuator torques, the actuated accelerations and the squared
+actuated velocities, all of the form a(s) s_ddot + b(s) s_dot^2 + c(s) along a path:
+
+    inv_dyn(x, xd, xdd) = [tau(x, xd, xdd); theta_ddot(x, xd, xdd); theta_dot(x, xd)^2]
+
+with tau from the same CasADi model as the planner (which agrees with Pinocchio).
+Parametrisation: ParametrizeConstAccel (LIBRARY-NOTES: the spline parametriser violated
+limits by ~14%); callers re-check the result.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import toppra as ta
+import toppra.algorithm as algo
+import toppra.constraint as constraint
+
+from planner.model import symbolic_robot
+from planner.task import Limits
+
+
+PATH_SCALE = 0.1
+
+
+@dataclass(frozen=True)
+class ToppraResult:
+    duration: float  # [s]
+    gridpoints: int
+    t: np.ndarray  # (m,) sample times [s]
+    x: np.ndarray  # (m, 9) path samples at those times
+
+
+def arc_length_parameter(xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ss, xs) with ss in [0, 1] proportional to the path length in x (samples that do
+    not move are dropped): a regular path, as TOPP-RA needs (a path sampled from a motion
+    that starts at rest has zero speed in normalised time)."""
+    step = np.linalg.norm(np.diff(xs, axis=0), axis=1)
+    keep = np.r_[True, step > 1e-9]
+    xs = xs[keep]
+    ss = np.r_[0.0, np.cumsum(step[step > 1e-9])]
+    return ss / ss[-1], xs
+
+
+def toppra_time(xs: np.ndarray, limits: Limits, gridpoints: int = 400,
+                samples: int = 400) -> ToppraResult:
+    """Time-optimal parametrisation of the path through the samples xs (m, 9), at rest at
+    both ends, re-parametrised by arc length."""
+    sr = symbolic_robot()
+    ss, xs = arc_length_parameter(np.asarray(xs, dtype=float))
+    # Path parameter in [0, PATH_SCALE] rather than [0, 1]: on a unit path the platform's
+    # tiny inertia makes the admissible path accelerations ~1e4 and TOPP-RA's Seidel LP
+    # returned NaN controllable sets (measured); a time-like scale keeps them O(1..100).
+    ss = ss * PATH_SCALE
+    path = ta.SplineInterpolator(ss, xs)
+
+    def inv_dyn(q, qd, qdd):
+        tau = np.array(sr.tau(q, qd, qdd)).ravel()
+        thdd = np.array(sr.theta_ddot(q, qd, qdd)).ravel()
+        thd = np.array(sr.theta_dot(q, qd)).ravel()
+        return np.r_[tau, thdd, thd**2]
+
+    eye = np.eye(9)
+    zero = np.zeros((9, 9))
+    F = np.block([[eye, zero, zero], [-eye, zero, zero], [zero, eye, zero],
+                  [zero, -eye, zero], [zero, zero, eye]])
+    g = np.r_[np.full(18, limits.torque), np.full(18, limits.acceleration),
+              np.full(9, limits.velocity**2)]
+    pc = constraint.SecondOrderConstraint(inv_dyn, lambda q: F, lambda q: g, dof=9,
+                                          discretization_scheme=constraint.DiscretizationType.Interpolation)
+    grid = np.linspace(ss[0], ss[-1], gridpoints)
+    inst = algo.TOPPRA([pc], path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
+    traj = inst.compute_trajectory(0.0, 0.0)
+    if traj is None:
+        raise RuntimeError("TOPP-RA found no feasible parametrisation of the path")
+    t = np.linspace(0.0, traj.duration, samples)
+    return ToppraResult(float(traj.duration), gridpoints, t, traj(t))
