@@ -42,7 +42,7 @@ from robot_description.robot import NUM_LEGS
 from robot_description.urdf import SPHERICAL_LIMIT
 from sixplus3.errors import Sixplus3Error
 
-PSI_MIN, PSI_MAX = math.radians(30.0), math.radians(150.0)
+PSI_MIN, PSI_MAX = math.radians(45.0), math.radians(135.0)
 THETA_MIN, THETA_MAX = 0.0, 1.5 * math.pi
 NOMINAL_PSI = np.full(NUM_LEGS, math.pi / 2)
 #: Built NLPs by structure (see Problem._template); one per process.
@@ -115,6 +115,7 @@ class DenseCheck:
     samples: int
     max_torque_ratio: float  # max |tau| / limit (Pinocchio constrained inverse dynamics)
     max_velocity_ratio: float
+    max_acceleration_ratio: float
     min_margin: float  # smallest official margin (leg type I/II, platform)
     min_margin_leg_type1: float
     min_margin_leg_type2: float
@@ -250,8 +251,9 @@ class Problem:
             fixed = [wp.psi for wp in task.waypoints if wp.psi is not None]
             lock = fixed[0] if fixed else NOMINAL_PSI
             psi_wp = np.tile(lock, (len(task.waypoints), 1))
-        proxy = max(0.3, 6 * task.limits.margin)
-        safety = opt.torque_safety
+        proxy = max(0.5, 6 * task.limits.margin)
+        safety = {"torque": opt.torque_safety, "velocity": opt.torque_safety,
+                  "acceleration": opt.torque_safety}
         sol = self._solve_once(psi_wp, proxy, safety)
         total = sol.solve_time
         # The OCP constrains the nodes; the dense re-check sees between them.  Tighten what
@@ -260,18 +262,25 @@ class Problem:
             bad = sol.check.violations if sol.check is not None else []
             if not bad:
                 break
-            if any(v.startswith("torque") for v in bad):
-                safety *= 0.99 / sol.check.max_torque_ratio
+            ratios = {"torque": sol.check.max_torque_ratio,
+                      "velocity": sol.check.max_velocity_ratio,
+                      "acceleration": sol.check.max_acceleration_ratio}
+            fixable = False
+            for name in safety:
+                if any(v.startswith(name) for v in bad):
+                    safety[name] *= 0.99 / ratios[name]
+                    fixable = True
             if any(v.startswith("platform") for v in bad):
                 proxy = min(0.9, proxy + 0.2)
-            if not any(v.startswith(("torque", "platform")) for v in bad):
+                fixable = True
+            if not fixable:
                 break
             sol = self._solve_once(psi_wp, proxy, safety, warm=sol)
             total += sol.solve_time
         sol.solve_time = total
         return sol
 
-    def _solve_once(self, psi_wp: np.ndarray, platform_proxy: float, safety: float,
+    def _solve_once(self, psi_wp: np.ndarray, platform_proxy: float, safety: dict,
                     warm: Solution | None = None) -> Solution:
         task, opt, sr = self.task, self.options, self.sr
         lim = task.limits
@@ -288,12 +297,12 @@ class Problem:
 
         tmpl = self._template()
         op, X, XD, U, TAU, T = tmpl["op"], tmpl["X"], tmpl["XD"], tmpl["U"], tmpl["TAU"], tmpl["T"]
-        lb, ub = self._node_bounds(lim, sign1, sign2, platform_proxy)
+        lb, ub = self._node_bounds(lim, sign1, sign2, platform_proxy, safety)
         op.set_value(tmpl["lb"], lb)
         op.set_value(tmpl["ub"], ub)
-        op.set_value(tmpl["tmax"], safety * lim.torque)
+        op.set_value(tmpl["tmax"], safety["torque"] * lim.torque)
         op.set_value(tmpl["wp"], wp_x.T)
-        tmax = safety * lim.torque
+        tmax = safety["torque"] * lim.torque
         op.set_initial(X, x0.T)
         op.set_initial(XD, xd0.T)
         op.set_initial(U, xdd0.T)
@@ -401,12 +410,14 @@ class Problem:
         return tmpl
 
     @staticmethod
-    def _node_bounds(lim, sign1, sign2, platform_proxy):
+    def _node_bounds(lim, sign1, sign2, platform_proxy, safety=None):
         """Lower/upper bounds of the 67 rows of ``SymbolicRobot.node``."""
+        safety = safety or {"velocity": 1.0, "acceleration": 1.0}
         inf = 1e9  # parameters must be finite; 1e9 is "no bound" for every row here
         lb, ub = np.zeros(67), np.zeros(67)
-        lb[9:18], ub[9:18] = -lim.velocity, lim.velocity
-        lb[18:27], ub[18:27] = -lim.acceleration, lim.acceleration
+        v, a = safety["velocity"] * lim.velocity, safety["acceleration"] * lim.acceleration
+        lb[9:18], ub[9:18] = -v, v
+        lb[18:27], ub[18:27] = -a, a
         lb[27:36], ub[27:36] = THETA_MIN, THETA_MAX
         lb[36:45], ub[36:45] = 0.0, inf
         lb[45:54], ub[45:54] = math.cos(SPHERICAL_LIMIT), inf
@@ -510,6 +521,7 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
         tau[k] = dyn.inverse_dynamics(cfg.q[k], v, a)
     torque_ratio = float(np.abs(tau).max() / lim.torque)
     vel_ratio = float(np.abs(thd).max() / lim.velocity)
+    acc_ratio = float(np.abs(thdd).max() / lim.acceleration)
     m = cfg.margins
     min1, min2, minp = (float(m.leg_type1.min()), float(m.leg_type2.min()),
                         float(m.platform.min()))
@@ -517,8 +529,11 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
     tilt = float(spherical_tilts(cfg).max())
     if torque_ratio > 1.0:
         violations.append(f"torque {torque_ratio * lim.torque:.3f} N m > {lim.torque:g} N m")
-    if vel_ratio > 1.0 + 1e-6:
+    if vel_ratio > 1.0:
         violations.append(f"velocity {vel_ratio * lim.velocity:.3f} rad/s > {lim.velocity:g}")
+    if acc_ratio > 1.0:
+        violations.append(f"acceleration {acc_ratio * lim.acceleration:.1f} rad/s^2 > "
+                          f"{lim.acceleration:g}")
     if min(min1, min2) < lim.margin:
         violations.append(f"leg margin {min(min1, min2):.4f} < {lim.margin:g}")
     if minp < lim.margin:
@@ -528,7 +543,8 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
     if tilt > SPHERICAL_LIMIT:
         violations.append(f"spherical joint at {math.degrees(tilt):.1f} deg > 150 deg")
     return DenseCheck(ok=not violations, samples=n, max_torque_ratio=torque_ratio,
-                      max_velocity_ratio=vel_ratio, min_margin=min(min1, min2, minp),
+                      max_velocity_ratio=vel_ratio, max_acceleration_ratio=acc_ratio,
+                      min_margin=min(min1, min2, minp),
                       min_margin_leg_type1=min1, min_margin_leg_type2=min2,
                       min_margin_platform=minp, theta_range_ok=theta_ok,
                       max_spherical_tilt=tilt, violations=violations)

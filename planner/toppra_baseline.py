@@ -23,7 +23,6 @@ import toppra.constraint as constraint
 from planner.model import symbolic_robot
 from planner.task import Limits
 
-
 PATH_SCALE = 0.1
 
 

@@ -318,14 +318,145 @@ def design_figures(out_dir: str, reading: str, ws_step: float) -> None:
 @main.command()
 @click.option("--ws-step", default=0.005, show_default=True, type=float,
               help="Workspace grid step of the usable-area report [m].")
-def demo(ws_step: float) -> None:
-    """Main job on built-in defaults: a report of the paper's leg design."""
+def report(ws_step: float) -> None:
+    """A report of the paper's leg design (sample configurations, usable area)."""
     from sixplus3.report import leg_report
 
     try:
         click.echo(leg_report(ws_step=ws_step))
     except ValueError as exc:
         _fail(str(exc))
+
+
+def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None:
+    from planner.ocp import InfeasibleTaskError, PlannerOptions
+    from planner.pipeline import run_plan
+    from planner.trajectory_file import TrajectoryFileError
+
+    try:
+        res = run_plan(task, out_dir, rate=rate, html=html,
+                       options=PlannerOptions(lock_redundancy=locked), progress=click.echo)
+    except (InfeasibleTaskError, TrajectoryFileError) as exc:
+        _fail(str(exc))
+        return
+    click.echo(f"done in {res.seconds['total']:.1f} s: {res.csv}")
+
+
+@main.command()
+@click.argument("task_file", type=click.Path(dir_okay=False))
+@click.option("-o", "--out", "out_dir", default="out", show_default=True,
+              type=click.Path(file_okay=False), help="Output directory.")
+@click.option("--rate", default=1000.0, show_default=True, help="Controller rate [Hz].")
+@click.option("--no-html", is_flag=True, help="Skip the MeshCat page.")
+@click.option("--locked", is_flag=True, help="Lock the crank angles at 90 deg.")
+def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool) -> None:
+    """Plan TASK_FILE (YAML): plan -> smooth -> validate -> CSV, JSON, HTML, plots."""
+    from planner.task import TaskError, load_task
+
+    try:
+        task = load_task(task_file)
+    except TaskError as exc:
+        _fail(str(exc))
+        return
+    _run_plan(task, out_dir, rate, not no_html, locked)
+
+
+@main.command()
+@click.option("-o", "--out", "out_dir", default="out", show_default=True,
+              type=click.Path(file_okay=False), help="Output directory.")
+def demo(out_dir: str) -> None:
+    """Main job on built-in defaults: plan, smooth, validate and show a 30 deg tilt."""
+    from planner.pipeline import DEMO_TASK
+    from planner.task import task_from_dict
+
+    _run_plan(task_from_dict(DEMO_TASK), out_dir, 1000.0, True, False)
+
+
+@main.command()
+@click.argument("csv_file", type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def validate(csv_file: str, as_json: bool) -> None:
+    """Check a trajectory file independently of the planner (exit 0 only if all ok).
+
+    Exit codes: 0 every sample within limits; 1 a limit is violated; 2 the file is
+    missing, corrupted or made for another robot.
+    """
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    from kinematics.robot import robot_ik
+    from planner.task import Limits
+    from planner.trajectory_file import TrajectoryFileError, columns, read_trajectory
+    from planner.validation import validate_joint_trajectory
+
+    try:
+        header, data = read_trajectory(csv_file)
+        limits = Limits(**header["limits"])
+    except (TrajectoryFileError, TypeError, KeyError) as exc:
+        _fail(f"{csv_file}: {exc}")
+        return
+    cfg0 = robot_ik(data[0, 37:40], Rotation.from_quat(data[0, 40:44]).as_matrix(),
+                    data[0, 44:47])
+    if not cfg0.ok[0]:
+        _fail(f"{csv_file}: the first platform pose is unreachable")
+    rep = validate_joint_trajectory(columns(data, "pos"), columns(data, "vel"),
+                                    columns(data, "acc"), limits, cfg0.q[0])
+    tau_file = columns(data, "tau")
+    ff_err = float(np.abs(rep.tau - tau_file).max()) if rep.tau is not None else float("inf")
+    if ff_err > 1e-6 * max(1.0, limits.torque):
+        rep.violations.append(f"feed-forward torques differ from the recomputed ones by "
+                              f"{ff_err:.2e} N m")
+        rep.ok = False
+    out = {"file": csv_file, "ok": rep.ok, "samples": rep.samples,
+           "duration_s": float(data[-1, 0]), **{k: v for k, v in rep.summary().items()
+                                                 if k not in ("ok", "samples")},
+           "feedforward_max_error": ff_err}
+    if as_json:
+        click.echo(json.dumps(out, default=_json_default))
+    else:
+        click.echo(f"{csv_file}: {rep.samples} samples, {data[-1, 0]:.4f} s; max |tau| "
+                   f"{rep.max_torque_ratio * limits.torque:.3f} N m (limit "
+                   f"{limits.torque:g}); margins {rep.min_margin_leg_type1:.3f} / "
+                   f"{rep.min_margin_leg_type2:.3f} / {rep.min_margin_platform:.3f} "
+                   f"(>= {limits.margin:g}); {'OK' if rep.ok else 'FAILED'}")
+        for v in rep.violations:
+            click.echo(f"  violation: {v}")
+    sys.exit(0 if rep.ok else 1)
+
+
+@main.command()
+@click.argument("csv_file", type=click.Path(dir_okay=False))
+@click.option("--html", "html_out", default=None, type=click.Path(dir_okay=False),
+              help="Write a standalone page with the animation instead of serving it.")
+@click.option("--no-wait", is_flag=True, help="Do not wait for Ctrl-C after loading.")
+def play(csv_file: str, html_out: str | None, no_wait: bool) -> None:
+    """Animate a trajectory file in MeshCat (live; the URL is printed) or as HTML."""
+    from planner.trajectory_file import TrajectoryFileError, read_trajectory
+    from visualization.meshcat_player import animate, frames_from_samples, viewer_url, write_html
+
+    try:
+        _, data = read_trajectory(csv_file)
+    except TrajectoryFileError as exc:
+        _fail(f"{csv_file}: {exc}")
+        return
+    frames = frames_from_samples(data[:, 0], data[:, 37:40], data[:, 40:44], data[:, 44:47])
+    if html_out:
+        path = write_html(frames, html_out)
+        click.echo(f"wrote {path} ({len(frames.q)} frames, slowed down "
+                   f"{frames.slowdown:.0f}x)")
+        return
+    animate(frames)
+    click.echo(f"MeshCat viewer: {viewer_url()}  ({len(frames.q)} frames, slowed down "
+               f"{frames.slowdown:.0f}x)")
+    if not no_wait:
+        import time
+
+        click.echo("Ctrl-C to stop the viewer")
+        try:
+            while True:
+                time.sleep(1)
+        except KeyboardInterrupt:
+            pass
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -62,8 +62,8 @@ def test_leg_unreachable_exits_2_with_one_line() -> None:
     assert bad_mode.exit_code == 2 and "assembly mode" in bad_mode.output
 
 
-def test_demo_prints_the_leg_report() -> None:
-    res = run("demo", "--ws-step", "0.02")
+def test_report_prints_the_leg_report() -> None:
+    res = run("report", "--ws-step", "0.02")
     assert res.exit_code == 0, res.output
     assert "design half-plane" in res.output and "tau_ext <= 10 N m" in res.output
 

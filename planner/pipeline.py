@@ -1,0 +1,115 @@
+"""plan -> smooth -> validate -> write: what ``sixplus3 plan`` and ``sixplus3 demo`` run."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from planner.model import symbolic_robot
+from planner.ocp import PlannerOptions, Solution, plan
+from planner.smoothing import Smoothed, smooth
+from planner.task import Task
+from planner.trajectory_file import TrajectoryFileError, write_trajectory
+from planner.validation import ValidationReport, validate_joint_trajectory
+from robot_description.robot import MassModel, RobotGeometry
+
+#: The built-in task of ``sixplus3 demo``: tilt 30 deg about x and come back.
+DEMO_TASK = {
+    "name": "demo_tilt30",
+    "description": "Built-in demo: tilt the platform 30 deg about x at home and back.",
+    "waypoints": [{"position": [0.0, 0.0, 0.30]},
+                  {"position": [0.0, 0.0, 0.30], "rpy": [30, 0, 0]},
+                  {"position": [0.0, 0.0, 0.30]}],
+    "nodes_per_segment": 10,
+}
+
+
+@dataclass
+class PlanOutputs:
+    solution: Solution
+    smoothed: Smoothed
+    report: ValidationReport
+    csv: Path
+    json: Path
+    html: Path | None
+    plots: list[str]
+    seconds: dict[str, float]
+
+
+def run_plan(task: Task, out_dir: str | Path, rate: float = 1000.0, html: bool = True,
+             plots: bool = True, options: PlannerOptions | None = None,
+             progress: Callable[[str], None] | None = None) -> PlanOutputs:
+    """Plan ``task`` and write the validated trajectory files into ``out_dir``.
+
+    Raises :class:`planner.ocp.InfeasibleTaskError` for an infeasible task and
+    :class:`TrajectoryFileError` if the smoothed trajectory fails its validation; in both
+    cases nothing is written.
+    """
+    say = progress or (lambda s: None)
+    out = Path(out_dir)
+    secs: dict[str, float] = {}
+    t0 = time.perf_counter()
+    say(f"planning '{task.name}' ({len(task.waypoints)} waypoints, "
+        f"{task.n_segments * task.nodes_per_segment} intervals) ...")
+    sol = plan(task, options)
+    secs["plan"] = time.perf_counter() - t0
+    say(f"  planned: {sol.final_time:.4f} s motion, IPOPT {sol.iterations} iterations, "
+        f"{sol.solve_time:.1f} s; 10x re-check: max|tau| {sol.check.max_torque_ratio:.3f} "
+        f"of the limit, min margin {sol.check.min_margin:.3f}")
+    t1 = time.perf_counter()
+    sm = smooth(sol, rate=rate)
+    secs["smooth"] = time.perf_counter() - t1
+    say(f"  smoothed with Ruckig at {rate:g} Hz: {len(sm.t)} samples, duration "
+        f"{sm.duration:.4f} s (+{100 * sm.added_fraction:.2f}%), "
+        f"{sm.stretched_segments} segments stretched")
+    t2 = time.perf_counter()
+    q0 = np.array(symbolic_robot().q(sol.x[0])).ravel()
+    rep = validate_joint_trajectory(sm.theta, sm.theta_dot, sm.theta_ddot, task.limits, q0)
+    secs["validate"] = time.perf_counter() - t2
+    if not rep.ok:
+        raise TrajectoryFileError("the smoothed trajectory fails validation, nothing written: "
+                                  + "; ".join(rep.violations))
+    say(f"  validated {rep.samples} samples with Pinocchio: max|tau| "
+        f"{rep.max_torque_ratio * task.limits.torque:.3f} N m, min margins "
+        f"{rep.min_margin_leg_type1:.3f}/{rep.min_margin_leg_type2:.3f}/"
+        f"{rep.min_margin_platform:.3f}")
+    out.mkdir(parents=True, exist_ok=True)
+    meta = {
+        "rate_hz": rate,
+        "robot": {"geometry": asdict(RobotGeometry()), "mass_model": asdict(MassModel())},
+        "task": task.source,
+        "planner": {"status": sol.status, "final_time_s": sol.final_time,
+                    "solve_time_s": sol.solve_time, "iterations": sol.iterations,
+                    "segment_times_s": sol.segment_times, "residuals": sol.residuals,
+                    "active_limits": sol.active_limits,
+                    "dense_check": sol.check.__dict__ if sol.check else None,
+                    "options": asdict(sol.options)},
+        "smoothing": {"rate_hz": rate, "planned_duration_s": sm.planned_duration,
+                      "duration_s": sm.duration, "added_fraction": sm.added_fraction,
+                      "stretched_segments": sm.stretched_segments,
+                      "max_jerk_rad_s3": sm.max_jerk},
+    }
+    csv_path, json_path = write_trajectory(out / f"{task.name}.csv", sm.t, sm.theta,
+                                           sm.theta_dot, sm.theta_ddot, rep, task.limits,
+                                           meta)
+    say(f"  wrote {csv_path} and {json_path.name}")
+    files: list[str] = []
+    if plots:
+        from visualization.plots import plot_trajectory
+
+        files = plot_trajectory(out, sm.t, sm.theta, rep.tau, rep.position, rep.quaternion,
+                                rep.psi, task.limits.torque, task.limits.margin, task.name)
+        say(f"  plots: {', '.join(Path(f).name for f in files)}")
+    html_path = None
+    if html:
+        from visualization.meshcat_player import frames_from_samples, write_html
+
+        frames = frames_from_samples(sm.t, rep.position, rep.quaternion, rep.psi)
+        html_path = write_html(frames, out / f"{task.name}.html")
+        say(f"  MeshCat page: {html_path} (slowed down {frames.slowdown:.0f}x)")
+    secs["total"] = time.perf_counter() - t0
+    return PlanOutputs(sol, sm, rep, csv_path, json_path, html_path, files, secs)

@@ -1,0 +1,115 @@
+"""Independent validation of an actuated-joint trajectory with the numeric model.
+
+From the actuated angles, rates and accelerations alone (what the controller executes):
+forward kinematics by Newton on the 27 closures (each sample hinted by the previous one),
+Pinocchio's constrained inverse dynamics for the torques, the numeric singularity
+margins, the actuated range, the spherical joints and the leg clearance.  Nothing from
+the optimiser's CasADi model is used.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from dynamics.closed_loop import ClosedLoopDynamics
+from kinematics.robot import leg_clearance, robot_fk, robot_ik, spherical_tilts
+from planner.task import Limits
+from robot_description.urdf import SPHERICAL_LIMIT
+from sixplus3.errors import ConvergenceError, SingularityError
+
+
+@dataclass
+class ValidationReport:
+    ok: bool
+    samples: int
+    max_torque_ratio: float  # max |tau| / limit
+    max_velocity_ratio: float
+    max_acceleration_ratio: float
+    min_margin_leg_type1: float
+    min_margin_leg_type2: float
+    min_margin_platform: float
+    min_leg_clearance: float  # [m]
+    max_spherical_tilt_deg: float
+    theta_range_ok: bool
+    violations: list[str] = field(default_factory=list)
+    tau: np.ndarray | None = None  # (M, 9) [N m]
+    position: np.ndarray | None = None  # (M, 3) platform [m]
+    quaternion: np.ndarray | None = None  # (M, 4) x, y, z, w
+    psi: np.ndarray | None = None  # (M, 3) [rad]
+
+    def summary(self) -> dict:
+        keys = ("ok", "samples", "max_torque_ratio", "max_velocity_ratio",
+                "max_acceleration_ratio", "min_margin_leg_type1", "min_margin_leg_type2",
+                "min_margin_platform", "min_leg_clearance", "max_spherical_tilt_deg",
+                "theta_range_ok", "violations")
+        return {k: getattr(self, k) for k in keys}
+
+
+def validate_joint_trajectory(theta: np.ndarray, theta_dot: np.ndarray,
+                              theta_ddot: np.ndarray, limits: Limits,
+                              q_hint: np.ndarray) -> ValidationReport:
+    """Check every sample; ``q_hint`` is the tree configuration near the first sample."""
+    dyn = ClosedLoopDynamics()
+    n = theta.shape[0]
+    tau = np.zeros((n, 9))
+    q = np.array(q_hint, dtype=float)
+    qs = np.zeros((n, dyn.model.nq))
+    pos = np.zeros((n, 3))
+    quat = np.zeros((n, 4))
+    psi = np.zeros((n, 3))
+    violations: list[str] = []
+    for k in range(n):
+        try:
+            fk = robot_fk(theta[k], q_hint=q)
+        except ConvergenceError:
+            violations.append(f"forward kinematics fails at sample {k}")
+            break
+        q = fk.q
+        qs[k] = q
+        pos[k], psi[k] = fk.position, fk.psi
+        quat[k] = Rotation.from_matrix(fk.rotation).as_quat()
+        try:
+            v, a = dyn.consistent_state(q, theta_dot[k], theta_ddot[k])
+            tau[k] = dyn.inverse_dynamics(q, v, a)
+        except SingularityError as exc:
+            violations.append(f"sample {k}: {exc}")
+            break
+    if violations:
+        return ValidationReport(False, n, math.inf, math.inf, math.inf, 0, 0, 0, -math.inf,
+                                180.0, False, violations)
+    cfg = robot_ik(pos, Rotation.from_quat(quat).as_matrix(), psi)
+    torque_ratio = float(np.abs(tau).max() / limits.torque)
+    vel_ratio = float(np.abs(theta_dot).max() / limits.velocity)
+    acc_ratio = float(np.abs(theta_ddot).max() / limits.acceleration)
+    m = cfg.margins
+    m1, m2, mp = float(m.leg_type1.min()), float(m.leg_type2.min()), float(m.platform.min())
+    clearance = float(leg_clearance(cfg).min())
+    tilt = float(np.degrees(spherical_tilts(cfg).max()))
+    theta_ok = bool(np.all((theta >= -1e-9) & (theta <= 1.5 * math.pi + 1e-9)))
+    if not cfg.ok.all():
+        violations.append("a recomputed pose is unreachable")
+    if torque_ratio > 1.0:
+        violations.append(f"torque {torque_ratio * limits.torque:.3f} N m > "
+                          f"{limits.torque:g} N m")
+    if vel_ratio > 1.0 + 1e-9:
+        violations.append(f"velocity {vel_ratio * limits.velocity:.3f} rad/s > "
+                          f"{limits.velocity:g} rad/s")
+    if acc_ratio > 1.0 + 1e-9:
+        violations.append(f"acceleration {acc_ratio * limits.acceleration:.1f} rad/s^2 > "
+                          f"{limits.acceleration:g} rad/s^2")
+    for name, val in (("leg type I margin", m1), ("leg type II margin", m2),
+                      ("platform margin", mp)):
+        if val < limits.margin:
+            violations.append(f"{name} {val:.4f} < {limits.margin:g}")
+    if clearance < 0.0:
+        violations.append(f"legs interfere (clearance {clearance * 1000:.1f} mm)")
+    if tilt > math.degrees(SPHERICAL_LIMIT):
+        violations.append(f"spherical joint at {tilt:.1f} deg > 150 deg")
+    if not theta_ok:
+        violations.append("an actuated angle leaves [0, 270] deg")
+    return ValidationReport(not violations, n, torque_ratio, vel_ratio, acc_ratio, m1, m2, mp,
+                            clearance, tilt, theta_ok, violations, tau, pos, quat, psi)

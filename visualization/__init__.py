@@ -1,0 +1,1 @@
+"""MeshCat playback and plots of sixplus3 trajectories (heavy imports inside functions)."""
