@@ -1,0 +1,44 @@
+"""Plan every task of examples/ into OUT/<task>/ (CSV + JSON + HTML + plots).
+
+    .venv/bin/python scripts/plan_examples.py [--out out] [--locked] [TASK.yaml ...]
+
+The starting point for a lab's own batch: each task goes through plan -> smooth ->
+validate -> write (planner.pipeline.run_plan); an infeasible task is reported and skipped,
+nothing is written for it.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from planner.ocp import InfeasibleTaskError, PlannerOptions
+from planner.pipeline import run_plan
+from planner.task import TaskError, load_task
+from planner.trajectory_file import TrajectoryFileError
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("tasks", nargs="*", type=Path,
+                    default=sorted((ROOT / "examples").glob("*.yaml")))
+    ap.add_argument("--out", type=Path, default=Path("out"))
+    ap.add_argument("--locked", action="store_true", help="cranks locked at 90 deg")
+    args = ap.parse_args()
+    failures = 0
+    for path in args.tasks:
+        try:
+            task = load_task(path)
+            res = run_plan(task, args.out / task.name,
+                           options=PlannerOptions(lock_redundancy=args.locked), progress=print)
+            print(f"{task.name}: {res.smoothed.duration:.4f} s -> {res.csv}")
+        except (TaskError, InfeasibleTaskError, TrajectoryFileError) as exc:
+            failures += 1
+            print(f"{path.name}: not planned: {exc}")
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
