@@ -254,7 +254,18 @@ class Problem:
         proxy = max(0.5, 6 * task.limits.margin)
         safety = {"torque": opt.torque_safety, "velocity": opt.torque_safety,
                   "acceleration": opt.torque_safety}
-        sol = self._solve_once(psi_wp, proxy, safety)
+        try:
+            sol = self._solve_once(psi_wp, proxy, safety)
+        except InfeasibleTaskError as first:
+            if first.limit is None or not first.limit.startswith("solver"):
+                raise
+            # IPOPT failed from the kinematic guess: once more from a guess twice as slow
+            # (a different starting point, still kinematically feasible); if that fails
+            # too the task is reported infeasible with the first diagnosis.
+            try:
+                sol = self._solve_once(psi_wp, proxy, safety, time_scale=2.0)
+            except InfeasibleTaskError:
+                raise first from None
         total = sol.solve_time
         # The OCP constrains the nodes; the dense re-check sees between them.  Tighten what
         # the check found violated and re-solve from the previous solution (at most 3x).
@@ -281,12 +292,14 @@ class Problem:
         return sol
 
     def _solve_once(self, psi_wp: np.ndarray, platform_proxy: float, safety: dict,
-                    warm: Solution | None = None) -> Solution:
+                    warm: Solution | None = None, time_scale: float = 1.0) -> Solution:
         task, opt, sr = self.task, self.options, self.sr
         lim = task.limits
         ns, S = task.nodes_per_segment, task.n_segments
         N = ns * S
         wp_x, x0, xd0, xdd0, T0 = self._guess(psi_wp)
+        if time_scale != 1.0:
+            T0, xd0, xdd0 = T0 * time_scale, xd0 / time_scale, xdd0 / time_scale**2
         if warm is not None:
             x0, xd0, xdd0, T0 = warm.x, warm.xd, warm.xdd, warm.segment_times
         # Constraint signs from the guess (a margin keeps its sign inside a free region).
