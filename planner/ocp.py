@@ -352,7 +352,7 @@ class Problem:
             "waypoints": float(max(np.abs(x[w * ns, 0:6] - wp_x[w, 0:6]).max()
                                    for w in range(len(task.waypoints)))),
         }
-        active = self._active(x, xd, u, tau, t, platform_proxy)
+        active = self._active(x, xd, u, tau, t, platform_proxy, safety)
         sol = Solution(found=True, status=status, final_time=float(Tv.sum()),
                        solve_time=solve_time, iterations=int(stats.get("iter_count", -1)),
                        segment_times=Tv, t=t, x=x, xd=xd, xdd=u, tau=tau, theta=theta,
@@ -442,9 +442,12 @@ class Problem:
         return lb, ub
 
     # -- reporting
-    def _active(self, x, xd, u, tau, t, platform_proxy) -> list[str]:
+    def _active(self, x, xd, u, tau, t, platform_proxy, safety) -> list[str]:
+        """Limits within 0.5% of their bound at some node, with the bounds of this solve."""
         sr, lim = self.sr, self.task.limits
-        tmax = self.options.torque_safety * lim.torque
+        tmax = safety["torque"] * lim.torque
+        vmax = safety["velocity"] * lim.velocity
+        amax = safety["acceleration"] * lim.acceleration
         names = []
         n = len(t)
         thd = np.array(sr.theta_dot.map(n)(x.T, xd.T)).T
@@ -452,8 +455,8 @@ class Problem:
         m1, m2, mp = (np.array(a) for a in sr.margins.map(n)(x.T))
         checks = [
             ("torque", np.abs(tau).max(axis=1) / tmax),
-            ("velocity", np.abs(thd).max(axis=1) / lim.velocity),
-            ("acceleration", np.abs(thdd).max(axis=1) / lim.acceleration),
+            ("velocity", np.abs(thd).max(axis=1) / vmax),
+            ("acceleration", np.abs(thdd).max(axis=1) / amax),
             ("leg type I margin", lim.margin / np.abs(m1).min(axis=0)),
             ("leg type II margin", 3 * lim.margin / np.abs(m2).min(axis=0)),
             ("platform margin", platform_proxy / mp.ravel()),
