@@ -176,8 +176,8 @@ def test_playback_page_renders_the_robot(planned, tmp_path) -> None:
                     "--no-first-run", "--disable-sync", f"--user-data-dir={tmp_path / 'prof'}",
                     "--window-size=800,600", "--virtual-time-budget=4000",
                     f"--screenshot={shot}", page.as_uri()],
-                   capture_output=True, timeout=120, check=False)
-    assert shot.exists()
+                   capture_output=True, timeout=300, check=False)
+    assert shot.exists(), "chromium wrote no screenshot"
     import matplotlib.image as mpimg
 
     img = (mpimg.imread(shot)[:, :, :3] * 255).astype(int)
