@@ -171,12 +171,21 @@ def test_playback_page_renders_the_robot(planned, tmp_path) -> None:
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     assert chromium, "Debian's chromium is needed (make test installs it)"
     shot = tmp_path / "shot.png"
-    subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu",
-                    "--disable-background-networking", "--disable-component-update",
-                    "--no-first-run", "--disable-sync", f"--user-data-dir={tmp_path / 'prof'}",
-                    "--window-size=800,600", "--virtual-time-budget=4000",
-                    f"--screenshot={shot}", page.as_uri()],
-                   capture_output=True, timeout=300, check=False)
+    # No pipes (Chromium's helper processes would inherit them and keep run() waiting for
+    # EOF after the screenshot is written) and its own process group, killed on timeout.
+    proc = subprocess.Popen(
+        [chromium, "--headless", "--no-sandbox", "--disable-gpu",
+         "--disable-background-networking", "--disable-component-update", "--no-first-run",
+         "--disable-sync", f"--user-data-dir={tmp_path / 'prof'}", "--window-size=800,600",
+         "--virtual-time-budget=4000", f"--screenshot={shot}", page.as_uri()],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        proc.wait(timeout=180)
+    except subprocess.TimeoutExpired:
+        pass
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, 9)
     assert shot.exists(), "chromium wrote no screenshot"
     import matplotlib.image as mpimg
 

@@ -128,7 +128,7 @@ def test_small_task_solves_and_passes_a_10x_pinocchio_check(small_solution) -> N
     assert np.abs(sol.xd[0]).max() < 1e-9 and np.abs(sol.xd[-1]).max() < 1e-9
     np.testing.assert_allclose(sol.x[-1, 0:3], [0.03, 0.0, 0.33], atol=1e-9)
     x, xd, _ = sol.sample(np.array([0.0, sol.final_time]))
-    np.testing.assert_allclose(x, sol.x[[0, -1]], atol=1e-12)
+    np.testing.assert_allclose(x, sol.x[[0, -1]], atol=1e-10)  # cubic evaluated at t = T
 
 
 def test_locking_the_redundancy_is_not_faster(small_solution) -> None:
