@@ -144,21 +144,13 @@ def platform_margin(rotation: np.ndarray, P: np.ndarray, position: np.ndarray,
     return sv[:, -1] / sv[:, 0]
 
 
-def _rot_x(a: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) rotations about x by angles a (n,) [rad]."""
+def _rot(axis: int, a: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotations about coordinate axis ``axis`` (0 = x, 2 = z) by angles a [rad]."""
     c, s = np.cos(a), np.sin(a)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
     R = np.zeros((a.shape[0], 3, 3))
-    R[:, 0, 0] = 1.0
-    R[:, 1, 1], R[:, 1, 2], R[:, 2, 1], R[:, 2, 2] = c, -s, s, c
-    return R
-
-
-def _rot_z(a: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) rotations about z by angles a (n,) [rad]."""
-    c, s = np.cos(a), np.sin(a)
-    R = np.zeros((a.shape[0], 3, 3))
-    R[:, 2, 2] = 1.0
-    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1] = c, -s, s, c
+    R[:, axis, axis] = 1.0
+    R[:, i, i], R[:, i, j], R[:, j, i], R[:, j, j] = c, -s, s, c
     return R
 
 
@@ -276,7 +268,7 @@ def home(geom: RobotGeometry = DEFAULT_ROBOT) -> RobotConfig:
 
 # --------------------------------------------------------------------- spherical joints
 @functools.lru_cache(maxsize=4)
-def _spherical_reference(geom: RobotGeometry) -> np.ndarray:
+def spherical_reference(geom: RobotGeometry) -> np.ndarray:
     """Mounting axes of the S joints, fixed in their bodies, from the home pose.
 
     Returns (3 legs, 3 joints E/F/P, 2 sides, 3): for E and F, (axis in the leg body
@@ -309,8 +301,8 @@ def _body_frames(cfg: RobotConfig, geom: RobotGeometry):
         for crank_joint, ua, ub in (("B", "Ga", "Gb"), ("C", "Ha", "Hb")):
             ang = q[:, lay[f"leg{i}_{crank_joint}"]] + q[:, lay[f"leg{i}_{ua}"]]
             b = q[:, lay[f"leg{i}_{ub}"]]
-            distal.append(Rl @ _rot_x(ang) @ _rot_z(b))
-        crank = cfg.rotation @ _rot_z(geom.crank_axis_angle(i) + cfg.psi[:, i])
+            distal.append(Rl @ _rot(0, ang) @ _rot(2, b))
+        crank = cfg.rotation @ _rot(2, geom.crank_axis_angle(i) + cfg.psi[:, i])
         out.append((body, distal[0], distal[1], crank))
     return out
 
@@ -320,7 +312,7 @@ def spherical_tilts(cfg: RobotConfig, geom: RobotGeometry = DEFAULT_ROBOT) -> np
 
     The range check of SPEC.md: each must stay below 150 deg (``SPHERICAL_LIMIT``).
     """
-    ref = _spherical_reference(geom)
+    ref = spherical_reference(geom)
     frames = _body_frames(cfg, geom)
     tilt = np.zeros((len(cfg), NUM_LEGS, 3))
     for i in range(NUM_LEGS):

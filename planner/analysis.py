@@ -18,10 +18,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from dynamics.closed_loop import ClosedLoopDynamics
-from kinematics.robot import HOME_HEIGHT, leg_clearance, robot_ik, spherical_tilts
-from planner.ocp import NOMINAL_PSI, PSI_MAX, PSI_MIN, THETA_MAX, THETA_MIN
+from kinematics.robot import HOME_HEIGHT, leg_clearance, robot_ik
+from planner.ocp import NOMINAL_PSI, PSI_MAX, PSI_MIN, pose_masks
 from planner.task import Limits
-from robot_description.urdf import SPHERICAL_LIMIT
 from sixplus3.errors import SingularityError
 
 
@@ -51,10 +50,9 @@ def static_feasible(position, rotation, limits: Limits, locked: bool,
     cfg = robot_ik(position, rotation, psis)
     if not cfg.ok.any():
         return False, None, 0.0, math.inf, "reach"
-    ok = cfg.ok & np.all((cfg.theta >= THETA_MIN) & (cfg.theta <= THETA_MAX), axis=1)
-    if not ok.any():
+    theta_ok, ok = pose_masks(cfg)
+    if not theta_ok.any():
         return False, None, 0.0, math.inf, "theta range"
-    ok &= np.all(spherical_tilts(cfg) <= SPHERICAL_LIMIT, axis=(1, 2))
     if not ok.any():
         return False, None, 0.0, math.inf, "spherical joints"
     ok &= leg_clearance(cfg) >= 0.0

@@ -28,7 +28,7 @@ import casadi as ca
 import numpy as np
 
 from kinematics.leg import DEFAULT_MODE, AssemblyMode
-from kinematics.robot import HOME_HEIGHT, HOME_PSI, _spherical_reference
+from kinematics.robot import HOME_HEIGHT, HOME_PSI, spherical_reference
 from robot_description.robot import NUM_LEGS, RobotGeometry
 
 NX = 9  # minimal coordinates: p (3), r (3), psi (3)
@@ -317,7 +317,7 @@ def symbolic_robot(mode_name: str = DEFAULT_MODE.name, point_mass: bool = False)
     th_ddot = ca.jtimes(th_dot, x, xd) + Jth @ xdd
 
     # Spherical-joint tilt cosines (kinematics.robot.spherical_tilts), 3 per leg: E, F, P.
-    ref = _spherical_reference(geom)
+    ref = spherical_reference(geom)
     sph = []
     for i in range(NUM_LEGS):
         body = leg_Q[i]

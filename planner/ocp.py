@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -127,6 +127,14 @@ class DenseCheck:
 
 
 # --------------------------------------------------------------------- static choices
+def pose_masks(cfg) -> tuple[np.ndarray, np.ndarray]:
+    """(theta_ok, spherical_ok) of batched configurations: solved with every actuated
+    angle in [0, 270] deg, and additionally every spherical joint within 150 deg."""
+    theta_ok = cfg.ok & np.all((cfg.theta >= THETA_MIN) & (cfg.theta <= THETA_MAX), axis=1)
+    sph_ok = theta_ok & np.all(spherical_tilts(cfg) <= SPHERICAL_LIMIT, axis=(1, 2))
+    return theta_ok, sph_ok
+
+
 def _static_candidates(wp: Waypoint, limits, locked: bool):
     """Crank-angle candidates at a waypoint with their official checks (batched)."""
     if wp.psi is not None:
@@ -137,8 +145,7 @@ def _static_candidates(wp: Waypoint, limits, locked: bool):
         axis = np.radians(np.arange(35.0, 146.0, 10.0))
         psis = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
     cfg = robot_ik(wp.position, wp.rotation, psis)
-    theta_ok = cfg.ok & np.all((cfg.theta >= THETA_MIN) & (cfg.theta <= THETA_MAX), axis=1)
-    sph_ok = theta_ok & np.all(spherical_tilts(cfg) <= SPHERICAL_LIMIT, axis=(1, 2))
+    theta_ok, sph_ok = pose_masks(cfg)
     margin = np.where(sph_ok, cfg.margins.minimum, -1.0)
     return psis, cfg, theta_ok, sph_ok, margin
 
@@ -583,4 +590,4 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
 
 
 __all__ = ["DenseCheck", "InfeasibleTaskError", "PlannerOptions", "Problem", "Solution",
-           "dense_check", "plan", "replace"]
+           "dense_check", "plan", "pose_masks"]
