@@ -87,7 +87,6 @@ class SymbolicRobot:
     spherical_cos: ca.Function  # x -> (9,) cosines of the S-joint tilts
     P: ca.Function  # x -> (3, 3) sphere centres (columns)
     node: ca.Function  # (x, xd, u, tau) -> the 67 path-constraint rows of one node
-    node_kin: ca.Function  # (x, xd, u) -> rows 9..66 of ``node`` (no dynamics)
 
     #: Row layout of ``node``: name -> (start, stop)
     NODE_ROWS = {"dynamics": (0, 9), "theta_dot": (9, 18), "theta_ddot": (18, 27),
@@ -347,10 +346,6 @@ def symbolic_robot(mode_name: str = DEFAULT_MODE.name, point_mass: bool = False)
         spherical_cos=ca.Function("spherical_cos", [x], [ca.vertcat(*sph)], opts),
         P=ca.Function("P", [x], [ca.horzcat(*P_list)], opts),
         node=node,
-        node_kin=ca.Function(
-            "node_kin", [x, xd, xdd],
-            [ca.vertcat(th_dot, th_ddot, theta, ca.vertcat(*reach), ca.vertcat(*sph),
-                        *margins_out)], opts),
     )
 
 

@@ -165,3 +165,43 @@ def test_leg_clearance_and_home_x() -> None:
     np.testing.assert_allclose(np.array(symbolic_robot().q(home_x())).ravel(), home().q[0],
                                atol=1e-12)
     assert Problem(task_from_dict(SMALL)).task.name == "small"
+
+
+def test_compiled_node_functions_agree_with_casadi() -> None:
+    """The gcc-compiled constraint function and its Jacobian (planner.codegen) are the
+    interpreted SX ones, to rounding, at random states (including the Jacobian CasADi
+    finds in the library as ``jac_node``)."""
+    from planner.codegen import codegen_enabled, compiled_functions
+
+    if not codegen_enabled():
+        pytest.fail("no C compiler: the planner would run interpreted (make test needs gcc)")
+    sr = symbolic_robot()
+    node = compiled_functions("++++")["node"]
+    jac_c, jac_sx = node.jacobian(), sr.node.jacobian()
+    for x, xd, xdd in random_states(4, seed=3):
+        tau = np.random.default_rng(4).normal(size=9)
+        out_sx = np.array(sr.node(x, xd, xdd, tau))
+        np.testing.assert_allclose(np.array(node(x, xd, xdd, tau)), out_sx, rtol=1e-12,
+                                   atol=1e-12)
+        blocks = zip(jac_c(x, xd, xdd, tau, out_sx), jac_sx(x, xd, xdd, tau, out_sx),
+                     strict=True)
+        for a, b in blocks:
+            a, b = np.array(a), np.array(b)
+            assert np.abs(a - b).max() <= 1e-10 * max(1.0, np.abs(b).max())
+            assert np.abs(b).max() > 0  # not two empty blocks
+
+
+def test_planner_runs_interpreted_without_a_compiler(monkeypatch) -> None:
+    """With code generation off the same NLP is built from the SX functions (slower)."""
+    from planner import codegen, ocp
+
+    monkeypatch.setenv("SIXPLUS3_NO_CODEGEN", "1")
+    codegen.compiled_functions.cache_clear()
+    monkeypatch.setattr(ocp, "_TEMPLATES", {})
+    try:
+        tiny = {"waypoints": [{"position": [0, 0, 0.30]}, {"position": [0.02, 0, 0.31]}],
+                "nodes_per_segment": 4}
+        sol = plan(task_from_dict(tiny), PlannerOptions(lock_redundancy=True))
+        assert sol.is_feasible() and sol.check.max_torque_ratio > 0.5
+    finally:
+        codegen.compiled_functions.cache_clear()
