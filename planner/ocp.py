@@ -41,7 +41,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from kinematics.leg import DEFAULT_MODE
-from kinematics.robot import robot_ik, spherical_tilts
+from kinematics.robot import leg_clearance, robot_ik, spherical_tilts
 from planner.model import symbolic_robot
 from planner.task import Task, Waypoint, rotvec
 from robot_description.robot import NUM_LEGS
@@ -96,6 +96,8 @@ class Solution:
     check: DenseCheck | None = None
     options: PlannerOptions = field(default_factory=PlannerOptions)
     task: Task | None = None
+    #: final uniform time scale applied after the NLP (1: the NLP's own timing)
+    time_scale: float = 1.0
     #: the NLP's primal-dual point (x, lam_x, lam_g), to warm-start a re-solve
     nlp_point: tuple | None = field(default=None, repr=False)
 
@@ -131,6 +133,7 @@ class DenseCheck:
     min_margin_platform: float
     theta_range_ok: bool
     max_spherical_tilt: float  # [rad]
+    min_leg_clearance: float  # [m] between links of different legs (capsules)
     violations: list[str]
 
 
@@ -154,8 +157,9 @@ def _static_candidates(wp: Waypoint, limits, locked: bool):
         psis = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
     cfg = robot_ik(wp.position, wp.rotation, psis)
     theta_ok, sph_ok = pose_masks(cfg)
-    margin = np.where(sph_ok, cfg.margins.minimum, -1.0)
-    return psis, cfg, theta_ok, sph_ok, margin
+    clear_ok = sph_ok & (leg_clearance(cfg) >= 0.0)
+    margin = np.where(clear_ok, cfg.margins.minimum, -1.0)
+    return psis, cfg, theta_ok, sph_ok, clear_ok, margin
 
 
 def choose_static_psi(task: Task, locked: bool, at_rest: set[int]) -> np.ndarray:
@@ -166,7 +170,7 @@ def choose_static_psi(task: Task, locked: bool, at_rest: set[int]) -> np.ndarray
     lim = task.limits
     out = []
     for k, wp in enumerate(task.waypoints):
-        psis, cfg, theta_ok, sph_ok, margin = _static_candidates(wp, lim, locked)
+        psis, cfg, theta_ok, sph_ok, clear_ok, margin = _static_candidates(wp, lim, locked)
         where = f"waypoint {k} (position {np.round(wp.position, 4).tolist()} m)"
         if not cfg.ok.any():
             st = next(int(s) for s in cfg.leg_status[0] if s)
@@ -184,6 +188,10 @@ def choose_static_psi(task: Task, locked: bool, at_rest: set[int]) -> np.ndarray
             raise InfeasibleTaskError(
                 f"{where}: a spherical joint exceeds 150 deg for every crank choice", k,
                 "spherical joints")
+        if not clear_ok.any():
+            raise InfeasibleTaskError(
+                f"{where}: links of different legs interfere for every crank choice",
+                k, "leg interference")
         order = np.argsort(-margin)
         if margin[order[0]] < lim.margin:
             raise InfeasibleTaskError(
@@ -266,10 +274,23 @@ class Problem:
         return wp_x, x, xd / a, xdd / a**2, T * scale
 
     def _guess_scale(self, x, xd, xdd, fraction: float) -> np.ndarray:
-        """Per segment, the time stretch a > 0 that brings the guess within ``fraction``
-        of the velocity, acceleration and torque limits (gravity is unscaled)."""
-        sr, lim = self.sr, self.task.limits
+        """Per segment, the time stretch that brings the guess within ``fraction`` of
+        the velocity, acceleration and torque limits."""
         ns, S = self.task.nodes_per_segment, self.task.n_segments
+        a = self._time_stretch(x, xd, xdd, fraction)
+        seg = np.minimum(np.arange(len(x)) // ns, S - 1)
+        return np.clip([a[seg == s].max() for s in range(S)], 0.05, 50.0)
+
+    def _time_stretch(self, x, xd, xdd, fraction: float) -> np.ndarray:
+        """(n,) smallest a > 0 per sample such that stretching time by a brings it within
+        ``fraction`` of the velocity, acceleration and torque limits.
+
+        Under t -> a t on a fixed path theta_dot scales by 1/a, theta_ddot and the
+        inertial torques (tau - tau_gravity) by 1/a^2, exactly.  Samples whose gravity
+        torque alone exceeds the fraction get the largest stretch the formula allows
+        (1e3-fold headroom floor), i.e. they are reported as needing a very slow motion.
+        """
+        sr, lim = self.sr, self.task.limits
         n = len(x)
         thd = np.abs(np.array(sr.theta_dot.map(n)(x.T, xd.T)))
         thdd = np.abs(np.array(sr.theta_ddot.map(n)(x.T, xd.T, xdd.T)))
@@ -283,9 +304,7 @@ class Problem:
         a2 = np.maximum.reduce([
             (thd / (fraction * lim.velocity)) ** 2, thdd / (fraction * lim.acceleration),
             need]).max(axis=0)
-        seg = np.minimum(np.arange(n) // ns, S - 1)
-        out = np.array([math.sqrt(max(a2[seg == s].max(), 1e-6)) for s in range(S)])
-        return np.clip(out, 0.05, 50.0)
+        return np.sqrt(np.maximum(a2, 1e-12))
 
     def solve(self) -> Solution:
         task, opt = self.task, self.options
@@ -333,7 +352,41 @@ class Problem:
             sol = self._solve_once(psi_wp, proxy, safety, warm=sol)
             total += sol.solve_time
         sol.solve_time = total
+        if sol.check is not None and sol.check.ok:
+            sol = self._retime(sol, proxy)
         return sol
+
+    def _retime(self, sol: Solution, platform_proxy: float, target: float = 0.995) -> Solution:
+        """Compress the verified plan uniformly in time up to ``target`` of its limits.
+
+        The OCP bounds the torques at the nodes and midpoints at a safety fraction of the
+        limit, so the verified plan usually keeps 1-2% in reserve everywhere.  Stretching
+        time by a keeps the path (and every margin) and scales theta_dot by 1/a and
+        theta_ddot and the inertial torques by 1/a^2 exactly, so the smallest a that
+        keeps every dense sample within ``target`` of the limits follows in closed form.
+        The result is re-checked with Pinocchio; if that check fails, the original plan
+        is kept.
+        """
+        times = np.linspace(0.0, sol.t[-1], (len(sol.t) - 1) * 10 + 1)
+        x, xd, xdd = sol.sample(times)
+        a = float(self._time_stretch(x, xd, xdd, target).max())
+        if not 0.5 < a < 1.0:
+            return sol
+        tau_g = np.array(self.sr.tau.map(len(sol.t))(sol.x.T, 0 * sol.xd.T, 0 * sol.xdd.T)).T
+        new = Solution(
+            found=True, status=sol.status, final_time=sol.final_time * a,
+            solve_time=sol.solve_time, iterations=sol.iterations,
+            segment_times=sol.segment_times * a, t=sol.t * a, x=sol.x, xd=sol.xd / a,
+            xdd=sol.xdd / a**2, tau=tau_g + (sol.tau - tau_g) / a**2, theta=sol.theta,
+            residuals=sol.residuals, active_limits=[], options=sol.options, task=sol.task,
+            nlp_point=sol.nlp_point, time_scale=a)
+        new.check = dense_check(new, factor=10)
+        if not new.check.ok:
+            return sol
+        safety = {"torque": 1.0, "velocity": 1.0, "acceleration": 1.0}
+        new.active_limits = self._active(new.x, new.xd, new.xdd, new.tau, new.t,
+                                         platform_proxy, safety)
+        return new
 
     def _solve_once(self, psi_wp: np.ndarray, platform_proxy: float, safety: dict,
                     warm: Solution | None = None, time_scale: float = 1.0) -> Solution:
@@ -601,7 +654,8 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
 
     Torques come from Pinocchio's constrained inverse dynamics (dynamics.closed_loop),
     margins from the numeric kinematics (kinematics.robot), independently of the CasADi
-    expressions used inside the optimisation.
+    expressions used inside the optimisation.  Also checks what the OCP does not
+    constrain: the clearance between the links of different legs.
     """
     from dynamics.closed_loop import ClosedLoopDynamics
 
@@ -631,6 +685,7 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
                         float(m.platform.min()))
     theta_ok = bool(np.all((cfg.theta >= THETA_MIN - 1e-9) & (cfg.theta <= THETA_MAX + 1e-9)))
     tilt = float(spherical_tilts(cfg).max())
+    clearance = float(leg_clearance(cfg).min())
     if torque_ratio > 1.0:
         violations.append(f"torque {torque_ratio * lim.torque:.3f} N m > {lim.torque:g} N m")
     if vel_ratio > 1.0:
@@ -646,12 +701,16 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
         violations.append("actuated angle outside [0, 270] deg")
     if tilt > SPHERICAL_LIMIT:
         violations.append(f"spherical joint at {math.degrees(tilt):.1f} deg > 150 deg")
+    if clearance < 0.0:
+        violations.append(f"leg interference: links of different legs overlap by "
+                          f"{-clearance * 1e3:.1f} mm")
     return DenseCheck(ok=not violations, samples=n, max_torque_ratio=torque_ratio,
                       max_velocity_ratio=vel_ratio, max_acceleration_ratio=acc_ratio,
                       min_margin=min(min1, min2, minp),
                       min_margin_leg_type1=min1, min_margin_leg_type2=min2,
                       min_margin_platform=minp, theta_range_ok=theta_ok,
-                      max_spherical_tilt=tilt, violations=violations)
+                      max_spherical_tilt=tilt, min_leg_clearance=clearance,
+                      violations=violations)
 
 
 __all__ = ["DenseCheck", "InfeasibleTaskError", "PlannerOptions", "Problem", "Solution",

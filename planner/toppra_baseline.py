@@ -78,3 +78,32 @@ def toppra_time(xs: np.ndarray, limits: Limits, gridpoints: int = 400,
         raise RuntimeError("TOPP-RA found no feasible parametrisation of the path")
     t = np.linspace(0.0, traj.duration, samples)
     return ToppraResult(float(traj.duration), gridpoints, t, traj(t))
+
+
+def rest_splits(sol, rel: float = 1e-3) -> np.ndarray:
+    """Times [s] where a planned motion comes to rest: its ends and every interior node
+    with |x_dot| <= rel * max |x_dot|.  A path that stops and reverses there (a tilt and
+    back) has a cusp, where no spline through its samples is the same path; TOPP-RA is
+    run on each rest-to-rest piece instead."""
+    speed = np.linalg.norm(sol.xd, axis=1)
+    stops = np.flatnonzero(speed <= rel * speed.max())
+    return np.unique(np.r_[0.0, sol.t[stops], sol.t[-1]])
+
+
+def toppra_along(sol, limits: Limits, gridpoints: int = 800, samples: int = 201,
+                 cranks: float | np.ndarray | None = None) -> float:
+    """TOPP-RA duration [s] along the geometric path of a planned motion (``sol``: a
+    :class:`planner.ocp.Solution`), summed over its rest-to-rest pieces.
+
+    With ``cranks`` (a scalar or (3,), [rad]) the crank angles are replaced by these constants: the
+    redundancy-less baseline on the same platform path.
+    """
+    total = 0.0
+    splits = rest_splits(sol)
+    for t0, t1 in zip(splits[:-1], splits[1:], strict=True):
+        x, _, _ = sol.sample(np.linspace(t0, t1, samples))
+        if cranks is not None:
+            x = x.copy()
+            x[:, 6:9] = cranks
+        total += toppra_time(x, limits, gridpoints=gridpoints).duration
+    return total

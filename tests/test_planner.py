@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from dynamics.closed_loop import ClosedLoopDynamics
 from kinematics.robot import leg_clearance, robot_ik, spherical_tilts
@@ -121,6 +122,7 @@ def test_small_task_solves_and_passes_a_10x_pinocchio_check(small_solution) -> N
     chk = dense_check(sol, factor=10)  # independent: Pinocchio ID + numeric margins
     assert chk.samples == 10 * (len(sol.t) - 1) + 1
     assert chk.ok and chk.max_torque_ratio <= 1.0 and chk.min_margin >= 0.05
+    assert chk.min_leg_clearance > 0.0
     assert chk.max_torque_ratio > 0.8  # time-optimal: the torque limit is what binds
     assert any(a.startswith(("torque", "acceleration", "velocity"))
                for a in sol.active_limits)
@@ -205,3 +207,69 @@ def test_planner_runs_interpreted_without_a_compiler(monkeypatch) -> None:
         assert sol.is_feasible() and sol.check.max_torque_ratio > 0.5
     finally:
         codegen.compiled_functions.cache_clear()
+
+
+def test_a_waypoint_with_interfering_legs_is_refused() -> None:
+    """Locked cranks: 170 deg about y makes links of different legs overlap (capsules)."""
+    task = task_from_dict({"waypoints": [{"position": [0, 0, 0.30]},
+                                         {"position": [0, 0, 0.30], "rpy": [0, 170, 0]}]})
+    with pytest.raises(InfeasibleTaskError) as err:
+        plan(task, PlannerOptions(lock_redundancy=True))
+    assert err.value.limit == "leg interference" and err.value.waypoint == 1
+    cfg = robot_ik(np.array([0, 0, 0.30]), Rotation.from_euler("y", 170, degrees=True)
+                   .as_matrix(), np.full((1, 3), math.pi / 2))
+    assert leg_clearance(cfg)[0] < 0.0  # independently: the capsules do overlap
+
+
+def test_largest_tilt_is_the_edge_of_the_static_feasible_set() -> None:
+    """The bisection's answer is feasible and one resolution step beyond is not, for the
+    limit it names; with a 1 N m torque limit the locked cranks stop at the torque limit
+    (checked with Pinocchio's gravity torques) while free cranks tilt much further."""
+    from planner.analysis import largest_tilt, static_feasible
+    from planner.task import Limits
+
+    dyn = ClosedLoopDynamics()
+    home_p = np.array([0.0, 0.0, 0.30])
+
+    def pose(axis, deg):
+        return Rotation.from_rotvec(np.radians(deg) * np.eye(3)["xy".index(axis)]).as_matrix()
+
+    r = largest_tilt("y", locked=True, max_deg=179.0, resolution_deg=1.0)
+    assert r.binding == "leg interference" and 90.0 < r.tilt_deg < 179.0
+    assert static_feasible(home_p, pose("y", r.tilt_deg), Limits(), True)[0]
+    beyond = static_feasible(home_p, pose("y", r.tilt_deg + 1.0), Limits(), True)
+    assert not beyond[0] and beyond[4] == "leg interference"
+
+    weak = Limits(torque=1.0)
+    locked = largest_tilt("x", locked=True, limits=weak, max_deg=90.0, resolution_deg=1.0)
+    free = largest_tilt("x", locked=False, limits=weak, max_deg=90.0, resolution_deg=1.0)
+    assert locked.binding == "torque" and 0.0 < locked.tilt_deg < 89.0
+    assert free.tilt_deg >= locked.tilt_deg + 20.0
+    for deg, below in ((locked.tilt_deg, True), (locked.tilt_deg + 1.0, False)):
+        cfg = robot_ik(home_p, pose("x", deg), np.full((1, 3), math.pi / 2))
+        tau_g = np.abs(dyn.gravity_torques(cfg.q[0])).max()
+        assert (tau_g <= 1.0) == below
+
+
+def test_retiming_and_rest_splits(small_solution) -> None:
+    """The final uniform retiming: a plan slowed down by 20% is compressed back until a
+    limit is at 99.5% in the Pinocchio dense check, on the same path; and the TOPP-RA
+    certificate splits a path only where the motion is at rest."""
+    import dataclasses
+
+    from planner.toppra_baseline import rest_splits
+
+    sol, a = small_solution, 1.2
+    tau_g = np.array(symbolic_robot().tau.map(len(sol.t))(
+        sol.x.T, 0 * sol.xd.T, 0 * sol.xdd.T)).T
+    slow = dataclasses.replace(sol, t=sol.t * a, final_time=sol.final_time * a,
+                               segment_times=sol.segment_times * a, xd=sol.xd / a,
+                               xdd=sol.xdd / a**2, tau=tau_g + (sol.tau - tau_g) / a**2)
+    slow.check = dense_check(slow)
+    fast = Problem(sol.task)._retime(slow, platform_proxy=0.5)
+    assert fast.time_scale < 1.0 and fast.final_time < slow.final_time
+    np.testing.assert_array_equal(fast.x, slow.x)
+    worst = max(fast.check.max_torque_ratio, fast.check.max_velocity_ratio,
+                fast.check.max_acceleration_ratio)
+    assert fast.check.ok and 0.99 <= worst <= 0.995 + 1e-9
+    np.testing.assert_allclose(rest_splits(sol), [0.0, sol.final_time])
