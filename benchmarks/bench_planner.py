@@ -24,7 +24,7 @@ from scipy.spatial.transform import Rotation
 from kinematics.robot import robot_ik
 from planner.analysis import largest_tilt
 from planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
-from planner.task import load_task
+from planner.task import load_task, task_from_dict
 from planner.toppra_baseline import toppra_along
 
 
@@ -44,6 +44,33 @@ def locked_path_note(sol, task) -> str:
                    np.full((len(t), 3), np.pi / 2))
     worst = cfg.margins.minimum.min() if cfg.ok.all() else -1.0
     return "" if worst >= task.limits.margin else f" (margin {worst:.3f} on it)"
+
+
+def planned_tilt(axis: str, locked: bool, static_deg: float) -> str:
+    """Plan home -> tilt -> home at the static limit, backing off 5 deg at a time."""
+    rpy = {"x": 0, "y": 1}[axis]
+    tried = []
+    deg = float(np.floor(static_deg))
+    for _ in range(6):
+        angles = [0.0, 0.0, 0.0]
+        angles[rpy] = deg
+        task = task_from_dict({"name": f"tilt_{axis}_{deg:g}", "nodes_per_segment": 10,
+                               "waypoints": [{"position": [0, 0, 0.30]},
+                                             {"position": [0, 0, 0.30], "rpy": angles},
+                                             {"position": [0, 0, 0.30]}]})
+        try:
+            sol = Problem(task, PlannerOptions(lock_redundancy=locked)).solve()
+            if sol.is_feasible():
+                return (f"{deg:g} deg in {sol.final_time:.4f} s (solve {sol.solve_time:.2f} s, "
+                        f"max|tau|/lim {sol.check.max_torque_ratio:.3f}, margin "
+                        f"{sol.check.min_margin:.3f}, clearance "
+                        f"{sol.check.min_leg_clearance * 1e3:.1f} mm)"
+                        + (f"; failed at {', '.join(tried)}" if tried else ""))
+            tried.append(f"{deg:g} ({'; '.join(sol.check.violations)})")
+        except InfeasibleTaskError as exc:
+            tried.append(f"{deg:g} ({exc.limit})")
+        deg -= 5.0
+    return "none; failed at " + ", ".join(tried)
 
 
 def main() -> None:
@@ -87,14 +114,17 @@ def main() -> None:
         print(f"\nmedian solve time over {len(solves)} solves: {statistics.median(solves):.2f} s "
               f"(min {min(solves):.2f}, max {max(solves):.2f}; NLP build and the one-time "
               "compilation excluded)")
-    print("\nlargest static tilt at home (0, 0, 0.30 m), margins >= 0.05, 10 N m:")
+    print("\nlargest static tilt at home (0, 0, 0.30 m), margins >= 0.05, 10 N m, and the "
+          "largest tilt-and-back motion the planner then delivers (dense check incl. leg "
+          "clearance):")
     for axis in ("x", "y"):
         for locked in (False, True):
             r = largest_tilt(axis, locked, max_deg=179.0)
             print(f"  about {axis}, redundancy {'locked' if locked else 'free  '}: "
                   f"{r.tilt_deg:.1f} deg (psi {r.psi_deg} deg, margin {r.min_margin:.3f}, "
                   f"|tau_g| {r.max_gravity_torque:.2f} N m; beyond: "
-                  f"{r.binding or 'scan limit 175 deg'})")
+                  f"{r.binding or 'scan limit 175 deg'})", flush=True)
+            print("      planned: " + planned_tilt(axis, locked, r.tilt_deg), flush=True)
 
 
 if __name__ == "__main__":

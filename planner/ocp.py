@@ -317,6 +317,7 @@ class Problem:
         proxy = max(0.5, 6 * task.limits.margin)
         safety = {"torque": opt.torque_safety, "velocity": opt.torque_safety,
                   "acceleration": opt.torque_safety}
+        sph_reserve = 0.0  # [rad] below the spherical joints' limit, grown by re-solves
         try:
             sol = self._solve_once(psi_wp, proxy, safety)
         except InfeasibleTaskError as first:
@@ -347,9 +348,14 @@ class Problem:
             if any(v.startswith("platform") for v in bad):
                 proxy = min(0.9, proxy + 0.2)
                 fixable = True
+            if any(v.startswith("spherical") for v in bad):
+                # bound the tilts below 150 deg by the overshoot found, plus 0.25 deg
+                over = sol.check.max_spherical_tilt - (SPHERICAL_LIMIT - sph_reserve)
+                sph_reserve += over + math.radians(0.25)
+                fixable = sph_reserve < math.radians(10.0)
             if not fixable:
                 break
-            sol = self._solve_once(psi_wp, proxy, safety, warm=sol)
+            sol = self._solve_once(psi_wp, proxy, safety, warm=sol, sph_reserve=sph_reserve)
             total += sol.solve_time
         sol.solve_time = total
         if sol.check is not None and sol.check.ok:
@@ -389,7 +395,8 @@ class Problem:
         return new
 
     def _solve_once(self, psi_wp: np.ndarray, platform_proxy: float, safety: dict,
-                    warm: Solution | None = None, time_scale: float = 1.0) -> Solution:
+                    warm: Solution | None = None, time_scale: float = 1.0,
+                    sph_reserve: float = 0.0) -> Solution:
         task, opt, sr = self.task, self.options, self.sr
         lim = task.limits
         ns, S = task.nodes_per_segment, task.n_segments
@@ -407,7 +414,7 @@ class Problem:
 
         tmpl = self._template()
         tmax = safety["torque"] * lim.torque
-        lb, ub = self._node_bounds(lim, sign1, sign2, platform_proxy, safety)
+        lb, ub = self._node_bounds(lim, sign1, sign2, platform_proxy, safety, sph_reserve)
         lbx, ubx = self._variable_bounds(wp_x, tmax)
         lbg = np.r_[np.zeros(18 * N), np.tile(lb, 2 * N + 1)]
         ubg = np.r_[np.zeros(18 * N), np.tile(ub, 2 * N + 1)]
@@ -564,7 +571,7 @@ class Problem:
         return tmpl
 
     @staticmethod
-    def _node_bounds(lim, sign1, sign2, platform_proxy, safety=None):
+    def _node_bounds(lim, sign1, sign2, platform_proxy, safety=None, sph_reserve=0.0):
         """Lower/upper bounds of the 67 rows of ``SymbolicRobot.node``."""
         safety = safety or {"velocity": 1.0, "acceleration": 1.0}
         inf = np.inf
@@ -574,7 +581,7 @@ class Problem:
         lb[18:27], ub[18:27] = -a, a
         lb[27:36], ub[27:36] = THETA_MIN, THETA_MAX
         lb[36:45], ub[36:45] = 0.0, inf
-        lb[45:54], ub[45:54] = math.cos(SPHERICAL_LIMIT), inf
+        lb[45:54], ub[45:54] = math.cos(SPHERICAL_LIMIT - sph_reserve), inf
         for rows, sign, m in ((slice(54, 63), sign1, lim.margin),
                               (slice(63, 66), sign2, 3 * lim.margin)):
             lb[rows] = np.where(sign > 0, m, -inf)
