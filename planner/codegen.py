@@ -80,8 +80,8 @@ def _build(sources: dict[str, str], directory: Path) -> dict[str, Path]:
             [cc, *CFLAGS, c_path, "-o", tmp_lib], stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT)))
     if jobs:
-        print(f"sixplus3: compiling the planner's dynamics ({len(jobs)} libraries, once "
-              f"per machine, ~1 min) into {directory}", file=sys.stderr, flush=True)
+        print("sixplus3: compiling the planner's constraint functions (once per machine "
+              f"and model, ~1 min) into {directory}", file=sys.stderr, flush=True)
     errors = []
     for name, lib, c_path, tmp_lib, proc in jobs:
         out, _ = proc.communicate()
