@@ -96,6 +96,8 @@ class Solution:
     check: DenseCheck | None = None
     options: PlannerOptions = field(default_factory=PlannerOptions)
     task: Task | None = None
+    #: NLP solves behind this plan (1 + re-solves after the dense check)
+    solves: int = 1
     #: final uniform time scale applied after the NLP (1: the NLP's own timing)
     time_scale: float = 1.0
     #: the NLP's primal-dual point (x, lam_x, lam_g), to warm-start a re-solve
@@ -330,7 +332,7 @@ class Problem:
                 sol = self._solve_once(psi_wp, proxy, safety, time_scale=2.0)
             except InfeasibleTaskError:
                 raise first from None
-        total = sol.solve_time
+        total, solves = sol.solve_time, 1
         # The OCP constrains the nodes; the dense re-check sees between them.  Tighten what
         # the check found violated and re-solve from the previous solution (at most 5x).
         for _ in range(5):
@@ -357,7 +359,8 @@ class Problem:
                 break
             sol = self._solve_once(psi_wp, proxy, safety, warm=sol, sph_reserve=sph_reserve)
             total += sol.solve_time
-        sol.solve_time = total
+            solves += 1
+        sol.solve_time, sol.solves = total, solves
         if sol.check is not None and sol.check.ok:
             sol = self._retime(sol, proxy)
         return sol
@@ -385,7 +388,7 @@ class Problem:
             segment_times=sol.segment_times * a, t=sol.t * a, x=sol.x, xd=sol.xd / a,
             xdd=sol.xdd / a**2, tau=tau_g + (sol.tau - tau_g) / a**2, theta=sol.theta,
             residuals=sol.residuals, active_limits=[], options=sol.options, task=sol.task,
-            nlp_point=sol.nlp_point, time_scale=a)
+            nlp_point=sol.nlp_point, solves=sol.solves, time_scale=a)
         new.check = dense_check(new, factor=10)
         if not new.check.ok:
             return sol

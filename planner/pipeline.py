@@ -57,9 +57,10 @@ def run_plan(task: Task, out_dir: str | Path, rate: float = 1000.0, html: bool =
         f"{task.n_segments * task.nodes_per_segment} intervals) ...")
     sol = plan(task, options)
     secs["plan"] = time.perf_counter() - t0
-    say(f"  planned: {sol.final_time:.4f} s motion, IPOPT {sol.iterations} iterations, "
-        f"{sol.solve_time:.1f} s; 10x re-check: max|tau| {sol.check.max_torque_ratio:.3f} "
-        f"of the limit, min margin {sol.check.min_margin:.3f}")
+    say(f"  planned: {sol.final_time:.4f} s motion, {sol.solves} NLP solve(s), IPOPT "
+        f"{sol.iterations} iterations in the last, {sol.solve_time:.2f} s; 10x re-check: "
+        f"max|tau| {sol.check.max_torque_ratio:.3f} of the limit, min margin "
+        f"{sol.check.min_margin:.3f}")
     t1 = time.perf_counter()
     sm = smooth(sol, rate=rate)
     secs["smooth"] = time.perf_counter() - t1
@@ -84,6 +85,7 @@ def run_plan(task: Task, out_dir: str | Path, rate: float = 1000.0, html: bool =
         "task": task.source,
         "planner": {"status": sol.status, "final_time_s": sol.final_time,
                     "solve_time_s": sol.solve_time, "iterations": sol.iterations,
+                    "solves": sol.solves, "time_scale": sol.time_scale,
                     "segment_times_s": sol.segment_times, "residuals": sol.residuals,
                     "active_limits": sol.active_limits,
                     "dense_check": sol.check.__dict__ if sol.check else None,

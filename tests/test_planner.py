@@ -273,3 +273,39 @@ def test_retiming_and_rest_splits(small_solution) -> None:
                 fast.check.max_acceleration_ratio)
     assert fast.check.ok and 0.99 <= worst <= 0.995 + 1e-9
     np.testing.assert_allclose(rest_splits(sol), [0.0, sol.final_time])
+
+
+def test_a_violation_between_nodes_tightens_and_re_solves(monkeypatch) -> None:
+    """When the dense check finds a limit exceeded between the constrained points, the
+    planner tightens that limit and re-solves (warm-started) until the check passes."""
+    from planner import ocp
+
+    real = ocp.dense_check
+    calls = []
+
+    def first_fails(sol, factor=10):
+        chk = real(sol, factor)
+        calls.append(chk)
+        if len(calls) == 1:  # pretend the first plan overshoots the torque by 3%
+            import dataclasses
+
+            return dataclasses.replace(chk, ok=False, max_torque_ratio=1.03,
+                                       violations=["torque 10.300 N m > 10 N m"])
+        return chk
+
+    monkeypatch.setattr(ocp, "dense_check", first_fails)
+    problem = Problem(task_from_dict(SMALL))
+    seen = []
+    solve_once = problem._solve_once
+
+    def spy(psi_wp, proxy, safety, warm=None, **kw):
+        seen.append((dict(safety), warm is not None))
+        return solve_once(psi_wp, proxy, safety, warm=warm, **kw)
+
+    monkeypatch.setattr(problem, "_solve_once", spy)
+    sol = problem.solve()
+    assert sol.solves == len(seen) >= 2 and sol.check.ok and sol.is_feasible()
+    (first, warm1), (second, warm2) = seen[:2]
+    assert not warm1 and warm2  # the re-solve starts from the first solution
+    assert second["torque"] == pytest.approx(first["torque"] * 0.985 / 1.03)
+    assert second["velocity"] == first["velocity"]  # only the violated limit tightens
