@@ -559,6 +559,9 @@ class Problem:
         nlp = {"x": Ws, "p": D, "f": f, "g": g}
         ipopt = {"max_iter": opt.max_iter, "tol": opt.tol, "acceptable_tol": 1e-4,
                  "hessian_approximation": "limited-memory",
+                 # 3 pairs instead of IPOPT's 6: fewer back-solves per iteration, and a
+                 # lower median solve time on the suite and on random tasks (BENCHMARKS.md)
+                 "limited_memory_max_history": 3,
                  # MUMPS's own row/column scaling cost ~25% of each iteration and did not
                  # reduce the iteration count on the task suite
                  "mumps_permuting_scaling": 0, "mumps_scaling": 0,

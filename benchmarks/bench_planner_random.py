@@ -1,0 +1,71 @@
+"""The planner on random tasks: success rate and solve times away from the tuned suite.
+
+    .venv/bin/python benchmarks/bench_planner_random.py [--n 24] [--seed 0] [--locked]
+
+The solver options were chosen on examples/ (BENCHMARKS.md), so this is the held-out
+check: rest-to-rest tasks through 1-2 random intermediate waypoints, positions within
++-0.05 m of home (z 0.27-0.35 m) and roll/pitch/yaw within +-40 deg, 10 intervals per
+segment.  Tasks whose waypoints fail the static checks (reach, ranges, margins, holding
+torque) are counted apart: they are refused before any optimisation, by design.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import statistics
+import time
+
+import numpy as np
+
+from planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
+from planner.task import task_from_dict
+
+
+def random_task(rng: np.random.Generator, k: int) -> dict:
+    wps = [{"position": [0.0, 0.0, 0.30]}]
+    for _ in range(int(rng.integers(1, 3))):
+        wps.append({"position": [float(rng.uniform(-0.05, 0.05)),
+                                 float(rng.uniform(-0.05, 0.05)),
+                                 float(rng.uniform(0.27, 0.35))],
+                    "rpy": [float(v) for v in rng.uniform(-40, 40, 3)]})
+    wps.append({"position": [0.0, 0.0, 0.30]})
+    return {"name": f"random_{k}", "waypoints": wps, "nodes_per_segment": 10}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=24)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--locked", action="store_true")
+    args = ap.parse_args()
+    rng = np.random.default_rng(args.seed)
+    solves, outcome = [], collections.Counter()
+    for k in range(args.n):
+        task = task_from_dict(random_task(rng, k))
+        t0 = time.perf_counter()
+        try:
+            sol = Problem(task, PlannerOptions(lock_redundancy=args.locked)).solve()
+            if sol.is_feasible():
+                outcome["planned"] += 1
+                solves.append(sol.solve_time)
+                note = (f"T {sol.final_time:.4f} s, solve {sol.solve_time:.2f} s, "
+                        f"{sol.solves} solve(s), max|tau|/lim {sol.check.max_torque_ratio:.3f}")
+            else:
+                outcome["refused by the dense check"] += 1
+                note = "dense check: " + "; ".join(sol.check.violations)
+        except InfeasibleTaskError as exc:
+            kind = ("solver failure" if exc.limit and exc.limit.startswith("solver")
+                    else f"waypoint refused ({exc.limit})")
+            outcome[kind] += 1
+            note = f"{kind}: {str(exc)[:100]}"
+        print(f"{task.name:10s} {len(task.waypoints)} waypoints  "
+              f"{time.perf_counter() - t0:6.2f} s wall  {note}", flush=True)
+    print("\noutcomes:", dict(outcome))
+    if solves:
+        print(f"median solve time over {len(solves)} planned: {statistics.median(solves):.2f} s "
+              f"(min {min(solves):.2f}, max {max(solves):.2f})")
+
+
+if __name__ == "__main__":
+    main()
