@@ -86,12 +86,13 @@ class SymbolicRobot:
     margins: ca.Function  # x -> (leg type I (9,), leg type II det (3,), platform line det)
     spherical_cos: ca.Function  # x -> (9,) cosines of the S-joint tilts
     P: ca.Function  # x -> (3, 3) sphere centres (columns)
-    node: ca.Function  # (x, xd, u, tau) -> the 67 path-constraint rows of one node
+    node: ca.Function  # (x, xd, u, tau) -> the 70 path-constraint rows of one point
 
     #: Row layout of ``node``: name -> (start, stop)
     NODE_ROWS = {"dynamics": (0, 9), "theta_dot": (9, 18), "theta_ddot": (18, 27),
                  "theta": (27, 36), "reach": (36, 45), "spherical_cos": (45, 54),
-                 "type1": (54, 63), "type2_det": (63, 66), "platform_det": (66, 67)}
+                 "type1": (54, 63), "type2_det": (63, 66), "platform_det": (66, 67),
+                 "clearance": (67, 70)}
 
     @staticmethod
     def rotvec_from_matrix(R: np.ndarray) -> np.ndarray:
@@ -162,7 +163,7 @@ def _leg_symbolic(p_leg, geom: RobotGeometry, mode: AssemblyMode):
         "reach": ca.vertcat(q_ru, q_b, q_c),
         "type1": ca.vertcat(k11 / (lg.dp * lg.l1), k22 / (lg.l4 * lg.l2),
                             k33 / (lg.l5 * lg.l3)),
-        "type2_det": det_hat, "Q": Q,
+        "type2_det": det_hat, "Q": Q, "d": d, "e": e, "f": f, "g": g, "h": h,
     }
 
 
@@ -190,6 +191,49 @@ def platform_line_det(psi, geom: RobotGeometry):
 _LINE_DET_HOME = 1.8371173070873836  # det B at psi = 90 deg for the default platform
 
 
+def segment_distance(p1, q1, p2, q2):
+    """Distance between segments [p1, q1] and [p2, q2] with CasADi symbols: the same
+    closest-point formula as :func:`kinematics.robot._segment_distance`."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a, e = ca.dot(d1, d1), ca.dot(d2, d2)
+    f, c, b = ca.dot(d2, r), ca.dot(d1, r), ca.dot(d1, d2)
+    den = a * e - b * b
+
+    def clip01(v):
+        return ca.fmin(ca.fmax(v, 0), 1)
+
+    s = ca.if_else(den > 1e-14, clip01((b * f - c * e) / ca.fmax(den, 1e-300)), 0)
+    t = (b * s + f) / ca.fmax(e, 1e-300)
+    s = ca.if_else(t < 0, clip01(-c / ca.fmax(a, 1e-300)),
+                   ca.if_else(t > 1, clip01((b - c) / ca.fmax(a, 1e-300)), s))
+    diff = (p1 + d1 * s) - (p2 + d2 * clip01(t))
+    return ca.sqrt(ca.dot(diff, diff) + 1e-12)
+
+
+#: sharpness of the soft minimum over link pairs [1/m]: it under-estimates the true
+#: minimum distance by at most ln(16) / 1000 m = 2.8 mm (on the safe side)
+CLEARANCE_SHARPNESS = 1000.0
+
+
+def leg_clearance_rows(links) -> ca.SX:
+    """(3,) smooth lower bounds on the surface distance between the upper links of each
+    pair of legs [m] (capsules of kinematics.robot.LINK_RADIUS): a soft minimum
+    -ln(sum exp(-k d)) / k over the 16 link pairs, shifted for numerical range."""
+    from kinematics.robot import LINK_RADIUS
+
+    rows = []
+    k = CLEARANCE_SHARPNESS
+    for i in range(NUM_LEGS):
+        for j in range(i + 1, NUM_LEGS):
+            dist = [segment_distance(*la, *lb) for la in links[i] for lb in links[j]]
+            dmin = dist[0]
+            for dd in dist[1:]:
+                dmin = ca.fmin(dmin, dd)
+            acc = sum(ca.exp(-k * (dd - dmin)) for dd in dist)
+            rows.append(dmin - ca.log(acc) / k - 2 * LINK_RADIUS)
+    return ca.vertcat(*rows)
+
+
 @functools.lru_cache(maxsize=4)
 def symbolic_robot(mode_name: str = DEFAULT_MODE.name, point_mass: bool = False) -> SymbolicRobot:
     """Build (once) the CasADi functions for the committed robot in an assembly mode."""
@@ -205,7 +249,7 @@ def symbolic_robot(mode_name: str = DEFAULT_MODE.name, point_mass: bool = False)
     p, r, psi = x[0:3], x[3:6], x[6:9]
     R = rotvec_matrix(r)
     joint_val: dict[str, ca.SX] = {}
-    P_list, thetas, reach, type1, type2, leg_Q = [], [], [], [], [], []
+    P_list, thetas, reach, type1, type2, leg_Q, links = [], [], [], [], [], [], []
     for i in range(NUM_LEGS):
         b = geom.crank_axis_angle(i) + psi[i]
         local = ca.DM(geom.crank_axis_position(i)) + geom.platform_crank * ca.vertcat(
@@ -220,6 +264,13 @@ def symbolic_robot(mode_name: str = DEFAULT_MODE.name, point_mass: bool = False)
         type1.append(leg["type1"])
         type2.append(leg["type2_det"])
         leg_Q.append(Rl @ leg["Q"])
+        # the moving upper links AD, DP, GE, HF (kinematics.robot.leg_segments)
+        org = ca.DM(geom.leg_origin(i))
+        A = org
+        D, P = org + Rl @ leg["d"], Pi
+        G, E = org + Rl @ leg["g"], org + Rl @ leg["e"]
+        H, F = org + Rl @ leg["h"], org + Rl @ leg["f"]
+        links.append(((A, D), (D, P), (G, E), (H, F)))
         for name, val in (("A", leg["theta"][0]), ("Ds2", leg["ts2"]), ("Ds3", leg["ts3"]),
                           ("B", leg["theta"][1]), ("Ga", leg["ga"]), ("Gb", leg["gb"]),
                           ("C", leg["theta"][2]), ("Ha", leg["ha"]), ("Hb", leg["hb"])):
@@ -327,12 +378,13 @@ def symbolic_robot(mode_name: str = DEFAULT_MODE.name, point_mass: bool = False)
             sph.append(ca.dot(body @ ca.DM(ref[i, k, 0]), other @ ca.DM(ref[i, k, 1])))
 
     margins_out = [ca.vertcat(*type1), ca.vertcat(*type2), platform_line_det(psi, geom)]
+    clear = leg_clearance_rows(links)
     opts = {"cse": True}
     tau_sym = ca.SX.sym("tau", NX)
     node = ca.Function(
         "node", [x, xd, xdd, tau_sym],
         [ca.vertcat(Jth.T @ tau_sym - Q, th_dot, th_ddot, theta, ca.vertcat(*reach),
-                    ca.vertcat(*sph), *margins_out)], opts)
+                    ca.vertcat(*sph), *margins_out, clear)], opts)
     return SymbolicRobot(
         theta=ca.Function("theta", [x], [theta], opts),
         theta_dot=ca.Function("theta_dot", [x, xd], [th_dot], opts),

@@ -319,7 +319,8 @@ class Problem:
         proxy = max(0.5, 6 * task.limits.margin)
         safety = {"torque": opt.torque_safety, "velocity": opt.torque_safety,
                   "acceleration": opt.torque_safety}
-        sph_reserve = 0.0  # [rad] below the spherical joints' limit, grown by re-solves
+        # grown by re-solves: [rad] below the spherical joints' limit, [m] of clearance
+        reserve = {"spherical": 0.0, "clearance": 0.0}
         try:
             sol = self._solve_once(psi_wp, proxy, safety)
         except InfeasibleTaskError as first:
@@ -352,12 +353,16 @@ class Problem:
                 fixable = True
             if any(v.startswith("spherical") for v in bad):
                 # bound the tilts below 150 deg by the overshoot found, plus 0.25 deg
-                over = sol.check.max_spherical_tilt - (SPHERICAL_LIMIT - sph_reserve)
-                sph_reserve += over + math.radians(0.25)
-                fixable = sph_reserve < math.radians(10.0)
+                over = sol.check.max_spherical_tilt - (SPHERICAL_LIMIT - reserve["spherical"])
+                reserve["spherical"] += over + math.radians(0.25)
+                fixable = fixable or reserve["spherical"] < math.radians(10.0)
+            if any(v.startswith("leg interference") for v in bad):
+                # ask the OCP for the overlap found plus 0.5 mm of clearance at its points
+                reserve["clearance"] += -sol.check.min_leg_clearance + 5e-4
+                fixable = fixable or reserve["clearance"] < 0.01
             if not fixable:
                 break
-            sol = self._solve_once(psi_wp, proxy, safety, warm=sol, sph_reserve=sph_reserve)
+            sol = self._solve_once(psi_wp, proxy, safety, warm=sol, reserve=reserve)
             total += sol.solve_time
             solves += 1
         sol.solve_time, sol.solves = total, solves
@@ -399,7 +404,7 @@ class Problem:
 
     def _solve_once(self, psi_wp: np.ndarray, platform_proxy: float, safety: dict,
                     warm: Solution | None = None, time_scale: float = 1.0,
-                    sph_reserve: float = 0.0) -> Solution:
+                    reserve: dict | None = None) -> Solution:
         task, opt, sr = self.task, self.options, self.sr
         lim = task.limits
         ns, S = task.nodes_per_segment, task.n_segments
@@ -417,7 +422,7 @@ class Problem:
 
         tmpl = self._template()
         tmax = safety["torque"] * lim.torque
-        lb, ub = self._node_bounds(lim, sign1, sign2, platform_proxy, safety, sph_reserve)
+        lb, ub = self._node_bounds(lim, sign1, sign2, platform_proxy, safety, reserve)
         lbx, ubx = self._variable_bounds(wp_x, tmax)
         lbg = np.r_[np.zeros(18 * N), np.tile(lb, 2 * N + 1)]
         ubg = np.r_[np.zeros(18 * N), np.tile(ub, 2 * N + 1)]
@@ -577,22 +582,24 @@ class Problem:
         return tmpl
 
     @staticmethod
-    def _node_bounds(lim, sign1, sign2, platform_proxy, safety=None, sph_reserve=0.0):
-        """Lower/upper bounds of the 67 rows of ``SymbolicRobot.node``."""
+    def _node_bounds(lim, sign1, sign2, platform_proxy, safety=None, reserve=None):
+        """Lower/upper bounds of the 70 rows of ``SymbolicRobot.node``."""
         safety = safety or {"velocity": 1.0, "acceleration": 1.0}
         inf = np.inf
-        lb, ub = np.zeros(67), np.zeros(67)
+        lb, ub = np.zeros(70), np.zeros(70)
         v, a = safety["velocity"] * lim.velocity, safety["acceleration"] * lim.acceleration
         lb[9:18], ub[9:18] = -v, v
         lb[18:27], ub[18:27] = -a, a
         lb[27:36], ub[27:36] = THETA_MIN, THETA_MAX
         lb[36:45], ub[36:45] = 0.0, inf
-        lb[45:54], ub[45:54] = math.cos(SPHERICAL_LIMIT - sph_reserve), inf
+        reserve = reserve or {"spherical": 0.0, "clearance": 0.0}
+        lb[45:54], ub[45:54] = math.cos(SPHERICAL_LIMIT - reserve["spherical"]), inf
         for rows, sign, m in ((slice(54, 63), sign1, lim.margin),
                               (slice(63, 66), sign2, 3 * lim.margin)):
             lb[rows] = np.where(sign > 0, m, -inf)
             ub[rows] = np.where(sign > 0, inf, -m)
         lb[66], ub[66] = platform_proxy, inf
+        lb[67:70], ub[67:70] = reserve["clearance"], inf  # between the legs' links
         return lb, ub
 
     # -- reporting
