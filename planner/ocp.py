@@ -320,9 +320,11 @@ class Problem:
         safety = {"torque": opt.torque_safety, "velocity": opt.torque_safety,
                   "acceleration": opt.torque_safety}
         # grown by re-solves: [rad] below the spherical joints' limit, [m] of clearance
-        reserve = {"spherical": 0.0, "clearance": 0.0}
+        # between the legs' links (None: those rows unbounded, see _clearance_needed)
+        reserve = {"spherical": 0.0,
+                   "clearance": 0.0 if self._clearance_needed(psi_wp) else None}
         try:
-            sol = self._solve_once(psi_wp, proxy, safety)
+            sol = self._solve_once(psi_wp, proxy, safety, reserve=reserve)
         except InfeasibleTaskError as first:
             if first.limit is None or not first.limit.startswith("solver"):
                 raise
@@ -330,7 +332,8 @@ class Problem:
             # (a different starting point, still kinematically feasible); if that fails
             # too the task is reported infeasible with the first diagnosis.
             try:
-                sol = self._solve_once(psi_wp, proxy, safety, time_scale=2.0)
+                sol = self._solve_once(psi_wp, proxy, safety, time_scale=2.0,
+                                       reserve=reserve)
             except InfeasibleTaskError:
                 raise first from None
         total, solves = sol.solve_time, 1
@@ -358,7 +361,10 @@ class Problem:
                 fixable = fixable or reserve["spherical"] < math.radians(10.0)
             if any(v.startswith("leg interference") for v in bad):
                 # ask the OCP for the overlap found plus 0.5 mm of clearance at its points
-                reserve["clearance"] += -sol.check.min_leg_clearance + 5e-4
+                if reserve["clearance"] is None:  # the rows were unbounded: bound them
+                    reserve["clearance"] = 0.0
+                else:  # overshoot between the constrained points: ask for more
+                    reserve["clearance"] += -sol.check.min_leg_clearance + 5e-4
                 fixable = fixable or reserve["clearance"] < 0.01
             if not fixable:
                 break
@@ -401,6 +407,18 @@ class Problem:
         new.active_limits = self._active(new.x, new.xd, new.xdd, new.tau, new.t,
                                          platform_proxy, safety)
         return new
+
+    def _clearance_needed(self, psi_wp: np.ndarray, near: float = 0.02) -> bool:
+        """Whether the legs' links come within ``near`` [m] at some waypoint.
+
+        Only then are the clearance rows bounded from the first solve; otherwise they
+        stay unbounded (IPOPT ignores them) unless the dense check finds interference.
+        Bounding them everywhere made IPOPT slower and lost a random task (BENCHMARKS.md).
+        """
+        wps = self.task.waypoints
+        cfg = robot_ik(np.array([wp.position for wp in wps]),
+                       np.array([wp.rotation for wp in wps]), psi_wp)
+        return bool(leg_clearance(cfg).min() < near)
 
     def _solve_once(self, psi_wp: np.ndarray, platform_proxy: float, safety: dict,
                     warm: Solution | None = None, time_scale: float = 1.0,
@@ -592,14 +610,15 @@ class Problem:
         lb[18:27], ub[18:27] = -a, a
         lb[27:36], ub[27:36] = THETA_MIN, THETA_MAX
         lb[36:45], ub[36:45] = 0.0, inf
-        reserve = reserve or {"spherical": 0.0, "clearance": 0.0}
+        reserve = reserve or {"spherical": 0.0, "clearance": None}
         lb[45:54], ub[45:54] = math.cos(SPHERICAL_LIMIT - reserve["spherical"]), inf
         for rows, sign, m in ((slice(54, 63), sign1, lim.margin),
                               (slice(63, 66), sign2, 3 * lim.margin)):
             lb[rows] = np.where(sign > 0, m, -inf)
             ub[rows] = np.where(sign > 0, inf, -m)
         lb[66], ub[66] = platform_proxy, inf
-        lb[67:70], ub[67:70] = reserve["clearance"], inf  # between the legs' links
+        lb[67:70], ub[67:70] = (-inf if reserve["clearance"] is None
+                                else reserve["clearance"]), inf  # between the legs' links
         return lb, ub
 
     # -- reporting
