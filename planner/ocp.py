@@ -14,7 +14,9 @@ waypoints, each with ``nodes_per_segment`` intervals of a free duration T_s:
   theta in [0, 270] deg, every spherical joint within 150 deg, every chain inside its
   reach, each leg's type I margin and type II margin (through det J-hat >= 3 m, which
   implies sigma_min >= m) and the platform (line determinant >= max(0.5, 6 m) with psi
-  in [45, 135] deg), all >= the task's margin;
+  in [45, 135] deg), all >= the task's margin; the clearance between the links of
+  different legs (bounded when a waypoint comes within 2 cm or the dense check finds
+  interference);
 - waypoints, rest at both ends and given or locked crank angles: equal variable bounds;
 - objective: sum T_s + a small regularisation of u.
 
