@@ -30,7 +30,10 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_leg.py
 	$(BIN)/python benchmarks/bench_robot.py
 	$(BIN)/python benchmarks/bench_design.py
+	$(BIN)/python benchmarks/bench_codegen.py
 	$(BIN)/python benchmarks/bench_planner.py
+	$(BIN)/python benchmarks/bench_planner_random.py
+	$(BIN)/python benchmarks/bench_planner_random.py --locked
 
 lint: $(STAMP)
 	$(BIN)/python -m pip install --quiet ruff
