@@ -18,8 +18,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from dynamics.closed_loop import ClosedLoopDynamics
-from kinematics.robot import HOME_HEIGHT, leg_clearance, robot_ik
-from planner.ocp import NOMINAL_PSI, PSI_MAX, PSI_MIN, pose_masks
+from kinematics.robot import HOME_HEIGHT
+from planner.ocp import NOMINAL_PSI, PSI_MAX, PSI_MIN, static_checks
 from planner.task import Limits
 from sixplus3.errors import SingularityError
 
@@ -47,18 +47,15 @@ def static_feasible(position, rotation, limits: Limits, locked: bool,
     """(feasible, psi, min margin, max |tau_g|, binding limit) at one pose."""
     dyn = dyn or ClosedLoopDynamics()
     psis = _psi_grid(locked)
-    cfg = robot_ik(position, rotation, psis)
+    cfg, theta_ok, sph_ok, clear_ok, margin = static_checks(position, rotation, psis)
     if not cfg.ok.any():
         return False, None, 0.0, math.inf, "reach"
-    theta_ok, ok = pose_masks(cfg)
     if not theta_ok.any():
         return False, None, 0.0, math.inf, "theta range"
-    if not ok.any():
+    if not sph_ok.any():
         return False, None, 0.0, math.inf, "spherical joints"
-    ok &= leg_clearance(cfg) >= 0.0
-    if not ok.any():
+    if not clear_ok.any():
         return False, None, 0.0, math.inf, "leg interference"
-    margin = np.where(ok, cfg.margins.minimum, -1.0)
     if margin.max() < limits.margin:
         return False, None, float(margin.max()), math.inf, "singularity margin"
     best_tau = math.inf

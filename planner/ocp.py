@@ -46,6 +46,7 @@ from kinematics.leg import DEFAULT_MODE
 from kinematics.robot import leg_clearance, robot_ik, spherical_tilts
 from planner.model import symbolic_robot
 from planner.task import Task, Waypoint, rotvec
+from planner.validation import measure_limits
 from robot_description.robot import NUM_LEGS
 from robot_description.urdf import SPHERICAL_LIMIT
 from sixplus3.errors import Sixplus3Error
@@ -150,7 +151,18 @@ def pose_masks(cfg) -> tuple[np.ndarray, np.ndarray]:
     return theta_ok, sph_ok
 
 
-def _static_candidates(wp: Waypoint, limits, locked: bool):
+def static_checks(position, rotation, psis: np.ndarray):
+    """One pose with candidate crank angles (k, 3), checked in order (batched):
+    (cfg, theta_ok, spherical_ok, clearance_ok, margin), each mask implying the previous
+    and margin = the smallest singularity margin where clearance_ok, else -1."""
+    cfg = robot_ik(position, rotation, psis)
+    theta_ok, sph_ok = pose_masks(cfg)
+    clear_ok = sph_ok & (leg_clearance(cfg) >= 0.0)
+    margin = np.where(clear_ok, cfg.margins.minimum, -1.0)
+    return cfg, theta_ok, sph_ok, clear_ok, margin
+
+
+def _static_candidates(wp: Waypoint, locked: bool):
     """Crank-angle candidates at a waypoint with their official checks (batched)."""
     if wp.psi is not None:
         psis = wp.psi[None, :]
@@ -159,11 +171,7 @@ def _static_candidates(wp: Waypoint, limits, locked: bool):
     else:
         axis = np.radians(np.arange(35.0, 146.0, 10.0))
         psis = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
-    cfg = robot_ik(wp.position, wp.rotation, psis)
-    theta_ok, sph_ok = pose_masks(cfg)
-    clear_ok = sph_ok & (leg_clearance(cfg) >= 0.0)
-    margin = np.where(clear_ok, cfg.margins.minimum, -1.0)
-    return psis, cfg, theta_ok, sph_ok, clear_ok, margin
+    return (psis, *static_checks(wp.position, wp.rotation, psis))
 
 
 def choose_static_psi(task: Task, locked: bool, at_rest: set[int]) -> np.ndarray:
@@ -174,7 +182,7 @@ def choose_static_psi(task: Task, locked: bool, at_rest: set[int]) -> np.ndarray
     lim = task.limits
     out = []
     for k, wp in enumerate(task.waypoints):
-        psis, cfg, theta_ok, sph_ok, clear_ok, margin = _static_candidates(wp, lim, locked)
+        psis, cfg, theta_ok, sph_ok, clear_ok, margin = _static_candidates(wp, locked)
         where = f"waypoint {k} (position {np.round(wp.position, 4).tolist()} m)"
         if not cfg.ok.any():
             st = next(int(s) for s in cfg.leg_status[0] if s)
@@ -259,6 +267,7 @@ class Problem:
             seg = np.c_[a[:3] + sm[:, None] * (b[:3] - a[:3]), rv,
                         a[6:] + sm[:, None] * (b[6:] - a[6:])]
             xs.append(seg)
+            # a first timing: it fixes the finite differences at the segment joints
             th = np.array(self.sr.theta(a)).ravel()
             th_b = np.array(self.sr.theta(b)).ravel()
             dth = np.abs(th_b - th).max()
@@ -272,18 +281,12 @@ class Problem:
         # Time-scale each segment (rest to rest) so the guess just meets 90% of the
         # velocity, acceleration and torque limits: with time stretched by a, theta_dot
         # scales 1/a and theta_ddot and the inertial torques 1/a^2, exactly.
-        scale = self._guess_scale(x, xd, xdd, 0.9)
+        stretch = self._time_stretch(x, xd, xdd, 0.9)
+        seg = np.minimum(np.arange(len(x)) // ns, S - 1)
+        scale = np.clip([stretch[seg == s].max() for s in range(S)], 0.05, 50.0)
         a = np.repeat(scale, ns)
         a = np.r_[a, a[-1]][:, None]
         return wp_x, x, xd / a, xdd / a**2, T * scale
-
-    def _guess_scale(self, x, xd, xdd, fraction: float) -> np.ndarray:
-        """Per segment, the time stretch that brings the guess within ``fraction`` of
-        the velocity, acceleration and torque limits."""
-        ns, S = self.task.nodes_per_segment, self.task.n_segments
-        a = self._time_stretch(x, xd, xdd, fraction)
-        seg = np.minimum(np.arange(len(x)) // ns, S - 1)
-        return np.clip([a[seg == s].max() for s in range(S)], 0.05, 50.0)
 
     def _time_stretch(self, x, xd, xdd, fraction: float) -> np.ndarray:
         """(n,) smallest a > 0 per sample such that stretching time by a brings it within
@@ -435,10 +438,9 @@ class Problem:
         if warm is not None:
             x0, xd0, xdd0, T0 = warm.x, warm.xd, warm.xdd, warm.segment_times
         # Constraint signs from the guess (a margin keeps its sign inside a free region).
-        m1 = np.array(sr.margins.map(N + 1)(x0.T)[0])
-        m2 = np.array(sr.margins.map(N + 1)(x0.T)[1])
-        sign1 = np.sign(np.median(m1, axis=1))
-        sign2 = np.sign(np.median(m2, axis=1))
+        m1, m2, _ = sr.margins.map(N + 1)(x0.T)
+        sign1 = np.sign(np.median(np.array(m1), axis=1))
+        sign2 = np.sign(np.median(np.array(m2), axis=1))
 
         tmpl = self._template()
         tmax = safety["torque"] * lim.torque
@@ -694,14 +696,14 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
     """Re-evaluate a plan with the numeric model at ``factor`` x the node density.
 
     Torques come from Pinocchio's constrained inverse dynamics (dynamics.closed_loop),
-    margins from the numeric kinematics (kinematics.robot), independently of the CasADi
-    expressions used inside the optimisation.  Also checks what the OCP does not
-    constrain: the clearance between the links of different legs.
+    margins and the exact capsule clearance between the legs from the numeric
+    kinematics (kinematics.robot), independently of the CasADi expressions used inside
+    the optimisation; the same rule as the file validation
+    (:func:`planner.validation.measure_limits`).
     """
     from dynamics.closed_loop import ClosedLoopDynamics
 
     task = sol.task
-    lim = task.limits
     sr = symbolic_robot(DEFAULT_MODE.name)
     n = (len(sol.t) - 1) * factor + 1
     times = np.linspace(0.0, sol.t[-1], n)
@@ -718,41 +720,20 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
     for k in range(n):
         v, a = dyn.consistent_state(cfg.q[k], thd[k], thdd[k])
         tau[k] = dyn.inverse_dynamics(cfg.q[k], v, a)
-    torque_ratio = float(np.abs(tau).max() / lim.torque)
-    vel_ratio = float(np.abs(thd).max() / lim.velocity)
-    acc_ratio = float(np.abs(thdd).max() / lim.acceleration)
-    m = cfg.margins
-    min1, min2, minp = (float(m.leg_type1.min()), float(m.leg_type2.min()),
-                        float(m.platform.min()))
-    theta_ok = bool(np.all((cfg.theta >= THETA_MIN - 1e-9) & (cfg.theta <= THETA_MAX + 1e-9)))
-    tilt = float(spherical_tilts(cfg).max())
-    clearance = float(leg_clearance(cfg).min())
-    if torque_ratio > 1.0:
-        violations.append(f"torque {torque_ratio * lim.torque:.3f} N m > {lim.torque:g} N m")
-    if vel_ratio > 1.0:
-        violations.append(f"velocity {vel_ratio * lim.velocity:.3f} rad/s > {lim.velocity:g}")
-    if acc_ratio > 1.0:
-        violations.append(f"acceleration {acc_ratio * lim.acceleration:.1f} rad/s^2 > "
-                          f"{lim.acceleration:g}")
-    if min(min1, min2) < lim.margin:
-        violations.append(f"leg margin {min(min1, min2):.4f} < {lim.margin:g}")
-    if minp < lim.margin:
-        violations.append(f"platform margin {minp:.4f} < {lim.margin:g}")
-    if not theta_ok:
-        violations.append("actuated angle outside [0, 270] deg")
-    if tilt > SPHERICAL_LIMIT:
-        violations.append(f"spherical joint at {math.degrees(tilt):.1f} deg > 150 deg")
-    if clearance < 0.0:
-        violations.append(f"leg interference: links of different legs overlap by "
-                          f"{-clearance * 1e3:.1f} mm")
-    return DenseCheck(ok=not violations, samples=n, max_torque_ratio=torque_ratio,
-                      max_velocity_ratio=vel_ratio, max_acceleration_ratio=acc_ratio,
-                      min_margin=min(min1, min2, minp),
-                      min_margin_leg_type1=min1, min_margin_leg_type2=min2,
-                      min_margin_platform=minp, theta_range_ok=theta_ok,
-                      max_spherical_tilt=tilt, min_leg_clearance=clearance,
-                      violations=violations)
+    lm = measure_limits(cfg, tau, cfg.theta, thd, thdd, task.limits)
+    violations += lm.violations
+    return DenseCheck(ok=not violations, samples=n, max_torque_ratio=lm.max_torque_ratio,
+                      max_velocity_ratio=lm.max_velocity_ratio,
+                      max_acceleration_ratio=lm.max_acceleration_ratio,
+                      min_margin=min(lm.min_margin_leg_type1, lm.min_margin_leg_type2,
+                                     lm.min_margin_platform),
+                      min_margin_leg_type1=lm.min_margin_leg_type1,
+                      min_margin_leg_type2=lm.min_margin_leg_type2,
+                      min_margin_platform=lm.min_margin_platform,
+                      theta_range_ok=lm.theta_range_ok,
+                      max_spherical_tilt=lm.max_spherical_tilt,
+                      min_leg_clearance=lm.min_leg_clearance, violations=violations)
 
 
 __all__ = ["DenseCheck", "InfeasibleTaskError", "PlannerOptions", "Problem", "Solution",
-           "dense_check", "plan", "pose_masks"]
+           "dense_check", "plan", "pose_masks", "static_checks"]

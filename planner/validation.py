@@ -49,6 +49,60 @@ class ValidationReport:
         return {k: getattr(self, k) for k in keys}
 
 
+@dataclass(frozen=True)
+class LimitMeasures:
+    """Extremes of a sampled motion against the limits, and the limits it violates."""
+
+    max_torque_ratio: float  # max |tau| / limit
+    max_velocity_ratio: float
+    max_acceleration_ratio: float
+    min_margin_leg_type1: float
+    min_margin_leg_type2: float
+    min_margin_platform: float
+    min_leg_clearance: float  # [m] between links of different legs (capsules)
+    max_spherical_tilt: float  # [rad]
+    theta_range_ok: bool
+    violations: list[str]
+
+
+def measure_limits(cfg, tau: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
+                   theta_ddot: np.ndarray, limits: Limits) -> LimitMeasures:
+    """The one rule both independent checks apply (the planner's dense re-check and the
+    file validation): torques, actuated rates and accelerations against their limits,
+    the numeric singularity margins of ``cfg`` (a batched RobotConfig), leg clearance,
+    spherical-joint tilts and the actuated range [0, 270] deg.  Each violation is one
+    message starting with the limit's name (the planner tightens by that name)."""
+    torque = float(np.abs(tau).max() / limits.torque)
+    vel = float(np.abs(theta_dot).max() / limits.velocity)
+    acc = float(np.abs(theta_ddot).max() / limits.acceleration)
+    m = cfg.margins
+    m1, m2, mp = float(m.leg_type1.min()), float(m.leg_type2.min()), float(m.platform.min())
+    clearance = float(leg_clearance(cfg).min())
+    tilt = float(spherical_tilts(cfg).max())
+    theta_ok = bool(np.all((theta >= -1e-9) & (theta <= 1.5 * math.pi + 1e-9)))
+    violations = []
+    if torque > 1.0:
+        violations.append(f"torque {torque * limits.torque:.3f} N m > {limits.torque:g} N m")
+    if vel > 1.0 + 1e-9:
+        violations.append(f"velocity {vel * limits.velocity:.3f} rad/s > "
+                          f"{limits.velocity:g} rad/s")
+    if acc > 1.0 + 1e-9:
+        violations.append(f"acceleration {acc * limits.acceleration:.1f} rad/s^2 > "
+                          f"{limits.acceleration:g} rad/s^2")
+    for name, val in (("leg type I margin", m1), ("leg type II margin", m2),
+                      ("platform margin", mp)):
+        if val < limits.margin:
+            violations.append(f"{name} {val:.4f} < {limits.margin:g}")
+    if clearance < 0.0:
+        violations.append(f"leg interference: links of different legs overlap by "
+                          f"{-clearance * 1e3:.1f} mm")
+    if tilt > SPHERICAL_LIMIT:
+        violations.append(f"spherical joint at {math.degrees(tilt):.1f} deg > 150 deg")
+    if not theta_ok:
+        violations.append("an actuated angle leaves [0, 270] deg")
+    return LimitMeasures(torque, vel, acc, m1, m2, mp, clearance, tilt, theta_ok, violations)
+
+
 def validate_joint_trajectory(theta: np.ndarray, theta_dot: np.ndarray,
                               theta_ddot: np.ndarray, limits: Limits,
                               q_hint: np.ndarray) -> ValidationReport:
@@ -82,34 +136,12 @@ def validate_joint_trajectory(theta: np.ndarray, theta_dot: np.ndarray,
         return ValidationReport(False, n, math.inf, math.inf, math.inf, 0, 0, 0, -math.inf,
                                 180.0, False, violations)
     cfg = robot_ik(pos, Rotation.from_quat(quat).as_matrix(), psi)
-    torque_ratio = float(np.abs(tau).max() / limits.torque)
-    vel_ratio = float(np.abs(theta_dot).max() / limits.velocity)
-    acc_ratio = float(np.abs(theta_ddot).max() / limits.acceleration)
-    m = cfg.margins
-    m1, m2, mp = float(m.leg_type1.min()), float(m.leg_type2.min()), float(m.platform.min())
-    clearance = float(leg_clearance(cfg).min())
-    tilt = float(np.degrees(spherical_tilts(cfg).max()))
-    theta_ok = bool(np.all((theta >= -1e-9) & (theta <= 1.5 * math.pi + 1e-9)))
     if not cfg.ok.all():
         violations.append("a recomputed pose is unreachable")
-    if torque_ratio > 1.0:
-        violations.append(f"torque {torque_ratio * limits.torque:.3f} N m > "
-                          f"{limits.torque:g} N m")
-    if vel_ratio > 1.0 + 1e-9:
-        violations.append(f"velocity {vel_ratio * limits.velocity:.3f} rad/s > "
-                          f"{limits.velocity:g} rad/s")
-    if acc_ratio > 1.0 + 1e-9:
-        violations.append(f"acceleration {acc_ratio * limits.acceleration:.1f} rad/s^2 > "
-                          f"{limits.acceleration:g} rad/s^2")
-    for name, val in (("leg type I margin", m1), ("leg type II margin", m2),
-                      ("platform margin", mp)):
-        if val < limits.margin:
-            violations.append(f"{name} {val:.4f} < {limits.margin:g}")
-    if clearance < 0.0:
-        violations.append(f"legs interfere (clearance {clearance * 1000:.1f} mm)")
-    if tilt > math.degrees(SPHERICAL_LIMIT):
-        violations.append(f"spherical joint at {tilt:.1f} deg > 150 deg")
-    if not theta_ok:
-        violations.append("an actuated angle leaves [0, 270] deg")
-    return ValidationReport(not violations, n, torque_ratio, vel_ratio, acc_ratio, m1, m2, mp,
-                            clearance, tilt, theta_ok, violations, tau, pos, quat, psi)
+    lm = measure_limits(cfg, tau, theta, theta_dot, theta_ddot, limits)
+    violations += lm.violations
+    return ValidationReport(not violations, n, lm.max_torque_ratio, lm.max_velocity_ratio,
+                            lm.max_acceleration_ratio, lm.min_margin_leg_type1,
+                            lm.min_margin_leg_type2, lm.min_margin_platform,
+                            lm.min_leg_clearance, math.degrees(lm.max_spherical_tilt),
+                            lm.theta_range_ok, violations, tau, pos, quat, psi)
