@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install demo test bench lint clean chromium
+.PHONY: install demo test bench lint clean chromium compiler
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,7 +23,14 @@ chromium:
 	  echo "installing Debian's chromium for the playback test"; \
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; }
 
-test: $(STAMP) chromium
+# The planner compiles its constraint functions with gcc (planner/codegen.py); a test
+# checks the compiled library, so make sure a C compiler is there.
+compiler:
+	@command -v gcc >/dev/null 2>&1 || command -v cc >/dev/null 2>&1 || { \
+	  echo "installing Debian's gcc for the planner's compiled functions"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq gcc >/dev/null; }
+
+test: $(STAMP) chromium compiler
 	$(BIN)/python -m pytest -q
 
 bench: $(STAMP)
