@@ -41,6 +41,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_planner.py
 	$(BIN)/python benchmarks/bench_planner_random.py
 	$(BIN)/python benchmarks/bench_planner_random.py --locked
+	$(BIN)/python benchmarks/toppra_convergence.py
 
 lint: $(STAMP)
 	$(BIN)/python -m pip install --quiet ruff
