@@ -17,8 +17,8 @@ import time
 
 import numpy as np
 
-from planner import codegen
-from planner.model import symbolic_robot
+from sixplus3.planner import codegen
+from sixplus3.planner.model import symbolic_robot
 
 
 def per_call(f, args, repeat: int) -> float:

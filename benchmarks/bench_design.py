@@ -11,8 +11,8 @@ import resource
 import numba
 import numpy as np
 
-from design.readings import READINGS
-from design.search import design_grid, evaluate, optimize
+from sixplus3.design.readings import READINGS
+from sixplus3.design.search import design_grid, evaluate, optimize
 
 
 def main() -> None:

@@ -18,8 +18,8 @@ import time
 import numba
 import numpy as np
 
-from kinematics.leg import DEFAULT_MODE, leg_eval_packed, leg_ik
-from robot_description.geometry import LegGeometry
+from sixplus3.kinematics.leg import DEFAULT_MODE, leg_eval_packed, leg_ik
+from sixplus3.robot_description.geometry import LegGeometry
 
 
 def timed(fn, repeat: int) -> list[float]:

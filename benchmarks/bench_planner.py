@@ -21,11 +21,11 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from kinematics.robot import robot_ik
-from planner.analysis import largest_tilt
-from planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
-from planner.task import load_task, task_from_dict
-from planner.toppra_baseline import toppra_along
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.planner.analysis import largest_tilt
+from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
+from sixplus3.planner.task import load_task, task_from_dict
+from sixplus3.planner.toppra_baseline import toppra_along
 
 
 def run(task, locked: bool):

@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 
-from planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
-from planner.task import task_from_dict
+from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
+from sixplus3.planner.task import task_from_dict
 
 
 def random_task(rng: np.random.Generator, k: int) -> dict:

@@ -15,8 +15,8 @@ import time
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from dynamics.closed_loop import ClosedLoopDynamics
-from kinematics.robot import home, robot_fk, robot_ik, robot_ik_pose
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.kinematics.robot import home, robot_fk, robot_ik, robot_ik_pose
 
 
 def per_call(fn, n: int, repeat: int) -> tuple[float, float]:

@@ -12,7 +12,7 @@ import argparse
 import itertools
 import math
 
-from design.search import PAPER_DESIGN, Reading, optimize
+from sixplus3.design.search import PAPER_DESIGN, Reading, optimize
 
 ZEROS = {"+y": 0.0, "-z": -math.pi / 2, "+z": math.pi / 2}
 

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.ocp import PlannerOptions, Problem
-from planner.task import load_task
-from planner.toppra_baseline import toppra_along
+from sixplus3.planner.ocp import PlannerOptions, Problem
+from sixplus3.planner.task import load_task
+from sixplus3.planner.toppra_baseline import toppra_along
 
 GRIDS = (800, 1600, 3200, 6400)
 

@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from kinematics._leg_kernel import NF, STATUS_OK, TAU_EXT, TH, ik_point, jacobian_point
+from sixplus3.kinematics._leg_kernel import NF, STATUS_OK, TAU_EXT, TH, ik_point, jacobian_point
 
 _TWO_PI = 2.0 * math.pi
 

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from kinematics.robot import HOME_HEIGHT, robot_ik
-from robot_description.robot import RobotGeometry
+from sixplus3.kinematics.robot import HOME_HEIGHT, robot_ik
+from sixplus3.robot_description.robot import RobotGeometry
 
 LIMIT_SETS = ("reach", "theta", "singfree", "torque")
 #: Margin used for "singularity-free" (scale-free, see kinematics.robot).

@@ -19,11 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from design.cow import JOINT_RESOLUTION, LIMIT_SETS, PAPER_RATIO, compute_cow, encoder_resolution
-from design.search import PAPER_DESIGN, Reading
-from design.workspace import counted_reading, halfplane_grid
-from kinematics.leg import leg_ik
-from robot_description.geometry import LegGeometry, LegLoad
+from sixplus3.design.cow import JOINT_RESOLUTION, LIMIT_SETS, PAPER_RATIO, compute_cow, encoder_resolution
+from sixplus3.design.search import PAPER_DESIGN, Reading
+from sixplus3.design.workspace import counted_reading, halfplane_grid
+from sixplus3.kinematics.leg import leg_ik
+from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 
 
 @dataclass(frozen=True)
@@ -142,7 +142,7 @@ def make_figures(out_dir: str | Path, reading: Reading | None = None,
 
 
 def _cow_figure(plt, cow, path: Path, ratios: dict[str, float]) -> str:
-    from design.cow import RobotGeometry
+    from sixplus3.design.cow import RobotGeometry
 
     fig = plt.figure(figsize=(12, 6))
     pts = RobotGeometry().actuated_joint_positions()

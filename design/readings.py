@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from design.search import Reading
+from sixplus3.design.search import Reading
 
 READINGS: dict[str, Reading] = {
     "spec": Reading(),

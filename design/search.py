@@ -20,10 +20,10 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from design import _kernel
-from design.workspace import halfplane_grid
-from kinematics.leg import AssemblyMode
-from robot_description.geometry import LegGeometry, LegLoad
+from sixplus3.design import _kernel
+from sixplus3.design.workspace import halfplane_grid
+from sixplus3.kinematics.leg import AssemblyMode
+from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 
 #: The paper's optimum (l2, l4, ex) [m].
 PAPER_DESIGN = (0.139, 0.350, 0.097)

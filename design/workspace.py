@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinematics.leg import DEFAULT_MODE, AssemblyMode, LegEval, leg_eval_packed
-from robot_description.geometry import LegGeometry, LegLoad
+from sixplus3.kinematics.leg import DEFAULT_MODE, AssemblyMode, LegEval, leg_eval_packed
+from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 
 #: The paper's design limit on the actuated angles [rad].
 THETA_MAX = math.radians(135.0)

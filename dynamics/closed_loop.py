@@ -25,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
-from robot_description.model import ClosedLoopModel, load_model
+from sixplus3.robot_description.model import ClosedLoopModel, load_model
 from sixplus3.errors import InputError, SingularityError
 
 #: Parallel-singularity threshold on the reciprocal condition number (1-norm) of J_pas.

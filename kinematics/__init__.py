@@ -1,6 +1,6 @@
 """Kinematics of sixplus3: the RU/2-RUS leg (paper §III-IV)."""
 
-from kinematics.leg import (
+from sixplus3.kinematics.leg import (
     DEFAULT_MODE,
     SINGULAR_TOL,
     AssemblyMode,

@@ -24,8 +24,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from kinematics import _leg_kernel as kern
-from robot_description.geometry import LegGeometry, LegLoad
+from sixplus3.kinematics import _leg_kernel as kern
+from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 from sixplus3.errors import ConvergenceError, InputError, SingularityError, UnreachableError
 
 #: Margin below which a configuration is classified as singular (scale-free, see margins).

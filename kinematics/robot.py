@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from kinematics.leg import (
+from sixplus3.kinematics.leg import (
     DEFAULT_MODE,
     AssemblyMode,
     LegState,
@@ -31,8 +31,8 @@ from kinematics.leg import (
     leg_ik,
     status_reason,
 )
-from robot_description.robot import NUM_LEGS, RobotGeometry
-from robot_description.urdf import SPHERICAL_LIMIT
+from sixplus3.robot_description.robot import NUM_LEGS, RobotGeometry
+from sixplus3.robot_description.urdf import SPHERICAL_LIMIT
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError
 
 DEFAULT_ROBOT = RobotGeometry()
@@ -94,7 +94,7 @@ class RobotConfig:
 @functools.lru_cache(maxsize=1)
 def _layout() -> dict[str, int]:
     """q index of every joint of the committed URDF (from Pinocchio), and the nq."""
-    from robot_description.model import load_model
+    from sixplus3.robot_description.model import load_model
 
     m = load_model().model
     out = {m.names[j]: int(m.joints[j].idx_q) for j in range(1, m.njoints)}
@@ -351,7 +351,7 @@ def robot_fk(theta, q_hint=None, tol: float = 1e-12, max_iter: int = 50,
     """
     import pinocchio as pin
 
-    from robot_description.model import load_model
+    from sixplus3.robot_description.model import load_model
 
     clm = model or load_model()
     theta = np.asarray(theta, dtype=float)

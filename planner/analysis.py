@@ -17,10 +17,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from dynamics.closed_loop import ClosedLoopDynamics
-from kinematics.robot import HOME_HEIGHT
-from planner.ocp import NOMINAL_PSI, PSI_MAX, PSI_MIN, static_checks
-from planner.task import Limits
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.kinematics.robot import HOME_HEIGHT
+from sixplus3.planner.ocp import NOMINAL_PSI, PSI_MAX, PSI_MIN, static_checks
+from sixplus3.planner.task import Limits
 from sixplus3.errors import SingularityError
 
 

@@ -104,7 +104,7 @@ def compiled_functions(mode_name: str, point_mass: bool = False) -> dict[str, ca
     Returns an empty dict when code generation is disabled or fails (the caller then
     uses the interpreted SX functions); the reason is logged.
     """
-    from planner.model import symbolic_robot
+    from sixplus3.planner.model import symbolic_robot
 
     if not codegen_enabled():
         log.info("planner code generation disabled or no C compiler: interpreted functions")

@@ -27,9 +27,9 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from kinematics.leg import DEFAULT_MODE, AssemblyMode
-from kinematics.robot import HOME_HEIGHT, HOME_PSI, spherical_reference
-from robot_description.robot import NUM_LEGS, RobotGeometry
+from sixplus3.kinematics.leg import DEFAULT_MODE, AssemblyMode
+from sixplus3.kinematics.robot import HOME_HEIGHT, HOME_PSI, spherical_reference
+from sixplus3.robot_description.robot import NUM_LEGS, RobotGeometry
 
 NX = 9  # minimal coordinates: p (3), r (3), psi (3)
 
@@ -219,7 +219,7 @@ def leg_clearance_rows(links) -> ca.SX:
     """(3,) smooth lower bounds on the surface distance between the upper links of each
     pair of legs [m] (capsules of kinematics.robot.LINK_RADIUS): a soft minimum
     -ln(sum exp(-k d)) / k over the 16 link pairs, shifted for numerical range."""
-    from kinematics.robot import LINK_RADIUS
+    from sixplus3.kinematics.robot import LINK_RADIUS
 
     rows = []
     k = CLEARANCE_SHARPNESS
@@ -237,7 +237,7 @@ def leg_clearance_rows(links) -> ca.SX:
 @functools.lru_cache(maxsize=4)
 def symbolic_robot(mode_name: str = DEFAULT_MODE.name, point_mass: bool = False) -> SymbolicRobot:
     """Build (once) the CasADi functions for the committed robot in an assembly mode."""
-    from robot_description.model import load_model
+    from sixplus3.robot_description.model import load_model
 
     clm = load_model(point_mass)
     model = clm.model

@@ -42,13 +42,13 @@ import casadi as ca
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from kinematics.leg import DEFAULT_MODE
-from kinematics.robot import leg_clearance, robot_ik, spherical_tilts
-from planner.model import symbolic_robot
-from planner.task import Task, Waypoint, rotvec
-from planner.validation import measure_limits
-from robot_description.robot import NUM_LEGS
-from robot_description.urdf import SPHERICAL_LIMIT
+from sixplus3.kinematics.leg import DEFAULT_MODE
+from sixplus3.kinematics.robot import leg_clearance, robot_ik, spherical_tilts
+from sixplus3.planner.model import symbolic_robot
+from sixplus3.planner.task import Task, Waypoint, rotvec
+from sixplus3.control.validation import measure_limits
+from sixplus3.robot_description.robot import NUM_LEGS
+from sixplus3.robot_description.urdf import SPHERICAL_LIMIT
 from sixplus3.errors import Sixplus3Error
 
 PSI_MIN, PSI_MAX = math.radians(45.0), math.radians(135.0)
@@ -176,7 +176,7 @@ def _static_candidates(wp: Waypoint, locked: bool):
 
 def choose_static_psi(task: Task, locked: bool, at_rest: set[int]) -> np.ndarray:
     """Per waypoint, crank angles maximising the smallest margin; raises naming the limit."""
-    from dynamics.closed_loop import ClosedLoopDynamics
+    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 
     dyn = ClosedLoopDynamics()
     lim = task.limits
@@ -187,7 +187,7 @@ def choose_static_psi(task: Task, locked: bool, at_rest: set[int]) -> np.ndarray
         if not cfg.ok.any():
             st = next(int(s) for s in cfg.leg_status[0] if s)
             leg = int(np.flatnonzero(cfg.leg_status[0])[0])
-            from kinematics.leg import failing_chain, status_reason
+            from sixplus3.kinematics.leg import failing_chain, status_reason
 
             raise InfeasibleTaskError(
                 f"{where} is outside the workspace: leg {leg} {failing_chain(st)} chain: "
@@ -543,7 +543,7 @@ class Problem:
         :mod:`planner.codegen` (mapped over the nodes on two threads) when a C compiler is
         available, otherwise CasADi's interpreted SX functions (expanded).
         """
-        from planner.codegen import compiled_functions
+        from sixplus3.planner.codegen import compiled_functions
 
         task, opt, sr = self.task, self.options, self.sr
         ns, S = task.nodes_per_segment, task.n_segments
@@ -701,7 +701,7 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
     the optimisation; the same rule as the file validation
     (:func:`planner.validation.measure_limits`).
     """
-    from dynamics.closed_loop import ClosedLoopDynamics
+    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 
     task = sol.task
     sr = symbolic_robot(DEFAULT_MODE.name)

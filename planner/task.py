@@ -31,7 +31,7 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
-from robot_description.urdf import TORQUE_LIMIT, VELOCITY_LIMIT
+from sixplus3.robot_description.urdf import TORQUE_LIMIT, VELOCITY_LIMIT
 from sixplus3.errors import InputError
 
 _VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}

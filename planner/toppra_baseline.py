@@ -20,8 +20,8 @@ import toppra as ta
 import toppra.algorithm as algo
 import toppra.constraint as constraint
 
-from planner.model import symbolic_robot
-from planner.task import Limits
+from sixplus3.planner.model import symbolic_robot
+from sixplus3.planner.task import Limits
 
 PATH_SCALE = 0.1
 

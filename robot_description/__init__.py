@@ -1,5 +1,5 @@
 """Robot description: the parametric geometry (paper defaults) of sixplus3."""
 
-from robot_description.geometry import GRAVITY, LegGeometry, LegLoad
+from sixplus3.robot_description.geometry import GRAVITY, LegGeometry, LegLoad
 
 __all__ = ["GRAVITY", "LegGeometry", "LegLoad"]

@@ -20,8 +20,8 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
-from robot_description.robot import NUM_LEGS
-from robot_description.urdf import CLOSURES_PATH, POINT_MASS_URDF_PATH, URDF_PATH
+from sixplus3.robot_description.robot import NUM_LEGS
+from sixplus3.robot_description.urdf import CLOSURES_PATH, POINT_MASS_URDF_PATH, URDF_PATH
 from sixplus3.errors import InputError
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -158,7 +158,7 @@ class ClosedLoopModel:
 
 def _load(urdf: Path, closures: Path) -> ClosedLoopModel:
     if not Path(urdf).exists():
-        raise InputError(f"URDF not found: {urdf} (run: python -m robot_description.urdf)")
+        raise InputError(f"URDF not found: {urdf} (run: python -m sixplus3.robot_description.urdf)")
     model = pin.buildModelFromUrdf(str(urdf))
     pairs, _types, act = parse_closures(closures)
     if len(pairs) != 3 * NUM_LEGS or len(act) != 3 * NUM_LEGS:

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robot_description.geometry import LegGeometry
+from sixplus3.robot_description.geometry import LegGeometry
 from sixplus3.errors import GeometryError
 
 NUM_LEGS = 3

@@ -1,7 +1,7 @@
 """Generate the robot's URDF (a spanning tree) and its loop closures (Extended URDF YAML).
 
-    python -m robot_description.urdf            # (re)write robot_description/urdf/*
-    python -m robot_description.urdf --check    # exit 1 if the committed files are stale
+    python -m sixplus3.robot_description.urdf            # (re)write robot_description/urdf/*
+    python -m sixplus3.robot_description.urdf --check    # exit 1 if the committed files are stale
 
 Tree (every joint named here is in the URDF):
 
@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robot_description.robot import NUM_LEGS, POINT_MASS, MassModel, RobotGeometry
+from sixplus3.robot_description.robot import NUM_LEGS, POINT_MASS, MassModel, RobotGeometry
 
 URDF_DIR = Path(__file__).resolve().parent / "urdf"
 URDF_PATH = URDF_DIR / "sixplus3.urdf"

@@ -12,10 +12,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from planner.ocp import InfeasibleTaskError, PlannerOptions
-from planner.pipeline import run_plan
-from planner.task import TaskError, load_task
-from planner.trajectory_file import TrajectoryFileError
+from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions
+from sixplus3.control.pipeline import run_plan
+from sixplus3.planner.task import TaskError, load_task
+from sixplus3.control.trajectory_file import TrajectoryFileError
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -20,7 +20,7 @@ import time
 
 from click.testing import CliRunner
 
-from planner.trajectory_file import JOINTS, TrajectoryFileError, columns, read_trajectory
+from sixplus3.control.trajectory_file import JOINTS, TrajectoryFileError, columns, read_trajectory
 from sixplus3.cli import main as cli
 
 

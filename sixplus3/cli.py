@@ -65,7 +65,7 @@ def leg(x: float, y: float, z: float, force: tuple[float, float, float] | None, 
     """
     import numpy as np
 
-    from kinematics.leg import SINGULAR_TOL, AssemblyMode, leg_ik_point
+    from sixplus3.kinematics.leg import SINGULAR_TOL, AssemblyMode, leg_ik_point
     from sixplus3.errors import Sixplus3Error
 
     try:
@@ -123,10 +123,10 @@ def robot_check(as_json: bool) -> None:
     """Load the URDF and closures and check the home pose."""
     import numpy as np
 
-    from dynamics.closed_loop import ClosedLoopDynamics
-    from kinematics.robot import HOME_HEIGHT, home, spherical_tilts
-    from robot_description.model import load_model
-    from robot_description.urdf import check as urdf_stale
+    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+    from sixplus3.kinematics.robot import HOME_HEIGHT, home, spherical_tilts
+    from sixplus3.robot_description.model import load_model
+    from sixplus3.robot_description.urdf import check as urdf_stale
     from sixplus3.errors import Sixplus3Error
 
     try:
@@ -187,10 +187,10 @@ def robot_ik_cmd(x: float, y: float, z: float, roll: float, pitch: float, yaw: f
     """
     import numpy as np
 
-    from dynamics.closed_loop import ClosedLoopDynamics
-    from kinematics.robot import robot_ik_pose, spherical_tilts
-    from robot_description.model import load_model
-    from robot_description.urdf import SPHERICAL_LIMIT
+    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+    from sixplus3.kinematics.robot import robot_ik_pose, spherical_tilts
+    from sixplus3.robot_description.model import load_model
+    from sixplus3.robot_description.urdf import SPHERICAL_LIMIT
     from sixplus3.errors import Sixplus3Error
 
     values = (x, y, z, roll, pitch, yaw, *redundancy)
@@ -247,7 +247,7 @@ def _reading_names() -> list[str]:
 
 
 def _reading(name: str):
-    from design.readings import READINGS
+    from sixplus3.design.readings import READINGS
 
     if name not in READINGS:
         _fail(f"unknown reading {name!r}: choose one of {', '.join(sorted(READINGS))}")
@@ -266,7 +266,7 @@ def _reading(name: str):
 def design_optimize(coarse_step: float, fine_step: float, ws_step: float, reading: str,
                     as_json: bool) -> None:
     """Two-stage grid search of (l2 = l3, l4 = l5, ex = fx) maximising the usable area."""
-    from design.search import PAPER_DESIGN, optimize
+    from sixplus3.design.search import PAPER_DESIGN, optimize
 
     rd = _reading(reading)
     try:
@@ -303,7 +303,7 @@ def design_optimize(coarse_step: float, fine_step: float, ws_step: float, readin
               help="Half-plane grid of the leg figures [m].")
 def design_figures(out_dir: str, reading: str, ws_step: float) -> None:
     """Write the §V figures (det J/K, tau_ext, COW, encoder resolution) as PNG."""
-    from design.figures import make_figures
+    from sixplus3.design.figures import make_figures
 
     rd = _reading(reading)
     s = make_figures(out_dir, rd, ws_step=ws_step)
@@ -329,9 +329,9 @@ def report(ws_step: float) -> None:
 
 
 def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None:
-    from planner.ocp import InfeasibleTaskError, PlannerOptions
-    from planner.pipeline import run_plan
-    from planner.trajectory_file import TrajectoryFileError
+    from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions
+    from sixplus3.control.pipeline import run_plan
+    from sixplus3.control.trajectory_file import TrajectoryFileError
 
     try:
         res = run_plan(task, out_dir, rate=rate, html=html,
@@ -351,7 +351,7 @@ def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None
 @click.option("--locked", is_flag=True, help="Lock the crank angles at 90 deg.")
 def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool) -> None:
     """Plan TASK_FILE (YAML): plan -> smooth -> validate -> CSV, JSON, HTML, plots."""
-    from planner.task import TaskError, load_task
+    from sixplus3.planner.task import TaskError, load_task
 
     try:
         task = load_task(task_file)
@@ -366,8 +366,8 @@ def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool)
               type=click.Path(file_okay=False), help="Output directory.")
 def demo(out_dir: str) -> None:
     """Main job on built-in defaults: plan, smooth, validate and show a 30 deg tilt."""
-    from planner.pipeline import DEMO_TASK
-    from planner.task import task_from_dict
+    from sixplus3.control.pipeline import DEMO_TASK
+    from sixplus3.planner.task import task_from_dict
 
     _run_plan(task_from_dict(DEMO_TASK), out_dir, 1000.0, True, False)
 
@@ -384,10 +384,10 @@ def validate(csv_file: str, as_json: bool) -> None:
     import numpy as np
     from scipy.spatial.transform import Rotation
 
-    from kinematics.robot import robot_ik
-    from planner.task import Limits
-    from planner.trajectory_file import TrajectoryFileError, columns, read_trajectory
-    from planner.validation import validate_joint_trajectory
+    from sixplus3.kinematics.robot import robot_ik
+    from sixplus3.planner.task import Limits
+    from sixplus3.control.trajectory_file import TrajectoryFileError, columns, read_trajectory
+    from sixplus3.control.validation import validate_joint_trajectory
 
     try:
         header, data = read_trajectory(csv_file)
@@ -431,8 +431,8 @@ def validate(csv_file: str, as_json: bool) -> None:
 @click.option("--no-wait", is_flag=True, help="Do not wait for Ctrl-C after loading.")
 def play(csv_file: str, html_out: str | None, no_wait: bool) -> None:
     """Animate a trajectory file in MeshCat (live; the URL is printed) or as HTML."""
-    from planner.trajectory_file import TrajectoryFileError, read_trajectory
-    from visualization.meshcat_player import animate, frames_from_samples, viewer_url, write_html
+    from sixplus3.control.trajectory_file import TrajectoryFileError, read_trajectory
+    from sixplus3.visualization.meshcat_player import animate, frames_from_samples, viewer_url, write_html
 
     try:
         _, data = read_trajectory(csv_file)

@@ -6,9 +6,9 @@ import math
 
 import numpy as np
 
-from design.workspace import THETA_MAX, usable_area
-from kinematics.leg import DEFAULT_MODE, leg_ik
-from robot_description.geometry import LegGeometry, LegLoad
+from sixplus3.design.workspace import THETA_MAX, usable_area
+from sixplus3.kinematics.leg import DEFAULT_MODE, leg_ik
+from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 
 
 def leg_report(geometry: LegGeometry | None = None, ws_step: float = 0.005) -> str:

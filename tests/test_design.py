@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from design.cow import JOINT_RESOLUTION, compute_cow, encoder_resolution, footprint
-from design.readings import READINGS
-from design.search import PAPER_DESIGN, Reading, design_grid, evaluate, optimize
-from design.workspace import counted, halfplane_grid, usable_area
-from kinematics.leg import leg_eval, leg_ik
-from robot_description.geometry import LegGeometry, LegLoad
-from robot_description.robot import RobotGeometry
+from sixplus3.design.cow import JOINT_RESOLUTION, compute_cow, encoder_resolution, footprint
+from sixplus3.design.readings import READINGS
+from sixplus3.design.search import PAPER_DESIGN, Reading, design_grid, evaluate, optimize
+from sixplus3.design.workspace import counted, halfplane_grid, usable_area
+from sixplus3.kinematics.leg import leg_eval, leg_ik
+from sixplus3.robot_description.geometry import LegGeometry, LegLoad
+from sixplus3.robot_description.robot import RobotGeometry
 from sixplus3.cli import main
 
 SPEC = Reading()
@@ -147,7 +147,7 @@ def test_design_cli(tmp_path) -> None:
 
 
 def test_figures_are_written(tmp_path) -> None:
-    from design.figures import make_figures
+    from sixplus3.design.figures import make_figures
 
     s = make_figures(tmp_path, ws_step=0.01, cow_step=0.05, cow_z_step=0.15)
     names = sorted(p.split("/")[-1] for p in s.files)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynamics.closed_loop import ClosedLoopDynamics
-from kinematics.leg import leg_ik
-from kinematics.robot import home, robot_fk, robot_ik_pose
-from robot_description.model import load_model
-from robot_description.robot import POINT_MASS, RobotGeometry
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.kinematics.leg import leg_ik
+from sixplus3.kinematics.robot import home, robot_fk, robot_ik_pose
+from sixplus3.robot_description.model import load_model
+from sixplus3.robot_description.robot import POINT_MASS, RobotGeometry
 from sixplus3.errors import InputError, SingularityError
 
 GEOM = RobotGeometry()

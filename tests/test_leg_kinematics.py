@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from kinematics.leg import (
+from sixplus3.kinematics.leg import (
     DEFAULT_MODE,
     AssemblyMode,
     leg_eval,
@@ -17,7 +17,7 @@ from kinematics.leg import (
     leg_ik,
     leg_ik_point,
 )
-from robot_description.geometry import LegGeometry, LegLoad
+from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 from sixplus3.errors import ConvergenceError, GeometryError, InputError, UnreachableError
 
 GEO = LegGeometry()

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from planner.ocp import plan
-from planner.pipeline import run_plan
-from planner.smoothing import smooth
-from planner.task import task_from_dict
-from planner.trajectory_file import COLUMNS, TrajectoryFileError, atomic_write, write_trajectory
+from sixplus3.planner.ocp import plan
+from sixplus3.control.pipeline import run_plan
+from sixplus3.control.smoothing import smooth
+from sixplus3.planner.task import task_from_dict
+from sixplus3.control.trajectory_file import COLUMNS, TrajectoryFileError, atomic_write, write_trajectory
 from sixplus3.cli import main
 
 SMALL = {"name": "small", "waypoints": [{"position": [0, 0, 0.30]},

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from dynamics.closed_loop import ClosedLoopDynamics
-from kinematics.robot import leg_clearance, robot_ik, spherical_tilts
-from planner.model import home_x, symbolic_robot
-from planner.ocp import InfeasibleTaskError, PlannerOptions, Problem, dense_check, plan
-from planner.task import TaskError, load_task, task_from_dict
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.kinematics.robot import leg_clearance, robot_ik, spherical_tilts
+from sixplus3.planner.model import home_x, symbolic_robot
+from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem, dense_check, plan
+from sixplus3.planner.task import TaskError, load_task, task_from_dict
 
 EXAMPLES = sorted(__import__("pathlib").Path(__file__).parents[1].joinpath("examples")
                   .glob("*.yaml"))
@@ -161,7 +161,7 @@ def test_infeasible_tasks_raise_naming_the_waypoint_or_limit() -> None:
 
 
 def test_leg_clearance_and_home_x() -> None:
-    from kinematics.robot import home
+    from sixplus3.kinematics.robot import home
 
     assert leg_clearance(home())[0] > 0.05
     np.testing.assert_allclose(np.array(symbolic_robot().q(home_x())).ravel(), home().q[0],
@@ -173,7 +173,7 @@ def test_compiled_node_functions_agree_with_casadi() -> None:
     """The gcc-compiled constraint function and its Jacobian (planner.codegen) are the
     interpreted SX ones, to rounding, at random states (including the Jacobian CasADi
     finds in the library as ``jac_node``)."""
-    from planner.codegen import codegen_enabled, compiled_functions
+    from sixplus3.planner.codegen import codegen_enabled, compiled_functions
 
     if not codegen_enabled():
         pytest.fail("no C compiler: the planner would run interpreted (make test needs gcc)")
@@ -195,7 +195,7 @@ def test_compiled_node_functions_agree_with_casadi() -> None:
 
 def test_planner_runs_interpreted_without_a_compiler(monkeypatch) -> None:
     """With code generation off the same NLP is built from the SX functions (slower)."""
-    from planner import codegen, ocp
+    from sixplus3.planner import codegen, ocp
 
     monkeypatch.setenv("SIXPLUS3_NO_CODEGEN", "1")
     codegen.compiled_functions.cache_clear()
@@ -225,8 +225,8 @@ def test_largest_tilt_is_the_edge_of_the_static_feasible_set() -> None:
     """The bisection's answer is feasible and one resolution step beyond is not, for the
     limit it names; with a 1 N m torque limit the locked cranks stop at the torque limit
     (checked with Pinocchio's gravity torques) while free cranks tilt much further."""
-    from planner.analysis import largest_tilt, static_feasible
-    from planner.task import Limits
+    from sixplus3.planner.analysis import largest_tilt, static_feasible
+    from sixplus3.planner.task import Limits
 
     dyn = ClosedLoopDynamics()
     home_p = np.array([0.0, 0.0, 0.30])
@@ -257,7 +257,7 @@ def test_retiming_and_rest_splits(small_solution) -> None:
     certificate splits a path only where the motion is at rest."""
     import dataclasses
 
-    from planner.toppra_baseline import rest_splits
+    from sixplus3.planner.toppra_baseline import rest_splits
 
     sol, a = small_solution, 1.2
     tau_g = np.array(symbolic_robot().tau.map(len(sol.t))(
@@ -278,7 +278,7 @@ def test_retiming_and_rest_splits(small_solution) -> None:
 def test_a_violation_between_nodes_tightens_and_re_solves(monkeypatch) -> None:
     """When the dense check finds a limit exceeded between the constrained points, the
     planner tightens that limit and re-solves (warm-started) until the check passes."""
-    from planner import ocp
+    from sixplus3.planner import ocp
 
     real = ocp.dense_check
     calls = []
@@ -315,7 +315,7 @@ def test_symbolic_leg_clearance_is_a_tight_lower_bound_of_the_numeric_one() -> N
     """The OCP's clearance rows (a soft minimum over link pairs, CasADi) never exceed the
     numeric capsule clearance of kinematics.robot and are within ln(16)/k of it, at
     random poses including interfering ones (large tilts)."""
-    from planner.model import CLEARANCE_SHARPNESS
+    from sixplus3.planner.model import CLEARANCE_SHARPNESS
 
     sr = symbolic_robot()
     rng = np.random.default_rng(5)

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 import yourdfpy
 
-from robot_description import urdf as gen
-from robot_description.model import load_model, load_model_from, parse_closures
-from robot_description.robot import POINT_MASS, MassModel, RobotGeometry
+from sixplus3.robot_description import urdf as gen
+from sixplus3.robot_description.model import load_model, load_model_from, parse_closures
+from sixplus3.robot_description.robot import POINT_MASS, MassModel, RobotGeometry
 from sixplus3.errors import GeometryError, InputError
 
 
 def test_committed_files_match_the_generator() -> None:
-    assert gen.check() == [], "run: python -m robot_description.urdf"
+    assert gen.check() == [], "run: python -m sixplus3.robot_description.urdf"
     assert gen.main(["--check"]) == 0
 
 

@@ -9,8 +9,8 @@ import pinocchio as pin
 import pytest
 from scipy.spatial.transform import Rotation
 
-from kinematics.leg import leg_ik
-from kinematics.robot import (
+from sixplus3.kinematics.leg import leg_ik
+from sixplus3.kinematics.robot import (
     HOME_PSI,
     home,
     robot_fk,
@@ -18,8 +18,8 @@ from kinematics.robot import (
     robot_ik_pose,
     spherical_tilts,
 )
-from robot_description.model import load_model
-from robot_description.robot import RobotGeometry
+from sixplus3.robot_description.model import load_model
+from sixplus3.robot_description.robot import RobotGeometry
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError
 
 GEOM = RobotGeometry()

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from kinematics.robot import robot_ik
-from robot_description.urdf import URDF_PATH
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.robot_description.urdf import URDF_PATH
 
 
 @dataclass(frozen=True)
@@ -45,7 +45,7 @@ def _viewer():
     import pinocchio as pin
     from pinocchio.visualize import MeshcatVisualizer
 
-    from robot_description.model import load_model
+    from sixplus3.robot_description.model import load_model
 
     model = load_model().model
     visual = pin.buildGeomFromUrdf(model, str(URDF_PATH), pin.GeometryType.VISUAL)
@@ -78,7 +78,7 @@ def animate(frames: Frames):
 
 def write_html(frames: Frames, out: str | Path) -> Path:
     """A self-contained page (JS inlined, no network) with the animation; atomic."""
-    from planner.trajectory_file import atomic_write
+    from sixplus3.control.trajectory_file import atomic_write
 
     vis = animate(frames)
     out = Path(out)

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from kinematics.robot import robot_ik
-from robot_description.urdf import actuated_joint_names
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.robot_description.urdf import actuated_joint_names
 
 
 def _save(fig, path: Path) -> str:

@@ -15,10 +15,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from dynamics.closed_loop import ClosedLoopDynamics
-from kinematics.robot import leg_clearance, robot_fk, robot_ik, spherical_tilts
-from planner.task import Limits
-from robot_description.urdf import SPHERICAL_LIMIT
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.kinematics.robot import leg_clearance, robot_fk, robot_ik, spherical_tilts
+from sixplus3.planner.task import Limits
+from sixplus3.robot_description.urdf import SPHERICAL_LIMIT
 from sixplus3.errors import ConvergenceError, SingularityError
 
 

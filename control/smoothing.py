@@ -20,8 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
-from planner.model import symbolic_robot
-from planner.ocp import Solution
+from sixplus3.planner.model import symbolic_robot
+from sixplus3.planner.ocp import Solution
 from sixplus3.errors import Sixplus3Error
 
 

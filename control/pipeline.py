@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.model import symbolic_robot
-from planner.ocp import PlannerOptions, Solution, plan
-from planner.smoothing import Smoothed, smooth
-from planner.task import Task
-from planner.trajectory_file import TrajectoryFileError, write_trajectory
-from planner.validation import ValidationReport, validate_joint_trajectory
-from robot_description.robot import MassModel, RobotGeometry
+from sixplus3.planner.model import symbolic_robot
+from sixplus3.planner.ocp import PlannerOptions, Solution, plan
+from sixplus3.control.smoothing import Smoothed, smooth
+from sixplus3.planner.task import Task
+from sixplus3.control.trajectory_file import TrajectoryFileError, write_trajectory
+from sixplus3.control.validation import ValidationReport, validate_joint_trajectory
+from sixplus3.robot_description.robot import MassModel, RobotGeometry
 
 #: The built-in task of ``sixplus3 demo``: tilt 30 deg about x and come back.
 DEMO_TASK = {
@@ -101,14 +101,14 @@ def run_plan(task: Task, out_dir: str | Path, rate: float = 1000.0, html: bool =
     say(f"  wrote {csv_path} and {json_path.name}")
     files: list[str] = []
     if plots:
-        from visualization.plots import plot_trajectory
+        from sixplus3.visualization.plots import plot_trajectory
 
         files = plot_trajectory(out, sm.t, sm.theta, rep.tau, rep.position, rep.quaternion,
                                 rep.psi, task.limits.torque, task.limits.margin, task.name)
         say(f"  plots: {', '.join(Path(f).name for f in files)}")
     html_path = None
     if html:
-        from visualization.meshcat_player import frames_from_samples, write_html
+        from sixplus3.visualization.meshcat_player import frames_from_samples, write_html
 
         frames = frames_from_samples(sm.t, rep.position, rep.quaternion, rep.psi)
         html_path = write_html(frames, out / f"{task.name}.html")

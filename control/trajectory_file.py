@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.task import Limits
-from robot_description.urdf import CLOSURES_PATH, URDF_PATH, actuated_joint_names
+from sixplus3.planner.task import Limits
+from sixplus3.robot_description.urdf import CLOSURES_PATH, URDF_PATH, actuated_joint_names
 from sixplus3.errors import Sixplus3Error
 
 FORMAT = "sixplus3-trajectory/1"

@@ -1,0 +1,1 @@
+"""Controller side: smoothing, validation (the gate), trajectory files, the offline feed."""
