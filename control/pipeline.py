@@ -9,23 +9,26 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.planner.model import symbolic_robot
-from sixplus3.planner.ocp import PlannerOptions, Solution, plan
 from sixplus3.control.smoothing import Smoothed, smooth
-from sixplus3.planner.task import Task
-from sixplus3.control.trajectory_file import TrajectoryFileError, write_trajectory
+from sixplus3.control.trajectory_file import write_trajectory
 from sixplus3.control.validation import ValidationReport, validate_joint_trajectory
-from sixplus3.robot_description.robot import MassModel, RobotGeometry
+from sixplus3.errors import TrajectoryFileError
+from sixplus3.planner.ocp import PlannerOptions, Solution, plan
+from sixplus3.planner.task import Task
+from sixplus3.robot_description.robot import Robot
 
-#: The built-in task of ``sixplus3 demo``: tilt 30 deg about x and come back.
-DEMO_TASK = {
-    "name": "demo_tilt30",
-    "description": "Built-in demo: tilt the platform 30 deg about x at home and back.",
-    "waypoints": [{"position": [0.0, 0.0, 0.30]},
-                  {"position": [0.0, 0.0, 0.30], "rpy": [30, 0, 0]},
-                  {"position": [0.0, 0.0, 0.30]}],
-    "nodes_per_segment": 10,
-}
+
+def demo_task(robot: Robot | None = None) -> dict:
+    """The built-in task of ``sixplus3 demo``: tilt 30 deg about x at the robot's home
+    and come back."""
+    home = list((robot or Robot.default()).home_position)
+    return {
+        "name": "demo_tilt30",
+        "description": "Built-in demo: tilt the platform 30 deg about x at home and back.",
+        "waypoints": [{"position": home}, {"position": home, "rpy": [30, 0, 0]},
+                      {"position": home}],
+        "nodes_per_segment": 10,
+    }
 
 
 @dataclass
@@ -40,22 +43,25 @@ class PlanOutputs:
     seconds: dict[str, float]
 
 
-def run_plan(task: Task, out_dir: str | Path, rate: float = 1000.0, html: bool = True,
-             plots: bool = True, options: PlannerOptions | None = None,
+def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
+             rate: float = 1000.0, html: bool = True, plots: bool = True,
+             options: PlannerOptions | None = None,
              progress: Callable[[str], None] | None = None) -> PlanOutputs:
-    """Plan ``task`` and write the validated trajectory files into ``out_dir``.
+    """Plan ``task`` for ``robot`` (default ``Robot.default()``) and write the validated
+    trajectory files into ``out_dir``.
 
-    Raises :class:`planner.ocp.InfeasibleTaskError` for an infeasible task and
+    Raises :class:`InfeasibleTaskError` for an infeasible task and
     :class:`TrajectoryFileError` if the smoothed trajectory fails its validation; in both
     cases nothing is written.
     """
+    robot = robot or Robot.default()
     say = progress or (lambda s: None)
     out = Path(out_dir)
     secs: dict[str, float] = {}
     t0 = time.perf_counter()
     say(f"planning '{task.name}' ({len(task.waypoints)} waypoints, "
         f"{task.n_segments * task.nodes_per_segment} intervals) ...")
-    sol = plan(task, options)
+    sol = plan(task, robot, options)
     secs["plan"] = time.perf_counter() - t0
     say(f"  planned: {sol.final_time:.4f} s motion, {sol.solves} NLP solve(s), IPOPT "
         f"{sol.iterations} iterations in the last, {sol.solve_time:.2f} s; 10x re-check: "
@@ -68,20 +74,20 @@ def run_plan(task: Task, out_dir: str | Path, rate: float = 1000.0, html: bool =
         f"{sm.duration:.4f} s (+{100 * sm.added_fraction:.2f}%), "
         f"{sm.stretched_segments} segments stretched")
     t2 = time.perf_counter()
-    q0 = np.array(symbolic_robot().q(sol.x[0])).ravel()
-    rep = validate_joint_trajectory(sm.theta, sm.theta_dot, sm.theta_ddot, task.limits, q0)
+    q0 = np.array(robot.symbolic().q(sol.x[0])).ravel()
+    rep = validate_joint_trajectory(sm.theta, sm.theta_dot, sm.theta_ddot, robot,
+                                    sol.limits, q0)
     secs["validate"] = time.perf_counter() - t2
     if not rep.ok:
         raise TrajectoryFileError("the smoothed trajectory fails validation, nothing written: "
                                   + "; ".join(rep.violations))
     say(f"  validated {rep.samples} samples with Pinocchio: max|tau| "
-        f"{rep.max_torque_ratio * task.limits.torque:.3f} N m, min margins "
+        f"{rep.max_torque_ratio * sol.limits.torque:.3f} N m, min margins "
         f"{rep.min_margin_leg_type1:.3f}/{rep.min_margin_leg_type2:.3f}/"
         f"{rep.min_margin_platform:.3f}")
     out.mkdir(parents=True, exist_ok=True)
     meta = {
         "rate_hz": rate,
-        "robot": {"geometry": asdict(RobotGeometry()), "mass_model": asdict(MassModel())},
         "task": task.source,
         "planner": {"status": sol.status, "final_time_s": sol.final_time,
                     "solve_time_s": sol.solve_time, "iterations": sol.iterations,
@@ -96,21 +102,22 @@ def run_plan(task: Task, out_dir: str | Path, rate: float = 1000.0, html: bool =
                       "max_jerk_rad_s3": sm.max_jerk},
     }
     csv_path, json_path = write_trajectory(out / f"{task.name}.csv", sm.t, sm.theta,
-                                           sm.theta_dot, sm.theta_ddot, rep, task.limits,
+                                           sm.theta_dot, sm.theta_ddot, rep, robot,
+                                           sol.limits,
                                            meta)
     say(f"  wrote {csv_path} and {json_path.name}")
     files: list[str] = []
     if plots:
         from sixplus3.visualization.plots import plot_trajectory
 
-        files = plot_trajectory(out, sm.t, sm.theta, rep.tau, rep.position, rep.quaternion,
-                                rep.psi, task.limits.torque, task.limits.margin, task.name)
+        files = plot_trajectory(robot, out, sm.t, sm.theta, rep.tau, rep.position, rep.quaternion,
+                                rep.psi, sol.limits.torque, sol.limits.margin, task.name)
         say(f"  plots: {', '.join(Path(f).name for f in files)}")
     html_path = None
     if html:
         from sixplus3.visualization.meshcat_player import frames_from_samples, write_html
 
-        frames = frames_from_samples(sm.t, rep.position, rep.quaternion, rep.psi)
+        frames = frames_from_samples(robot, sm.t, rep.position, rep.quaternion, rep.psi)
         html_path = write_html(frames, out / f"{task.name}.html")
         say(f"  MeshCat page: {html_path} (slowed down {frames.slowdown:.0f}x)")
     secs["total"] = time.perf_counter() - t0

@@ -20,13 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
-from sixplus3.planner.model import symbolic_robot
+from sixplus3.errors import SmoothingError
 from sixplus3.planner.ocp import Solution
-from sixplus3.errors import Sixplus3Error
-
-
-class SmoothingError(Sixplus3Error):
-    """Ruckig could not compute a segment."""
 
 
 @dataclass(frozen=True)
@@ -49,7 +44,7 @@ class Smoothed:
 def knots(sol: Solution, rate: float):
     """Knots on the controller's grid: times k / rate and the end, with the exact plan's
     (theta, theta_dot, theta_ddot) there (from its piecewise-cubic motion)."""
-    sr = symbolic_robot()
+    sr = sol.robot.symbolic()
     t = np.arange(0.0, sol.t[-1], 1.0 / rate)
     if sol.t[-1] - t[-1] > 1e-12:
         t = np.r_[t, sol.t[-1]]
@@ -72,7 +67,7 @@ def smooth(sol: Solution, rate: float = 1000.0, jerk_factor: float = 1.5,
     controller's grid; jerk limit = ``jerk_factor`` x the plan's largest jerk."""
     if not (rate > 0 and np.isfinite(rate)):
         raise SmoothingError(f"rate must be a positive number of Hz, got {rate}")
-    lim = sol.task.limits
+    lim = sol.limits
     kt, th, thd, thdd = knots(sol, rate)
     n = len(kt)
     jerk = max_jerk if max_jerk is not None else jerk_factor * plan_jerk(kt, thdd)

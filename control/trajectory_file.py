@@ -5,12 +5,14 @@ each A, B, C): ``J_pos`` [rad], ``J_vel`` [rad/s], ``J_acc`` [rad/s^2], ``J_tau`
 (feed-forward torque [N m]); then the platform pose ``platform_x/y/z`` [m],
 ``platform_qx/qy/qz/qw`` and the crank angles ``psi_0..2`` [rad].
 
-JSON (same stem): format, units, joint names, rate, limits, robot parameters, the SHA-256
-of the URDF + closures and of the CSV, the task, planner statistics and the validation.
+JSON (same stem): format, units, joint names, rate, limits, the full robot (every
+parameter and its hash, :attr:`Robot.hash`), the SHA-256 of the CSV, the task, planner
+statistics and the validation.  A file is read only for the robot it was made for.
 
 Both are written atomically (temporary file in the same directory, then rename), and
-only after the trajectory passed :func:`planner.validation.validate_joint_trajectory`:
-no unsafe trajectory is ever written as if it were valid.
+only after the trajectory passed
+:func:`sixplus3.control.validation.validate_joint_trajectory`: no unsafe trajectory is
+ever written as if it were valid.
 """
 
 from __future__ import annotations
@@ -25,9 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.planner.task import Limits
-from sixplus3.robot_description.urdf import CLOSURES_PATH, URDF_PATH, actuated_joint_names
-from sixplus3.errors import Sixplus3Error
+from sixplus3.errors import GeometryError, TrajectoryFileError
+from sixplus3.fileio import atomic_write
+from sixplus3.robot_description.limits import Limits
+from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.urdf import actuated_joint_names
 
 FORMAT = "sixplus3-trajectory/1"
 JOINTS = actuated_joint_names()
@@ -38,35 +42,10 @@ UNITS = {"t": "s", "pos": "rad", "vel": "rad/s", "acc": "rad/s^2", "tau": "N m",
          "platform_xyz": "m", "platform_q": "unit quaternion (x, y, z, w)", "psi": "rad"}
 
 
-class TrajectoryFileError(Sixplus3Error):
-    """A trajectory file is missing, corrupted or does not match this robot."""
-
-
-def robot_hash() -> str:
-    h = hashlib.sha256()
-    for p in (URDF_PATH, CLOSURES_PATH):
-        h.update(Path(p).read_bytes())
-    return h.hexdigest()
-
-
-def atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` so that an interruption leaves no partial file."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        with open(tmp, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
-def write_trajectory(csv_path: Path, t, theta, theta_dot, theta_ddot, report, limits: Limits,
-                     meta: dict) -> tuple[Path, Path]:
-    """Write the CSV and its JSON header; refuses a trajectory whose validation failed."""
+def write_trajectory(csv_path: Path, t, theta, theta_dot, theta_ddot, report, robot: Robot,
+                     limits: Limits, meta: dict) -> tuple[Path, Path]:
+    """Write the CSV and its JSON header for ``robot``; refuses a trajectory whose
+    validation failed."""
     if report is None or not report.ok:
         reasons = "; ".join(report.violations) if report is not None else "not validated"
         raise TrajectoryFileError(f"refusing to write an invalid trajectory: {reasons}")
@@ -89,7 +68,8 @@ def write_trajectory(csv_path: Path, t, theta, theta_dot, theta_ddot, report, li
         "rate_hz": float(meta.get("rate_hz", 0.0)), "samples": n,
         "duration_s": float(t[-1]), "columns": COLUMNS, "units": UNITS,
         "joint_names": JOINTS, "limits": asdict(limits),
-        "robot": {"urdf_closures_sha256": robot_hash(), **meta.get("robot", {})},
+        "robot": {"hash": robot.hash, "parameters": robot.as_dict(),
+                  "summary": robot.summary()},
         "task": meta.get("task"), "planner": meta.get("planner"),
         "smoothing": meta.get("smoothing"), "validation": report.summary(),
     }
@@ -107,8 +87,46 @@ def _jsonable(obj):
     return str(obj)
 
 
-def read_trajectory(csv_path: Path) -> tuple[dict, np.ndarray]:
-    """Load and format-check a trajectory; raises :class:`TrajectoryFileError`."""
+def check_robot(header: dict, robot: Robot, name: str) -> None:
+    """Refuse a header whose robot is not ``robot`` (or whose parameters do not give its
+    recorded hash)."""
+    rec = header.get("robot")
+    if not isinstance(rec, dict) or not isinstance(rec.get("parameters"), dict):
+        raise TrajectoryFileError(f"{name}: the header records no robot parameters")
+    try:
+        recorded = Robot.from_dict(rec["parameters"])
+    except (GeometryError, TypeError, ValueError) as exc:
+        raise TrajectoryFileError(f"{name}: the recorded robot is invalid: {exc}") from exc
+    if recorded.hash != rec.get("hash"):
+        raise TrajectoryFileError(f"{name}: the recorded robot parameters do not match the "
+                                  "recorded robot hash (edited header)")
+    if recorded.hash != robot.hash:
+        diff = _robot_diff(recorded.as_dict(), robot.as_dict())
+        raise TrajectoryFileError(
+            f"robot mismatch: {name} was made for robot {recorded.hash[:12]}, not for "
+            f"{robot.hash[:12]} ({diff}); re-plan for this robot",
+            value=recorded.hash, valid=robot.hash)
+
+
+def _robot_diff(a: dict, b: dict, where: str = "") -> str:
+    """The first parameter that differs between two robot dicts."""
+    for k in sorted(set(a) | set(b)):
+        if k == "name":
+            continue
+        va, vb = a.get(k), b.get(k)
+        if isinstance(va, dict) and isinstance(vb, dict):
+            d = _robot_diff(va, vb, f"{where}{k}.")
+            if d:
+                return d
+        elif va != vb:
+            return f"{where}{k}: file {va!r}, robot {vb!r}"
+    return ""
+
+
+def read_trajectory(csv_path: Path, robot: Robot | None = None) -> tuple[dict, np.ndarray]:
+    """Load and format-check a trajectory made for ``robot`` (default
+    ``Robot.default()``); raises :class:`TrajectoryFileError`."""
+    robot = robot or Robot.default()
     csv_path = Path(csv_path)
     json_path = csv_path.with_suffix(".json")
     for p in (csv_path, json_path):
@@ -123,9 +141,7 @@ def read_trajectory(csv_path: Path) -> tuple[dict, np.ndarray]:
                                   f"expected {FORMAT!r}" if isinstance(header, dict) else
                                   f"{json_path.name}: not a trajectory header")
     raw = csv_path.read_bytes()
-    if header.get("robot", {}).get("urdf_closures_sha256") != robot_hash():
-        raise TrajectoryFileError("robot mismatch: the file was made for another URDF or "
-                                  "closures (hash differs); re-plan for this robot")
+    check_robot(header, robot, json_path.name)
     lines = raw.decode(errors="replace").splitlines()
     if not lines:
         raise TrajectoryFileError(f"{csv_path.name} is empty")

@@ -7,10 +7,12 @@ reaches its P_i (in the default assembly mode) and the chosen limits hold.  Limi
 cumulative, so the report says which one bounds the workspace:
 
 1. ``reach``     every leg solved (the kinematic COW, intersection of the leg tori);
-2. ``theta``     every actuated angle in [0, 270] deg (no base collision, paper §V-A);
+2. ``theta``     every actuated angle in the robot's actuated range ([0, 270] deg: no
+                 base collision, paper §V-A);
 3. ``singfree``  no singularity crossed from home: every leg's det J and det K keep their
                  sign at home, and every margin (leg type I/II, platform) > 0.01;
-4. ``torque``    every leg meets the paper's 2 g criterion: tau_ext <= 10 N m at P_i.
+4. ``torque``    every leg meets the paper's 2 g criterion: tau_ext <= the robot's torque
+                 limit (10 N m) at P_i.
 
 Projected area = area of the union of the horizontal cross-sections; footprint = area of
 the convex hull of the nine actuated-joint positions.
@@ -24,8 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from sixplus3.kinematics.robot import HOME_HEIGHT, robot_ik
-from sixplus3.robot_description.robot import RobotGeometry
+from sixplus3.errors import InputError
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.robot_description.robot import Robot, RobotGeometry
 
 LIMIT_SETS = ("reach", "theta", "singfree", "torque")
 #: Margin used for "singularity-free" (scale-free, see kinematics.robot).
@@ -62,32 +65,39 @@ def footprint(geom: RobotGeometry) -> tuple[np.ndarray, float]:
     return pts[hull.vertices], float(hull.volume)  # in 2D, 'volume' is the area
 
 
-def compute_cow(step: float = 0.01, z_step: float = 0.025, extent: float = 0.6,
-                z_max: float = 0.75, geom: RobotGeometry | None = None,
-                mode: str = "++++") -> COW:
-    """Evaluate the COW on a grid of platform-centre positions [m] in an assembly mode."""
-    if not (1e-3 <= step <= 0.1 and 1e-3 <= z_step <= 0.2):
-        raise ValueError(f"step and z_step must be in [0.001, 0.1] / [0.001, 0.2] m, "
-                         f"got {step}, {z_step}")
-    geom = geom or RobotGeometry()
+def compute_cow(robot: Robot | None = None, step: float = 0.01, z_step: float = 0.025,
+                extent: float = 0.6, z_max: float = 0.75) -> COW:
+    """Evaluate the COW of ``robot`` (default ``Robot.default()``) on a grid of
+    platform-centre positions [m], platform horizontal with the cranks at the robot's
+    home angles; singularity signs are those at the robot's home pose."""
+    values = (step, z_step, extent, z_max)
+    if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+        raise InputError(f"COW grid parameters must be finite numbers, got {values}")
+    if not (1e-3 <= step <= 0.1 and 1e-3 <= z_step <= 0.2 and 0 < extent <= 2
+            and 0 < z_max <= 2):
+        raise InputError(f"step, z_step, extent, z_max must be in [0.001, 0.1], "
+                         f"[0.001, 0.2], (0, 2], (0, 2] m, got {values}", value=values)
+    robot = robot or Robot.default()
+    geom, mode, lim = robot.geometry, robot.mode.name, robot.limits
+    psi = robot.home_psi
     xs = np.arange(-extent + step / 2, extent, step)
     zs = np.arange(z_step, z_max + 1e-9, z_step)
     X, Y = np.meshgrid(xs, xs, indexing="ij")
-    ref = robot_ik(np.array([0.0, 0.0, HOME_HEIGHT]), np.eye(3), (math.pi / 2,) * 3, geom,
-                   mode)
+    ref = robot_ik(np.array(robot.home_position), np.eye(3), psi, robot)
     sign_j = np.array([np.sign(s.det_J[0]) for s in ref.legs])
     sign_k = np.array([np.sign(s.det_K[0]) for s in ref.legs])
     masks = {k: np.zeros((len(zs), len(xs), len(xs)), dtype=bool) for k in LIMIT_SETS}
     for iz, z in enumerate(zs):
         pos = np.c_[X.ravel(), Y.ravel(), np.full(X.size, z)]
-        cfg = robot_ik(pos, np.eye(3), (math.pi / 2,) * 3, geom, mode)
+        cfg = robot_ik(pos, np.eye(3), psi, robot)
         reach = cfg.ok
         th = cfg.theta
-        theta_ok = reach & np.all((th >= 0.0) & (th <= 1.5 * math.pi), axis=1)
+        theta_ok = reach & np.all((th >= lim.theta_min) & (th <= lim.theta_max), axis=1)
         sing = theta_ok & (cfg.margins.minimum > SINGFREE_MARGIN)
         for i, s in enumerate(cfg.legs):
             sing &= (np.sign(s.det_J) == sign_j[i]) & (np.sign(s.det_K) == sign_k[i])
-        torque = sing & np.all(np.stack([s.tau_ext for s in cfg.legs], axis=1) <= 10.0, axis=1)
+        torque = sing & np.all(np.stack([s.tau_ext for s in cfg.legs], axis=1) <= lim.torque,
+                               axis=1)
         for key, m in zip(LIMIT_SETS, (reach, theta_ok, sing, torque), strict=True):
             masks[key][iz] = m.reshape(X.shape)
     poly, area = footprint(geom)

@@ -24,6 +24,7 @@ from sixplus3.design.search import PAPER_DESIGN, Reading
 from sixplus3.design.workspace import counted_reading, halfplane_grid
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
+from sixplus3.robot_description.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -133,7 +134,8 @@ def make_figures(out_dir: str | Path, reading: Reading | None = None,
     files.append(_save(fig, out / "resolution.png"))
 
     # --- constant-orientation workspace of the whole robot
-    cow = compute_cow(step=cow_step, z_step=cow_z_step, mode=reading.mode)
+    cow = compute_cow(Robot.default().replace(mode=reading.mode), step=cow_step,
+                      z_step=cow_z_step)
     ratios = {k: cow.ratio(k) for k in LIMIT_SETS}
     files.append(_cow_figure(plt, cow, out / "cow.png", ratios))
     return FigureSummary(files=files, design=design, reading=reading.name,
@@ -142,10 +144,9 @@ def make_figures(out_dir: str | Path, reading: Reading | None = None,
 
 
 def _cow_figure(plt, cow, path: Path, ratios: dict[str, float]) -> str:
-    from sixplus3.design.cow import RobotGeometry
 
     fig = plt.figure(figsize=(12, 6))
-    pts = RobotGeometry().actuated_joint_positions()
+    pts = Robot.default().geometry.actuated_joint_positions()
     poly = np.vstack([cow.footprint, cow.footprint[:1]])
     for col, key in enumerate(("reach", "torque")):
         ax = fig.add_subplot(1, 2, col + 1, projection="3d")

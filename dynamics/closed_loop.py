@@ -25,8 +25,9 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
-from sixplus3.robot_description.model import ClosedLoopModel, load_model
 from sixplus3.errors import InputError, SingularityError
+from sixplus3.robot_description.model import ClosedLoopModel
+from sixplus3.robot_description.robot import Robot
 
 #: Parallel-singularity threshold on the reciprocal condition number (1-norm) of J_pas.
 SINGULAR_RCOND = 1e-10
@@ -53,11 +54,28 @@ class Trajectory:
 
 
 class ClosedLoopDynamics:
-    """Dynamics of a :class:`ClosedLoopModel` (one instance per thread: it owns data)."""
+    """Closed-loop dynamics of one robot.
 
-    def __init__(self, clm: ClosedLoopModel | None = None, kp: float = 400.0,
-                 kd: float = 40.0, mu: float = 1e-10) -> None:
-        self.clm = clm or load_model()
+    Each instance owns its Pinocchio model copy, data and constraint models (made by
+    :meth:`Robot.closed_loop_model`), so instances never affect each other: different
+    Baumgarte gains, one instance per thread.  ``model`` instead uses a closed-loop model
+    the caller built (e.g. :func:`~sixplus3.robot_description.model.load_model_from`),
+    which this instance then owns.
+    """
+
+    def __init__(self, robot: Robot | None = None, *, kp: float = 400.0, kd: float = 40.0,
+                 mu: float = 1e-10, model: ClosedLoopModel | None = None) -> None:
+        for name, val in (("kp", kp), ("kd", kd), ("mu", mu)):
+            if not (math.isfinite(val) and val >= 0.0):
+                raise InputError(f"{name} must be a finite number >= 0, got {val!r}",
+                                 value=val, valid=">= 0")
+        if model is not None:
+            if robot is not None and model.robot is not None and model.robot.hash != robot.hash:
+                raise InputError("ClosedLoopDynamics: the model given is of another robot")
+            self.clm = model
+        else:
+            self.clm = (robot or Robot.default()).closed_loop_model()
+        self.robot = self.clm.robot
         self.model = self.clm.model
         self.data = self.model.createData()
         self.cmodels = self.clm.constraint_models

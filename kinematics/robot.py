@@ -16,31 +16,19 @@ angular columns scaled by the platform radius and crank columns by the crank len
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from sixplus3.kinematics.leg import (
-    DEFAULT_MODE,
-    AssemblyMode,
-    LegState,
-    failing_chain,
-    leg_ik,
-    status_reason,
-)
-from sixplus3.robot_description.robot import NUM_LEGS, RobotGeometry
-from sixplus3.robot_description.urdf import SPHERICAL_LIMIT
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError
+from sixplus3.kinematics.leg import LegState, failing_chain, leg_ik, status_reason
+from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, _cached
 
-DEFAULT_ROBOT = RobotGeometry()
-#: Height of the platform centre at the home pose [m]: the highest 5 cm step at which
-#: every leg still meets the paper's 2 g criterion (tau_ext < 10 N m; 9.4 N m at 0.30 m).
-HOME_HEIGHT = 0.30
-#: Crank angles at the home pose [rad]: cranks at 90 deg to their radius.
-HOME_PSI = (math.pi / 2,) * NUM_LEGS
+if TYPE_CHECKING:
+    from sixplus3.robot_description.model import ClosedLoopModel
 
 
 def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -81,6 +69,7 @@ class RobotConfig:
     q: np.ndarray  # (n, nq) Pinocchio configuration of the spanning tree
     legs: tuple[LegState, ...]  # per leg, batched
     margins: RobotMargins
+    robot: Robot  # the robot these configurations belong to
 
     def __len__(self) -> int:
         return int(self.status.shape[0])
@@ -91,15 +80,16 @@ class RobotConfig:
 
 
 # --------------------------------------------------------------------- q layout
-@functools.lru_cache(maxsize=1)
-def _layout() -> dict[str, int]:
-    """q index of every joint of the committed URDF (from Pinocchio), and the nq."""
-    from sixplus3.robot_description.model import load_model
+def _layout(robot: Robot) -> dict[str, int]:
+    """q index of every joint of the robot's tree (from Pinocchio), and the nq."""
 
-    m = load_model().model
-    out = {m.names[j]: int(m.joints[j].idx_q) for j in range(1, m.njoints)}
-    out["__nq__"] = int(m.nq)
-    return out
+    def make() -> dict[str, int]:
+        m = robot.closed_loop_model().model
+        out = {m.names[j]: int(m.joints[j].idx_q) for j in range(1, m.njoints)}
+        out["__nq__"] = int(m.nq)
+        return out
+
+    return _cached(("layout", robot.hash), make)
 
 
 def _u_joint_angles(theta_crank: np.ndarray, link_dir: np.ndarray):
@@ -118,7 +108,7 @@ def _u_joint_angles(theta_crank: np.ndarray, link_dir: np.ndarray):
 
 
 def platform_margin(rotation: np.ndarray, P: np.ndarray, position: np.ndarray,
-                    geom: RobotGeometry = DEFAULT_ROBOT) -> np.ndarray:
+                    geom: RobotGeometry) -> np.ndarray:
     """(n,) sigma_min / sigma_max of the column-scaled 9x9 platform Jacobian.
 
     v_Pi = v_O + omega x (P_i - O) + psi_dot_i z_p x (P_i - R_i); angular columns are
@@ -183,8 +173,9 @@ def _as_batch(position, rotation, psi):
     return np.ascontiguousarray(position), np.ascontiguousarray(rotation), np.array(psi)
 
 
-def crank_tips(position, rotation, psi, geom: RobotGeometry = DEFAULT_ROBOT) -> np.ndarray:
+def crank_tips(position, rotation, psi, robot: Robot) -> np.ndarray:
     """(n, 3, 3) P_i in the robot frame for platform poses and crank angles [m]."""
+    geom = robot.geometry
     n = position.shape[0]
     P = np.empty((n, NUM_LEGS, 3))
     for i in range(NUM_LEGS):
@@ -195,18 +186,20 @@ def crank_tips(position, rotation, psi, geom: RobotGeometry = DEFAULT_ROBOT) -> 
     return P
 
 
-def robot_ik(position, rotation, psi=HOME_PSI, geom: RobotGeometry = DEFAULT_ROBOT,
-             mode: AssemblyMode | str = DEFAULT_MODE) -> RobotConfig:
-    """Batched closed-form IK: platform pose (n, 3) [m], (n, 3, 3) and psi (n, 3) [rad].
+def robot_ik(position, rotation, psi=None, robot: Robot | None = None) -> RobotConfig:
+    """Batched closed-form IK: platform pose (n, 3) [m], (n, 3, 3) and psi (n, 3) [rad]
+    (default: the robot's home crank angles), in the robot's assembly mode.
 
     Failed samples have ``status != 0`` (bit i: leg i), zeros in q and theta, margins 0.
     """
-    position, rotation, psi = _as_batch(position, rotation, psi)
-    mode = AssemblyMode.parse(mode)
+    robot = robot or Robot.default()
+    position, rotation, psi = _as_batch(position, rotation,
+                                        robot.home_psi if psi is None else psi)
+    geom, mode = robot.geometry, robot.mode
     n = position.shape[0]
-    lay = _layout()
+    lay = _layout(robot)
     leg = geom.leg
-    P = crank_tips(position, rotation, psi, geom)
+    P = crank_tips(position, rotation, psi, robot)
     q = np.zeros((n, lay["__nq__"]))
     theta = np.zeros((n, 3 * NUM_LEGS))
     status = np.zeros(n, dtype=np.int64)
@@ -240,17 +233,19 @@ def robot_ik(position, rotation, psi=HOME_PSI, geom: RobotGeometry = DEFAULT_ROB
     )
     return RobotConfig(status=status, leg_status=leg_status, position=position,
                        rotation=rotation, psi=psi, theta=theta, P=P, q=q, legs=tuple(legs),
-                       margins=margins)
+                       margins=margins, robot=robot)
 
 
-def robot_ik_pose(position, rpy=(0.0, 0.0, 0.0), psi=HOME_PSI,
-                  geom: RobotGeometry = DEFAULT_ROBOT,
-                  mode: AssemblyMode | str = DEFAULT_MODE) -> RobotConfig:
-    """IK of one pose (position [m], roll/pitch/yaw [rad]); raises naming the failing leg."""
+def robot_ik_pose(position, rpy=(0.0, 0.0, 0.0), psi=None,
+                  robot: Robot | None = None) -> RobotConfig:
+    """IK of one pose (position [m], roll/pitch/yaw [rad], crank angles [rad], default
+    the robot's home ones); raises :class:`UnreachableError` naming the failing leg."""
+    robot = robot or Robot.default()
+    psi = robot.home_psi if psi is None else psi
     pos = np.asarray(position, dtype=float)
     if pos.shape != (3,) or np.asarray(rpy).shape != (3,) or np.asarray(psi).shape != (3,):
         raise InputError("position, rpy and psi must each be 3 numbers")
-    cfg = robot_ik(pos, rpy_matrix(*rpy), psi, geom, mode)
+    cfg = robot_ik(pos, rpy_matrix(*rpy), psi, robot)
     if cfg.status[0]:
         for i in range(NUM_LEGS):
             st = int(cfg.leg_status[0, i])
@@ -261,23 +256,28 @@ def robot_ik_pose(position, rpy=(0.0, 0.0, 0.0), psi=HOME_PSI,
     return cfg
 
 
-def home(geom: RobotGeometry = DEFAULT_ROBOT) -> RobotConfig:
-    """The home pose: platform horizontal at HOME_HEIGHT above the base, psi = 90 deg."""
-    return robot_ik_pose((0.0, 0.0, HOME_HEIGHT), (0.0, 0.0, 0.0), HOME_PSI, geom)
+def home(robot: Robot | None = None) -> RobotConfig:
+    """The robot's home pose: platform horizontal at ``robot.home_position``, cranks at
+    ``robot.home_psi``."""
+    robot = robot or Robot.default()
+    return robot_ik_pose(robot.home_position, (0.0, 0.0, 0.0), robot.home_psi, robot)
 
 
 # --------------------------------------------------------------------- spherical joints
-@functools.lru_cache(maxsize=4)
-def spherical_reference(geom: RobotGeometry) -> np.ndarray:
+def spherical_reference(robot: Robot) -> np.ndarray:
     """Mounting axes of the S joints, fixed in their bodies, from the home pose.
 
     Returns (3 legs, 3 joints E/F/P, 2 sides, 3): for E and F, (axis in the leg body
     frame, axis in the distal link frame); for P, (axis in the leg body frame, axis in the
     platform crank frame).  The joint is mounted centred at home: tilt 0.
     """
-    h = home(geom)
+    return _cached(("spherical_reference", robot.hash), lambda: _spherical_reference(robot))
+
+
+def _spherical_reference(robot: Robot) -> np.ndarray:
+    h = home(robot)
     ref = np.zeros((NUM_LEGS, 3, 2, 3))
-    frames = _body_frames(h, geom)
+    frames = _body_frames(h)
     for i in range(NUM_LEGS):
         body, dist_b, dist_c, crank = (f[0] for f in frames[i])
         for j, other in enumerate((dist_b, dist_c)):
@@ -288,10 +288,11 @@ def spherical_reference(geom: RobotGeometry) -> np.ndarray:
     return ref
 
 
-def _body_frames(cfg: RobotConfig, geom: RobotGeometry):
+def _body_frames(cfg: RobotConfig):
     """World rotations (n, 3, 3) of leg body, distal B, distal C, platform crank i."""
     out = []
-    lay = _layout()
+    geom = cfg.robot.geometry
+    lay = _layout(cfg.robot)
     for i in range(NUM_LEGS):
         Rl = geom.leg_rotation(i)
         s = cfg.legs[i]
@@ -307,13 +308,13 @@ def _body_frames(cfg: RobotConfig, geom: RobotGeometry):
     return out
 
 
-def spherical_tilts(cfg: RobotConfig, geom: RobotGeometry = DEFAULT_ROBOT) -> np.ndarray:
+def spherical_tilts(cfg: RobotConfig) -> np.ndarray:
     """(n, 3, 3) tilt [rad] of every spherical joint (leg, E/F/P) from its home axis.
 
-    The range check of SPEC.md: each must stay below 150 deg (``SPHERICAL_LIMIT``).
+    The range check: each must stay below the robot's ``limits.spherical`` (150 deg).
     """
-    ref = spherical_reference(geom)
-    frames = _body_frames(cfg, geom)
+    ref = spherical_reference(cfg.robot)
+    frames = _body_frames(cfg)
     tilt = np.zeros((len(cfg), NUM_LEGS, 3))
     for i in range(NUM_LEGS):
         body, dist_b, dist_c, crank = frames[i]
@@ -324,9 +325,9 @@ def spherical_tilts(cfg: RobotConfig, geom: RobotGeometry = DEFAULT_ROBOT) -> np
     return np.where(cfg.ok[:, None, None], tilt, 0.0)
 
 
-def spherical_ok(cfg: RobotConfig, geom: RobotGeometry = DEFAULT_ROBOT) -> np.ndarray:
-    """(n,) every spherical joint within +-150 deg."""
-    return np.all(spherical_tilts(cfg, geom) <= SPHERICAL_LIMIT, axis=(1, 2))
+def spherical_ok(cfg: RobotConfig) -> np.ndarray:
+    """(n,) every spherical joint within the robot's spherical limit (150 deg)."""
+    return np.all(spherical_tilts(cfg) <= cfg.robot.limits.spherical, axis=(1, 2))
 
 
 # --------------------------------------------------------------------- forward kinematics
@@ -340,24 +341,29 @@ class RobotFK:
     iterations: int
 
 
-def robot_fk(theta, q_hint=None, tol: float = 1e-12, max_iter: int = 50,
-             model=None) -> RobotFK:
+def robot_fk(theta, robot: Robot | None = None, q_hint=None, tol: float = 1e-12,
+             max_iter: int = 50, model: ClosedLoopModel | None = None) -> RobotFK:
     """9 actuated angles [rad] -> full configuration, by Newton on the 27 closures.
 
-    ``q_hint`` (a previous configuration, default: home) selects the assembly branch; the
-    actuated coordinates are overwritten by ``theta`` and only the 27 passive velocity
-    coordinates move.  Raises :class:`ConvergenceError` when the closure residual does not
-    drop below ``tol`` [m] within ``max_iter`` Gauss-Newton steps.
+    ``q_hint`` (a previous configuration, default: the robot's home) selects the assembly
+    branch; the actuated coordinates are overwritten by ``theta`` and only the 27 passive
+    velocity coordinates move.  ``model`` is a caller-owned closed-loop model of the same
+    robot to reuse (one is made otherwise).  Raises :class:`ConvergenceError` when the
+    closure residual does not drop below ``tol`` [m] within ``max_iter`` Gauss-Newton
+    steps.
     """
     import pinocchio as pin
 
-    from sixplus3.robot_description.model import load_model
-
-    clm = model or load_model()
+    if model is not None and model.robot is not None:
+        if robot is not None and robot.hash != model.robot.hash:
+            raise InputError("robot_fk: the model given is of another robot")
+        robot = model.robot
+    robot = robot or Robot.default()
+    clm = model or robot.closed_loop_model()
     theta = np.asarray(theta, dtype=float)
     if theta.shape != (9,) or not np.all(np.isfinite(theta)):
         raise InputError(f"theta must be 9 finite angles [rad], got shape {theta.shape}")
-    q = (home().q[0] if q_hint is None else np.array(q_hint, dtype=float)).copy()
+    q = (home(robot).q[0] if q_hint is None else np.array(q_hint, dtype=float)).copy()
     if q.shape != (clm.model.nq,):
         raise InputError(f"q_hint must have {clm.model.nq} entries, got {q.shape}")
     q[clm.idx_q_act] = theta
@@ -412,10 +418,11 @@ def _segment_distance(p1, q1, p2, q2):
     return np.linalg.norm(diff, axis=1)
 
 
-def leg_segments(cfg: RobotConfig, geom: RobotGeometry = DEFAULT_ROBOT) -> np.ndarray:
+def leg_segments(cfg: RobotConfig) -> np.ndarray:
     """(n, 3 legs, 6 links, 2 ends, 3) link segments in the robot frame [m]:
     AD, DP, BG, GE, CH, HF."""
     out = np.zeros((len(cfg), NUM_LEGS, 6, 2, 3))
+    geom = cfg.robot.geometry
     for i in range(NUM_LEGS):
         s = cfg.legs[i]
         a = np.zeros_like(s.d)
@@ -430,7 +437,7 @@ def leg_segments(cfg: RobotConfig, geom: RobotGeometry = DEFAULT_ROBOT) -> np.nd
     return out
 
 
-def leg_clearance(cfg: RobotConfig, geom: RobotGeometry = DEFAULT_ROBOT) -> np.ndarray:
+def leg_clearance(cfg: RobotConfig) -> np.ndarray:
     """(n,) smallest surface distance between links of different legs [m] (negative:
     interference), with every link a capsule of radius ``LINK_RADIUS``.
 
@@ -439,7 +446,7 @@ def leg_clearance(cfg: RobotConfig, geom: RobotGeometry = DEFAULT_ROBOT) -> np.n
     (l6 = l7 = 0.13 m, the paper's minimum from its CAD), which is the base layout's
     business, not the motion's.
     """
-    seg = leg_segments(cfg, geom)
+    seg = leg_segments(cfg)
     best = np.full(len(cfg), np.inf)
     upper = (0, 1, 3, 5)
     for i in range(NUM_LEGS):

@@ -18,10 +18,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.kinematics.robot import HOME_HEIGHT
-from sixplus3.planner.ocp import NOMINAL_PSI, PSI_MAX, PSI_MIN, static_checks
-from sixplus3.planner.task import Limits
-from sixplus3.errors import SingularityError
+from sixplus3.errors import InputError, SingularityError
+from sixplus3.planner.ocp import PSI_MAX, PSI_MIN, static_checks
+from sixplus3.robot_description.limits import Limits
+from sixplus3.robot_description.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -35,19 +35,20 @@ class TiltResult:
     binding: str  # what fails just beyond it
 
 
-def _psi_grid(locked: bool, step_deg: float = 7.5) -> np.ndarray:
+def _psi_grid(robot: Robot, locked: bool, step_deg: float = 7.5) -> np.ndarray:
     if locked:
-        return NOMINAL_PSI[None, :]
+        return np.asarray(robot.home_psi)[None, :]
     ax = np.radians(np.arange(math.degrees(PSI_MIN), math.degrees(PSI_MAX) + 1e-9, step_deg))
     return np.stack(np.meshgrid(ax, ax, ax, indexing="ij"), -1).reshape(-1, 3)
 
 
-def static_feasible(position, rotation, limits: Limits, locked: bool,
+def static_feasible(robot: Robot, position, rotation, limits: Limits, locked: bool,
                     dyn: ClosedLoopDynamics | None = None):
     """(feasible, psi, min margin, max |tau_g|, binding limit) at one pose."""
-    dyn = dyn or ClosedLoopDynamics()
-    psis = _psi_grid(locked)
-    cfg, theta_ok, sph_ok, clear_ok, margin = static_checks(position, rotation, psis)
+    dyn = dyn or ClosedLoopDynamics(robot)
+    psis = _psi_grid(robot, locked)
+    cfg, theta_ok, sph_ok, clear_ok, margin = static_checks(robot, limits, position,
+                                                            rotation, psis)
     if not cfg.ok.any():
         return False, None, 0.0, math.inf, "reach"
     if not theta_ok.any():
@@ -72,18 +73,23 @@ def static_feasible(position, rotation, limits: Limits, locked: bool,
     return False, None, float(margin.max()), best_tau, "torque"
 
 
-def largest_tilt(axis: str = "x", locked: bool = False, limits: Limits | None = None,
-                 position=(0.0, 0.0, HOME_HEIGHT), resolution_deg: float = 0.5,
+def largest_tilt(robot: Robot | None = None, axis: str = "x", locked: bool = False,
+                 limits: Limits | None = None, position=None, resolution_deg: float = 0.5,
                  max_deg: float = 120.0) -> TiltResult:
-    """Bisection on the tilt angle about ``axis`` ("x" or "y")."""
-    limits = limits or Limits()
-    dyn = ClosedLoopDynamics()
-    pos = np.asarray(position, dtype=float)
+    """Bisection on the tilt angle about ``axis`` ("x" or "y") at ``position`` [m]
+    (default: the robot's home), within ``limits`` (default: the robot's)."""
+    robot = robot or Robot.default()
+    if axis not in ("x", "y"):
+        raise InputError(f"axis must be 'x' or 'y', got {axis!r}", value=axis,
+                         valid="x or y")
+    limits = limits or robot.limits
+    dyn = ClosedLoopDynamics(robot)
+    pos = np.asarray(robot.home_position if position is None else position, dtype=float)
     vec = {"x": np.array([1.0, 0, 0]), "y": np.array([0, 1.0, 0])}[axis]
 
     def test(deg):
         R = Rotation.from_rotvec(np.radians(deg) * vec).as_matrix()
-        return static_feasible(pos, R, limits, locked, dyn)
+        return static_feasible(robot, pos, R, limits, locked, dyn)
 
     ok0 = test(0.0)
     if not ok0[0]:

@@ -18,7 +18,6 @@ planner falls back to the interpreted functions: same results, slower.
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import logging
 import os
@@ -29,6 +28,8 @@ import tempfile
 from pathlib import Path
 
 import casadi as ca
+
+from sixplus3.robot_description.robot import Robot, _cached
 
 log = logging.getLogger(__name__)
 
@@ -97,19 +98,21 @@ def _build(sources: dict[str, str], directory: Path) -> dict[str, Path]:
     return libs
 
 
-@functools.lru_cache(maxsize=4)
-def compiled_functions(mode_name: str, point_mass: bool = False) -> dict[str, ca.Function]:
-    """Compiled ``node`` (with its Jacobian) of :func:`planner.model.symbolic_robot`.
+def compiled_functions(robot: Robot) -> dict[str, ca.Function]:
+    """Compiled ``node`` (with its Jacobian) of the robot's symbolic model.
 
-    Returns an empty dict when code generation is disabled or fails (the caller then
-    uses the interpreted SX functions); the reason is logged.
+    Cached per process by the robot's hash (and on disk by the hash of the generated
+    source).  Returns an empty dict when code generation is disabled or fails (the caller
+    then uses the interpreted SX functions); the reason is logged.
     """
-    from sixplus3.planner.model import symbolic_robot
-
     if not codegen_enabled():
         log.info("planner code generation disabled or no C compiler: interpreted functions")
         return {}
-    sr = symbolic_robot(mode_name, point_mass)
+    return _cached(("compiled", robot.hash), lambda: _compiled(robot))
+
+
+def _compiled(robot: Robot) -> dict[str, ca.Function]:
+    sr = robot.symbolic()
     sources = {name: _source(getattr(sr, name)) for name in COMPILED}
     try:
         libs = _build(sources, cache_dir())

@@ -20,16 +20,15 @@ checks tau against Pinocchio's constrained inverse dynamics (tau = G^T rnea).
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
-from sixplus3.kinematics.leg import DEFAULT_MODE, AssemblyMode
-from sixplus3.kinematics.robot import HOME_HEIGHT, HOME_PSI, spherical_reference
-from sixplus3.robot_description.robot import NUM_LEGS, RobotGeometry
+from sixplus3.kinematics.robot import spherical_reference
+from sixplus3.robot_description.assembly import AssemblyMode
+from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, _cached
 
 NX = 9  # minimal coordinates: p (3), r (3), psi (3)
 
@@ -79,13 +78,10 @@ class SymbolicRobot:
     theta_dot: ca.Function  # (x, xd) -> theta_dot (9)
     theta_ddot: ca.Function  # (x, xd, xdd) -> theta_ddot (9)
     tau: ca.Function  # (x, xd, xdd) -> actuator torques (9) [N m]
-    gen_force: ca.Function  # (x, xd, xdd) -> Q (9): generalized inertia + gravity force
-    jac_theta: ca.Function  # x -> d theta / d x (9, 9)
     q: ca.Function  # x -> Pinocchio configuration (37)
     reach: ca.Function  # x -> (9,) q2 >= 0 reachability measures, 3 per leg
     margins: ca.Function  # x -> (leg type I (9,), leg type II det (3,), platform line det)
     spherical_cos: ca.Function  # x -> (9,) cosines of the S-joint tilts
-    P: ca.Function  # x -> (3, 3) sphere centres (columns)
     node: ca.Function  # (x, xd, u, tau) -> the 70 path-constraint rows of one point
 
     #: Row layout of ``node``: name -> (start, stop)
@@ -93,12 +89,6 @@ class SymbolicRobot:
                  "theta": (27, 36), "reach": (36, 45), "spherical_cos": (45, 54),
                  "type1": (54, 63), "type2_det": (63, 66), "platform_det": (66, 67),
                  "clearance": (67, 70)}
-
-    @staticmethod
-    def rotvec_from_matrix(R: np.ndarray) -> np.ndarray:
-        from scipy.spatial.transform import Rotation
-
-        return Rotation.from_matrix(R).as_rotvec()
 
 
 def _leg_symbolic(p_leg, geom: RobotGeometry, mode: AssemblyMode):
@@ -184,11 +174,16 @@ def platform_line_det(psi, geom: RobotGeometry):
         sx, sy = ca.cos(b), ca.sin(b)
         Pi = geom.crank_axis_position(i) + geom.platform_crank * ca.vertcat(sx, sy, 0)
         rows.append(ca.horzcat(sx, sy, (Pi[0] * sy - Pi[1] * sx) / L))
-    B = ca.vertcat(*rows)
-    return ca.det(B) / _LINE_DET_HOME
+    return ca.det(ca.vertcat(*rows))
 
 
-_LINE_DET_HOME = 1.8371173070873836  # det B at psi = 90 deg for the default platform
+def platform_line_det_normalised(psi, geom: RobotGeometry):
+    """:func:`platform_line_det` divided by its value at psi = 90 deg (this platform's
+    reference, computed from its geometry), so that 1 is the nominal platform."""
+    ref = float(ca.DM(platform_line_det([math.pi / 2] * NUM_LEGS, geom)))
+    if abs(ref) < 1e-12:
+        raise ValueError("the platform's crank lines are singular at psi = 90 deg")
+    return platform_line_det(psi, geom) / ref
 
 
 def segment_distance(p1, q1, p2, q2):
@@ -234,28 +229,29 @@ def leg_clearance_rows(links) -> ca.SX:
     return ca.vertcat(*rows)
 
 
-@functools.lru_cache(maxsize=4)
-def symbolic_robot(mode_name: str = DEFAULT_MODE.name, point_mass: bool = False) -> SymbolicRobot:
-    """Build (once) the CasADi functions for the committed robot in an assembly mode."""
-    from sixplus3.robot_description.model import load_model
+def symbolic_robot(robot: Robot | None = None) -> SymbolicRobot:
+    """The CasADi functions of ``robot`` (default ``Robot.default()``), built once per
+    process and robot (cached by the robot's hash; CasADi functions are immutable)."""
+    robot = robot or Robot.default()
+    return _cached(("symbolic", robot.hash), lambda: _build(robot))
 
-    clm = load_model(point_mass)
-    model = clm.model
-    geom = RobotGeometry()
-    mode = AssemblyMode.parse(mode_name)
+
+def _build(robot: Robot) -> SymbolicRobot:
+    model = robot.closed_loop_model().model
+    geom = robot.geometry
+    mode: AssemblyMode = robot.mode
     x = ca.SX.sym("x", NX)
     xd = ca.SX.sym("xd", NX)
     xdd = ca.SX.sym("xdd", NX)
     p, r, psi = x[0:3], x[3:6], x[6:9]
     R = rotvec_matrix(r)
     joint_val: dict[str, ca.SX] = {}
-    P_list, thetas, reach, type1, type2, leg_Q, links = [], [], [], [], [], [], []
+    thetas, reach, type1, type2, leg_Q, links = [], [], [], [], [], []
     for i in range(NUM_LEGS):
         b = geom.crank_axis_angle(i) + psi[i]
         local = ca.DM(geom.crank_axis_position(i)) + geom.platform_crank * ca.vertcat(
             ca.cos(b), ca.sin(b), 0)
         Pi = p + R @ local
-        P_list.append(Pi)
         Rl = ca.DM(geom.leg_rotation(i))
         p_leg = Rl.T @ (Pi - ca.DM(geom.leg_origin(i)))
         leg = _leg_symbolic(p_leg, geom, mode)
@@ -367,7 +363,7 @@ def symbolic_robot(mode_name: str = DEFAULT_MODE.name, point_mass: bool = False)
     th_ddot = ca.jtimes(th_dot, x, xd) + Jth @ xdd
 
     # Spherical-joint tilt cosines (kinematics.robot.spherical_tilts), 3 per leg: E, F, P.
-    ref = spherical_reference(geom)
+    ref = spherical_reference(robot)
     sph = []
     for i in range(NUM_LEGS):
         body = leg_Q[i]
@@ -377,7 +373,8 @@ def symbolic_robot(mode_name: str = DEFAULT_MODE.name, point_mass: bool = False)
         for k, other in enumerate((oR[jb], oR[jh], oR[jc])):
             sph.append(ca.dot(body @ ca.DM(ref[i, k, 0]), other @ ca.DM(ref[i, k, 1])))
 
-    margins_out = [ca.vertcat(*type1), ca.vertcat(*type2), platform_line_det(psi, geom)]
+    margins_out = [ca.vertcat(*type1), ca.vertcat(*type2),
+                   platform_line_det_normalised(psi, geom)]
     clear = leg_clearance_rows(links)
     opts = {"cse": True}
     tau_sym = ca.SX.sym("tau", NX)
@@ -390,17 +387,15 @@ def symbolic_robot(mode_name: str = DEFAULT_MODE.name, point_mass: bool = False)
         theta_dot=ca.Function("theta_dot", [x, xd], [th_dot], opts),
         theta_ddot=ca.Function("theta_ddot", [x, xd, xdd], [th_ddot], opts),
         tau=ca.Function("tau", [x, xd, xdd], [tau], opts),
-        gen_force=ca.Function("gen_force", [x, xd, xdd], [Q], opts),
-        jac_theta=ca.Function("jac_theta", [x], [Jth], opts),
         q=ca.Function("q", [x], [ca.vertcat(*qvec)], opts),
         reach=ca.Function("reach", [x], [ca.vertcat(*reach)], opts),
         margins=ca.Function("margins", [x], margins_out, opts),
         spherical_cos=ca.Function("spherical_cos", [x], [ca.vertcat(*sph)], opts),
-        P=ca.Function("P", [x], [ca.horzcat(*P_list)], opts),
         node=node,
     )
 
 
-def home_x() -> np.ndarray:
-    """Minimal coordinates of the home pose."""
-    return np.r_[0.0, 0.0, HOME_HEIGHT, 0.0, 0.0, 0.0, HOME_PSI]
+def home_x(robot: Robot | None = None) -> np.ndarray:
+    """Minimal coordinates of the robot's home pose."""
+    robot = robot or Robot.default()
+    return np.r_[robot.home_position, 0.0, 0.0, 0.0, robot.home_psi]

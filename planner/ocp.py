@@ -42,29 +42,17 @@ import casadi as ca
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from sixplus3.kinematics.leg import DEFAULT_MODE
-from sixplus3.kinematics.robot import leg_clearance, robot_ik, spherical_tilts
-from sixplus3.planner.model import symbolic_robot
+from sixplus3.errors import InfeasibleTaskError
+from sixplus3.kinematics.checks import measure_limits
+from sixplus3.kinematics.robot import RobotConfig, leg_clearance, robot_ik, spherical_tilts
+from sixplus3.robot_description.limits import Limits
+from sixplus3.robot_description.robot import Robot
 from sixplus3.planner.task import Task, Waypoint, rotvec
-from sixplus3.control.validation import measure_limits
 from sixplus3.robot_description.robot import NUM_LEGS
-from sixplus3.robot_description.urdf import SPHERICAL_LIMIT
-from sixplus3.errors import Sixplus3Error
 
 PSI_MIN, PSI_MAX = math.radians(45.0), math.radians(135.0)
-THETA_MIN, THETA_MAX = 0.0, 1.5 * math.pi
-NOMINAL_PSI = np.full(NUM_LEGS, math.pi / 2)
 #: Built NLPs by structure (see Problem._template); one per process.
 _TEMPLATES: dict[tuple, dict] = {}
-
-
-class InfeasibleTaskError(Sixplus3Error):
-    """No motion satisfies the task's limits; says which waypoint or limit binds."""
-
-    def __init__(self, message: str, waypoint: int | None = None, limit: str | None = None):
-        self.waypoint = waypoint
-        self.limit = limit
-        super().__init__(message)
 
 
 @dataclass(frozen=True)
@@ -96,6 +84,8 @@ class Solution:
     theta: np.ndarray  # (N+1, 9) actuated angles [rad]
     residuals: dict[str, float]  # max violations of the NLP's equality constraints
     active_limits: list[str]
+    robot: Robot  # the robot planned for
+    limits: Limits  # the limits planned to (the robot's, tightened by the task)
     check: DenseCheck | None = None
     options: PlannerOptions = field(default_factory=PlannerOptions)
     task: Task | None = None
@@ -143,46 +133,48 @@ class DenseCheck:
 
 
 # --------------------------------------------------------------------- static choices
-def pose_masks(cfg) -> tuple[np.ndarray, np.ndarray]:
+def pose_masks(cfg: RobotConfig, limits: Limits) -> tuple[np.ndarray, np.ndarray]:
     """(theta_ok, spherical_ok) of batched configurations: solved with every actuated
-    angle in [0, 270] deg, and additionally every spherical joint within 150 deg."""
-    theta_ok = cfg.ok & np.all((cfg.theta >= THETA_MIN) & (cfg.theta <= THETA_MAX), axis=1)
-    sph_ok = theta_ok & np.all(spherical_tilts(cfg) <= SPHERICAL_LIMIT, axis=(1, 2))
+    angle in the actuated range, and additionally every spherical joint within range."""
+    theta_ok = cfg.ok & np.all((cfg.theta >= limits.theta_min)
+                               & (cfg.theta <= limits.theta_max), axis=1)
+    sph_ok = theta_ok & np.all(spherical_tilts(cfg) <= limits.spherical, axis=(1, 2))
     return theta_ok, sph_ok
 
 
-def static_checks(position, rotation, psis: np.ndarray):
+def static_checks(robot: Robot, limits: Limits, position, rotation, psis: np.ndarray):
     """One pose with candidate crank angles (k, 3), checked in order (batched):
     (cfg, theta_ok, spherical_ok, clearance_ok, margin), each mask implying the previous
     and margin = the smallest singularity margin where clearance_ok, else -1."""
-    cfg = robot_ik(position, rotation, psis)
-    theta_ok, sph_ok = pose_masks(cfg)
+    cfg = robot_ik(position, rotation, psis, robot)
+    theta_ok, sph_ok = pose_masks(cfg, limits)
     clear_ok = sph_ok & (leg_clearance(cfg) >= 0.0)
     margin = np.where(clear_ok, cfg.margins.minimum, -1.0)
     return cfg, theta_ok, sph_ok, clear_ok, margin
 
 
-def _static_candidates(wp: Waypoint, locked: bool):
+def _static_candidates(robot: Robot, limits: Limits, wp: Waypoint, locked: bool):
     """Crank-angle candidates at a waypoint with their official checks (batched)."""
     if wp.psi is not None:
         psis = wp.psi[None, :]
     elif locked:
-        psis = NOMINAL_PSI[None, :]
+        psis = np.asarray(robot.home_psi)[None, :]
     else:
         axis = np.radians(np.arange(35.0, 146.0, 10.0))
         psis = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
-    return (psis, *static_checks(wp.position, wp.rotation, psis))
+    return (psis, *static_checks(robot, limits, wp.position, wp.rotation, psis))
 
 
-def choose_static_psi(task: Task, locked: bool, at_rest: set[int]) -> np.ndarray:
+def choose_static_psi(task: Task, robot: Robot, lim: Limits, locked: bool,
+                      at_rest: set[int]) -> np.ndarray:
     """Per waypoint, crank angles maximising the smallest margin; raises naming the limit."""
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 
-    dyn = ClosedLoopDynamics()
-    lim = task.limits
+    dyn = ClosedLoopDynamics(robot)
     out = []
     for k, wp in enumerate(task.waypoints):
-        psis, cfg, theta_ok, sph_ok, clear_ok, margin = _static_candidates(wp, locked)
+        psis, cfg, theta_ok, sph_ok, clear_ok, margin = _static_candidates(robot, lim, wp,
+                                                                           locked)
         where = f"waypoint {k} (position {np.round(wp.position, 4).tolist()} m)"
         if not cfg.ok.any():
             st = next(int(s) for s in cfg.leg_status[0] if s)
@@ -194,12 +186,13 @@ def choose_static_psi(task: Task, locked: bool, at_rest: set[int]) -> np.ndarray
                 f"{status_reason(st)}", k, "reach")
         if not theta_ok.any():
             raise InfeasibleTaskError(
-                f"{where}: an actuated angle leaves [0, 270] deg (base collision) for every "
-                "crank choice", k, "theta range")
+                f"{where}: an actuated angle leaves [{math.degrees(lim.theta_min):g}, "
+                f"{math.degrees(lim.theta_max):g}] deg (base collision) for every crank "
+                "choice", k, "theta range")
         if not sph_ok.any():
             raise InfeasibleTaskError(
-                f"{where}: a spherical joint exceeds 150 deg for every crank choice", k,
-                "spherical joints")
+                f"{where}: a spherical joint exceeds {math.degrees(lim.spherical):g} deg for "
+                "every crank choice", k, "spherical joints")
         if not clear_ok.any():
             raise InfeasibleTaskError(
                 f"{where}: links of different legs interfere for every crank choice",
@@ -234,12 +227,19 @@ def choose_static_psi(task: Task, locked: bool, at_rest: set[int]) -> np.ndarray
 
 # --------------------------------------------------------------------- the problem
 class Problem:
-    """A planning problem for one task (``solve()`` -> :class:`Solution`)."""
+    """A planning problem for one task on one robot (``solve()`` -> :class:`Solution`).
 
-    def __init__(self, task: Task, options: PlannerOptions | None = None) -> None:
+    The limits are the robot's hardware limits tightened by the task's
+    (:meth:`Task.limits_for`: a looser one raises :class:`LimitError`).
+    """
+
+    def __init__(self, task: Task, robot: Robot | None = None,
+                 options: PlannerOptions | None = None) -> None:
         self.task = task
+        self.robot = robot or Robot.default()
+        self.limits = task.limits_for(self.robot)
         self.options = options or PlannerOptions()
-        self.sr = symbolic_robot(DEFAULT_MODE.name)
+        self.sr = self.robot.symbolic()
 
     # -- initial guess
     def _guess(self, psi_wp: np.ndarray):
@@ -297,7 +297,7 @@ class Problem:
         torque alone exceeds the fraction get the largest stretch the formula allows
         (1e3-fold headroom floor), i.e. they are reported as needing a very slow motion.
         """
-        sr, lim = self.sr, self.task.limits
+        sr, lim = self.sr, self.limits
         n = len(x)
         thd = np.abs(np.array(sr.theta_dot.map(n)(x.T, xd.T)))
         thdd = np.abs(np.array(sr.theta_ddot.map(n)(x.T, xd.T, xdd.T)))
@@ -316,12 +316,13 @@ class Problem:
     def solve(self) -> Solution:
         task, opt = self.task, self.options
         at_rest = {0, len(task.waypoints) - 1}
-        psi_wp = choose_static_psi(task, opt.lock_redundancy, at_rest)
+        psi_wp = choose_static_psi(task, self.robot, self.limits, opt.lock_redundancy,
+                                   at_rest)
         if opt.lock_redundancy:
             fixed = [wp.psi for wp in task.waypoints if wp.psi is not None]
-            lock = fixed[0] if fixed else NOMINAL_PSI
+            lock = fixed[0] if fixed else np.asarray(self.robot.home_psi)
             psi_wp = np.tile(lock, (len(task.waypoints), 1))
-        proxy = max(0.5, 6 * task.limits.margin)
+        proxy = max(0.5, 6 * self.limits.margin)
         safety = {"torque": opt.torque_safety, "velocity": opt.torque_safety,
                   "acceleration": opt.torque_safety}
         # grown by re-solves: [rad] below the spherical joints' limit, [m] of clearance
@@ -361,7 +362,8 @@ class Problem:
                 fixable = True
             if any(v.startswith("spherical") for v in bad):
                 # bound the tilts below 150 deg by the overshoot found, plus 0.25 deg
-                over = sol.check.max_spherical_tilt - (SPHERICAL_LIMIT - reserve["spherical"])
+                over = sol.check.max_spherical_tilt - (self.limits.spherical
+                                                       - reserve["spherical"])
                 reserve["spherical"] += over + math.radians(0.25)
                 fixable = fixable or reserve["spherical"] < math.radians(10.0)
             if any(v.startswith("leg interference") for v in bad):
@@ -403,7 +405,8 @@ class Problem:
             solve_time=sol.solve_time, iterations=sol.iterations,
             segment_times=sol.segment_times * a, t=sol.t * a, x=sol.x, xd=sol.xd / a,
             xdd=sol.xdd / a**2, tau=tau_g + (sol.tau - tau_g) / a**2, theta=sol.theta,
-            residuals=sol.residuals, active_limits=[], options=sol.options, task=sol.task,
+            residuals=sol.residuals, active_limits=[], robot=sol.robot, limits=sol.limits,
+            options=sol.options, task=sol.task,
             nlp_point=sol.nlp_point, solves=sol.solves, time_scale=a)
         new.check = dense_check(new, factor=10)
         if not new.check.ok:
@@ -422,14 +425,14 @@ class Problem:
         """
         wps = self.task.waypoints
         cfg = robot_ik(np.array([wp.position for wp in wps]),
-                       np.array([wp.rotation for wp in wps]), psi_wp)
+                       np.array([wp.rotation for wp in wps]), psi_wp, self.robot)
         return bool(leg_clearance(cfg).min() < near)
 
     def _solve_once(self, psi_wp: np.ndarray, platform_proxy: float, safety: dict,
                     warm: Solution | None = None, time_scale: float = 1.0,
                     reserve: dict | None = None) -> Solution:
         task, opt, sr = self.task, self.options, self.sr
-        lim = task.limits
+        lim = self.limits
         ns, S = task.nodes_per_segment, task.n_segments
         N = ns * S
         wp_x, x0, xd0, xdd0, T0 = self._guess(psi_wp)
@@ -489,7 +492,8 @@ class Problem:
         sol = Solution(found=True, status=status, final_time=float(Tv.sum()),
                        solve_time=solve_time, iterations=int(stats.get("iter_count", -1)),
                        segment_times=Tv, t=t, x=x, xd=xd, xdd=u, tau=tau, theta=theta,
-                       residuals=residuals, active_limits=active, options=opt, task=task,
+                       residuals=residuals, active_limits=active, robot=self.robot,
+                       limits=self.limits, options=opt, task=task,
                        nlp_point=(w / D, np.array(res["lam_x"]).ravel(),
                                   np.array(res["lam_g"]).ravel(), D))
         sol.check = dense_check(sol, factor=10)
@@ -547,9 +551,9 @@ class Problem:
 
         task, opt, sr = self.task, self.options, self.sr
         ns, S = task.nodes_per_segment, task.n_segments
-        compiled = compiled_functions(DEFAULT_MODE.name)
-        key = (ns, S, opt.max_iter, opt.tol, opt.regularisation, opt.verbose, bool(compiled),
-               warm_start)
+        compiled = compiled_functions(self.robot)
+        key = (self.robot.hash, ns, S, opt.max_iter, opt.tol, opt.regularisation, opt.verbose,
+               bool(compiled), warm_start)
         if key in _TEMPLATES:
             return _TEMPLATES[key]
         N = ns * S
@@ -604,7 +608,7 @@ class Problem:
         return tmpl
 
     @staticmethod
-    def _node_bounds(lim, sign1, sign2, platform_proxy, safety=None, reserve=None):
+    def _node_bounds(lim: Limits, sign1, sign2, platform_proxy, safety=None, reserve=None):
         """Lower/upper bounds of the 70 rows of ``SymbolicRobot.node``."""
         safety = safety or {"velocity": 1.0, "acceleration": 1.0}
         inf = np.inf
@@ -612,10 +616,10 @@ class Problem:
         v, a = safety["velocity"] * lim.velocity, safety["acceleration"] * lim.acceleration
         lb[9:18], ub[9:18] = -v, v
         lb[18:27], ub[18:27] = -a, a
-        lb[27:36], ub[27:36] = THETA_MIN, THETA_MAX
+        lb[27:36], ub[27:36] = lim.theta_min, lim.theta_max
         lb[36:45], ub[36:45] = 0.0, inf
         reserve = reserve or {"spherical": 0.0, "clearance": None}
-        lb[45:54], ub[45:54] = math.cos(SPHERICAL_LIMIT - reserve["spherical"]), inf
+        lb[45:54], ub[45:54] = math.cos(lim.spherical - reserve["spherical"]), inf
         for rows, sign, m in ((slice(54, 63), sign1, lim.margin),
                               (slice(63, 66), sign2, 3 * lim.margin)):
             lb[rows] = np.where(sign > 0, m, -inf)
@@ -628,7 +632,7 @@ class Problem:
     # -- reporting
     def _active(self, x, xd, u, tau, t, platform_proxy, safety) -> list[str]:
         """Limits within 0.5% of their bound at some node, with the bounds of this solve."""
-        sr, lim = self.sr, self.task.limits
+        sr, lim = self.sr, self.limits
         tmax = safety["torque"] * lim.torque
         vmax = safety["velocity"] * lim.velocity
         amax = safety["acceleration"] * lim.acceleration
@@ -656,7 +660,7 @@ class Problem:
 
     def _diagnose(self, x, xd, u, tau, status) -> str:
         """Name the limits most violated by the solver's last iterate."""
-        sr, lim = self.sr, self.task.limits
+        sr, lim = self.sr, self.limits
         n = x.shape[0]
         ns = self.task.nodes_per_segment
         tmax = self.options.torque_safety * lim.torque
@@ -681,9 +685,11 @@ class Problem:
                 "waypoints")
 
 
-def plan(task: Task, options: PlannerOptions | None = None) -> Solution:
-    """Plan a task; raises :class:`InfeasibleTaskError` (never returns an unsafe plan)."""
-    sol = Problem(task, options).solve()
+def plan(task: Task, robot: Robot | None = None,
+         options: PlannerOptions | None = None) -> Solution:
+    """Plan a task for ``robot`` (default ``Robot.default()``); raises
+    :class:`InfeasibleTaskError` (never returns an unsafe plan)."""
+    sol = Problem(task, robot, options).solve()
     if not sol.is_feasible():
         raise InfeasibleTaskError(
             "the solved plan fails its dense re-check: " + "; ".join(sol.check.violations),
@@ -699,28 +705,27 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
     margins and the exact capsule clearance between the legs from the numeric
     kinematics (kinematics.robot), independently of the CasADi expressions used inside
     the optimisation; the same rule as the file validation
-    (:func:`planner.validation.measure_limits`).
+    (:func:`sixplus3.kinematics.checks.measure_limits`), against ``sol.limits``.
     """
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 
-    task = sol.task
-    sr = symbolic_robot(DEFAULT_MODE.name)
+    sr = sol.robot.symbolic()
     n = (len(sol.t) - 1) * factor + 1
     times = np.linspace(0.0, sol.t[-1], n)
     x, xd, xdd = sol.sample(times)
     R = Rotation.from_rotvec(x[:, 3:6]).as_matrix()
-    cfg = robot_ik(x[:, 0:3], R, x[:, 6:9])
+    cfg = robot_ik(x[:, 0:3], R, x[:, 6:9], sol.robot)
     violations = []
     if not cfg.ok.all():
         violations.append(f"unreachable at {int((~cfg.ok).sum())} samples")
     thd = np.array(sr.theta_dot.map(n)(x.T, xd.T)).T
     thdd = np.array(sr.theta_ddot.map(n)(x.T, xd.T, xdd.T)).T
-    dyn = ClosedLoopDynamics()
+    dyn = ClosedLoopDynamics(sol.robot)
     tau = np.zeros((n, 9))
     for k in range(n):
         v, a = dyn.consistent_state(cfg.q[k], thd[k], thdd[k])
         tau[k] = dyn.inverse_dynamics(cfg.q[k], v, a)
-    lm = measure_limits(cfg, tau, cfg.theta, thd, thdd, task.limits)
+    lm = measure_limits(cfg, tau, cfg.theta, thd, thdd, sol.limits)
     violations += lm.violations
     return DenseCheck(ok=not violations, samples=n, max_torque_ratio=lm.max_torque_ratio,
                       max_velocity_ratio=lm.max_velocity_ratio,

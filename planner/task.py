@@ -9,15 +9,17 @@ Example (units: m and degrees in the file, SI inside)::
       - position: [0.0, 0.0, 0.30]
         quaternion: [0.2588, 0, 0, 0.9659]   # x, y, z, w
         psi: [90, 90, 90]           # optional crank angles [deg]; free otherwise
-    limits:                         # optional, defaults below
-      torque: 10                    # |tau| [N m]
-      velocity: 14.8                # |theta_dot| [rad/s]
-      acceleration: 200             # |theta_ddot| [rad/s^2]
-      margin: 0.05                  # every singularity margin (scale-free, 0..1)
+    limits:                         # optional: only tightens the robot's hardware limits
+      torque: 9                     # |tau| [N m]            (robot: 10)
+      velocity: 10                  # |theta_dot| [rad/s]    (robot: 14.8)
+      acceleration: 150             # |theta_ddot| [rad/s^2] (robot: 200)
+      margin: 0.08                  # every singularity margin (robot: 0.05)
     nodes_per_segment: 12
 
 The motion starts and ends at rest and passes through the waypoints in order; the timing
-is free.  A bad file raises :class:`TaskError` naming the field, its value and the range.
+is free.  A bad file raises :class:`TaskError` naming the field, its value and the range;
+a limit looser than the robot's raises :class:`LimitError` when the task is planned for a
+robot (:meth:`Task.limits_for`).
 """
 
 from __future__ import annotations
@@ -28,11 +30,12 @@ from pathlib import Path
 
 import jsonschema
 import numpy as np
-import yaml
 from scipy.spatial.transform import Rotation
 
-from sixplus3.robot_description.urdf import TORQUE_LIMIT, VELOCITY_LIMIT
-from sixplus3.errors import InputError
+from sixplus3.errors import InputError, TaskError
+from sixplus3.fileio import read_yaml, short_repr
+from sixplus3.robot_description.limits import Limits
+from sixplus3.robot_description.robot import Robot
 
 _VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
 SCHEMA = {
@@ -62,27 +65,15 @@ SCHEMA = {
         "limits": {
             "type": "object", "additionalProperties": False,
             "properties": {
-                "torque": {"type": "number", "exclusiveMinimum": 0, "maximum": TORQUE_LIMIT},
-                "velocity": {"type": "number", "exclusiveMinimum": 0, "maximum": 50},
-                "acceleration": {"type": "number", "exclusiveMinimum": 0, "maximum": 5000},
-                "margin": {"type": "number", "minimum": 0.001, "maximum": 0.5},
+                "torque": {"type": "number", "exclusiveMinimum": 0},
+                "velocity": {"type": "number", "exclusiveMinimum": 0},
+                "acceleration": {"type": "number", "exclusiveMinimum": 0},
+                "margin": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1},
             },
         },
         "nodes_per_segment": {"type": "integer", "minimum": 4, "maximum": 60},
     },
 }
-
-
-class TaskError(InputError):
-    """A task file or task value is malformed or out of range; nothing was planned."""
-
-
-@dataclass(frozen=True)
-class Limits:
-    torque: float = TORQUE_LIMIT  # |tau| [N m]
-    velocity: float = VELOCITY_LIMIT  # |theta_dot| [rad/s]
-    acceleration: float = 200.0  # |theta_ddot| [rad/s^2] (a comfort limit for pHRI; no data)
-    margin: float = 0.05  # every singularity margin (leg type I/II, platform) >= margin
 
 
 @dataclass(frozen=True)
@@ -95,7 +86,8 @@ class Waypoint:
 @dataclass(frozen=True)
 class Task:
     waypoints: tuple[Waypoint, ...]
-    limits: Limits = field(default_factory=Limits)
+    #: limits the task asks for, tightening the robot's (name -> value, SI units)
+    limits: dict[str, float] = field(default_factory=dict)
     name: str = "task"
     nodes_per_segment: int = 12
     source: dict | None = None  # the validated file content, for the trajectory header
@@ -103,6 +95,11 @@ class Task:
     @property
     def n_segments(self) -> int:
         return len(self.waypoints) - 1
+
+    def limits_for(self, robot: Robot) -> Limits:
+        """The robot's hardware limits, tightened by the task's; raises
+        :class:`~sixplus3.errors.LimitError` if the task asks for a looser one."""
+        return robot.limits.tightened(**self.limits)
 
 
 def _path(error: jsonschema.ValidationError) -> str:
@@ -112,13 +109,36 @@ def _path(error: jsonschema.ValidationError) -> str:
     return out or "(top level)"
 
 
+def _first_non_finite(doc: object, where: str = "") -> str | None:
+    """Path of the first NaN or infinite number in a loaded document, or None."""
+    if isinstance(doc, float) and not math.isfinite(doc):
+        return where or "(top level)"
+    if isinstance(doc, dict):
+        for k, v in doc.items():
+            hit = _first_non_finite(v, f"{where}.{k}" if where else str(k))
+            if hit:
+                return hit
+    if isinstance(doc, list):
+        for i, v in enumerate(doc):
+            hit = _first_non_finite(v, f"{where}[{i}]")
+            if hit:
+                return hit
+    return None
+
+
 def task_from_dict(doc: object, name: str = "task") -> Task:
     """Validate a task document (as loaded from YAML) and build the :class:`Task`."""
+    bad = _first_non_finite(doc)
+    if bad:
+        raise TaskError(f"task field {bad}: NaN or infinite; every number must be finite",
+                        value=float("nan"), valid="finite numbers")
     validator = jsonschema.Draft202012Validator(SCHEMA)
     errors = sorted(validator.iter_errors(doc), key=lambda e: list(e.absolute_path))
     if errors:
         e = errors[0]
-        raise TaskError(f"task field {_path(e)}: {e.message} (value {e.instance!r})")
+        raise TaskError(f"task field {_path(e)}: {short_repr(e.message, 200)} (value "
+                        f"{short_repr(e.instance)})", value=short_repr(e.instance),
+                        valid=short_repr(e.schema, 200))
     assert isinstance(doc, dict)
     wps = []
     for k, w in enumerate(doc["waypoints"]):
@@ -141,7 +161,7 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
                                 "along its radius (platform singularity); use angles in "
                                 "(3, 177) deg or (-177, -3) deg")
         wps.append(Waypoint(pos, rot, psi))
-    lim = Limits(**doc.get("limits", {}))
+    lim = {k: float(v) for k, v in doc.get("limits", {}).items()}
     return Task(tuple(wps), lim, str(doc.get("name", name)),
                 int(doc.get("nodes_per_segment", 12)), source=doc)
 
@@ -150,18 +170,11 @@ def load_task(path: str | Path) -> Task:
     """Read and validate a YAML task file; raises :class:`TaskError`."""
     path = Path(path)
     try:
-        doc = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise TaskError(f"cannot read task file {path}: {exc.strerror}") from exc
-    except yaml.YAMLError as exc:
-        raise TaskError(f"task file {path} is not valid YAML: {exc}".splitlines()[0]) from exc
+        doc = read_yaml(path, "task file")
+    except InputError as exc:
+        raise TaskError(str(exc), value=exc.value, valid=exc.valid) from None
     return task_from_dict(doc, name=path.stem)
 
 
 def rotvec(R: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(R).as_rotvec()
-
-
-def tilt_angle(R: np.ndarray) -> float:
-    """Angle between the platform normal and z [rad]."""
-    return math.acos(max(-1.0, min(1.0, float(R[2, 2]))))

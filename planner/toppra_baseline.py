@@ -20,8 +20,8 @@ import toppra as ta
 import toppra.algorithm as algo
 import toppra.constraint as constraint
 
-from sixplus3.planner.model import symbolic_robot
-from sixplus3.planner.task import Limits
+from sixplus3.robot_description.limits import Limits
+from sixplus3.robot_description.robot import Robot
 
 PATH_SCALE = 0.1
 
@@ -45,11 +45,11 @@ def arc_length_parameter(xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return ss / ss[-1], xs
 
 
-def toppra_time(xs: np.ndarray, limits: Limits, gridpoints: int = 400,
+def toppra_time(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: int = 400,
                 samples: int = 400) -> ToppraResult:
-    """Time-optimal parametrisation of the path through the samples xs (m, 9), at rest at
-    both ends, re-parametrised by arc length."""
-    sr = symbolic_robot()
+    """Time-optimal parametrisation for ``robot`` of the path through the samples xs
+    (m, 9), at rest at both ends, re-parametrised by arc length."""
+    sr = robot.symbolic()
     ss, xs = arc_length_parameter(np.asarray(xs, dtype=float))
     # Path parameter in [0, PATH_SCALE] rather than [0, 1]: on a unit path the platform's
     # tiny inertia makes the admissible path accelerations ~1e4 and TOPP-RA's Seidel LP
@@ -90,14 +90,15 @@ def rest_splits(sol, rel: float = 1e-3) -> np.ndarray:
     return np.unique(np.r_[0.0, sol.t[stops], sol.t[-1]])
 
 
-def toppra_along(sol, limits: Limits, gridpoints: int = 800, samples: int = 201,
+def toppra_along(sol, limits: Limits | None = None, gridpoints: int = 800, samples: int = 201,
                  cranks: float | np.ndarray | None = None) -> float:
     """TOPP-RA duration [s] along the geometric path of a planned motion (``sol``: a
     :class:`planner.ocp.Solution`), summed over its rest-to-rest pieces.
 
     With ``cranks`` (a scalar or (3,), [rad]) the crank angles are replaced by these constants: the
-    redundancy-less baseline on the same platform path.
+    redundancy-less baseline on the same platform path.  ``limits`` default to the plan's.
     """
+    limits = limits or sol.limits
     total = 0.0
     splits = rest_splits(sol)
     for t0, t1 in zip(splits[:-1], splits[1:], strict=True):
@@ -105,5 +106,5 @@ def toppra_along(sol, limits: Limits, gridpoints: int = 800, samples: int = 201,
         if cranks is not None:
             x = x.copy()
             x[:, 6:9] = cranks
-        total += toppra_time(x, limits, gridpoints=gridpoints).duration
+        total += toppra_time(sol.robot, x, limits, gridpoints=gridpoints).duration
     return total

@@ -1,5 +1,24 @@
-"""Robot description: the parametric geometry (paper defaults) of sixplus3."""
+"""Robot description: the :class:`Robot` value (geometry, assembly, masses, limits,
+mounting), its URDF + closures, and its Pinocchio closed-loop model.
 
+In two lines, as example-robot-data does::
+
+    robot = Robot.default()
+    clm = robot.closed_loop_model()   # clm.model, clm.constraint_models (caller-owned)
+"""
+
+from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
 from sixplus3.robot_description.geometry import GRAVITY, LegGeometry, LegLoad
+from sixplus3.robot_description.limits import Limits
+from sixplus3.robot_description.robot import (
+    MOUNTINGS,
+    POINT_MASS,
+    MassModel,
+    Robot,
+    RobotGeometry,
+    load_robot,
+)
 
-__all__ = ["GRAVITY", "LegGeometry", "LegLoad"]
+__all__ = ["DEFAULT_MODE", "GRAVITY", "MOUNTINGS", "POINT_MASS", "AssemblyMode",
+           "LegGeometry", "LegLoad", "Limits", "MassModel", "Robot", "RobotGeometry",
+           "load_robot"]

@@ -12,27 +12,23 @@ gives the closure residual, its Jacobian and its acceleration drift in the world
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
-import yaml
 
-from sixplus3.robot_description.robot import NUM_LEGS
-from sixplus3.robot_description.urdf import CLOSURES_PATH, POINT_MASS_URDF_PATH, URDF_PATH
 from sixplus3.errors import InputError
+from sixplus3.fileio import read_yaml
+from sixplus3.robot_description.robot import NUM_LEGS, Robot, _cached
+from sixplus3.robot_description.urdf import actuated_joint_names, closure_pairs
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
 def parse_closures(path: Path) -> tuple[list[tuple[str, str]], list[str], list[str]]:
     """Read and validate a closures YAML; returns (pairs, types, actuated joint names)."""
-    try:
-        doc = yaml.safe_load(Path(path).read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise InputError(f"cannot read closures file {path}: {exc}") from exc
+    doc = read_yaml(path, "closures file")
     if not isinstance(doc, dict):
         raise InputError(f"closures file {path}: expected a mapping with keys closed_loop, "
                          "type, name_mot")
@@ -62,8 +58,8 @@ class ClosedLoopModel:
     model: pin.Model
     pairs: list[tuple[str, str]]
     actuated_names: list[str]
-    urdf_path: Path
-    closures_path: Path
+    source: str  # where the tree came from (a path, or "Robot <hash>")
+    robot: Robot | None = None  # the robot it was built from, if any
     data: pin.Data = field(init=False)
     frame_pairs: list[tuple[int, int]] = field(init=False)
     constraint_models: pin.StdVec_RigidConstraintModel = field(init=False)
@@ -81,7 +77,7 @@ class ClosedLoopModel:
             ids = []
             for name in (a, b):
                 if not m.existFrame(name):
-                    raise InputError(f"closure frame {name!r} is not in {self.urdf_path.name}")
+                    raise InputError(f"closure frame {name!r} is not in {self.source}")
                 ids.append(m.getFrameId(name))
             fa, fb = m.frames[ids[0]], m.frames[ids[1]]
             cm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, m, fa.parentJoint,
@@ -96,7 +92,7 @@ class ClosedLoopModel:
         q_idx, v_idx = [], []
         for name in self.actuated_names:
             if not m.existJointName(name):
-                raise InputError(f"actuated joint {name!r} is not in {self.urdf_path.name}")
+                raise InputError(f"actuated joint {name!r} is not in {self.source}")
             j = m.joints[m.getJointId(name)]
             if j.nq != 1 or j.nv != 1:
                 raise InputError(f"actuated joint {name!r} must be a 1-DoF revolute joint")
@@ -156,26 +152,36 @@ class ClosedLoopModel:
         return float(sum(inertia.mass for inertia in self.model.inertias))
 
 
-def _load(urdf: Path, closures: Path) -> ClosedLoopModel:
-    if not Path(urdf).exists():
-        raise InputError(f"URDF not found: {urdf} (run: python -m sixplus3.robot_description.urdf)")
-    model = pin.buildModelFromUrdf(str(urdf))
-    pairs, _types, act = parse_closures(closures)
+def _check_sizes(pairs: list, act: list, where: str) -> None:
     if len(pairs) != 3 * NUM_LEGS or len(act) != 3 * NUM_LEGS:
-        raise InputError(f"{closures}: expected {3 * NUM_LEGS} closures and "
+        raise InputError(f"{where}: expected {3 * NUM_LEGS} closures and "
                          f"{3 * NUM_LEGS} actuated joints, got {len(pairs)} and {len(act)}")
-    return ClosedLoopModel(model, pairs, act, Path(urdf), Path(closures))
 
 
-@functools.lru_cache(maxsize=4)
-def load_model(point_mass: bool = False) -> ClosedLoopModel:
-    """The committed robot (or its point-mass variant) as a closed-loop model (cached).
+def closed_loop_model(robot: Robot | None = None) -> ClosedLoopModel:
+    """A new closed-loop model of ``robot`` (default ``Robot.default()``), caller-owned.
 
-    The returned object owns mutable Pinocchio data: use one per thread.
+    The Pinocchio model parsed from ``robot.urdf()`` is cached by the robot's hash; each
+    call returns a copy of it with gravity set from ``robot.gravity`` and its own data and
+    constraint models: one object per thread, no shared mutable state.
     """
-    return _load(POINT_MASS_URDF_PATH if point_mass else URDF_PATH, CLOSURES_PATH)
+    robot = robot or Robot.default()
+
+    def parse() -> pin.Model:
+        return pin.buildModelFromXML(robot.urdf())
+
+    model = _cached(("pinocchio", f"{robot.hash}:{robot.name}"), parse).copy()
+    model.gravity = pin.Motion(np.array(robot.gravity), np.zeros(3))
+    pairs, act = closure_pairs(), actuated_joint_names()
+    _check_sizes(pairs, act, "robot")
+    return ClosedLoopModel(model, pairs, act, f"robot {robot.hash[:12]}", robot)
 
 
 def load_model_from(urdf: Path, closures: Path) -> ClosedLoopModel:
-    """Load another URDF + closures pair (not cached)."""
-    return _load(Path(urdf), Path(closures))
+    """Load another URDF + closures pair from files (not cached; gravity -z)."""
+    if not Path(urdf).exists():
+        raise InputError(f"URDF not found: {urdf}")
+    model = pin.buildModelFromUrdf(str(urdf))
+    pairs, _types, act = parse_closures(closures)
+    _check_sizes(pairs, act, str(closures))
+    return ClosedLoopModel(model, pairs, act, str(urdf))

@@ -18,13 +18,24 @@ radius) is the platform singularity.
 
 from __future__ import annotations
 
+import functools
+import hashlib
+import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sixplus3.robot_description.geometry import LegGeometry
 from sixplus3.errors import GeometryError
+from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
+from sixplus3.robot_description.geometry import GRAVITY, LegGeometry
+from sixplus3.robot_description.limits import Limits
+
+if TYPE_CHECKING:
+    from sixplus3.planner.model import SymbolicRobot
+    from sixplus3.robot_description.model import ClosedLoopModel
 
 NUM_LEGS = 3
 
@@ -151,3 +162,208 @@ class MassModel:
 
 
 POINT_MASS = MassModel(point_mass=True)
+
+
+# ----------------------------------------------------------------------------- the robot
+def _vec3(name: str, v: object, unit: str) -> tuple[float, float, float]:
+    try:
+        arr = tuple(float(x) for x in v)  # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        raise GeometryError(name, v, f"three finite numbers [{unit}]") from None
+    if len(arr) != 3 or not all(math.isfinite(x) for x in arr):
+        raise GeometryError(name, v, f"three finite numbers [{unit}]")
+    return arr  # type: ignore[return-value]
+
+
+#: Gravity vectors in the robot frame of the named mountings [m/s^2].
+MOUNTINGS = {"floor": (0.0, 0.0, -GRAVITY), "ceiling": (0.0, 0.0, GRAVITY)}
+
+
+@dataclass(frozen=True)
+class Robot:
+    """Everything that defines one robot: the single value every part of sixplus3 takes.
+
+    Frozen and validated; two robots with the same parameters are equal and have the
+    same :attr:`hash` (SHA-256 of the canonical JSON of :meth:`as_dict`), which keys every
+    cache (URDF text, Pinocchio model, CasADi functions, compiled libraries) and is
+    recorded in every trajectory file.  Derive variants with :meth:`replace`.
+    """
+
+    geometry: RobotGeometry = field(default_factory=RobotGeometry, metadata={
+        "doc": "leg geometry, base layout and platform [m, rad]"})
+    mode: AssemblyMode = field(default=DEFAULT_MODE, metadata={
+        "doc": "assembly mode: the IK branch of every leg, never switched in a motion"})
+    masses: MassModel = field(default_factory=MassModel, metadata={
+        "doc": "masses of the moving parts [kg]"})
+    limits: Limits = field(default_factory=Limits, metadata={
+        "doc": "hardware limits: the authority every plan and file is checked against"})
+    gravity: tuple[float, float, float] = field(default=MOUNTINGS["floor"], metadata={
+        "doc": "gravity in the robot frame [m/s^2] (floor mounting: -z)"})
+    home_position: tuple[float, float, float] = field(default=(0.0, 0.0, 0.30), metadata={
+        "doc": "platform centre at the home pose, in the robot frame [m]"})
+    home_psi: tuple[float, float, float] = field(default=(math.pi / 2,) * NUM_LEGS, metadata={
+        "doc": "crank angles at the home pose [rad]"})
+    name: str = field(default="sixplus3", metadata={"doc": "a label; not part of the hash"})
+
+    def __post_init__(self) -> None:
+        for attr, kind in (("geometry", RobotGeometry), ("masses", MassModel),
+                           ("limits", Limits)):
+            if not isinstance(getattr(self, attr), kind):
+                raise GeometryError(attr, getattr(self, attr), f"a {kind.__name__}")
+        object.__setattr__(self, "mode", AssemblyMode.parse(self.mode))
+        g = _vec3("gravity", self.gravity, "m/s^2")
+        if not 0.0 <= math.hypot(*g) <= 100.0:
+            raise GeometryError("gravity", g, "a vector of norm <= 100 m/s^2")
+        object.__setattr__(self, "gravity", g)
+        object.__setattr__(self, "home_position",
+                           _vec3("home_position", self.home_position, "m"))
+        psi = _vec3("home_psi", self.home_psi, "rad")
+        if any(abs(math.sin(p)) < 0.05 for p in psi):
+            raise GeometryError("home_psi", psi, "away from 0 and pi rad",
+                                "a crank along its radius is a platform singularity")
+        object.__setattr__(self, "home_psi", psi)
+        if not isinstance(self.name, str) or not 0 < len(self.name) <= 100:
+            raise GeometryError("name", self.name, "a string of 1 to 100 characters")
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def default(cls) -> Robot:
+        """The robot of the paper (see docs/conventions.md for the assembly)."""
+        return cls()
+
+    @classmethod
+    def mounted(cls, mounting: str, **kw: Any) -> Robot:
+        """The robot with a named mounting (``floor`` or ``ceiling``)."""
+        if mounting not in MOUNTINGS:
+            raise GeometryError("mounting", mounting, f"one of {sorted(MOUNTINGS)}")
+        return cls(gravity=MOUNTINGS[mounting], **kw)
+
+    def replace(self, **changes: Any) -> Robot:
+        """A copy with some fields changed (validated again)."""
+        return replace(self, **changes)
+
+    @property
+    def leg(self) -> LegGeometry:
+        return self.geometry.leg
+
+    # ------------------------------------------------------------------ identity
+    def as_dict(self) -> dict[str, Any]:
+        """Every parameter as plain JSON-able values (SI units, angles in rad)."""
+        return {
+            "name": self.name,
+            "geometry": {**{k: v for k, v in asdict(self.geometry).items() if k != "leg"},
+                         "leg": asdict(self.geometry.leg)},
+            "mode": self.mode.name,
+            "masses": asdict(self.masses),
+            "limits": asdict(self.limits),
+            "gravity": list(self.gravity),
+            "home_position": list(self.home_position),
+            "home_psi": list(self.home_psi),
+        }
+
+    @classmethod
+    def from_dict(cls, doc: object) -> Robot:
+        """A robot from :meth:`as_dict`'s structure; missing keys keep their defaults.
+
+        Unknown keys are refused (a typo must not silently give the default robot).
+        """
+        if not isinstance(doc, dict):
+            raise GeometryError("robot", type(doc).__name__, "a mapping of parameters")
+        known = {f.name for f in fields(cls)}
+        _no_unknown("robot", doc, known)
+        kw: dict[str, Any] = {}
+        if "geometry" in doc:
+            g = dict(_mapping("geometry", doc["geometry"]))
+            _no_unknown("geometry", g, {f.name for f in fields(RobotGeometry)})
+            leg = g.pop("leg", {})
+            _no_unknown("geometry.leg", _mapping("geometry.leg", leg),
+                        {f.name for f in fields(LegGeometry)})
+            kw["geometry"] = RobotGeometry(leg=LegGeometry(**leg), **g)
+        if "masses" in doc:
+            m = _mapping("masses", doc["masses"])
+            _no_unknown("masses", m, {f.name for f in fields(MassModel)})
+            kw["masses"] = MassModel(**m)
+        if "limits" in doc:
+            lim = _mapping("limits", doc["limits"])
+            _no_unknown("limits", lim, {f.name for f in fields(Limits)})
+            kw["limits"] = Limits(**lim)
+        for key in ("mode", "gravity", "home_position", "home_psi", "name"):
+            if key in doc:
+                kw[key] = doc[key]
+        return cls(**kw)
+
+    @functools.cached_property
+    def hash(self) -> str:
+        """SHA-256 of the canonical JSON of every parameter except ``name``."""
+        doc = self.as_dict()
+        doc.pop("name")
+        text = json.dumps(doc, sort_keys=True, separators=(",", ":"), allow_nan=False)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    # ------------------------------------------------------------------ models
+    def urdf(self) -> str:
+        """The URDF text of the spanning tree (cached by :attr:`hash`)."""
+        from sixplus3.robot_description.urdf import build_urdf
+
+        return _cached(("urdf", f"{self.hash}:{self.name}"), lambda: build_urdf(self))
+
+    def closures_yaml(self) -> str:
+        """The loop closures in the Extended URDF schema (Gepetto)."""
+        from sixplus3.robot_description.urdf import build_closures_yaml
+
+        return build_closures_yaml()
+
+    def closed_loop_model(self) -> ClosedLoopModel:
+        """A new Pinocchio closed-loop model of this robot, owned by the caller.
+
+        The parsed model is cached by :attr:`hash`; every call returns a copy with its own
+        data and constraint models, so no two callers share mutable state.
+        """
+        from sixplus3.robot_description.model import closed_loop_model
+
+        return closed_loop_model(self)
+
+    def symbolic(self) -> SymbolicRobot:
+        """The CasADi model in minimal coordinates (immutable functions, cached by hash)."""
+        from sixplus3.planner.model import symbolic_robot
+
+        return symbolic_robot(self)
+
+    def summary(self) -> str:
+        """One line naming the design, the assembly and the mounting."""
+        leg = self.leg
+        mount = next((k for k, v in MOUNTINGS.items() if v == self.gravity), "custom")
+        return (f"{self.name}: l2 = {leg.l2:.3f}, l4 = {leg.l4:.3f}, ex = {leg.ex:.3f}, "
+                f"ey = {leg.ey:.3f} m; assembly mode {self.mode.name}; {mount} mounting; "
+                f"hash {self.hash[:12]}")
+
+
+def _mapping(name: str, v: object) -> dict[str, Any]:
+    if not isinstance(v, dict):
+        raise GeometryError(name, type(v).__name__, "a mapping of parameters")
+    return v
+
+
+def _no_unknown(where: str, doc: dict[str, Any], known: set[str]) -> None:
+    extra = sorted(set(doc) - known)
+    if extra:
+        raise GeometryError(f"{where}.{extra[0]}", doc[extra[0]],
+                            f"one of the known keys {sorted(known)}", "unknown key")
+
+
+_CACHE: dict[tuple[str, str], Any] = {}
+
+
+def _cached(key: tuple[str, str], make: Any) -> Any:
+    """A per-process cache of immutable products, keyed by (kind, robot hash)."""
+    if key not in _CACHE:
+        _CACHE[key] = make()
+    return _CACHE[key]
+
+
+def load_robot(path: str | Path) -> Robot:
+    """A robot from a YAML or JSON file of :meth:`Robot.as_dict`'s structure (missing
+    keys keep the defaults; unknown keys are refused)."""
+    from sixplus3.fileio import read_yaml
+
+    return Robot.from_dict(read_yaml(path, "robot file"))

@@ -31,21 +31,12 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.robot_description.robot import NUM_LEGS, POINT_MASS, MassModel, RobotGeometry
+from sixplus3.robot_description.robot import NUM_LEGS, POINT_MASS, MassModel, Robot, RobotGeometry
 
 URDF_DIR = Path(__file__).resolve().parent / "urdf"
 URDF_PATH = URDF_DIR / "sixplus3.urdf"
 CLOSURES_PATH = URDF_DIR / "sixplus3_closures.yaml"
 POINT_MASS_URDF_PATH = URDF_DIR / "sixplus3_pointmass.urdf"
-
-#: Actuated joint range [rad]: 0..270 deg; (270, 360) deg hits the base plate (paper §V-A).
-ACTUATED_LIMITS = (0.0, 1.5 * math.pi)
-#: Actuator torque limit [N m] (5 N m motors through 72/34 belts, limited to 10).
-TORQUE_LIMIT = 10.0
-#: Joint speed limit [rad/s]: 300 rpm rated motor speed through the 72/34 belt.
-VELOCITY_LIMIT = 300.0 * 2.0 * math.pi / 60.0 * 34.0 / 72.0
-#: Spherical joint range [rad] (Schreiber's 4-DoF spherical joints, paper §VI): a check.
-SPHERICAL_LIMIT = math.radians(150.0)
 
 ROD_RADIUS = 0.008
 JOINT_SPHERE = 0.014
@@ -154,11 +145,17 @@ class _Builder:
                    limits=(-limit, limit), effort=0.0, velocity=100.0)
 
 
-def build_urdf(geom: RobotGeometry | None = None, masses: MassModel | None = None,
-               name: str = "sixplus3") -> str:
-    """The URDF text of the spanning tree."""
-    geom = geom or RobotGeometry()
-    masses = masses or MassModel()
+def build_urdf(robot: Robot | None = None) -> str:
+    """The URDF text of the spanning tree of ``robot`` (default: ``Robot.default()``).
+
+    The actuated joints carry the robot's hardware limits (range, effort, velocity).
+    Gravity is not part of a URDF: the loaders set it from ``robot.gravity``.
+    """
+    robot = robot or Robot.default()
+    geom: RobotGeometry = robot.geometry
+    masses: MassModel = robot.masses
+    lim = robot.limits
+    name = robot.name
     leg = geom.leg
     root = ET.Element("robot", name=name)
     for mat, rgba in (("base", "0.25 0.25 0.28 1"), ("motor", "0.1 0.1 0.1 1"),
@@ -182,7 +179,8 @@ def build_urdf(geom: RobotGeometry | None = None, masses: MassModel | None = Non
         A = geom.leg_origin(i)
         x = geom.leg_rotation(i)[:, 0]
         yaw = (0.0, 0.0, geom.leg_yaw(i))
-        act = {"limits": ACTUATED_LIMITS, "effort": TORQUE_LIMIT, "velocity": VELOCITY_LIMIT}
+        act = {"limits": (lim.theta_min, lim.theta_max), "effort": lim.torque,
+               "velocity": lim.velocity}
         b.cylinder(base, A - (leg.l7 + 0.03) * x, A + (leg.l6 + 0.03) * x, 0.012, "motor")
         # RU chain
         b.rod_link(f"leg{i}_proximal", masses.proximal, (0, 0, 0), (0, leg.l1, 0), "alu")
@@ -270,9 +268,12 @@ def build_closures_yaml() -> str:
 
 
 def generated_files() -> dict[Path, str]:
+    """The committed files: ``Robot.default()`` and its point-mass variant."""
+    robot = Robot.default()
     return {
-        URDF_PATH: build_urdf(),
-        POINT_MASS_URDF_PATH: build_urdf(masses=POINT_MASS, name="sixplus3_pointmass"),
+        URDF_PATH: robot.urdf(),
+        POINT_MASS_URDF_PATH: robot.replace(masses=POINT_MASS,
+                                            name="sixplus3_pointmass").urdf(),
         CLOSURES_PATH: build_closures_yaml(),
     }
 

@@ -1,10 +1,94 @@
 """sixplus3: software for the kinematically redundant (6+3)-DoF RU/2-RUS parallel robot.
 
-The library is split by concept into top-level packages:
+One explicit, frozen :class:`Robot` is the input of every part::
 
-- ``robot_description`` -- the parametric geometry (paper defaults) and, later, the URDF;
-- ``kinematics`` -- the leg's closed-form kinematics, Jacobians, singularities, statics;
-- ``sixplus3`` -- the shared error types and the ``sixplus3`` command line.
+    import sixplus3 as s3
+
+    robot = s3.Robot.default()                       # the paper's robot
+    task = s3.load_task("tilt60_x.yaml")             # platform waypoints (+ limits)
+    sol = s3.plan(task, robot)                       # time-optimal, checked with Pinocchio
+    sm = s3.smooth(sol, rate=1000.0)                 # controller-rate samples (Ruckig)
+    rep = s3.validate_joint_trajectory(sm.theta, sm.theta_dot, sm.theta_ddot, robot)
+    s3.validate_file("out/tilt60_x.csv", robot)      # the gate: -> ValidationReport
+
+Subpackages (lower never imports higher): ``robot_description`` (Robot, URDF, closures,
+Pinocchio model), ``kinematics``, ``dynamics``, ``design``, ``planner``, ``control``
+(smoothing, validation, trajectory files, pipeline), ``visualization``, and ``cli``.
+
+The names below are imported lazily (PEP 562), so that ``import sixplus3`` and
+``sixplus3 --help`` stay fast; the heavy libraries load on first use.
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 __version__ = "0.1.0"
+
+#: public name -> module that defines it
+_API = {
+    "Robot": "sixplus3.robot_description.robot",
+    "RobotGeometry": "sixplus3.robot_description.robot",
+    "MassModel": "sixplus3.robot_description.robot",
+    "LegGeometry": "sixplus3.robot_description.geometry",
+    "Limits": "sixplus3.robot_description.limits",
+    "AssemblyMode": "sixplus3.robot_description.assembly",
+    "load_robot": "sixplus3.robot_description.robot",
+    "robot_ik": "sixplus3.kinematics.robot",
+    "robot_ik_pose": "sixplus3.kinematics.robot",
+    "robot_fk": "sixplus3.kinematics.robot",
+    "home": "sixplus3.kinematics.robot",
+    "leg_ik": "sixplus3.kinematics.leg",
+    "ClosedLoopDynamics": "sixplus3.dynamics.closed_loop",
+    "Task": "sixplus3.planner.task",
+    "load_task": "sixplus3.planner.task",
+    "task_from_dict": "sixplus3.planner.task",
+    "Problem": "sixplus3.planner.ocp",
+    "PlannerOptions": "sixplus3.planner.ocp",
+    "Solution": "sixplus3.planner.ocp",
+    "plan": "sixplus3.planner.ocp",
+    "smooth": "sixplus3.control.smoothing",
+    "ValidationReport": "sixplus3.control.validation",
+    "validate_joint_trajectory": "sixplus3.control.validation",
+    "validate_file": "sixplus3.control.validation",
+    "read_trajectory": "sixplus3.control.trajectory_file",
+    "write_trajectory": "sixplus3.control.trajectory_file",
+    "run_plan": "sixplus3.control.pipeline",
+    "Sixplus3Error": "sixplus3.errors",
+}
+
+__all__ = sorted(_API) + ["__version__"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _API:
+        value = getattr(importlib.import_module(_API[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'sixplus3' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_API))
+
+
+if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
+    from sixplus3.control.pipeline import run_plan
+    from sixplus3.control.smoothing import smooth
+    from sixplus3.control.trajectory_file import read_trajectory, write_trajectory
+    from sixplus3.control.validation import (
+        ValidationReport,
+        validate_file,
+        validate_joint_trajectory,
+    )
+    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+    from sixplus3.errors import Sixplus3Error
+    from sixplus3.kinematics.leg import leg_ik
+    from sixplus3.kinematics.robot import home, robot_fk, robot_ik, robot_ik_pose
+    from sixplus3.planner.ocp import PlannerOptions, Problem, Solution, plan
+    from sixplus3.planner.task import Task, load_task, task_from_dict
+    from sixplus3.robot_description.assembly import AssemblyMode
+    from sixplus3.robot_description.geometry import LegGeometry
+    from sixplus3.robot_description.limits import Limits
+    from sixplus3.robot_description.robot import MassModel, Robot, RobotGeometry, load_robot

@@ -1,18 +1,29 @@
 """The ``sixplus3`` command line.
 
 Thin wiring only: every command imports the library (numpy, numba, pinocchio, ...) inside
-its body, so that ``sixplus3 --help`` answers without loading them.  Exit codes: 0 ok,
-2 bad input / unreachable / invalid file (one-line message on stderr).
+its body, so that ``sixplus3 --help`` answers without loading them.  Every command works
+on one robot: ``Robot.default()``, or the one in ``--robot FILE`` (YAML/JSON, see
+``sixplus3 robot show --json``).
+
+Exit codes: 0 ok; 1 a limit is violated (``validate``); 2 bad input, an unreachable pose,
+an infeasible task, or a missing, corrupted, forged or mismatched file: one line on
+stderr naming what was wrong and the valid range; 3 an internal error (a bug: one line,
+the traceback only with ``SIXPLUS3_DEBUG=1``).  The root error
+:class:`~sixplus3.errors.Sixplus3Error` is caught once, here.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
+
+if TYPE_CHECKING:
+    from sixplus3.robot_description.robot import Robot
 
 # Negative numbers are positional values here (``sixplus3 leg -0.1 0.4 0.2``): let click
 # pass tokens such as ``-0.1`` through instead of treating them as unknown options.
@@ -40,10 +51,50 @@ def _finite_json(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _Group(click.Group):
+    """Catches the root error once: one line, exit 2 (and an internal error: exit 3)."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        from sixplus3.errors import Sixplus3Error
+
+        try:
+            return super().invoke(ctx)
+        except Sixplus3Error as exc:
+            _fail(" ".join(str(exc).split()))
+        except (click.exceptions.Exit, click.ClickException, click.Abort, SystemExit):
+            raise
+        except KeyboardInterrupt:
+            click.echo("interrupted", err=True)
+            sys.exit(130)
+        except Exception as exc:  # noqa: BLE001 - the CLI never shows a traceback
+            if os.environ.get("SIXPLUS3_DEBUG"):
+                raise
+            click.echo(f"internal error (a bug, please report; SIXPLUS3_DEBUG=1 shows the "
+                       f"traceback): {type(exc).__name__}: {str(exc)[:300]}", err=True)
+            sys.exit(3)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="sixplus3")
-def main() -> None:
+@click.option("--robot", "robot_file", default=None, type=click.Path(dir_okay=False),
+              help="Robot parameters (YAML/JSON, keys as in 'sixplus3 robot show --json'; "
+              "missing keys keep the defaults). Default: the paper's robot.")
+@click.pass_context
+def main(ctx: click.Context, robot_file: str | None) -> None:
     """sixplus3: kinematics, dynamics, design and planning for the (6+3)-DoF robot."""
+    ctx.obj = {"robot_file": robot_file}
+
+
+def _robot() -> Robot:
+    """The robot of this invocation (``--robot FILE`` or the default), loaded once."""
+    ctx = click.get_current_context()
+    obj = ctx.find_root().obj or {}
+    if "robot" not in obj:
+        from sixplus3.robot_description.robot import Robot, load_robot
+
+        path = obj.get("robot_file")
+        obj["robot"] = load_robot(path) if path else Robot.default()
+    return obj["robot"]
 
 
 @main.command(context_settings=_NUMERIC_ARGS)
@@ -52,11 +103,12 @@ def main() -> None:
 @click.argument("z", type=float)
 @click.option("--force", nargs=3, type=float, default=None, metavar="FX FY FZ",
               help="Force at P in the leg frame [N].")
-@click.option("--mode", default="default", show_default=True,
-              help="Assembly mode: four of +/- for (th1, th_s3, th2, th3), or 'default'.")
+@click.option("--mode", default=None,
+              help="Assembly mode: four of +/- for (th1, th_s3, th2, th3), or 'default'. "
+              "Default: the robot's.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-def leg(x: float, y: float, z: float, force: tuple[float, float, float] | None, mode: str,
-        as_json: bool) -> None:
+def leg(x: float, y: float, z: float, force: tuple[float, float, float] | None,
+        mode: str | None, as_json: bool) -> None:
     """Leg report at P = (X, Y, Z) [m] in the leg frame (paper §III-IV).
 
     Prints the actuated and passive angles, det J, det K, the singularity margins and
@@ -66,14 +118,12 @@ def leg(x: float, y: float, z: float, force: tuple[float, float, float] | None, 
     import numpy as np
 
     from sixplus3.kinematics.leg import SINGULAR_TOL, AssemblyMode, leg_ik_point
-    from sixplus3.errors import Sixplus3Error
 
-    try:
-        m = AssemblyMode.parse(mode)
-        state = leg_ik_point([x, y, z], mode=m)
-    except Sixplus3Error as exc:
-        _fail(str(exc))
-        return
+    if not all(math.isfinite(v) for v in (x, y, z)):
+        _fail(f"the point must be three finite numbers [m], got {[x, y, z]}")
+    robot = _robot()
+    m = robot.mode if mode is None else AssemblyMode.parse(mode)
+    state = leg_ik_point([x, y, z], robot.leg, mode=m)
     theta = state.theta[0]
     theta_s = state.theta_s[0]
     sing = str(state.singularity()[0])
@@ -120,32 +170,29 @@ def robot() -> None:
 @robot.command("check")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 def robot_check(as_json: bool) -> None:
-    """Load the URDF and closures and check the home pose."""
+    """Build the robot's URDF + closures model and check its home pose."""
     import numpy as np
 
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-    from sixplus3.kinematics.robot import HOME_HEIGHT, home, spherical_tilts
-    from sixplus3.robot_description.model import load_model
+    from sixplus3.kinematics.robot import home, spherical_tilts
     from sixplus3.robot_description.urdf import check as urdf_stale
-    from sixplus3.errors import Sixplus3Error
 
-    try:
-        clm = load_model()
-        h = home()
-        q = h.q[0]
-        residual = float(np.abs(clm.residual(q)).max())
-        rank = int(np.linalg.matrix_rank(clm.constraint_jacobian(q), tol=1e-9))
-        tau = ClosedLoopDynamics(clm).gravity_torques(q)
-    except Sixplus3Error as exc:
-        _fail(str(exc))
-        return
+    robot = _robot()
+    dyn = ClosedLoopDynamics(robot)
+    clm = dyn.clm
+    h = home(robot)
+    q = h.q[0]
+    residual = float(np.abs(clm.residual(q)).max())
+    rank = int(np.linalg.matrix_rank(clm.constraint_jacobian(q), tol=1e-9))
+    tau = dyn.gravity_torques(q)
     out = {
-        "urdf": str(clm.urdf_path), "closures_file": str(clm.closures_path),
-        "generated_files_fresh": not urdf_stale(),
+        "robot": robot.summary(), "robot_hash": robot.hash, "assembly_mode": robot.mode.name,
+        "committed_urdf_fresh": not urdf_stale(),
         "nq": clm.model.nq, "nv": clm.model.nv, "actuated": len(clm.actuated_names),
         "closures": len(clm.pairs), "constraint_rows": clm.n_constraints,
         "constraint_rank_home": rank, "mobility": clm.model.nv - rank,
-        "home_height_m": HOME_HEIGHT, "home_residual_m": residual,
+        "home_position_m": list(robot.home_position),
+        "home_psi_deg": np.degrees(robot.home_psi), "home_residual_m": residual,
         "margins": h.margins.as_dict(),
         "max_spherical_tilt_deg": float(np.degrees(spherical_tilts(h).max())),
         "tau_gravity_home": tau, "total_mass_kg": clm.total_mass(),
@@ -153,12 +200,14 @@ def robot_check(as_json: bool) -> None:
     if as_json:
         click.echo(json.dumps(out, default=_json_default))
         return
-    click.echo(f"URDF      {out['urdf']}\nclosures  {out['closures_file']}"
-               f"   (generated files fresh: {out['generated_files_fresh']})")
+    click.echo(f"robot     {out['robot']}")
+    click.echo(f"gravity   {list(robot.gravity)} m/s^2; committed URDF of the default robot "
+               f"fresh: {out['committed_urdf_fresh']}")
     click.echo(f"tree DoF  nq = {out['nq']}, nv = {out['nv']}; {out['actuated']} actuated joints")
     click.echo(f"closures  {out['closures']} spherical, {out['constraint_rows']} rows, rank "
                f"{rank} at home -> mobility {out['mobility']}")
-    click.echo(f"home      platform at z = {HOME_HEIGHT} m, psi = 90 deg; closure residual "
+    click.echo(f"home      platform at {list(robot.home_position)} m, psi = "
+               f"{np.round(np.degrees(robot.home_psi), 2).tolist()} deg; closure residual "
                f"{residual:.2e} m")
     m = out["margins"]
     click.echo("margins   leg type I " + " ".join(f"{v:.3f}" for v in m["leg_type1"])
@@ -189,29 +238,25 @@ def robot_ik_cmd(x: float, y: float, z: float, roll: float, pitch: float, yaw: f
 
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.kinematics.robot import robot_ik_pose, spherical_tilts
-    from sixplus3.robot_description.model import load_model
-    from sixplus3.robot_description.urdf import SPHERICAL_LIMIT
-    from sixplus3.errors import Sixplus3Error
 
     values = (x, y, z, roll, pitch, yaw, *redundancy)
     if not all(math.isfinite(v) for v in values):
         _fail(f"pose and redundancy must be finite numbers, got {list(values)}")
-    try:
-        cfg = robot_ik_pose((x, y, z), np.radians([roll, pitch, yaw]),
-                            np.radians(redundancy))
-        clm = load_model()
-        q = cfg.q[0]
-        residual = float(np.abs(clm.residual(q)).max())
-        tau = ClosedLoopDynamics(clm).gravity_torques(q)
-    except Sixplus3Error as exc:
-        _fail(str(exc))
-        return
+    robot = _robot()
+    lim = robot.limits
+    cfg = robot_ik_pose((x, y, z), np.radians([roll, pitch, yaw]), np.radians(redundancy),
+                        robot)
+    dyn = ClosedLoopDynamics(robot)
+    q = cfg.q[0]
+    residual = float(np.abs(dyn.clm.residual(q)).max())
+    tau = dyn.gravity_torques(q)
     tilt = float(spherical_tilts(cfg).max())
     out = {
         "theta": cfg.theta[0], "residual": residual, "margins": cfg.margins.as_dict(),
         "tau_gravity": tau, "max_spherical_tilt_deg": math.degrees(tilt),
-        "spherical_ok": tilt <= SPHERICAL_LIMIT,
-        "actuated_range_ok": bool(np.all((cfg.theta[0] >= 0) & (cfg.theta[0] <= 1.5 * math.pi))),
+        "spherical_ok": tilt <= lim.spherical,
+        "actuated_range_ok": bool(np.all((cfg.theta[0] >= lim.theta_min)
+                                         & (cfg.theta[0] <= lim.theta_max))),
     }
     if as_json:
         click.echo(json.dumps(out, default=_json_default))
@@ -226,8 +271,21 @@ def robot_ik_cmd(x: float, y: float, z: float, roll: float, pitch: float, yaw: f
                + f" | platform {m['platform']:.3f}")
     click.echo("tau_g    " + " ".join(f"{v:+.3f}" for v in tau) + "  N m")
     click.echo(f"spherical joints: max tilt {out['max_spherical_tilt_deg']:.1f} deg "
-               f"({'ok' if out['spherical_ok'] else 'OVER 150 deg'}); actuated range "
-               f"{'ok' if out['actuated_range_ok'] else 'OUTSIDE [0, 270] deg'}")
+               f"({'ok' if out['spherical_ok'] else 'OVER THE LIMIT'}); actuated range "
+               f"{'ok' if out['actuated_range_ok'] else 'OUTSIDE THE RANGE'}")
+
+
+@robot.command("show")
+@click.option("--json", "as_json", is_flag=True, help="Print the parameters as JSON.")
+def robot_show(as_json: bool) -> None:
+    """Every parameter of the robot and its hash (the input format of --robot)."""
+    robot = _robot()
+    doc = robot.as_dict()
+    if as_json:
+        click.echo(json.dumps({**doc, "hash": robot.hash}, indent=1))
+        return
+    click.echo(robot.summary())
+    click.echo(json.dumps(doc, indent=1))
 
 
 @main.group()
@@ -268,12 +326,13 @@ def design_optimize(coarse_step: float, fine_step: float, ws_step: float, readin
     """Two-stage grid search of (l2 = l3, l4 = l5, ex = fx) maximising the usable area."""
     from sixplus3.design.search import PAPER_DESIGN, optimize
 
+    from sixplus3.errors import InputError
+
     rd = _reading(reading)
     try:
         res = optimize(coarse_step, fine_step, ws_step, rd, progress=not as_json)
     except ValueError as exc:
-        _fail(str(exc))
-        return
+        raise InputError(str(exc)) from None
     if as_json:
         out = {"found": res.found, "l2": res.l2, "l4": res.l4, "ex": res.ex,
                "area_m2": res.area_m2, "paper_design_area_m2": res.paper_design_area_m2,
@@ -305,6 +364,8 @@ def design_figures(out_dir: str, reading: str, ws_step: float) -> None:
     """Write the §V figures (det J/K, tau_ext, COW, encoder resolution) as PNG."""
     from sixplus3.design.figures import make_figures
 
+    if not (math.isfinite(ws_step) and 0.0005 <= ws_step <= 0.05):
+        _fail(f"--ws-step must be in [0.0005, 0.05] m, got {ws_step!r}")
     rd = _reading(reading)
     s = make_figures(out_dir, rd, ws_step=ws_step)
     for f in s.files:
@@ -319,26 +380,28 @@ def design_figures(out_dir: str, reading: str, ws_step: float) -> None:
 @click.option("--ws-step", default=0.005, show_default=True, type=float,
               help="Workspace grid step of the usable-area report [m].")
 def report(ws_step: float) -> None:
-    """A report of the paper's leg design (sample configurations, usable area)."""
-    from sixplus3.report import leg_report
+    """A report of the robot's leg design (sample configurations, usable area)."""
+    from sixplus3.design.report import leg_report
 
-    try:
-        click.echo(leg_report(ws_step=ws_step))
-    except ValueError as exc:
-        _fail(str(exc))
+    click.echo(leg_report(_robot(), ws_step=ws_step))
+
+
+#: Controller rates accepted [Hz].
+RATE_RANGE = (10.0, 10000.0)
+
+
+def _check_rate(rate: float) -> None:
+    lo, hi = RATE_RANGE
+    if not (math.isfinite(rate) and lo <= rate <= hi):
+        _fail(f"--rate must be in [{lo:g}, {hi:g}] Hz, got {rate!r}")
 
 
 def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None:
-    from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions
     from sixplus3.control.pipeline import run_plan
-    from sixplus3.control.trajectory_file import TrajectoryFileError
+    from sixplus3.planner.ocp import PlannerOptions
 
-    try:
-        res = run_plan(task, out_dir, rate=rate, html=html,
-                       options=PlannerOptions(lock_redundancy=locked), progress=click.echo)
-    except (InfeasibleTaskError, TrajectoryFileError) as exc:
-        _fail(str(exc))
-        return
+    res = run_plan(task, out_dir, _robot(), rate=rate, html=html,
+                   options=PlannerOptions(lock_redundancy=locked), progress=click.echo)
     click.echo(f"done in {res.seconds['total']:.1f} s: {res.csv}")
 
 
@@ -348,16 +411,14 @@ def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None
               type=click.Path(file_okay=False), help="Output directory.")
 @click.option("--rate", default=1000.0, show_default=True, help="Controller rate [Hz].")
 @click.option("--no-html", is_flag=True, help="Skip the MeshCat page.")
-@click.option("--locked", is_flag=True, help="Lock the crank angles at 90 deg.")
+@click.option("--locked", is_flag=True, help="Lock the crank angles at their home angles.")
 def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool) -> None:
     """Plan TASK_FILE (YAML): plan -> smooth -> validate -> CSV, JSON, HTML, plots."""
-    from sixplus3.planner.task import TaskError, load_task
+    from sixplus3.planner.task import load_task
 
-    try:
-        task = load_task(task_file)
-    except TaskError as exc:
-        _fail(str(exc))
-        return
+    _check_rate(rate)
+    task = load_task(task_file)
+    task.limits_for(_robot())  # a looser limit than the robot's: refused before solving
     _run_plan(task, out_dir, rate, not no_html, locked)
 
 
@@ -366,10 +427,10 @@ def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool)
               type=click.Path(file_okay=False), help="Output directory.")
 def demo(out_dir: str) -> None:
     """Main job on built-in defaults: plan, smooth, validate and show a 30 deg tilt."""
-    from sixplus3.control.pipeline import DEMO_TASK
+    from sixplus3.control.pipeline import demo_task
     from sixplus3.planner.task import task_from_dict
 
-    _run_plan(task_from_dict(DEMO_TASK), out_dir, 1000.0, True, False)
+    _run_plan(task_from_dict(demo_task(_robot())), out_dir, 1000.0, True, False)
 
 
 @main.command()
@@ -378,43 +439,23 @@ def demo(out_dir: str) -> None:
 def validate(csv_file: str, as_json: bool) -> None:
     """Check a trajectory file independently of the planner (exit 0 only if all ok).
 
-    Exit codes: 0 every sample within limits; 1 a limit is violated; 2 the file is
-    missing, corrupted or made for another robot.
+    The limits are the robot's hardware limits, never the file's.  Exit codes: 0 every
+    sample within limits; 1 a limit is violated; 2 the file is missing, corrupted or
+    made for another robot.
     """
-    import numpy as np
-    from scipy.spatial.transform import Rotation
+    from sixplus3.control.validation import validate_file
 
-    from sixplus3.kinematics.robot import robot_ik
-    from sixplus3.planner.task import Limits
-    from sixplus3.control.trajectory_file import TrajectoryFileError, columns, read_trajectory
-    from sixplus3.control.validation import validate_joint_trajectory
-
-    try:
-        header, data = read_trajectory(csv_file)
-        limits = Limits(**header["limits"])
-    except (TrajectoryFileError, TypeError, KeyError) as exc:
-        _fail(f"{csv_file}: {exc}")
-        return
-    cfg0 = robot_ik(data[0, 37:40], Rotation.from_quat(data[0, 40:44]).as_matrix(),
-                    data[0, 44:47])
-    if not cfg0.ok[0]:
-        _fail(f"{csv_file}: the first platform pose is unreachable")
-    rep = validate_joint_trajectory(columns(data, "pos"), columns(data, "vel"),
-                                    columns(data, "acc"), limits, cfg0.q[0])
-    tau_file = columns(data, "tau")
-    ff_err = float(np.abs(rep.tau - tau_file).max()) if rep.tau is not None else float("inf")
-    if ff_err > 1e-6 * max(1.0, limits.torque):
-        rep.violations.append(f"feed-forward torques differ from the recomputed ones by "
-                              f"{ff_err:.2e} N m")
-        rep.ok = False
-    out = {"file": csv_file, "ok": rep.ok, "samples": rep.samples,
-           "duration_s": float(data[-1, 0]), **{k: v for k, v in rep.summary().items()
-                                                 if k not in ("ok", "samples")},
-           "feedforward_max_error": ff_err}
+    robot = _robot()
+    rep = validate_file(csv_file, robot)
+    limits = robot.limits
+    out = {"file": csv_file, "robot": robot.hash, "ok": rep.ok, "samples": rep.samples,
+           "duration_s": rep.duration,
+           **{k: v for k, v in rep.summary().items() if k not in ("ok", "samples")},
+           "feedforward_max_error": rep.feedforward_error}
     if as_json:
         click.echo(json.dumps(out, default=_json_default))
     else:
-        click.echo(f"{csv_file}: {rep.samples} samples, {data[-1, 0]:.4f} s; max |tau| "
+        click.echo(f"{csv_file}: {rep.samples} samples, {rep.duration:.4f} s; max |tau| "
                    f"{rep.max_torque_ratio * limits.torque:.3f} N m (limit "
                    f"{limits.torque:g}); margins {rep.min_margin_leg_type1:.3f} / "
                    f"{rep.min_margin_leg_type2:.3f} / {rep.min_margin_platform:.3f} "
@@ -431,15 +472,18 @@ def validate(csv_file: str, as_json: bool) -> None:
 @click.option("--no-wait", is_flag=True, help="Do not wait for Ctrl-C after loading.")
 def play(csv_file: str, html_out: str | None, no_wait: bool) -> None:
     """Animate a trajectory file in MeshCat (live; the URL is printed) or as HTML."""
-    from sixplus3.control.trajectory_file import TrajectoryFileError, read_trajectory
-    from sixplus3.visualization.meshcat_player import animate, frames_from_samples, viewer_url, write_html
+    from sixplus3.control.trajectory_file import read_trajectory
+    from sixplus3.visualization.meshcat_player import (
+        animate,
+        frames_from_samples,
+        viewer_url,
+        write_html,
+    )
 
-    try:
-        _, data = read_trajectory(csv_file)
-    except TrajectoryFileError as exc:
-        _fail(f"{csv_file}: {exc}")
-        return
-    frames = frames_from_samples(data[:, 0], data[:, 37:40], data[:, 40:44], data[:, 44:47])
+    robot = _robot()
+    _, data = read_trajectory(csv_file, robot)
+    frames = frames_from_samples(robot, data[:, 0], data[:, 37:40], data[:, 40:44],
+                                 data[:, 44:47])
     if html_out:
         path = write_html(frames, html_out)
         click.echo(f"wrote {path} ({len(frames.q)} frames, slowed down "

@@ -1,31 +1,61 @@
 """One root exception for the whole project, with specific subclasses.
 
-Every message says what was wrong, the valid range, and how to fix it; the offending
-values are kept as attributes so that callers can react programmatically.
+Every message says what was wrong, the valid range, and how to fix it.  The offending
+value and the valid range are kept as attributes (``value``, ``valid``) so that callers
+can react programmatically; subclasses add their own context (``parameter``, ``chain``,
+``waypoint``, ``limit``, ...).  The command line catches :class:`Sixplus3Error` once and
+prints its message on one line with exit code 2 (bad input); a trajectory that violates
+a limit is reported by ``sixplus3 validate`` with exit code 1.
 """
 
 from __future__ import annotations
 
 
 class Sixplus3Error(Exception):
-    """Root of every error raised on purpose by sixplus3."""
+    """Root of every error raised on purpose by sixplus3.
 
+    Attributes: ``value`` (the offending value, or None) and ``valid`` (a description of
+    the valid range, or None).
+    """
 
-class GeometryError(Sixplus3Error, ValueError):
-    """A geometric parameter is out of its valid range or inconsistent with another."""
-
-    def __init__(self, parameter: str, value: object, valid: str, hint: str = "") -> None:
-        self.parameter = parameter
+    def __init__(self, message: str, *, value: object = None, valid: object = None) -> None:
+        super().__init__(message)
         self.value = value
         self.valid = valid
-        msg = f"invalid geometry parameter {parameter}={value!r}: must be {valid}"
-        if hint:
-            msg += f" ({hint})"
-        super().__init__(msg)
 
 
 class InputError(Sixplus3Error, ValueError):
     """A user-supplied value is malformed (wrong shape, NaN, unknown name, ...)."""
+
+
+class GeometryError(InputError):
+    """A robot parameter is out of its valid range or inconsistent with another."""
+
+    def __init__(self, parameter: str, value: object, valid: str, hint: str = "") -> None:
+        self.parameter = parameter
+        msg = f"invalid robot parameter {parameter}={value!r}: must be {valid}"
+        if hint:
+            msg += f" ({hint})"
+        super().__init__(msg, value=value, valid=valid)
+
+
+class LimitError(InputError):
+    """A limit is non-finite, non-positive, or looser than the robot's hardware limit.
+
+    The robot's hardware limits are the authority: a task or a file may only tighten
+    them.
+    """
+
+    def __init__(self, name: str, value: object, valid: str, hint: str = "") -> None:
+        self.name = name
+        msg = f"invalid limit {name}={value!r}: must be {valid}"
+        if hint:
+            msg += f" ({hint})"
+        super().__init__(msg, value=value, valid=valid)
+
+
+class TaskError(InputError):
+    """A task file or task value is malformed or out of range; nothing was planned."""
 
 
 class UnreachableError(Sixplus3Error):
@@ -35,7 +65,8 @@ class UnreachableError(Sixplus3Error):
         self.chain = chain
         self.point = point
         self.reason = reason
-        super().__init__(f"{chain} chain cannot reach {point}: {reason}")
+        super().__init__(f"{chain} chain cannot reach {point}: {reason}", value=point,
+                         valid=f"inside the reach of the {chain} chain")
 
 
 class ConvergenceError(Sixplus3Error):
@@ -44,3 +75,28 @@ class ConvergenceError(Sixplus3Error):
 
 class SingularityError(Sixplus3Error):
     """A computation was asked for at (or numerically at) a singular configuration."""
+
+
+class InfeasibleTaskError(Sixplus3Error):
+    """No motion satisfies the task's limits; says which waypoint or limit binds."""
+
+    def __init__(self, message: str, waypoint: int | None = None, limit: str | None = None,
+                 *, value: object = None, valid: object = None) -> None:
+        self.waypoint = waypoint
+        self.limit = limit
+        super().__init__(message, value=value, valid=valid)
+
+
+class SmoothingError(Sixplus3Error):
+    """Ruckig could not compute a segment."""
+
+
+class TrajectoryFileError(Sixplus3Error):
+    """A trajectory file is missing, corrupted, forged or made for another robot."""
+
+
+__all__ = [
+    "ConvergenceError", "GeometryError", "InfeasibleTaskError", "InputError", "LimitError",
+    "SingularityError", "Sixplus3Error", "SmoothingError", "TaskError",
+    "TrajectoryFileError", "UnreachableError",
+]

@@ -74,7 +74,7 @@ def test_robot_check_reports_the_model() -> None:
     out = json.loads(res.output)
     assert (out["nq"], out["nv"], out["actuated"], out["closures"]) == (37, 36, 9, 9)
     assert out["constraint_rank_home"] == 27 and out["mobility"] == 9
-    assert out["home_residual_m"] < 1e-10 and out["generated_files_fresh"]
+    assert out["home_residual_m"] < 1e-10 and out["committed_urdf_fresh"]
     assert out["margins"]["minimum"] > 0.1 and 1.0 < out["total_mass_kg"] < 3.0
     text = run("robot", "check")
     assert text.exit_code == 0 and "mobility 9" in text.output

@@ -8,8 +8,7 @@ import pytest
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.kinematics.robot import home, robot_fk, robot_ik_pose
-from sixplus3.robot_description.model import load_model
-from sixplus3.robot_description.robot import POINT_MASS, RobotGeometry
+from sixplus3.robot_description.robot import POINT_MASS, Robot, RobotGeometry
 from sixplus3.errors import InputError, SingularityError
 
 GEOM = RobotGeometry()
@@ -72,7 +71,7 @@ def test_forward_dynamics_reproduces_the_commanded_acceleration(dyn) -> None:
 
 def test_point_mass_variant_matches_the_leg_jacobian(dyn) -> None:
     """Massless links, 0.5 kg at P: torques are the leg's tau = K^T J^-T f, leg by leg."""
-    pm = ClosedLoopDynamics(load_model(point_mass=True))
+    pm = ClosedLoopDynamics(Robot.default().replace(masses=POINT_MASS))
     rng = np.random.default_rng(1)
     m, g = POINT_MASS.point_mass_value, 9.81
     for q in sample_configs():

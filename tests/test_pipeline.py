@@ -16,7 +16,14 @@ from sixplus3.planner.ocp import plan
 from sixplus3.control.pipeline import run_plan
 from sixplus3.control.smoothing import smooth
 from sixplus3.planner.task import task_from_dict
-from sixplus3.control.trajectory_file import COLUMNS, TrajectoryFileError, atomic_write, write_trajectory
+from sixplus3.control.trajectory_file import (
+    COLUMNS,
+    JOINTS,
+    read_trajectory,
+    write_trajectory,
+)
+from sixplus3.errors import TrajectoryFileError
+from sixplus3.fileio import atomic_write
 from sixplus3.cli import main
 
 SMALL = {"name": "small", "waypoints": [{"position": [0, 0, 0.30]},
@@ -98,9 +105,9 @@ def test_corrupted_or_mismatched_files_exit_2(planned, tmp_path, damage) -> None
         expect = "increase"
     elif damage == "hash":
         h = json.loads(js.read_text())
-        h["robot"]["urdf_closures_sha256"] = "0" * 64
+        h["robot"]["hash"] = "0" * 64
         js.write_text(json.dumps(h))
-        expect = "robot mismatch"
+        expect = "do not match the recorded robot hash"
     elif damage == "no_json":
         js.unlink()
         expect = "missing file"
@@ -119,15 +126,42 @@ def test_corrupted_or_mismatched_files_exit_2(planned, tmp_path, damage) -> None
     assert len(msg) == 1 and expect in msg[0]
 
 
-def test_a_limit_violation_exits_1(planned, tmp_path) -> None:
-    res, _ = planned
-    csv = copy_pair(res, tmp_path)
+def forge(csv: Path, data: np.ndarray) -> None:
+    """Rewrite a trajectory's CSV with other samples and make its header consistent again
+    (checksum, duration, samples): what an attacker who knows the format can do."""
+    import hashlib
+    import io
+
+    buf = io.StringIO()
+    np.savetxt(buf, data, delimiter=",", header=",".join(COLUMNS), comments="", fmt="%.12g")
+    raw = buf.getvalue().encode()
+    csv.write_bytes(raw)
     js = csv.with_suffix(".json")
     h = json.loads(js.read_text())
-    h["limits"]["torque"] = 0.5 * res.report.max_torque_ratio * h["limits"]["torque"]
+    h.update(csv_sha256=hashlib.sha256(raw).hexdigest(), duration_s=float(data[-1, 0]),
+             samples=len(data))
     js.write_text(json.dumps(h))
+
+
+def test_a_limit_violation_exits_1(planned, tmp_path) -> None:
+    """A consistent forgery: the same path 25% faster (t x 0.8, rates / 0.8, accelerations
+    / 0.64) with recomputed checksums; the validator recomputes the torques and refuses."""
+    from sixplus3.control.trajectory_file import columns
+
+    res, _ = planned
+    csv = copy_pair(res, tmp_path)
+    _, data = read_trajectory(csv)
+    fast = data.copy()
+    fast[:, 0] *= 0.8
+    for k, f in (("vel", 1 / 0.8), ("acc", 1 / 0.64)):
+        idx = [COLUMNS.index(f"{j}_{k}") for j in JOINTS]
+        fast[:, idx] = columns(data, k) * f
+    forge(csv, fast)
+    h = json.loads(csv.with_suffix(".json").read_text())
+    h["rate_hz"] = 1250.0
+    csv.with_suffix(".json").write_text(json.dumps(h))
     r = run("validate", csv)
-    assert r.exit_code == 1 and "violation: torque" in r.output
+    assert r.exit_code == 1 and "violation: " in r.output, r.output
 
 
 def test_an_interrupted_write_leaves_no_file(tmp_path, monkeypatch) -> None:
@@ -149,7 +183,7 @@ def test_an_invalid_trajectory_is_never_written(planned, tmp_path) -> None:
     sm = res.smoothed
     with pytest.raises(TrajectoryFileError, match="refusing"):
         write_trajectory(tmp_path / "bad.csv", sm.t, sm.theta, sm.theta_dot, sm.theta_ddot,
-                         bad_copy, res.solution.task.limits, {})
+                         bad_copy, res.solution.robot, res.solution.limits, {})
     assert list(tmp_path.iterdir()) == []
 
 

@@ -11,8 +11,12 @@ from scipy.spatial.transform import Rotation
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.kinematics.robot import leg_clearance, robot_ik, spherical_tilts
 from sixplus3.planner.model import home_x, symbolic_robot
-from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem, dense_check, plan
+from sixplus3.errors import InfeasibleTaskError, LimitError
+from sixplus3.planner.ocp import PlannerOptions, Problem, dense_check, plan
 from sixplus3.planner.task import TaskError, load_task, task_from_dict
+from sixplus3.robot_description.robot import Robot
+
+ROBOT = Robot.default()
 
 EXAMPLES = sorted(__import__("pathlib").Path(__file__).parents[1].joinpath("examples")
                   .glob("*.yaml"))
@@ -75,8 +79,6 @@ def test_bad_task_files_name_the_field(tmp_path) -> None:
         ({"waypoints": [{"position": [0, 0, 0.3], "rpy": [0, 0, 200]},
                         {"position": [0, 0, 0.3]}]}, "waypoints[0].rpy[2]"),
         ({"waypoints": [{"position": [0, 0, 0.3]}, {"position": [0, 0, 0.3]}],
-          "limits": {"torque": 12}}, "limits.torque"),
-        ({"waypoints": [{"position": [0, 0, 0.3]}, {"position": [0, 0, 0.3]}],
           "speed": 3}, "(top level)"),
         ({"waypoints": [{"position": [0, 0, 0.3], "quaternion": [0, 0, 0, 2]},
                         {"position": [0, 0, 0.3]}]}, "waypoints[0].quaternion"),
@@ -87,6 +89,15 @@ def test_bad_task_files_name_the_field(tmp_path) -> None:
         with pytest.raises(TaskError) as err:
             task_from_dict(doc)
         assert field in str(err.value), (field, str(err.value))
+    # a limit looser than the robot's hardware limit is refused when planned for it
+    loose = task_from_dict({"waypoints": [{"position": [0, 0, 0.3]},
+                                          {"position": [0, 0, 0.3]}],
+                            "limits": {"torque": 12}})
+    with pytest.raises(LimitError) as err:
+        loose.limits_for(ROBOT)
+    assert err.value.name == "torque" and err.value.value == 12.0 and "(0, 10]" in str(err.value)
+    with pytest.raises(LimitError):
+        Problem(loose, ROBOT)
     bad = tmp_path / "bad.yaml"
     bad.write_text("waypoints: [\n  - {position: [0, 0")
     with pytest.raises(TaskError, match="not valid YAML"):
@@ -134,7 +145,7 @@ def test_small_task_solves_and_passes_a_10x_pinocchio_check(small_solution) -> N
 
 
 def test_locking_the_redundancy_is_not_faster(small_solution) -> None:
-    locked = plan(task_from_dict(SMALL), PlannerOptions(lock_redundancy=True))
+    locked = plan(task_from_dict(SMALL), options=PlannerOptions(lock_redundancy=True))
     assert locked.is_feasible()
     assert np.allclose(locked.x[:, 6:9], math.pi / 2)
     assert locked.final_time >= small_solution.final_time * (1 - 1e-3)
@@ -178,7 +189,7 @@ def test_compiled_node_functions_agree_with_casadi() -> None:
     if not codegen_enabled():
         pytest.fail("no C compiler: the planner would run interpreted (make test needs gcc)")
     sr = symbolic_robot()
-    node = compiled_functions("++++")["node"]
+    node = compiled_functions(Robot.default())["node"]
     jac_c, jac_sx = node.jacobian(), sr.node.jacobian()
     for x, xd, xdd in random_states(4, seed=3):
         tau = np.random.default_rng(4).normal(size=9)
@@ -198,15 +209,12 @@ def test_planner_runs_interpreted_without_a_compiler(monkeypatch) -> None:
     from sixplus3.planner import codegen, ocp
 
     monkeypatch.setenv("SIXPLUS3_NO_CODEGEN", "1")
-    codegen.compiled_functions.cache_clear()
     monkeypatch.setattr(ocp, "_TEMPLATES", {})
-    try:
-        tiny = {"waypoints": [{"position": [0, 0, 0.30]}, {"position": [0.02, 0, 0.31]}],
-                "nodes_per_segment": 4}
-        sol = plan(task_from_dict(tiny), PlannerOptions(lock_redundancy=True))
-        assert sol.is_feasible() and sol.check.max_torque_ratio > 0.5
-    finally:
-        codegen.compiled_functions.cache_clear()
+    assert codegen.compiled_functions(ROBOT) == {}
+    tiny = {"waypoints": [{"position": [0, 0, 0.30]}, {"position": [0.02, 0, 0.31]}],
+            "nodes_per_segment": 4}
+    sol = plan(task_from_dict(tiny), options=PlannerOptions(lock_redundancy=True))
+    assert sol.is_feasible() and sol.check.max_torque_ratio > 0.5
 
 
 def test_a_waypoint_with_interfering_legs_is_refused() -> None:
@@ -214,7 +222,7 @@ def test_a_waypoint_with_interfering_legs_is_refused() -> None:
     task = task_from_dict({"waypoints": [{"position": [0, 0, 0.30]},
                                          {"position": [0, 0, 0.30], "rpy": [0, 170, 0]}]})
     with pytest.raises(InfeasibleTaskError) as err:
-        plan(task, PlannerOptions(lock_redundancy=True))
+        plan(task, options=PlannerOptions(lock_redundancy=True))
     assert err.value.limit == "leg interference" and err.value.waypoint == 1
     cfg = robot_ik(np.array([0, 0, 0.30]), Rotation.from_euler("y", 170, degrees=True)
                    .as_matrix(), np.full((1, 3), math.pi / 2))
@@ -226,23 +234,22 @@ def test_largest_tilt_is_the_edge_of_the_static_feasible_set() -> None:
     limit it names; with a 1 N m torque limit the locked cranks stop at the torque limit
     (checked with Pinocchio's gravity torques) while free cranks tilt much further."""
     from sixplus3.planner.analysis import largest_tilt, static_feasible
-    from sixplus3.planner.task import Limits
-
+    
     dyn = ClosedLoopDynamics()
     home_p = np.array([0.0, 0.0, 0.30])
 
     def pose(axis, deg):
         return Rotation.from_rotvec(np.radians(deg) * np.eye(3)["xy".index(axis)]).as_matrix()
 
-    r = largest_tilt("y", locked=True, max_deg=179.0, resolution_deg=1.0)
+    r = largest_tilt(ROBOT, "y", locked=True, max_deg=179.0, resolution_deg=1.0)
     assert r.binding == "leg interference" and 90.0 < r.tilt_deg < 179.0
-    assert static_feasible(home_p, pose("y", r.tilt_deg), Limits(), True)[0]
-    beyond = static_feasible(home_p, pose("y", r.tilt_deg + 1.0), Limits(), True)
+    assert static_feasible(ROBOT, home_p, pose("y", r.tilt_deg), ROBOT.limits, True)[0]
+    beyond = static_feasible(ROBOT, home_p, pose("y", r.tilt_deg + 1.0), ROBOT.limits, True)
     assert not beyond[0] and beyond[4] == "leg interference"
 
-    weak = Limits(torque=1.0)
-    locked = largest_tilt("x", locked=True, limits=weak, max_deg=90.0, resolution_deg=1.0)
-    free = largest_tilt("x", locked=False, limits=weak, max_deg=90.0, resolution_deg=1.0)
+    weak = ROBOT.limits.tightened(torque=1.0)
+    locked = largest_tilt(ROBOT, "x", locked=True, limits=weak, max_deg=90.0, resolution_deg=1.0)
+    free = largest_tilt(ROBOT, "x", locked=False, limits=weak, max_deg=90.0, resolution_deg=1.0)
     assert locked.binding == "torque" and 0.0 < locked.tilt_deg < 89.0
     assert free.tilt_deg >= locked.tilt_deg + 20.0
     for deg, below in ((locked.tilt_deg, True), (locked.tilt_deg + 1.0, False)):

@@ -9,8 +9,8 @@ import pytest
 import yourdfpy
 
 from sixplus3.robot_description import urdf as gen
-from sixplus3.robot_description.model import load_model, load_model_from, parse_closures
-from sixplus3.robot_description.robot import POINT_MASS, MassModel, RobotGeometry
+from sixplus3.robot_description.model import load_model_from, parse_closures
+from sixplus3.robot_description.robot import POINT_MASS, MassModel, Robot, RobotGeometry
 from sixplus3.errors import GeometryError, InputError
 
 
@@ -33,7 +33,7 @@ def test_urdf_validates_in_yourdfpy() -> None:
 
 
 def test_pinocchio_model_dimensions_and_closures() -> None:
-    clm = load_model()
+    clm = Robot.default().closed_loop_model()
     m = clm.model
     assert (m.nq, m.nv) == (37, 36)  # free-flyer platform (7/6) + 30 revolute joints
     assert clm.actuated_names == gen.actuated_joint_names()
@@ -45,9 +45,9 @@ def test_pinocchio_model_dimensions_and_closures() -> None:
 
 
 def test_masses_match_the_mass_model() -> None:
-    assert load_model().total_mass() == pytest.approx(MassModel().total, abs=1e-9)
+    assert Robot.default().closed_loop_model().total_mass() == pytest.approx(MassModel().total, abs=1e-9)
     assert MassModel().leg_total == pytest.approx(0.5)
-    pm = load_model(point_mass=True)
+    pm = Robot.default().replace(masses=POINT_MASS).closed_loop_model()
     assert pm.total_mass() == pytest.approx(1.5)
     leg_bodies = [pm.model.inertias[pm.model.getJointId(f"leg{i}_Ds3")] for i in range(3)]
     for inertia in leg_bodies:

@@ -11,15 +11,13 @@ from scipy.spatial.transform import Rotation
 
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.kinematics.robot import (
-    HOME_PSI,
     home,
     robot_fk,
     robot_ik,
     robot_ik_pose,
     spherical_tilts,
 )
-from sixplus3.robot_description.model import load_model
-from sixplus3.robot_description.robot import RobotGeometry
+from sixplus3.robot_description.robot import Robot, RobotGeometry
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError
 
 GEOM = RobotGeometry()
@@ -35,7 +33,7 @@ def random_poses(n: int, seed: int, tilt: float = 0.5):
 
 
 def test_ik_closes_all_27_closures_in_pinocchio() -> None:
-    clm = load_model()
+    clm = Robot.default().closed_loop_model()
     pos, R, psi = random_poses(60, seed=1)
     cfg = robot_ik(pos, R, psi)
     assert cfg.ok.sum() >= 50
@@ -65,11 +63,11 @@ def test_unreachable_pose_names_the_leg_and_chain() -> None:
     with pytest.raises(InputError):
         robot_ik_pose((0.0, np.nan, 0.3))
     with pytest.raises(InputError, match="orthonormal"):
-        robot_ik(np.zeros(3) + [0, 0, 0.3], 2 * np.eye(3), HOME_PSI)
+        robot_ik(np.zeros(3) + [0, 0, 0.3], 2 * np.eye(3), Robot.default().home_psi)
 
 
 def test_fk_recovers_pose_from_a_perturbed_hint() -> None:
-    clm = load_model()
+    clm = Robot.default().closed_loop_model()
     pos, R, psi = random_poses(10, seed=3, tilt=0.3)
     cfg = robot_ik(pos, R, psi)
     rng = np.random.default_rng(3)

@@ -17,17 +17,18 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sixplus3.kinematics.robot import robot_ik
-from sixplus3.robot_description.urdf import URDF_PATH
+from sixplus3.robot_description.robot import Robot
 
 
 @dataclass(frozen=True)
 class Frames:
+    robot: Robot
     q: np.ndarray  # (F, nq)
     fps: float
     slowdown: float  # animation time / real time
 
 
-def frames_from_samples(t, position, quaternion, psi, fps: float = 30.0,
+def frames_from_samples(robot: Robot, t, position, quaternion, psi, fps: float = 30.0,
                         min_seconds: float = 3.0) -> Frames:
     """Tree configurations at ``fps``, slowed down so the animation lasts >= min_seconds."""
     duration = float(t[-1])
@@ -35,34 +36,46 @@ def frames_from_samples(t, position, quaternion, psi, fps: float = 30.0,
     n = max(2, int(round(duration * slowdown * fps)) + 1)
     ts = np.linspace(0.0, duration, n)
     idx = np.clip(np.searchsorted(t, ts), 0, len(t) - 1)
-    cfg = robot_ik(position[idx], Rotation.from_quat(quaternion[idx]).as_matrix(), psi[idx])
-    return Frames(cfg.q, fps, slowdown)
+    cfg = robot_ik(position[idx], Rotation.from_quat(quaternion[idx]).as_matrix(), psi[idx],
+                   robot)
+    return Frames(robot, cfg.q, fps, slowdown)
 
 
 @functools.lru_cache(maxsize=1)
-def _viewer():
+def _server():
+    """The one meshcat server of this process (meshcat-python #87)."""
     import meshcat
+
+    vis = meshcat.Visualizer()
+    # camera ~1 m from the base centre (meshcat's camera frame is y-up)
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [0.75, 0.55, 0.75])
+    return vis
+
+
+_LOADED: dict[str, object] = {}
+
+
+def _viewer(robot: Robot):
+    """The server with ``robot`` loaded (its URDF visuals; reloaded for another robot)."""
     import pinocchio as pin
     from pinocchio.visualize import MeshcatVisualizer
 
-    from sixplus3.robot_description.model import load_model
-
-    model = load_model().model
-    visual = pin.buildGeomFromUrdf(model, str(URDF_PATH), pin.GeometryType.VISUAL)
-    vis = meshcat.Visualizer()
-    viz = MeshcatVisualizer(model, visual, visual)
-    viz.initViewer(viewer=vis)
-    viz.loadViewerModel(rootNodeName="sixplus3")
-    # camera ~1 m from the base centre (meshcat's camera frame is y-up)
-    vis["/Cameras/default/rotated/<object>"].set_property("position", [0.75, 0.55, 0.75])
-    return vis, viz
+    vis = _server()
+    if _LOADED.get("hash") != robot.hash:
+        model = robot.closed_loop_model().model
+        visual = pin.buildGeomFromUrdfString(model, robot.urdf(), pin.GeometryType.VISUAL)
+        viz = MeshcatVisualizer(model, visual, visual)
+        viz.initViewer(viewer=vis)
+        viz.loadViewerModel(rootNodeName="sixplus3")
+        _LOADED.update(hash=robot.hash, viz=viz)
+    return vis, _LOADED["viz"]
 
 
 def animate(frames: Frames):
     """Load the animation into the (single) viewer; returns the meshcat Visualizer."""
     import meshcat.animation
 
-    vis, viz = _viewer()
+    vis, viz = _viewer(frames.robot)
     anim = meshcat.animation.Animation(default_framerate=frames.fps)
     try:
         for i, q in enumerate(frames.q):
@@ -78,7 +91,7 @@ def animate(frames: Frames):
 
 def write_html(frames: Frames, out: str | Path) -> Path:
     """A self-contained page (JS inlined, no network) with the animation; atomic."""
-    from sixplus3.control.trajectory_file import atomic_write
+    from sixplus3.fileio import atomic_write
 
     vis = animate(frames)
     out = Path(out)
@@ -87,5 +100,4 @@ def write_html(frames: Frames, out: str | Path) -> Path:
 
 
 def viewer_url() -> str:
-    vis, _ = _viewer()
-    return vis.url()
+    return _server().url()

@@ -8,6 +8,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sixplus3.kinematics.robot import robot_ik
+from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
 
 
@@ -21,8 +22,8 @@ def _save(fig, path: Path) -> str:
     return str(path)
 
 
-def plot_trajectory(out_dir: str | Path, t, theta, tau, position, quaternion, psi,
-                    torque_limit: float, margin: float, title: str = "") -> list[str]:
+def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, quaternion,
+                    psi, torque_limit: float, margin: float, title: str = "") -> list[str]:
     """Write torques.png, margins.png and joints.png into ``out_dir``."""
     import matplotlib
 
@@ -44,7 +45,7 @@ def plot_trajectory(out_dir: str | Path, t, theta, tau, position, quaternion, ps
     ax.legend(ncol=5, fontsize=7)
     files.append(_save(fig, out / "torques.png"))
 
-    cfg = robot_ik(position, Rotation.from_quat(quaternion).as_matrix(), psi)
+    cfg = robot_ik(position, Rotation.from_quat(quaternion).as_matrix(), psi, robot)
     fig, ax = plt.subplots(figsize=(9, 4.8))
     for i in range(3):
         ax.plot(t, cfg.margins.leg_type1[:, i], lw=1.0, label=f"leg {i} type I")

@@ -1,4 +1,4 @@
-"""Text report of the default leg design (the main job until the planner exists)."""
+"""Text report of a robot's leg design: sample configurations and the usable area."""
 
 from __future__ import annotations
 
@@ -7,18 +7,24 @@ import math
 import numpy as np
 
 from sixplus3.design.workspace import THETA_MAX, usable_area
-from sixplus3.kinematics.leg import DEFAULT_MODE, leg_ik
-from sixplus3.robot_description.geometry import LegGeometry, LegLoad
+from sixplus3.errors import InputError
+from sixplus3.kinematics.leg import leg_ik
+from sixplus3.robot_description.geometry import LegLoad
+from sixplus3.robot_description.robot import Robot
 
 
-def leg_report(geometry: LegGeometry | None = None, ws_step: float = 0.005) -> str:
-    """Sample configurations and the usable half-plane area of a leg design."""
-    geometry = geometry or LegGeometry()
-    load = LegLoad()
+def leg_report(robot: Robot | None = None, ws_step: float = 0.005) -> str:
+    """Sample configurations and the usable half-plane area of the robot's leg design."""
+    robot = robot or Robot.default()
+    if not (math.isfinite(ws_step) and 0.0005 <= ws_step <= 0.05):
+        raise InputError(f"ws_step must be in [0.0005, 0.05] m, got {ws_step!r}",
+                         value=ws_step, valid="[0.0005, 0.05] m")
+    geometry, mode = robot.leg, robot.mode
+    load = LegLoad(torque_limit=robot.limits.torque)
     lines = [
-        "sixplus3 leg report (paper defaults, SPEC.md conventions)",
+        f"sixplus3 leg report: {robot.summary()}",
         "  geometry [m]: " + ", ".join(f"{k}={v:g}" for k, v in geometry.as_dict().items()),
-        f"  assembly mode {DEFAULT_MODE.name}; load {load.mass} kg at P, "
+        f"  assembly mode {mode.name}; load {load.mass} kg at P, "
         f"{load.accel_g:g} g in any direction, limit {load.torque_limit:g} N m",
         "",
         "  p (leg frame) [m]          theta [deg]                margins I/II   tau_ext [N m]",
@@ -32,7 +38,7 @@ def leg_report(geometry: LegGeometry | None = None, ws_step: float = 0.005) -> s
         [0.0, 0.30, 0.30],
         [0.0, 0.20, -0.05],
     ])
-    st = leg_ik(samples, geometry, DEFAULT_MODE, load)
+    st = leg_ik(samples, geometry, mode, load)
     sing = st.singularity()
     for i, p in enumerate(samples):
         if not st.ok[i]:
@@ -43,12 +49,12 @@ def leg_report(geometry: LegGeometry | None = None, ws_step: float = 0.005) -> s
             f"  ({p[0]:+.3f}, {p[1]:+.3f}, {p[2]:+.3f})  {th}   "
             f"{st.margin_I[i]:.3f}/{st.margin_II[i]:.3f}   {st.tau_ext[i]:8.3f}  {sing[i]}"
         )
-    rep = usable_area(geometry, ws_step, DEFAULT_MODE, load)
+    rep = usable_area(geometry, ws_step, mode, load)
     lines += [
         "",
         f"  design half-plane z = 0, y >= 0 (grid {ws_step * 1000:g} mm):",
         f"    reachable disk          {rep.disk_area:.5f} m^2",
-        f"    solved in mode {DEFAULT_MODE.name}    {rep.reachable_area:.5f} m^2",
+        f"    solved in mode {mode.name}    {rep.reachable_area:.5f} m^2",
         f"    0 <= theta <= {math.degrees(THETA_MAX):.0f} deg    {rep.theta_ok_area:.5f} m^2",
         f"    and tau_ext <= {load.torque_limit:g} N m  {rep.usable_area:.5f} m^2"
         "  (the paper's design objective)",

@@ -1,0 +1,73 @@
+"""The one limit rule: the extremes of a sampled motion against a robot's limits.
+
+Both independent checks apply it: the planner's dense re-check
+(:func:`sixplus3.planner.ocp.dense_check`) and the file validation
+(:mod:`sixplus3.control.validation`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sixplus3.kinematics.robot import RobotConfig, leg_clearance, spherical_tilts
+from sixplus3.robot_description.limits import Limits
+
+
+@dataclass(frozen=True)
+class LimitMeasures:
+    """Extremes of a sampled motion against the limits, and the limits it violates."""
+
+    max_torque_ratio: float  # max |tau| / limit
+    max_velocity_ratio: float
+    max_acceleration_ratio: float
+    min_margin_leg_type1: float
+    min_margin_leg_type2: float
+    min_margin_platform: float
+    min_leg_clearance: float  # [m] between links of different legs (capsules)
+    max_spherical_tilt: float  # [rad]
+    theta_range_ok: bool
+    violations: list[str]
+
+
+def measure_limits(cfg: RobotConfig, tau: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
+                   theta_ddot: np.ndarray, limits: Limits) -> LimitMeasures:
+    """The one rule both independent checks apply (the planner's dense re-check and the
+    file validation): torques, actuated rates and accelerations against their limits,
+    the numeric singularity margins of ``cfg`` (a batched RobotConfig), leg clearance,
+    spherical-joint tilts and the actuated range.  Each violation is one
+    message starting with the limit's name (the planner tightens by that name)."""
+    torque = float(np.abs(tau).max() / limits.torque)
+    vel = float(np.abs(theta_dot).max() / limits.velocity)
+    acc = float(np.abs(theta_ddot).max() / limits.acceleration)
+    m = cfg.margins
+    m1, m2, mp = float(m.leg_type1.min()), float(m.leg_type2.min()), float(m.platform.min())
+    clearance = float(leg_clearance(cfg).min())
+    tilt = float(spherical_tilts(cfg).max())
+    theta_ok = bool(np.all((theta >= limits.theta_min - 1e-9)
+                           & (theta <= limits.theta_max + 1e-9)))
+    violations = []
+    if torque > 1.0:
+        violations.append(f"torque {torque * limits.torque:.3f} N m > {limits.torque:g} N m")
+    if vel > 1.0 + 1e-9:
+        violations.append(f"velocity {vel * limits.velocity:.3f} rad/s > "
+                          f"{limits.velocity:g} rad/s")
+    if acc > 1.0 + 1e-9:
+        violations.append(f"acceleration {acc * limits.acceleration:.1f} rad/s^2 > "
+                          f"{limits.acceleration:g} rad/s^2")
+    for name, val in (("leg type I margin", m1), ("leg type II margin", m2),
+                      ("platform margin", mp)):
+        if val < limits.margin:
+            violations.append(f"{name} {val:.4f} < {limits.margin:g}")
+    if clearance < 0.0:
+        violations.append(f"leg interference: links of different legs overlap by "
+                          f"{-clearance * 1e3:.1f} mm")
+    if tilt > limits.spherical:
+        violations.append(f"spherical joint at {math.degrees(tilt):.1f} deg > "
+                          f"{math.degrees(limits.spherical):g} deg")
+    if not theta_ok:
+        violations.append(f"an actuated angle leaves [{math.degrees(limits.theta_min):g}, "
+                          f"{math.degrees(limits.theta_max):g}] deg")
+    return LimitMeasures(torque, vel, acc, m1, m2, mp, clearance, tilt, theta_ok, violations)

@@ -1,0 +1,111 @@
+"""Limits of the robot: the hardware's, and the tightened ones a task may ask for.
+
+The robot's hardware limits (:attr:`sixplus3.robot_description.Robot.limits`) are the
+authority.  A task or a trajectory file may only *tighten* them
+(:meth:`Limits.tightened`): a looser, non-finite or non-positive value is refused with a
+:class:`~sixplus3.errors.LimitError` naming the limit and its valid range.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields
+
+from sixplus3.errors import LimitError
+
+#: Joint speed limit [rad/s]: 300 rpm rated motor speed through the 72/34 belt.
+VELOCITY_LIMIT = 300.0 * 2.0 * math.pi / 60.0 * 34.0 / 72.0
+
+
+def _lim(default: float, doc: str, unit: str):
+    return field(default=default, metadata={"doc": doc, "unit": unit})
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Every limit a motion of the robot must respect (SI units)."""
+
+    torque: float = _lim(10.0, "|tau| of every actuated joint (5 N m motors x 72/34 belts, "
+                         "limited to 10)", "N m")
+    velocity: float = _lim(VELOCITY_LIMIT, "|theta_dot| of every actuated joint", "rad/s")
+    acceleration: float = _lim(200.0, "|theta_ddot| of every actuated joint (a comfort "
+                               "limit for pHRI; no datasheet value)", "rad/s^2")
+    margin: float = _lim(0.05, "smallest admissible singularity margin (leg type I/II, "
+                         "platform; scale-free, 0 singular .. 1 ideal)", "1")
+    theta_min: float = _lim(0.0, "lower end of the actuated range", "rad")
+    theta_max: float = _lim(1.5 * math.pi, "upper end of the actuated range: (270, 360) "
+                            "deg hits the base plate (paper §V-A)", "rad")
+    spherical: float = _lim(math.radians(150.0), "largest tilt of every spherical joint "
+                            "from its mounting axis", "rad")
+
+    #: limits where a smaller value is tighter (the others: margin larger, theta range
+    #: narrower)
+    UPPER = ("torque", "velocity", "acceleration", "spherical")
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise LimitError(f.name, v, f"a finite number [{f.metadata['unit']}]")
+            v = float(v)
+            if not math.isfinite(v):
+                raise LimitError(f.name, v, f"finite [{f.metadata['unit']}]")
+            object.__setattr__(self, f.name, v)
+        for name in self.UPPER:
+            if getattr(self, name) <= 0.0:
+                raise LimitError(name, getattr(self, name), "> 0")
+        if self.spherical > math.pi:
+            raise LimitError("spherical", self.spherical, "in (0, pi] rad")
+        if not 0.0 < self.margin < 1.0:
+            raise LimitError("margin", self.margin, "in (0, 1)")
+        if not (-math.pi <= self.theta_min < self.theta_max <= 2.0 * math.pi):
+            raise LimitError("theta_min/theta_max", (self.theta_min, self.theta_max),
+                             "-pi <= theta_min < theta_max <= 2 pi rad")
+
+    def tightened(self, **values: float | None) -> Limits:
+        """These limits with some tightened; ``None`` keeps a value.
+
+        Raises :class:`LimitError` for an unknown name, a non-finite or non-positive
+        value, or a value looser than this one (the hardware is the authority).
+        """
+        names = {f.name for f in fields(self)}
+        new = {}
+        for name, v in values.items():
+            if name not in names:
+                raise LimitError(name, v, f"one of {sorted(names)}", "unknown limit")
+            if v is None:
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise LimitError(name, v, f"a finite number [{self.unit(name)}]")
+            v = float(v)
+            hw = getattr(self, name)
+            if name in self.UPPER and not 0.0 < v <= hw:
+                raise LimitError(name, v, f"in (0, {hw:g}] {self.unit(name)}",
+                                 "a task may only tighten the robot's hardware limit")
+            if name == "margin" and not hw <= v < 1.0:
+                raise LimitError(name, v, f"in [{hw:g}, 1)",
+                                 "a task may only tighten the robot's margin")
+            if name == "theta_min" and v < hw:
+                raise LimitError(name, v, f">= {hw:g} rad", "only a narrower actuated range")
+            if name == "theta_max" and v > hw:
+                raise LimitError(name, v, f"<= {hw:g} rad", "only a narrower actuated range")
+            new[name] = v
+        return Limits(**{**asdict(self), **new})
+
+    def within(self, hardware: Limits) -> bool:
+        """Whether every limit here is at least as tight as ``hardware``'s."""
+        try:
+            hardware.tightened(**asdict(self))
+        except LimitError:
+            return False
+        return True
+
+    @staticmethod
+    def unit(name: str) -> str:
+        for f in fields(Limits):
+            if f.name == name:
+                return str(f.metadata["unit"])
+        return ""
+
+    def as_dict(self) -> dict[str, float]:
+        return asdict(self)

@@ -1,0 +1,126 @@
+"""Reading user files safely: size cap, UTF-8, bounded YAML aliases, no duplicate keys.
+
+Every YAML a user hands to sixplus3 (tasks, robots, closures) goes through
+:func:`read_yaml`.  What it refuses, each with an :class:`~sixplus3.errors.InputError`
+naming the file and the valid range:
+
+- files larger than ``max_bytes`` (default 1 MiB);
+- bytes that are not UTF-8 (e.g. a Latin-1 file);
+- more than ``max_aliases`` YAML aliases (a "billion laughs" bomb is a few hundred bytes);
+- a mapping with the same key twice (YAML says it is an error; PyYAML keeps the last);
+- anything but plain data (PyYAML's safe loader: no Python objects).
+
+Atomic writes of one file live here too (:func:`atomic_write`).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from sixplus3.errors import InputError
+
+MAX_BYTES = 1 << 20
+MAX_ALIASES = 100
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that counts aliases and refuses duplicate mapping keys."""
+
+    max_aliases = MAX_ALIASES
+
+    def __init__(self, stream: str) -> None:
+        super().__init__(stream)
+        self._aliases = 0
+
+    def compose_node(self, parent, index):  # type: ignore[no-untyped-def]
+        if self.check_event(yaml.AliasEvent):
+            self._aliases += 1
+            if self._aliases > self.max_aliases:
+                event = self.peek_event()
+                raise yaml.YAMLError(f"more than {self.max_aliases} aliases (line "
+                                     f"{event.start_mark.line + 1}); expand them by hand")
+        return super().compose_node(parent, index)
+
+    def construct_mapping(self, node, deep=False):  # type: ignore[no-untyped-def]
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            try:
+                hash(key)
+            except TypeError:
+                raise yaml.YAMLError(f"unhashable mapping key at line "
+                                     f"{key_node.start_mark.line + 1}") from None
+            if key in seen:
+                raise yaml.YAMLError(f"duplicate key {key!r} at line "
+                                     f"{key_node.start_mark.line + 1}")
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
+_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
+                        _Loader.construct_mapping)
+
+
+def read_text(path: str | Path, what: str, max_bytes: int = MAX_BYTES) -> str:
+    """The UTF-8 text of a user file of at most ``max_bytes``; raises InputError."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read(max_bytes + 1)
+    except OSError as exc:
+        raise InputError(f"cannot read {what} {path}: {exc.strerror or exc}") from exc
+    if len(raw) > max_bytes:
+        raise InputError(f"{what} {path} is larger than {max_bytes} bytes", value=len(raw),
+                         valid=f"<= {max_bytes} bytes")
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{what} {path} is not UTF-8 text (byte {exc.start}: "
+                         f"{raw[exc.start:exc.start + 1]!r}); save it as UTF-8",
+                         valid="UTF-8 text") from exc
+
+
+def parse_yaml(text: str, what: str, max_aliases: int = MAX_ALIASES) -> Any:
+    """Plain data from YAML text with bounded aliases and unique keys."""
+    loader = _Loader(text)
+    loader.max_aliases = max_aliases
+    try:
+        return loader.get_single_data()
+    except yaml.YAMLError as exc:
+        first = str(exc).strip().splitlines()
+        msg = " ".join(line.strip() for line in first[:3])[:300]
+        raise InputError(f"{what} is not valid YAML: {msg}", valid="YAML") from None
+    finally:
+        loader.dispose()
+
+
+def read_yaml(path: str | Path, what: str = "file", max_bytes: int = MAX_BYTES,
+              max_aliases: int = MAX_ALIASES) -> Any:
+    """Plain data from a YAML (or JSON) user file; raises InputError."""
+    return parse_yaml(read_text(path, what, max_bytes), f"{what} {Path(path)}", max_aliases)
+
+
+def short_repr(value: object, limit: int = 80) -> str:
+    """repr cut to ``limit`` characters (error messages never echo a whole document)."""
+    r = repr(value)
+    return r if len(r) <= limit else r[:limit - 3] + "..."
+
+
+def atomic_write(path: str | Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` so that an interruption leaves no partial file: a
+    temporary file in the same directory, flushed and fsynced, then renamed over it."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
