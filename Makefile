@@ -30,7 +30,12 @@ compiler:
 	  echo "installing Debian's gcc for the planner's compiled functions"; \
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq gcc >/dev/null; }
 
-test: $(STAMP) chromium compiler
+# ruff and mypy (over the installed namespace, scripts/typecheck.py) run with the tests.
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/python scripts/typecheck.py
+
+test: $(STAMP) chromium compiler lint
 	$(BIN)/python -m pytest -q
 
 bench: $(STAMP)
@@ -42,10 +47,6 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_planner_random.py
 	$(BIN)/python benchmarks/bench_planner_random.py --locked
 	$(BIN)/python benchmarks/toppra_convergence.py
-
-lint: $(STAMP)
-	$(BIN)/python -m pip install --quiet ruff
-	$(BIN)/ruff check .
 
 clean:
 	rm -rf $(VENV) .pytest_cache

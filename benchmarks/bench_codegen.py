@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from sixplus3.planner import codegen
-from sixplus3.planner.model import symbolic_robot
+from sixplus3.robot_description.robot import Robot
 
 
 def per_call(f, args, repeat: int) -> float:
@@ -34,18 +34,17 @@ def main() -> None:
     ap.add_argument("--no-compile", action="store_true",
                     help="use the cached library instead of timing a fresh compilation")
     args = ap.parse_args()
-    sr = symbolic_robot()
+    robot = Robot.default()
+    sr = robot.symbolic()
     if not args.no_compile:
         with tempfile.TemporaryDirectory() as tmp:
             os.environ["SIXPLUS3_CACHE"] = tmp
-            codegen.compiled_functions.cache_clear()
             t0 = time.perf_counter()
-            codegen.compiled_functions("++++")
+            codegen._compiled(robot)  # uncached: generate and compile into tmp
             print(f"generate + compile (gcc {' '.join(codegen.CFLAGS)}): "
                   f"{time.perf_counter() - t0:.1f} s")
         del os.environ["SIXPLUS3_CACHE"]
-        codegen.compiled_functions.cache_clear()
-    node_c = codegen.compiled_functions("++++")["node"]
+    node_c = codegen.compiled_functions(robot)["node"]
     n = 41
     rng = np.random.default_rng(0)
     x = np.tile(np.r_[0.0, 0.0, 0.30, 0.1, -0.1, 0.05, 1.5, 1.6, 1.4][:, None], (1, n))

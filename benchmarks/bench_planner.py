@@ -30,7 +30,7 @@ from sixplus3.planner.toppra_baseline import toppra_along
 
 def run(task, locked: bool):
     try:
-        return Problem(task, PlannerOptions(lock_redundancy=locked)).solve()
+        return Problem(task, options=PlannerOptions(lock_redundancy=locked)).solve()
     except InfeasibleTaskError as exc:
         print(f"  {task.name} locked={locked}: infeasible: {exc}", flush=True)
         return None
@@ -43,7 +43,7 @@ def locked_path_note(sol, task) -> str:
     cfg = robot_ik(x[:, 0:3], Rotation.from_rotvec(x[:, 3:6]).as_matrix(),
                    np.full((len(t), 3), np.pi / 2))
     worst = cfg.margins.minimum.min() if cfg.ok.all() else -1.0
-    return "" if worst >= task.limits.margin else f" (margin {worst:.3f} on it)"
+    return "" if worst >= sol.limits.margin else f" (margin {worst:.3f} on it)"
 
 
 def planned_tilt(axis: str, locked: bool, static_deg: float) -> str:
@@ -59,7 +59,7 @@ def planned_tilt(axis: str, locked: bool, static_deg: float) -> str:
                                              {"position": [0, 0, 0.30], "rpy": angles},
                                              {"position": [0, 0, 0.30]}]})
         try:
-            sol = Problem(task, PlannerOptions(lock_redundancy=locked)).solve()
+            sol = Problem(task, options=PlannerOptions(lock_redundancy=locked)).solve()
             if sol.is_feasible():
                 return (f"{deg:g} deg in {sol.final_time:.4f} s (solve {sol.solve_time:.2f} s, "
                         f"max|tau|/lim {sol.check.max_torque_ratio:.3f}, margin "
@@ -100,12 +100,12 @@ def main() -> None:
                 row.append("(same)")
             else:  # the redundancy-less baseline: this platform path, cranks at 90 deg
                 try:
-                    tl = toppra_along(s, task.limits, args.gridpoints, cranks=np.pi / 2)
+                    tl = toppra_along(s, s.limits, args.gridpoints, cranks=np.pi / 2)
                     row.append(f"{tl:.4f}{locked_path_note(s, task)}")
                 except RuntimeError:
                     row.append("no parametrisation")
             try:  # the certificate: TOPP-RA along our own path, cranks as planned
-                tc = toppra_along(s, task.limits, args.gridpoints)
+                tc = toppra_along(s, s.limits, args.gridpoints)
                 row += [f"{tc:.4f}", f"{s.final_time / tc:.3f}"]
             except RuntimeError:
                 row += ["no parametrisation", ""]
@@ -119,7 +119,7 @@ def main() -> None:
           "clearance):")
     for axis in ("x", "y"):
         for locked in (False, True):
-            r = largest_tilt(axis, locked, max_deg=179.0)
+            r = largest_tilt(None, axis, locked, max_deg=179.0)
             print(f"  about {axis}, redundancy {'locked' if locked else 'free  '}: "
                   f"{r.tilt_deg:.1f} deg (psi {r.psi_deg} deg, margin {r.min_margin:.3f}, "
                   f"|tau_g| {r.max_gravity_torque:.2f} N m; beyond: "

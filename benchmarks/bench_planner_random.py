@@ -45,7 +45,7 @@ def main() -> None:
         task = task_from_dict(random_task(rng, k))
         t0 = time.perf_counter()
         try:
-            sol = Problem(task, PlannerOptions(lock_redundancy=args.locked)).solve()
+            sol = Problem(task, options=PlannerOptions(lock_redundancy=args.locked)).solve()
             if sol.is_feasible():
                 outcome["planned"] += 1
                 solves.append(sol.solve_time)

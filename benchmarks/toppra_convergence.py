@@ -32,9 +32,9 @@ def main() -> None:
     print("| --- | ---: | " + " | ".join("---:" for _ in GRIDS) + " |")
     for name in args.tasks:
         task = load_task(root / f"{name}.yaml")
-        sol = Problem(task, PlannerOptions(lock_redundancy=not args.free)).solve()
+        sol = Problem(task, options=PlannerOptions(lock_redundancy=not args.free)).solve()
         speed = np.linalg.norm(sol.xd, axis=1)
-        ratios = [sol.final_time / toppra_along(sol, task.limits, gp) for gp in GRIDS]
+        ratios = [sol.final_time / toppra_along(sol, sol.limits, gp) for gp in GRIDS]
         print(f"| {name} {'free' if args.free else 'locked'} | "
               f"{speed[1:-1].min() / speed.max():.3f} | "
               + " | ".join(f"{r:.3f}" for r in ratios) + " |", flush=True)

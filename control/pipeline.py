@@ -63,6 +63,7 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
         f"{task.n_segments * task.nodes_per_segment} intervals) ...")
     sol = plan(task, robot, options)
     secs["plan"] = time.perf_counter() - t0
+    assert sol.check is not None  # plan() returns only checked plans
     say(f"  planned: {sol.final_time:.4f} s motion, {sol.solves} NLP solve(s), IPOPT "
         f"{sol.iterations} iterations in the last, {sol.solve_time:.2f} s; 10x re-check: "
         f"max|tau| {sol.check.max_torque_ratio:.3f} of the limit, min margin "

@@ -21,7 +21,6 @@ import hashlib
 import io
 import json
 import math
-import os
 from dataclasses import asdict
 from pathlib import Path
 
@@ -123,7 +122,7 @@ def _robot_diff(a: dict, b: dict, where: str = "") -> str:
     return ""
 
 
-def read_trajectory(csv_path: Path, robot: Robot | None = None) -> tuple[dict, np.ndarray]:
+def read_trajectory(csv_path: str | Path, robot: Robot | None = None) -> tuple[dict, np.ndarray]:
     """Load and format-check a trajectory made for ``robot`` (default
     ``Robot.default()``); raises :class:`TrajectoryFileError`."""
     robot = robot or Robot.default()

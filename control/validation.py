@@ -11,11 +11,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
-
-from pathlib import Path
 
 from sixplus3.control.trajectory_file import columns, read_trajectory
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
@@ -46,6 +45,9 @@ class ValidationReport:
     psi: np.ndarray | None = None  # (M, 3) [rad]
     feedforward_error: float | None = None  # max |tau_file - tau| [N m] (validate_file)
     duration: float | None = None  # [s] (validate_file)
+    header: dict | None = field(default=None, repr=False)  # the header read (validate_file)
+    #: the samples validated, exactly as read from the file (validate_file): send these
+    data: np.ndarray | None = field(default=None, repr=False)
 
     def summary(self) -> dict:
         keys = ("ok", "samples", "max_torque_ratio", "max_velocity_ratio",
@@ -113,7 +115,7 @@ def validate_file(path: str | Path, robot: Robot | None = None) -> ValidationRep
     violated.  The limits are the robot's hardware limits, never the file's.
     """
     robot = robot or Robot.default()
-    header, data = read_trajectory(path, robot)
+    header, data = read_trajectory(Path(path), robot)
     cfg0 = robot_ik(data[0, 37:40], Rotation.from_quat(data[0, 40:44]).as_matrix(),
                     data[0, 44:47], robot)
     if not cfg0.ok[0]:
@@ -124,6 +126,7 @@ def validate_file(path: str | Path, robot: Robot | None = None) -> ValidationRep
     ff_err = float(np.abs(rep.tau - tau_file).max()) if rep.tau is not None else math.inf
     rep.feedforward_error = ff_err
     rep.duration = float(data[-1, 0])
+    rep.header, rep.data = header, data
     if ff_err > 1e-6 * max(1.0, robot.limits.torque):
         rep.violations.append(f"feed-forward torques differ from the recomputed ones by "
                               f"{ff_err:.2e} N m")

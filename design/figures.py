@@ -19,7 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.design.cow import JOINT_RESOLUTION, LIMIT_SETS, PAPER_RATIO, compute_cow, encoder_resolution
+from sixplus3.design.cow import (
+    JOINT_RESOLUTION,
+    LIMIT_SETS,
+    PAPER_RATIO,
+    compute_cow,
+    encoder_resolution,
+)
 from sixplus3.design.search import PAPER_DESIGN, Reading
 from sixplus3.design.workspace import counted_reading, halfplane_grid
 from sixplus3.kinematics.leg import leg_ik

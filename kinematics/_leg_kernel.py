@@ -410,13 +410,6 @@ def eval_into(points, geo, mode, mass_g, accel_g, margin_ii, res):
             res[i, E_TAU_EXT] = row[TAU_EXT]
 
 
-def eval_batch(points, geo, mode, mass_g, accel_g, margin_ii=True):
-    """:func:`eval_into` with a freshly allocated output."""
-    res = np.empty((points.shape[0], E_NF))
-    eval_into(points, geo, mode, mass_g, accel_g, margin_ii, res)
-    return res
-
-
 # ------------------------------------------------------------ forward kinematics
 @njit(cache=True, fastmath=_FM, error_model="numpy")
 def _fk_newton(theta, geo, ts2, ts3, out, maxit):

@@ -17,17 +17,15 @@ Equations (leg frame, a = 0):
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
-from typing import ClassVar
 
 import numpy as np
 
+from sixplus3.errors import ConvergenceError, InputError, UnreachableError
 from sixplus3.kinematics import _leg_kernel as kern
 from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
-from sixplus3.errors import ConvergenceError, InputError, SingularityError, UnreachableError
 
 #: Margin below which a configuration is classified as singular (scale-free, see margins).
 SINGULAR_TOL = 1e-3
@@ -312,13 +310,3 @@ def leg_fk_point(theta: np.ndarray | list, geometry: LegGeometry = DEFAULT_GEOME
         raise ConvergenceError(f"leg forward kinematics failed for theta={arr.tolist()} rad "
                                f"in mode {AssemblyMode.parse(mode)}: {status_reason(st)}")
     return state
-
-
-def static_torques_point(state: LegState, force: np.ndarray) -> np.ndarray:
-    """tau [N m] for one solved configuration; raises at a type II singularity."""
-    if len(state) != 1 or not state.ok[0]:
-        raise InputError("static_torques_point needs one solved configuration")
-    if not np.isfinite(state.tau_ext[0]) or state.margin_II[0] < 1e-12:
-        raise SingularityError("type II singularity: J is not invertible, so no finite "
-                               "actuator torques balance a general force at P")
-    return state.torques(force)[0]

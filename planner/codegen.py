@@ -67,8 +67,11 @@ def _build(sources: dict[str, str], directory: Path) -> dict[str, Path]:
     directory.mkdir(parents=True, exist_ok=True)
     libs, jobs = {}, []
     cc = _compiler()
+    if cc is None:
+        raise RuntimeError("no C compiler (set CC or install gcc)")
     for name, src in sources.items():
-        digest = hashlib.sha256((src + " ".join(CFLAGS) + ca.__version__).encode()).hexdigest()
+        stamp = src + " ".join(CFLAGS) + str(getattr(ca, "__version__", ""))
+        digest = hashlib.sha256(stamp.encode()).hexdigest()
         lib = directory / f"sixplus3_{name}_{digest[:16]}.so"
         libs[name] = lib
         if lib.exists():

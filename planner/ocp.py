@@ -37,6 +37,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -45,10 +46,9 @@ from scipy.spatial.transform import Rotation, Slerp
 from sixplus3.errors import InfeasibleTaskError
 from sixplus3.kinematics.checks import measure_limits
 from sixplus3.kinematics.robot import RobotConfig, leg_clearance, robot_ik, spherical_tilts
+from sixplus3.planner.task import Task, Waypoint, rotvec
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
-from sixplus3.planner.task import Task, Waypoint, rotvec
-from sixplus3.robot_description.robot import NUM_LEGS
 
 PSI_MIN, PSI_MAX = math.radians(45.0), math.radians(135.0)
 #: Built NLPs by structure (see Problem._template); one per process.
@@ -247,7 +247,7 @@ class Problem:
         ns = task.nodes_per_segment
         S = task.n_segments
         rv_prev = None
-        wp_x = []
+        rows = []
         for k, wp in enumerate(task.waypoints):
             rv = rotvec(wp.rotation)
             if rv_prev is not None and np.linalg.norm(rv - rv_prev) > math.pi:
@@ -255,8 +255,8 @@ class Problem:
                 ang = np.linalg.norm(rv)
                 rv = rv - 2 * math.pi * rv / ang
             rv_prev = rv
-            wp_x.append(np.r_[wp.position, rv, psi_wp[k]])
-        wp_x = np.array(wp_x)
+            rows.append(np.r_[wp.position, rv, psi_wp[k]])
+        wp_x = np.array(rows)
         xs, seg_T = [], []
         for s in range(S):
             a, b = wp_x[s], wp_x[s + 1]
@@ -327,7 +327,7 @@ class Problem:
                   "acceleration": opt.torque_safety}
         # grown by re-solves: [rad] below the spherical joints' limit, [m] of clearance
         # between the legs' links (None: those rows unbounded, see _clearance_needed)
-        reserve = {"spherical": 0.0,
+        reserve: dict[str, Any] = {"spherical": 0.0,
                    "clearance": 0.0 if self._clearance_needed(psi_wp) else None}
         try:
             sol = self._solve_once(psi_wp, proxy, safety, reserve=reserve)
@@ -346,12 +346,14 @@ class Problem:
         # The OCP constrains the nodes; the dense re-check sees between them.  Tighten what
         # the check found violated and re-solve from the previous solution (at most 5x).
         for _ in range(5):
-            bad = sol.check.violations if sol.check is not None else []
+            chk = sol.check
+            assert chk is not None  # _solve_once always re-checks its solution
+            bad = chk.violations
             if not bad:
                 break
-            ratios = {"torque": sol.check.max_torque_ratio,
-                      "velocity": sol.check.max_velocity_ratio,
-                      "acceleration": sol.check.max_acceleration_ratio}
+            ratios = {"torque": chk.max_torque_ratio,
+                      "velocity": chk.max_velocity_ratio,
+                      "acceleration": chk.max_acceleration_ratio}
             fixable = False
             for name in safety:
                 if any(v.startswith(name) for v in bad):
@@ -362,7 +364,7 @@ class Problem:
                 fixable = True
             if any(v.startswith("spherical") for v in bad):
                 # bound the tilts below 150 deg by the overshoot found, plus 0.25 deg
-                over = sol.check.max_spherical_tilt - (self.limits.spherical
+                over = chk.max_spherical_tilt - (self.limits.spherical
                                                        - reserve["spherical"])
                 reserve["spherical"] += over + math.radians(0.25)
                 fixable = fixable or reserve["spherical"] < math.radians(10.0)
@@ -371,7 +373,7 @@ class Problem:
                 if reserve["clearance"] is None:  # the rows were unbounded: bound them
                     reserve["clearance"] = 0.0
                 else:  # overshoot between the constrained points: ask for more
-                    reserve["clearance"] += -sol.check.min_leg_clearance + 5e-4
+                    reserve["clearance"] += -chk.min_leg_clearance + 5e-4
                 fixable = fixable or reserve["clearance"] < 0.01
             if not fixable:
                 break
@@ -587,8 +589,8 @@ class Problem:
         g = ca.vertcat(ca.vec(g_int), ca.vec(G))
         # regularisation: mean squared acceleration, scaled to ~1 at 100 (m or rad)/s^2
         f = ca.sum1(T) + opt.regularisation * ca.sumsqr(U / 100.0) / (N + 1) * ca.sum1(T)
-        nlp = {"x": Ws, "p": D, "f": f, "g": g}
-        ipopt = {"max_iter": opt.max_iter, "tol": opt.tol, "acceptable_tol": 1e-4,
+        nlp: dict[str, Any] = {"x": Ws, "p": D, "f": f, "g": g}
+        ipopt: dict[str, Any] = {"max_iter": opt.max_iter, "tol": opt.tol, "acceptable_tol": 1e-4,
                  "hessian_approximation": "limited-memory",
                  # 3 pairs instead of IPOPT's 6: fewer back-solves per iteration, and a
                  # lower median solve time on the suite and on random tasks (BENCHMARKS.md)
@@ -601,8 +603,9 @@ class Problem:
             ipopt.update({"warm_start_init_point": "yes", "mu_init": 1e-5,
                           "warm_start_bound_push": 1e-7, "warm_start_slack_bound_push": 1e-7,
                           "warm_start_mult_bound_push": 1e-7})
-        solver = ca.nlpsol("planner", "ipopt", nlp, {
-            "expand": not compiled, "print_time": False, "ipopt": ipopt})
+        solver_opts: dict[str, Any] = {"expand": not compiled, "print_time": False,
+                                       "ipopt": ipopt}
+        solver = ca.nlpsol("planner", "ipopt", nlp, solver_opts)
         tmpl = {"solver": solver}
         _TEMPLATES[key] = tmpl
         return tmpl
@@ -692,7 +695,8 @@ def plan(task: Task, robot: Robot | None = None,
     sol = Problem(task, robot, options).solve()
     if not sol.is_feasible():
         raise InfeasibleTaskError(
-            "the solved plan fails its dense re-check: " + "; ".join(sol.check.violations),
+            "the solved plan fails its dense re-check: "
+            + "; ".join(sol.check.violations if sol.check else ["not checked"]),
             None, "dense check")
     return sol
 

@@ -165,14 +165,14 @@ POINT_MASS = MassModel(point_mass=True)
 
 
 # ----------------------------------------------------------------------------- the robot
-def _vec3(name: str, v: object, unit: str) -> tuple[float, float, float]:
+def _vec3(name: str, v: Any, unit: str) -> tuple[float, float, float]:
     try:
-        arr = tuple(float(x) for x in v)  # type: ignore[union-attr]
+        arr = [float(x) for x in v]
     except (TypeError, ValueError):
         raise GeometryError(name, v, f"three finite numbers [{unit}]") from None
     if len(arr) != 3 or not all(math.isfinite(x) for x in arr):
         raise GeometryError(name, v, f"three finite numbers [{unit}]")
-    return arr  # type: ignore[return-value]
+    return arr[0], arr[1], arr[2]
 
 
 #: Gravity vectors in the robot frame of the named mountings [m/s^2].
@@ -201,7 +201,7 @@ class Robot:
         "doc": "gravity in the robot frame [m/s^2] (floor mounting: -z)"})
     home_position: tuple[float, float, float] = field(default=(0.0, 0.0, 0.30), metadata={
         "doc": "platform centre at the home pose, in the robot frame [m]"})
-    home_psi: tuple[float, float, float] = field(default=(math.pi / 2,) * NUM_LEGS, metadata={
+    home_psi: tuple[float, float, float] = field(default=(math.pi / 2,) * 3, metadata={
         "doc": "crank angles at the home pose [rad]"})
     name: str = field(default="sixplus3", metadata={"doc": "a label; not part of the hash"})
 

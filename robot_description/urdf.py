@@ -28,6 +28,7 @@ import sys
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -60,7 +61,7 @@ def _vec(v) -> str:
     return " ".join(_f(x) for x in v)
 
 
-def _rod_inertia(mass: float, start: np.ndarray, end: np.ndarray, radius: float):
+def _rod_inertia(mass: float, start: Any, end: Any, radius: float):
     """COM and inertia tensor (about the COM, link axes) of a uniform rod."""
     start, end = np.asarray(start, float), np.asarray(end, float)
     axis = end - start
@@ -229,9 +230,9 @@ def build_urdf(robot: Robot | None = None) -> str:
     if pm:
         platform = b.link("platform")
     else:
-        r, h, m = geom.platform_radius + 0.01, 0.01, masses.platform
-        ixx = m * (3 * r * r + h * h) / 12.0
-        platform = b.link("platform", m, (0, 0, 0), np.diag([ixx, ixx, m * r * r / 2.0]))
+        rad, thick, mp = geom.platform_radius + 0.01, 0.01, masses.platform
+        ixx = mp * (3 * rad * rad + thick * thick) / 12.0
+        platform = b.link("platform", mp, (0, 0, 0), np.diag([ixx, ixx, mp * rad * rad / 2.0]))
     vis = ET.SubElement(platform, "visual")
     ET.SubElement(vis, "origin", xyz="0 0 0", rpy="0 0 0")
     ET.SubElement(ET.SubElement(vis, "geometry"), "cylinder",

@@ -12,10 +12,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions
 from sixplus3.control.pipeline import run_plan
-from sixplus3.planner.task import TaskError, load_task
-from sixplus3.control.trajectory_file import TrajectoryFileError
+from sixplus3.errors import Sixplus3Error
+from sixplus3.planner.ocp import PlannerOptions
+from sixplus3.planner.task import load_task
+from sixplus3.robot_description.robot import Robot, load_robot
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -25,16 +26,22 @@ def main() -> int:
     ap.add_argument("tasks", nargs="*", type=Path,
                     default=sorted((ROOT / "examples").glob("*.yaml")))
     ap.add_argument("--out", type=Path, default=Path("out"))
-    ap.add_argument("--locked", action="store_true", help="cranks locked at 90 deg")
+    ap.add_argument("--locked", action="store_true", help="cranks locked at home angles")
+    ap.add_argument("--robot", type=Path, default=None, help="robot file (default: paper's)")
     args = ap.parse_args()
+    try:
+        robot = load_robot(args.robot) if args.robot else Robot.default()
+    except Sixplus3Error as exc:
+        print(f"error: {exc}")
+        return 2
     failures = 0
     for path in args.tasks:
         try:
             task = load_task(path)
-            res = run_plan(task, args.out / task.name,
+            res = run_plan(task, args.out / task.name, robot,
                            options=PlannerOptions(lock_redundancy=args.locked), progress=print)
             print(f"{task.name}: {res.smoothed.duration:.4f} s -> {res.csv}")
-        except (TaskError, InfeasibleTaskError, TrajectoryFileError) as exc:
+        except Sixplus3Error as exc:
             failures += 1
             print(f"{path.name}: not planned: {exc}")
     return 1 if failures else 0

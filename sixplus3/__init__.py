@@ -58,7 +58,11 @@ _API = {
     "Sixplus3Error": "sixplus3.errors",
 }
 
-__all__ = sorted(_API) + ["__version__"]
+__all__ = ["AssemblyMode", "ClosedLoopDynamics", "LegGeometry", "Limits", "MassModel",
+    "PlannerOptions", "Problem", "Robot", "RobotGeometry", "Sixplus3Error", "Solution", "Task",
+    "ValidationReport", "home", "leg_ik", "load_robot", "load_task", "plan", "read_trajectory",
+    "robot_fk", "robot_ik", "robot_ik_pose", "run_plan", "smooth", "task_from_dict",
+    "validate_file", "validate_joint_trajectory", "write_trajectory", "__version__"]
 
 
 def __getattr__(name: str) -> Any:

@@ -325,7 +325,6 @@ def design_optimize(coarse_step: float, fine_step: float, ws_step: float, readin
                     as_json: bool) -> None:
     """Two-stage grid search of (l2 = l3, l4 = l5, ex = fx) maximising the usable area."""
     from sixplus3.design.search import PAPER_DESIGN, optimize
-
     from sixplus3.errors import InputError
 
     rd = _reading(reading)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from sixplus3.cli import main
 from sixplus3.design.cow import JOINT_RESOLUTION, compute_cow, encoder_resolution, footprint
 from sixplus3.design.readings import READINGS
 from sixplus3.design.search import PAPER_DESIGN, Reading, design_grid, evaluate, optimize
@@ -16,7 +17,6 @@ from sixplus3.design.workspace import counted, halfplane_grid, usable_area
 from sixplus3.kinematics.leg import leg_eval, leg_ik
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 from sixplus3.robot_description.robot import RobotGeometry
-from sixplus3.cli import main
 
 SPEC = Reading()
 

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.errors import InputError, SingularityError
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.kinematics.robot import home, robot_fk, robot_ik_pose
 from sixplus3.robot_description.robot import POINT_MASS, Robot, RobotGeometry
-from sixplus3.errors import InputError, SingularityError
 
 GEOM = RobotGeometry()
 

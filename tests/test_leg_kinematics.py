@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from sixplus3.errors import ConvergenceError, GeometryError, InputError, UnreachableError
 from sixplus3.kinematics.leg import (
     DEFAULT_MODE,
     AssemblyMode,
@@ -18,7 +19,6 @@ from sixplus3.kinematics.leg import (
     leg_ik_point,
 )
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
-from sixplus3.errors import ConvergenceError, GeometryError, InputError, UnreachableError
 
 GEO = LegGeometry()
 ALL_MODES = AssemblyMode.all()

@@ -12,10 +12,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from sixplus3.planner.ocp import plan
+from sixplus3.cli import main
 from sixplus3.control.pipeline import run_plan
 from sixplus3.control.smoothing import smooth
-from sixplus3.planner.task import task_from_dict
 from sixplus3.control.trajectory_file import (
     COLUMNS,
     JOINTS,
@@ -24,7 +23,8 @@ from sixplus3.control.trajectory_file import (
 )
 from sixplus3.errors import TrajectoryFileError
 from sixplus3.fileio import atomic_write
-from sixplus3.cli import main
+from sixplus3.planner.ocp import plan
+from sixplus3.planner.task import task_from_dict
 
 SMALL = {"name": "small", "waypoints": [{"position": [0, 0, 0.30]},
                                         {"position": [0.03, 0.0, 0.33], "rpy": [10, 0, 0]}],

@@ -9,9 +9,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.errors import InfeasibleTaskError, LimitError
 from sixplus3.kinematics.robot import leg_clearance, robot_ik, spherical_tilts
 from sixplus3.planner.model import home_x, symbolic_robot
-from sixplus3.errors import InfeasibleTaskError, LimitError
 from sixplus3.planner.ocp import PlannerOptions, Problem, dense_check, plan
 from sixplus3.planner.task import TaskError, load_task, task_from_dict
 from sixplus3.robot_description.robot import Robot
@@ -234,7 +234,7 @@ def test_largest_tilt_is_the_edge_of_the_static_feasible_set() -> None:
     limit it names; with a 1 N m torque limit the locked cranks stop at the torque limit
     (checked with Pinocchio's gravity torques) while free cranks tilt much further."""
     from sixplus3.planner.analysis import largest_tilt, static_feasible
-    
+
     dyn = ClosedLoopDynamics()
     home_p = np.array([0.0, 0.0, 0.30])
 

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import yourdfpy
 
+from sixplus3.errors import GeometryError, InputError
 from sixplus3.robot_description import urdf as gen
 from sixplus3.robot_description.model import load_model_from, parse_closures
 from sixplus3.robot_description.robot import POINT_MASS, MassModel, Robot, RobotGeometry
-from sixplus3.errors import GeometryError, InputError
 
 
 def test_committed_files_match_the_generator() -> None:
@@ -45,7 +45,8 @@ def test_pinocchio_model_dimensions_and_closures() -> None:
 
 
 def test_masses_match_the_mass_model() -> None:
-    assert Robot.default().closed_loop_model().total_mass() == pytest.approx(MassModel().total, abs=1e-9)
+    total = Robot.default().closed_loop_model().total_mass()
+    assert total == pytest.approx(MassModel().total, abs=1e-9)
     assert MassModel().leg_total == pytest.approx(0.5)
     pm = Robot.default().replace(masses=POINT_MASS).closed_loop_model()
     assert pm.total_mass() == pytest.approx(1.5)

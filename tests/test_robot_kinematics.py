@@ -9,6 +9,7 @@ import pinocchio as pin
 import pytest
 from scipy.spatial.transform import Rotation
 
+from sixplus3.errors import ConvergenceError, InputError, UnreachableError
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.kinematics.robot import (
     home,
@@ -18,7 +19,6 @@ from sixplus3.kinematics.robot import (
     spherical_tilts,
 )
 from sixplus3.robot_description.robot import Robot, RobotGeometry
-from sixplus3.errors import ConvergenceError, InputError, UnreachableError
 
 GEOM = RobotGeometry()
 

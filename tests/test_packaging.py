@@ -1,0 +1,78 @@
+"""Packaging: one namespace, nothing else at the top of site-packages, works from anywhere.
+
+The wheel is built from this checkout (no network: --no-build-isolation with the test
+extra's setuptools), installed into a private folder and imported from a user project
+that has its own ``planner.py``, ``kinematics.py`` and ``design/`` package on the path.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+USER_CODE = r"""
+import sys
+import planner, kinematics, design              # the user's own modules
+assert planner.MINE == "planner" and kinematics.MINE == "kinematics"
+assert design.MINE == "design"
+import sixplus3
+assert sixplus3.__file__.startswith(sys.argv[1]), sixplus3.__file__
+assert "pinocchio" not in sys.modules            # the flat API is lazy
+from sixplus3.planner.task import task_from_dict
+robot = sixplus3.Robot.default()
+home = list(robot.home_position)
+task = task_from_dict({"waypoints": [{"position": home},
+                                     {"position": [home[0] + 0.02, home[1], home[2]]}],
+                       "nodes_per_segment": 4})
+sol = sixplus3.plan(task, robot, sixplus3.PlannerOptions(lock_redundancy=True))
+assert sol.is_feasible()
+assert planner.MINE == "planner"                 # still the user's after planning
+print("planned", round(sol.final_time, 4))
+"""
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("wheel")
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation",
+                    "--quiet", "-w", str(out), str(ROOT)], check=True, capture_output=True)
+    (whl,) = out.glob("sixplus3-*.whl")
+    return whl
+
+
+def test_the_wheel_installs_only_the_sixplus3_namespace(wheel) -> None:
+    names = zipfile.ZipFile(wheel).namelist()
+    top = {n.split("/")[0] for n in names}
+    assert top == {"sixplus3", wheel.name.split("-")[0] + "-" + wheel.name.split("-")[1]
+                   + ".dist-info"}, top
+    for part in ("robot_description", "kinematics", "dynamics", "design", "planner",
+                 "control", "visualization"):
+        assert f"sixplus3/{part}/__init__.py" in names
+    assert "sixplus3/robot_description/urdf/sixplus3.urdf" in names
+    assert any(n.endswith("dist-info/licenses/LICENSE") for n in names)
+
+
+def test_a_user_project_with_clashing_names_plans_from_any_directory(wheel, tmp_path) -> None:
+    site = tmp_path / "site"
+    subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--quiet",
+                    "--target", str(site), str(wheel)], check=True, capture_output=True)
+    installed = {p.name for p in site.iterdir() if not p.name.endswith(".dist-info")}
+    assert installed - {"bin"} == {"sixplus3"}, installed  # bin/: the console script
+    user = tmp_path / "project"
+    (user / "design").mkdir(parents=True)
+    (user / "planner.py").write_text('MINE = "planner"\n')
+    (user / "kinematics.py").write_text('MINE = "kinematics"\n')
+    (user / "design" / "__init__.py").write_text('MINE = "design"\n')
+    (user / "run.py").write_text(USER_CODE)
+    env = {**os.environ, "PYTHONPATH": f"{user}{os.pathsep}{site}"}
+    r = subprocess.run([sys.executable, "run.py", str(site)], cwd=user, env=env,
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert r.stdout.startswith("planned")
