@@ -44,7 +44,7 @@ def theta_within(theta: np.ndarray, theta_max: float = THETA_MAX, zero: float = 
     """(n,) every actuated angle in [0, theta_max] in a reading's angle convention.
 
     theta_reading = (direction * theta - zero) mod 2 pi in [0, 2 pi), as the paper counts
-    them (collision in (270, 360) deg).  With zero = 0, direction = +1 (SPEC.md) this is
+    them (collision in (270, 360) deg).  With zero = 0, direction = +1 (docs/conventions.md) this is
     0 <= theta <= theta_max for our theta in [-90, 270) deg.
     """
     t = np.mod(direction * np.asarray(theta) - zero, 2.0 * math.pi)
@@ -52,7 +52,7 @@ def theta_within(theta: np.ndarray, theta_max: float = THETA_MAX, zero: float = 
 
 
 def counted(ev: LegEval, load: LegLoad, theta_max: float = THETA_MAX) -> np.ndarray:
-    """(n,) the points that count toward the design objective (SPEC.md reading)."""
+    """(n,) the points that count toward the design objective (docs/conventions.md reading)."""
     return ev.ok & theta_within(ev.theta, theta_max) & (ev.tau_ext <= load.torque_limit)
 
 

@@ -1,6 +1,6 @@
 """Kinematics of one RU/2-RUS leg: IK, FK, Jacobians, singularities, static torques.
 
-Paper §III-IV with the conventions of SPEC.md (see :mod:`robot_description.geometry`).
+Paper §III-IV with the conventions of docs/conventions.md (see :mod:`robot_description.geometry`).
 All batch functions take points with a leading batch axis, shape (n, 3), and report a
 per-point ``status`` (0 = solved) instead of raising; the ``*_point`` variants take one
 point and raise a named error.

@@ -3,7 +3,7 @@
 pinocchio.casadi is not in the pip wheel (LIBRARY-NOTES.md), so the dynamics are built
 here from two ingredients that cannot drift from the numeric model:
 
-1. the closed-form inverse kinematics (SPEC.md conventions, same branches as
+1. the closed-form inverse kinematics (docs/conventions.md conventions, same branches as
    :mod:`kinematics.leg`) written with CasADi symbols, giving every tree joint as a
    function of the minimal coordinates x = (platform position p [m], rotation vector r
    [rad], crank angles psi [rad]);

@@ -1,4 +1,4 @@
-"""Parametric geometry of the RU/2-RUS leg (paper Fig. 2, SPEC.md conventions).
+"""Parametric geometry of the RU/2-RUS leg (paper Fig. 2, docs/conventions.md conventions).
 
 Leg frame: origin at A, x along the common actuated axis x_f, y horizontal towards the
 robot centre, z up.  With Q = R(x, th1) R(x, ths2) R(z, ths3 - pi/2) (paper eq. 1-2):
@@ -78,7 +78,7 @@ class LegGeometry:
         if self.ey < self.fy:
             raise GeometryError(
                 "ey", self.ey, f">= fy = {self.fy}",
-                "E is the +y_b side of the body and is linked to B (SPEC.md)",
+                "E is the +y_b side of the body and is linked to B (docs/conventions.md)",
             )
         # A RUS chain closes only if |S - R| can lie in [|crank - link|, crank + link].
         # |E - B| <= l1 + |e_b| + l6 everywhere (triangle inequality through A and D), so

@@ -1,4 +1,4 @@
-"""Geometry and mass model of the whole (6+3)-DoF robot (SPEC.md "Robot frame").
+"""Geometry and mass model of the whole (6+3)-DoF robot (docs/conventions.md, "Robot frame").
 
 Robot frame: origin at the base centre in the plane of the actuated axes, z up (floor
 configuration).  Leg i (i = 0, 1, 2) sits at alpha_i = 90 deg + 120 deg i:

@@ -8,6 +8,7 @@ that has its own ``planner.py``, ``kinematics.py`` and ``design/`` package on th
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -40,9 +41,13 @@ print("planned", round(sol.final_time, 4))
 
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory) -> Path:
+    """A wheel built from a clean copy of the working tree (no stale build/ folder)."""
+    src = tmp_path_factory.mktemp("src") / "sixplus3"
+    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(
+        ".git", ".venv", "build", "out", "*.egg-info", "__pycache__", ".*_cache"))
     out = tmp_path_factory.mktemp("wheel")
     subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation",
-                    "--quiet", "-w", str(out), str(ROOT)], check=True, capture_output=True)
+                    "--quiet", "-w", str(out), str(src)], check=True, capture_output=True)
     (whl,) = out.glob("sixplus3-*.whl")
     return whl
 
