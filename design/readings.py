@@ -16,5 +16,5 @@ READINGS: dict[str, Reading] = {
         "centre (+y), in [0, 135] deg; reproduces the paper's optimum"),
     "spec-no-theta-limit": Reading(
         name="spec-no-theta-limit", theta_max=2 * math.pi,
-        description="docs/conventions.md conventions without the 135 deg limit (reachability and torque)"),
+        description="our conventions without the 135 deg limit (reachability and torque)"),
 }

@@ -43,7 +43,7 @@ class Reading:
     theta_zero: float = 0.0  # where theta = 0 points, as an angle from +y about +x [rad]
     theta_direction: int = 1  # +1: theta grows about +x_f; -1: about -x_f
     theta_max: float = math.radians(135.0)  # every theta in [0, theta_max] (paper) [rad]
-    description: str = "docs/conventions.md: theta = 0 along +y (to the centre), 90 deg up; mode ++++"
+    description: str = "ours: theta = 0 along +y (to the centre), 90 deg up; mode ++++"
 
     def base_geometry(self) -> LegGeometry:
         return replace(LegGeometry(), ey=self.ey, fy=-self.ey)

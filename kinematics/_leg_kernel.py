@@ -5,7 +5,7 @@ leading axis of points with ``prange``.  One point's results are written into a 
 ``NF`` float64 fields whose layout is given by the index constants below; the public API
 in :mod:`kinematics.leg` slices those rows into dataclasses.
 
-Conventions (docs/conventions.md): leg frame with origin A, x = actuated axis, y to the robot centre,
+Conventions (docs/conventions.md): leg frame with origin A, x = actuated axis, y to the centre,
 z up.  theta_j = 0 points the proximal link along +y, 90 deg along +z.  Actuated angles are
 returned in [-90 deg, 270 deg): the base-collision quadrant (270, 360) of the paper shows
 up as (-90, 0).  Passive angles are returned in (-180, 180].
@@ -272,7 +272,7 @@ def jacobian_point(geo, mass_g, accel_g, out, margin_ii=True):
     u1y, u1z = -dz, dy
     u2y, u2z = -out[PG + 2], out[PG + 1]
     u3y, u3z = -out[PH + 2], out[PH + 1]
-    k11 = pdy * u1y + pdz * u1z  # = (p-d)^T u1   (docs/conventions.md: the paper's second form has a sign typo)
+    k11 = pdy * u1y + pdz * u1z  # = (p-d)^T u1 (the paper has a sign typo, docs/conventions.md)
     k21 = -(egy * u1y + egz * u1z)
     k22 = egy * u2y + egz * u2z
     k31 = -(fhy * u1y + fhz * u1z)
