@@ -30,6 +30,10 @@ class Limits:
     velocity: float = _lim(VELOCITY_LIMIT, "|theta_dot| of every actuated joint", "rad/s")
     acceleration: float = _lim(200.0, "|theta_ddot| of every actuated joint (a comfort "
                                "limit for pHRI; no datasheet value)", "rad/s^2")
+    jerk: float = _lim(2.0e5, "|d theta_ddot / dt| of every actuated joint: the bound the "
+                       "smoothing enforces and the validator derives its consistency "
+                       "tolerances from (about 2x the largest jerk of the planned example "
+                       "tasks; the drives' torque rise allows far more)", "rad/s^3")
     margin: float = _lim(0.05, "smallest admissible singularity margin (leg type I/II, "
                          "platform; scale-free, 0 singular .. 1 ideal)", "1")
     theta_min: float = _lim(0.0, "lower end of the actuated range", "rad")
@@ -40,7 +44,7 @@ class Limits:
 
     #: limits where a smaller value is tighter (the others: margin larger, theta range
     #: narrower)
-    UPPER = ("torque", "velocity", "acceleration", "spherical")
+    UPPER = ("torque", "velocity", "acceleration", "jerk", "spherical")
 
     def __post_init__(self) -> None:
         for f in fields(self):
