@@ -7,10 +7,8 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-import numpy as np
-
-from sixplus3.control.smoothing import Smoothed, smooth
-from sixplus3.control.trajectory_file import write_trajectory
+from sixplus3.control.smoothing import Smoothed, check_rate, smooth
+from sixplus3.control.trajectory_file import output_path, write_trajectory
 from sixplus3.control.validation import ValidationReport, validate_joint_trajectory
 from sixplus3.errors import TrajectoryFileError
 from sixplus3.planner.ocp import PlannerOptions, Solution, plan
@@ -36,8 +34,7 @@ class PlanOutputs:
     solution: Solution
     smoothed: Smoothed
     report: ValidationReport
-    csv: Path
-    json: Path
+    csv: Path  # the trajectory file (header + samples, one atomic unit)
     html: Path | None
     plots: list[str]
     seconds: dict[str, float]
@@ -48,15 +45,18 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
              options: PlannerOptions | None = None,
              progress: Callable[[str], None] | None = None) -> PlanOutputs:
     """Plan ``task`` for ``robot`` (default ``Robot.default()``) and write the validated
-    trajectory files into ``out_dir``.
+    trajectory file ``out_dir/<name>.csv`` (and the page and plots beside it).
 
-    Raises :class:`InfeasibleTaskError` for an infeasible task and
-    :class:`TrajectoryFileError` if the smoothed trajectory fails its validation; in both
-    cases nothing is written.
+    The output name and the rate are checked before anything is solved.  Raises
+    :class:`InfeasibleTaskError` for an infeasible task and :class:`TrajectoryFileError`
+    if the smoothed trajectory fails its validation; in both cases nothing is written.
     """
     robot = robot or Robot.default()
     say = progress or (lambda s: None)
     out = Path(out_dir)
+    csv_path = output_path(out, task.name)  # a safe name, inside out_dir: before the solve
+    check_rate(rate)
+    task.limits_for(robot)
     secs: dict[str, float] = {}
     t0 = time.perf_counter()
     say(f"planning '{task.name}' ({len(task.waypoints)} waypoints, "
@@ -71,22 +71,22 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
     t1 = time.perf_counter()
     sm = smooth(sol, rate=rate)
     secs["smooth"] = time.perf_counter() - t1
-    say(f"  smoothed with Ruckig at {rate:g} Hz: {len(sm.t)} samples, duration "
-        f"{sm.duration:.4f} s (+{100 * sm.added_fraction:.2f}%), "
-        f"{sm.stretched_segments} segments stretched")
+    say(f"  smoothed with Ruckig at {rate:g} Hz (jerk limit {sm.jerk_limit:.3g} rad/s^3): "
+        f"{len(sm.t)} samples, duration {sm.duration:.4f} s "
+        f"(+{100 * sm.added_fraction:.2f}%), {sm.stretched_segments} segments stretched, "
+        f"max jerk {sm.max_jerk:.3g} rad/s^3, deviation from the plan "
+        f"{sm.max_deviation:.2e} rad")
     t2 = time.perf_counter()
-    q0 = np.array(robot.symbolic().q(sol.x[0])).ravel()
-    rep = validate_joint_trajectory(sm.theta, sm.theta_dot, sm.theta_ddot, robot,
-                                    sol.limits, q0)
+    rep = validate_joint_trajectory(sm.theta, sm.theta_dot, sm.theta_ddot, robot, rate,
+                                    sm.x_guess, sol.limits, t=sm.t)
     secs["validate"] = time.perf_counter() - t2
     if not rep.ok:
         raise TrajectoryFileError("the smoothed trajectory fails validation, nothing written: "
-                                  + "; ".join(rep.violations))
-    say(f"  validated {rep.samples} samples with Pinocchio: max|tau| "
-        f"{rep.max_torque_ratio * sol.limits.torque:.3f} N m, min margins "
-        f"{rep.min_margin_leg_type1:.3f}/{rep.min_margin_leg_type2:.3f}/"
+                                  + "; ".join(rep.messages()))
+    say(f"  validated {rep.samples} samples and {rep.checked_points - rep.samples} "
+        f"midpoints with Pinocchio: max|tau| {rep.max_torque_ratio * sol.limits.torque:.3f} "
+        f"N m, min margins {rep.min_margin_leg_type1:.3f}/{rep.min_margin_leg_type2:.3f}/"
         f"{rep.min_margin_platform:.3f}")
-    out.mkdir(parents=True, exist_ok=True)
     meta = {
         "rate_hz": rate,
         "task": task.source,
@@ -100,26 +100,28 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
         "smoothing": {"rate_hz": rate, "planned_duration_s": sm.planned_duration,
                       "duration_s": sm.duration, "added_fraction": sm.added_fraction,
                       "stretched_segments": sm.stretched_segments,
-                      "max_jerk_rad_s3": sm.max_jerk},
+                      "jerk_limit_rad_s3": sm.jerk_limit, "max_jerk_rad_s3": sm.max_jerk,
+                      "max_deviation_rad": sm.max_deviation},
     }
-    csv_path, json_path = write_trajectory(out / f"{task.name}.csv", sm.t, sm.theta,
-                                           sm.theta_dot, sm.theta_ddot, rep, robot,
-                                           sol.limits,
-                                           meta)
-    say(f"  wrote {csv_path} and {json_path.name}")
+    out.mkdir(parents=True, exist_ok=True)
+    write_trajectory(csv_path, sm.t, sm.theta, sm.theta_dot, sm.theta_ddot, rep, robot,
+                     sol.limits, meta)
+    say(f"  wrote {csv_path}")
     files: list[str] = []
+    stem = csv_path.stem
     if plots:
         from sixplus3.visualization.plots import plot_trajectory
 
-        files = plot_trajectory(robot, out, sm.t, sm.theta, rep.tau, rep.position, rep.quaternion,
-                                rep.psi, sol.limits.torque, sol.limits.margin, task.name)
+        files = plot_trajectory(robot, out, sm.t, sm.theta, rep.tau, rep.position,
+                                rep.quaternion, rep.psi, sol.limits.torque, sol.limits.margin,
+                                stem)
         say(f"  plots: {', '.join(Path(f).name for f in files)}")
     html_path = None
     if html:
         from sixplus3.visualization.meshcat_player import frames_from_samples, write_html
 
         frames = frames_from_samples(robot, sm.t, rep.position, rep.quaternion, rep.psi)
-        html_path = write_html(frames, out / f"{task.name}.html")
+        html_path = write_html(frames, out / f"{stem}.html")
         say(f"  MeshCat page: {html_path} (slowed down {frames.slowdown:.0f}x)")
     secs["total"] = time.perf_counter() - t0
-    return PlanOutputs(sol, sm, rep, csv_path, json_path, html_path, files, secs)
+    return PlanOutputs(sol, sm, rep, csv_path, html_path, files, secs)

@@ -1,91 +1,241 @@
-"""Trajectory files for the controller: a CSV of samples and a JSON header beside it.
+"""Trajectory files for the controller: one file, one atomic unit, one integrity digest.
 
-CSV, one row per sample: ``t`` [s]; for each actuated joint J (URDF names, legs 0..2,
-each A, B, C): ``J_pos`` [rad], ``J_vel`` [rad/s], ``J_acc`` [rad/s^2], ``J_tau``
-(feed-forward torque [N m]); then the platform pose ``platform_x/y/z`` [m],
-``platform_qx/qy/qz/qw`` and the crank angles ``psi_0..2`` [rad].
+Layout (UTF-8 text; docs/trajectory-file.md is the contract)::
 
-JSON (same stem): format, units, joint names, rate, limits, the full robot (every
-parameter and its hash, :attr:`Robot.hash`), the SHA-256 of the CSV, the task, planner
-statistics and the validation.  A file is read only for the robot it was made for.
+    # sixplus3-trajectory/2 {"format": ..., "rate_hz": ..., "robot": {...}, ...}
+    t,leg0_A_pos,leg0_A_vel,leg0_A_acc,leg0_A_tau,...,platform_x,...,psi_2
+    0,1.2,0,0,0.31,...
 
-Both are written atomically (temporary file in the same directory, then rename), and
-only after the trajectory passed
-:func:`sixplus3.control.validation.validate_joint_trajectory`: no unsafe trajectory is
-ever written as if it were valid.
+- line 1: ``# `` + :data:`FORMAT` + one space + the header, one line of JSON: rate,
+  samples, duration, columns, units, joint names, the full robot (parameters + hash),
+  the limits planned to, the task, planner and smoothing statistics, the validation
+  summary, and ``integrity``: the SHA-256 of the canonical header (sorted keys, no
+  ``integrity``) + ``"\\n"`` + every byte after line 1.  Editing any field or sample
+  breaks it.  It detects corruption and accidental edits; it is not a signature, so
+  the validator trusts nothing in the file and recomputes everything.
+- line 2: the column names (:data:`COLUMNS`); then one row per sample: ``t`` [s]; for
+  each actuated joint J (URDF names, legs 0..2, each A, B, C): ``J_pos`` [rad],
+  ``J_vel`` [rad/s], ``J_acc`` [rad/s^2], ``J_tau`` (feed-forward torque [N m]); the
+  platform pose ``platform_x/y/z`` [m], ``platform_qx/qy/qz/qw``; the crank angles
+  ``psi_0..2`` [rad].  ``numpy.loadtxt(path, delimiter=",", skiprows=2)`` or
+  ``pandas.read_csv(path, comment="#")`` read it.
+
+Writing (:func:`write_trajectory`) refuses a trajectory whose validation failed, takes
+an exclusive lock per output name (a second concurrent writer gets a
+:class:`TrajectoryFileError`; the first wins), writes a temporary file in the same
+directory, fsyncs it, renames it over the old one and fsyncs the directory: at any
+instant the name holds the old complete file or the new complete file, whatever kills
+the writer (SIGKILL, a full disk).  Output names are made safe first (:func:`safe_name`).
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import fcntl
 import hashlib
 import io
 import json
 import math
-from dataclasses import asdict
+import os
+import re
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from sixplus3.errors import GeometryError, TrajectoryFileError
-from sixplus3.fileio import atomic_write
+from sixplus3.errors import GeometryError, LimitError, TrajectoryFileError
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
 
-FORMAT = "sixplus3-trajectory/1"
+FORMAT = "sixplus3-trajectory/2"
+SUFFIX = ".csv"
 JOINTS = actuated_joint_names()
 COLUMNS = (["t"] + [f"{j}_{k}" for j in JOINTS for k in ("pos", "vel", "acc", "tau")]
            + [f"platform_{c}" for c in ("x", "y", "z", "qx", "qy", "qz", "qw")]
            + [f"psi_{i}" for i in range(3)])
 UNITS = {"t": "s", "pos": "rad", "vel": "rad/s", "acc": "rad/s^2", "tau": "N m",
          "platform_xyz": "m", "platform_q": "unit quaternion (x, y, z, w)", "psi": "rad"}
+#: Largest trajectory file read [bytes] (~40 min at 1 kHz).
+MAX_BYTES = 1 << 30
+#: Longest output name [characters].
+MAX_NAME = 100
+_SAFE = re.compile(r"[^A-Za-z0-9._-]+")
 
 
-def write_trajectory(csv_path: Path, t, theta, theta_dot, theta_ddot, report, robot: Robot,
-                     limits: Limits, meta: dict) -> tuple[Path, Path]:
-    """Write the CSV and its JSON header for ``robot``; refuses a trajectory whose
-    validation failed."""
-    if report is None or not report.ok:
-        reasons = "; ".join(report.violations) if report is not None else "not validated"
-        raise TrajectoryFileError(f"refusing to write an invalid trajectory: {reasons}")
-    csv_path = Path(csv_path)
+def safe_name(name: object) -> str:
+    """An output name that cannot leave its directory: characters outside
+    ``[A-Za-z0-9._-]`` become ``_``, leading and trailing dots and underscores go.
+    Raises :class:`TrajectoryFileError` if nothing is left or the name is over
+    :data:`MAX_NAME` characters."""
+    if not isinstance(name, str) or "\x00" in name:
+        raise TrajectoryFileError(f"output name {name!r} must be text without NUL",
+                                  value=name, valid="[A-Za-z0-9._-], 1-100 characters")
+    slug = _SAFE.sub("_", name).strip("._")
+    if not slug or len(slug) > MAX_NAME:
+        raise TrajectoryFileError(
+            f"output name {name[:120]!r} gives {slug[:120]!r}: must have 1 to {MAX_NAME} of "
+            "the characters A-Z a-z 0-9 . _ - (not only dots)", value=name,
+            valid=f"1-{MAX_NAME} characters [A-Za-z0-9._-]")
+    return slug
+
+
+def output_path(out_dir: str | Path, name: str, suffix: str = SUFFIX) -> Path:
+    """``out_dir / (safe_name(name) + suffix)``, checked to lie inside ``out_dir``."""
+    out = Path(out_dir)
+    path = out / (safe_name(name) + suffix)
+    if path.resolve().parent != out.resolve():
+        raise TrajectoryFileError(f"output {path} would leave {out}", value=name,
+                                  valid=f"a file directly in {out}")
+    return path
+
+
+def _canonical(header: dict) -> bytes:
+    return json.dumps(header, sort_keys=True, separators=(",", ":"), allow_nan=False,
+                      default=_jsonable).encode()
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return str(obj)
+
+
+def _finite_tree(obj: Any) -> Any:
+    """The header with non-finite floats as null (JSON has no NaN)."""
+    if isinstance(obj, dict):
+        return {str(k): _finite_tree(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_tree(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _finite_tree(obj.tolist())
+    if isinstance(obj, np.generic):
+        return _finite_tree(obj.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def digest(header: dict, body: bytes) -> str:
+    """The integrity digest of a header (without ``integrity``) and the body bytes."""
+    h = {k: v for k, v in header.items() if k != "integrity"}
+    return hashlib.sha256(_canonical(h) + b"\n" + body).hexdigest()
+
+
+def encode(header: dict, data: np.ndarray) -> bytes:
+    """The bytes of a trajectory file: header line (with its digest), columns, rows."""
+    buf = io.StringIO()
+    np.savetxt(buf, data, delimiter=",", header=",".join(COLUMNS), comments="", fmt="%.17g")
+    body = buf.getvalue().encode()
+    header = _finite_tree({k: v for k, v in header.items() if k != "integrity"})
+    header["integrity"] = {"algorithm": "sha256", "digest": digest(header, body)}
+    first = f"# {FORMAT} ".encode() + _canonical(header) + b"\n"
+    return first + body
+
+
+def samples_array(t, theta, theta_dot, theta_ddot, tau, position, quaternion,
+                  psi) -> np.ndarray:
+    """(n, 47) rows in :data:`COLUMNS` order."""
     n = len(t)
     data = np.zeros((n, len(COLUMNS)))
     data[:, 0] = t
     for j in range(9):
         data[:, 1 + 4 * j:5 + 4 * j] = np.c_[theta[:, j], theta_dot[:, j], theta_ddot[:, j],
-                                             report.tau[:, j]]
-    data[:, 37:40] = report.position
-    data[:, 40:44] = report.quaternion
-    data[:, 44:47] = report.psi
-    buf = io.StringIO()
-    np.savetxt(buf, data, delimiter=",", header=",".join(COLUMNS), comments="", fmt="%.12g")
-    csv_bytes = buf.getvalue().encode()
+                                             tau[:, j]]
+    data[:, 37:40] = position
+    data[:, 40:44] = quaternion
+    data[:, 44:47] = psi
+    return data
+
+
+# ----------------------------------------------------------------------------- writing
+@contextlib.contextmanager
+def _exclusive(path: Path) -> Iterator[None]:
+    """An exclusive, non-blocking lock on ``path``'s name (a lock file beside it)."""
+    lock = path.with_name(f".{path.name}.lock")
+    fd = os.open(lock, os.O_CREAT | os.O_RDWR, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise TrajectoryFileError(
+                f"another process is writing {path.name} right now; it wins, this write "
+                "was abandoned (the file it leaves is complete)") from None
+        yield
+    finally:
+        os.close(fd)
+
+
+def write_atomically(path: Path, data: bytes) -> None:
+    """Replace ``path`` by ``data`` as one unit: temporary file in the same directory,
+    fsync, rename, fsync of the directory; an error leaves the old file untouched."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+        dfd = os.open(path.parent, os.O_RDONLY)
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
+    except OSError as exc:
+        what = "the disk is full" if exc.errno == errno.ENOSPC else (exc.strerror or str(exc))
+        raise TrajectoryFileError(f"cannot write {path}: {what}; the previous file, if any, "
+                                  "is unchanged") from None
+    finally:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+
+
+def write_trajectory(path: str | Path, t, theta, theta_dot, theta_ddot, report,
+                     robot: Robot, limits: Limits, meta: dict) -> Path:
+    """Write the validated trajectory of ``robot`` to ``path`` (one atomic file).
+
+    ``report`` is the :class:`~sixplus3.control.validation.ValidationReport` of exactly
+    these samples for this robot; a failed or missing report is refused and nothing is
+    written.  ``meta`` adds header fields (task, planner, smoothing statistics).
+    """
+    if report is None or not report.ok:
+        reasons = "; ".join(report.messages()) if report is not None else "not validated"
+        raise TrajectoryFileError(f"refusing to write an invalid trajectory: {reasons}")
+    if report.robot_hash != robot.hash:
+        raise TrajectoryFileError("refusing to write: the validation report is for another "
+                                  "robot")
+    path = Path(path)
+    if path.suffix != SUFFIX:
+        raise TrajectoryFileError(f"trajectory files end in {SUFFIX}, got {path.name}")
+    output_path(path.parent, path.stem)  # the name is safe and stays in its directory
+    data = samples_array(t, theta, theta_dot, theta_ddot, report.tau, report.position,
+                         report.quaternion, report.psi)
+    rate = float(meta.get("rate_hz", 0.0))
     header = {
-        "format": FORMAT, "csv": csv_path.name,
-        "csv_sha256": hashlib.sha256(csv_bytes).hexdigest(),
-        "rate_hz": float(meta.get("rate_hz", 0.0)), "samples": n,
+        "format": FORMAT, "rate_hz": rate, "samples": len(t),
         "duration_s": float(t[-1]), "columns": COLUMNS, "units": UNITS,
-        "joint_names": JOINTS, "limits": asdict(limits),
+        "joint_names": JOINTS,
         "robot": {"hash": robot.hash, "parameters": robot.as_dict(),
                   "summary": robot.summary()},
-        "task": meta.get("task"), "planner": meta.get("planner"),
-        "smoothing": meta.get("smoothing"), "validation": report.summary(),
+        "limits": limits.as_dict(),
+        **{k: v for k, v in meta.items() if k not in ("rate_hz", "robot", "limits")},
+        "validation": report.summary(),
     }
-    json_path = csv_path.with_suffix(".json")
-    atomic_write(csv_path, csv_bytes)
-    atomic_write(json_path, (json.dumps(header, indent=1, default=_jsonable) + "\n").encode())
-    return csv_path, json_path
+    blob = encode(header, data)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with _exclusive(path):
+        write_atomically(path, blob)
+    return path
 
 
-def _jsonable(obj):
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    return str(obj)
-
-
+# ----------------------------------------------------------------------------- reading
 def check_robot(header: dict, robot: Robot, name: str) -> None:
     """Refuse a header whose robot is not ``robot`` (or whose parameters do not give its
     recorded hash)."""
@@ -94,7 +244,7 @@ def check_robot(header: dict, robot: Robot, name: str) -> None:
         raise TrajectoryFileError(f"{name}: the header records no robot parameters")
     try:
         recorded = Robot.from_dict(rec["parameters"])
-    except (GeometryError, TypeError, ValueError) as exc:
+    except (GeometryError, LimitError, TypeError, ValueError) as exc:
         raise TrajectoryFileError(f"{name}: the recorded robot is invalid: {exc}") from exc
     if recorded.hash != rec.get("hash"):
         raise TrajectoryFileError(f"{name}: the recorded robot parameters do not match the "
@@ -122,64 +272,88 @@ def _robot_diff(a: dict, b: dict, where: str = "") -> str:
     return ""
 
 
-def read_trajectory(csv_path: str | Path, robot: Robot | None = None) -> tuple[dict, np.ndarray]:
-    """Load and format-check a trajectory made for ``robot`` (default
+def _no_constants(token: str) -> float:
+    raise ValueError(f"{token} is not a number JSON allows")
+
+
+def parse(raw: bytes, name: str = "trajectory") -> tuple[dict, np.ndarray]:
+    """Header and samples (n, 47) of a trajectory file's bytes, format-checked and
+    integrity-checked (nothing physical: that is the validator's job)."""
+    nl = raw.find(b"\n")
+    prefix = f"# {FORMAT} ".encode()
+    if nl < 0 or not raw.startswith(prefix):
+        old = raw.startswith(b"t,") or raw.startswith(b"# sixplus3-trajectory/")
+        raise TrajectoryFileError(
+            f"{name}: not a {FORMAT} file" + (" (an older format: re-plan it)" if old else ""),
+            valid=f"first line '# {FORMAT} {{header}}'")
+    try:
+        header = json.loads(raw[len(prefix):nl].decode("utf-8"), parse_constant=_no_constants)
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise TrajectoryFileError(f"{name}: the header is not valid JSON ({str(exc)[:120]})") \
+            from None
+    if not isinstance(header, dict) or header.get("format") != FORMAT:
+        raise TrajectoryFileError(f"{name}: the header does not declare format {FORMAT}")
+    body = raw[nl + 1:]
+    integ = header.get("integrity")
+    if not isinstance(integ, dict) or integ.get("algorithm") != "sha256":
+        raise TrajectoryFileError(f"{name}: the header has no sha256 integrity digest")
+    if digest(header, body) != integ.get("digest"):
+        raise TrajectoryFileError(f"{name}: integrity digest mismatch: the header or the "
+                                  "samples were edited, truncated or corrupted")
+    try:
+        text = body.decode("ascii")
+    except UnicodeDecodeError:
+        raise TrajectoryFileError(f"{name}: the samples are not plain ASCII numbers") from None
+    lines = text.split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
+    if not lines or lines[0].split(",") != COLUMNS:
+        raise TrajectoryFileError(f"{name}: line 2 must be the {len(COLUMNS)} column names "
+                                  f"{','.join(COLUMNS[:3])},...,{COLUMNS[-1]}")
+    rows = lines[1:]
+    if len(rows) < 2:
+        raise TrajectoryFileError(f"{name}: {len(rows)} samples; a trajectory has >= 2")
+    ncol = len(COLUMNS)
+    bad = next((k for k, r in enumerate(rows) if r.count(",") != ncol - 1), None)
+    if bad is not None:
+        raise TrajectoryFileError(f"{name}: sample row {bad + 1} does not have {ncol} values")
+    try:
+        data = np.array(",".join(rows).split(","), dtype=np.float64).reshape(len(rows), ncol)
+    except ValueError as exc:
+        raise TrajectoryFileError(f"{name}: unreadable number ({str(exc)[:80]})") from None
+    finite = np.isfinite(data)
+    if not finite.all():
+        r, c = np.argwhere(~finite)[0]
+        raise TrajectoryFileError(f"{name}: non-finite value in column {COLUMNS[c]} at sample "
+                                  f"{r} (t = {data[r, 0]:g} s)")
+    for key, want in (("samples", len(rows)), ("columns", COLUMNS)):
+        if header.get(key) != want:
+            raise TrajectoryFileError(f"{name}: header field {key} does not match the samples")
+    if not math.isclose(float(header.get("duration_s", -1)), data[-1, 0], abs_tol=1e-12):
+        raise TrajectoryFileError(f"{name}: header duration differs from the last sample")
+    return header, data
+
+
+def read_bytes(path: str | Path) -> bytes:
+    """The bytes of a trajectory file (at most :data:`MAX_BYTES`)."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_BYTES + 1)
+    except OSError as exc:
+        raise TrajectoryFileError(f"cannot read {path}: {exc.strerror or exc}") from None
+    if len(raw) > MAX_BYTES:
+        raise TrajectoryFileError(f"{path.name} is larger than {MAX_BYTES} bytes")
+    return raw
+
+
+def read_trajectory(path: str | Path, robot: Robot | None = None) -> tuple[dict, np.ndarray]:
+    """Load, format-check and integrity-check a trajectory made for ``robot`` (default
     ``Robot.default()``); raises :class:`TrajectoryFileError`."""
     robot = robot or Robot.default()
-    csv_path = Path(csv_path)
-    json_path = csv_path.with_suffix(".json")
-    for p in (csv_path, json_path):
-        if not p.exists():
-            raise TrajectoryFileError(f"missing file {p}")
-    try:
-        header = json.loads(json_path.read_text())
-    except json.JSONDecodeError as exc:
-        raise TrajectoryFileError(f"{json_path.name} is not valid JSON: {exc.msg}") from exc
-    if not isinstance(header, dict) or header.get("format") != FORMAT:
-        raise TrajectoryFileError(f"{json_path.name}: format is {header.get('format')!r}, "
-                                  f"expected {FORMAT!r}" if isinstance(header, dict) else
-                                  f"{json_path.name}: not a trajectory header")
-    raw = csv_path.read_bytes()
-    check_robot(header, robot, json_path.name)
-    lines = raw.decode(errors="replace").splitlines()
-    if not lines:
-        raise TrajectoryFileError(f"{csv_path.name} is empty")
-    cols = lines[0].split(",")
-    missing = [c for c in COLUMNS if c not in cols]
-    if missing:
-        raise TrajectoryFileError(f"{csv_path.name}: missing columns {missing[:4]}"
-                                  + (" ..." if len(missing) > 4 else ""))
-    if cols != COLUMNS:
-        raise TrajectoryFileError(f"{csv_path.name}: unexpected column order or extra columns")
-    try:
-        data = np.loadtxt(io.StringIO("\n".join(lines[1:])), delimiter=",", ndmin=2)
-    except ValueError as exc:
-        raise TrajectoryFileError(f"{csv_path.name}: unreadable number ({exc})") from exc
-    if data.shape[0] < 2 or data.shape[1] != len(COLUMNS):
-        raise TrajectoryFileError(f"{csv_path.name}: expected >= 2 rows of {len(COLUMNS)} "
-                                  f"values, got shape {data.shape}")
-    bad = ~np.isfinite(data)
-    if bad.any():
-        r, c = np.argwhere(bad)[0]
-        raise TrajectoryFileError(f"{csv_path.name}: non-finite value in column {COLUMNS[c]} "
-                                  f"at row {r + 1}")
-    dt = np.diff(data[:, 0])
-    if data[0, 0] != 0.0 or np.any(dt <= 0):
-        k = int(np.argmax(dt <= 0)) if np.any(dt <= 0) else 0
-        raise TrajectoryFileError(f"{csv_path.name}: time must start at 0 and increase "
-                                  f"strictly (row {k + 2})")
-    rate = float(header.get("rate_hz", 0))
-    if rate > 0 and np.any(np.abs(dt[:-1] - 1.0 / rate) > 1e-6):
-        raise TrajectoryFileError(f"{csv_path.name}: samples are not at the declared "
-                                  f"{rate:g} Hz")
-    if hashlib.sha256(raw).hexdigest() != header.get("csv_sha256"):
-        raise TrajectoryFileError(f"{csv_path.name} does not match its header (checksum): "
-                                  "edited or truncated")
-    q = data[:, 40:44]
-    if np.any(np.abs(np.linalg.norm(q, axis=1) - 1) > 1e-6):
-        raise TrajectoryFileError(f"{csv_path.name}: platform quaternions are not unit")
-    if not math.isclose(float(header.get("duration_s", -1)), data[-1, 0], abs_tol=1e-9):
-        raise TrajectoryFileError(f"{csv_path.name}: duration differs from its header")
+    name = Path(path).name
+    header, data = parse(read_bytes(path), name)
+    check_robot(header, robot, name)
     return header, data
 
 

@@ -1,10 +1,24 @@
-"""Independent validation of an actuated-joint trajectory with the numeric model.
+"""The gate: independent validation of a motion of the robot, sample by sample and between.
 
-From the actuated angles, rates and accelerations alone (what the controller executes):
-forward kinematics by Newton on the 27 closures (each sample hinted by the previous one),
-Pinocchio's constrained inverse dynamics for the torques, the numeric singularity
-margins, the actuated range, the spherical joints and the leg clearance.  Nothing from
-the optimiser's CasADi model is used.
+Nothing in the file is trusted: the limits are the robot's hardware limits
+(:attr:`Robot.limits`, never the file's); the platform pose is recomputed from the
+actuated angles; the torques are recomputed with Pinocchio (nothing from the planner's
+CasADi model); the file's platform columns and feed-forward torques are only compared.
+docs/validation.md lists every check and its tolerance: it is the contract the
+controller side relies on.
+
+Two kinds of finding:
+
+- a **defect** (exit code 2): the file is not a consistent, sampled motion of this robot
+  (time grid, rate, not at rest at an end, velocities or accelerations inconsistent with
+  the positions, a forward-kinematics branch switch, platform columns or feed-forward
+  torques that differ from the recomputed ones);
+- a **limit** (exit code 1): a consistent motion that violates a hardware limit (torque,
+  velocity, acceleration, jerk, actuated range, spherical joints, singularity margins,
+  leg interference), on a sample or between samples.
+
+Every finding names the check, the joint (or the part), the time and the value of the
+first and of the worst violation.
 """
 
 from __future__ import annotations
@@ -16,119 +30,458 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from sixplus3.control.trajectory_file import columns, read_trajectory
+from sixplus3.control.trajectory_file import (
+    COLUMNS,
+    JOINTS,
+    check_robot,
+    columns,
+    parse,
+    read_bytes,
+)
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.errors import ConvergenceError, SingularityError, TrajectoryFileError
-from sixplus3.kinematics.checks import measure_limits
-from sixplus3.kinematics.robot import home, robot_fk, robot_ik
+from sixplus3.errors import InputError
+from sixplus3.kinematics.robot import leg_clearance, robot_fk_batch, spherical_tilts
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
+
+#: Controller rates accepted [Hz]: below 100 Hz the samples cannot resolve a motion of
+#: this robot (its fastest moves last ~40 ms), above 10 kHz no drive listens.
+RATE_RANGE = (100.0, 10000.0)
+#: Longest motion accepted [s].
+MAX_DURATION = 3600.0
+#: |t_k - k / rate| allowed [s] (17 significant digits are written).
+TIME_TOL = 1e-9
+#: At rest at both ends: |theta_dot| [rad/s] and |theta_ddot| [rad/s^2] allowed.
+REST_VELOCITY_TOL = 1e-6
+REST_ACCELERATION_TOL = 1e-4
+#: Platform columns against the forward kinematics of the joints [m, rad, rad].
+POSE_TOL = 1e-6
+#: Feed-forward torques against Pinocchio's [N m].
+FEEDFORWARD_TOL = 1e-6
+#: Two forward-kinematics seeds must agree to this [m, rad]: else a branch switch.
+BRANCH_TOL = 1e-7
+#: Rounding slack of the consistency checks (positions [rad], rates [rad/s]).
+ROUND_POS, ROUND_VEL = 1e-10, 1e-9
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Consistency tolerances of a motion sampled every ``dt`` [s] whose actuated jerk is
+    bounded by ``jerk`` [rad/s^3] (the robot's limit).  Exact consequences of |jerk| <= J
+    (Taylor's theorem with integral remainder), per joint and interval:
+
+        |theta_{k+1} - theta_k - v_k dt - a_k dt^2/2|        <= J dt^3 / 6   (and backward)
+        |v_{k+1} - v_k - (a_k + a_{k+1}) dt / 2|              <= J dt^2 / 4
+        |a_{k+1} - a_k| / dt                                   <= J            (jerk limit)
+    """
+
+    dt: float
+    jerk: float
+
+    @property
+    def position(self) -> float:
+        return self.jerk * self.dt**3 / 6.0 + ROUND_POS
+
+    @property
+    def velocity(self) -> float:
+        return self.jerk * self.dt**2 / 4.0 + ROUND_VEL
+
+    def as_dict(self) -> dict[str, float]:
+        return {"dt_s": self.dt, "jerk_rad_s3": self.jerk, "position_rad": self.position,
+                "velocity_rad_s": self.velocity, "time_s": TIME_TOL,
+                "rest_velocity_rad_s": REST_VELOCITY_TOL,
+                "rest_acceleration_rad_s2": REST_ACCELERATION_TOL, "pose": POSE_TOL,
+                "feedforward_n_m": FEEDFORWARD_TOL, "branch": BRANCH_TOL}
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One failed check: where it first failed and where it failed worst."""
+
+    check: str  # e.g. "torque", "velocity consistency"
+    kind: str  # "limit" (exit 1) or "defect" (exit 2)
+    unit: str
+    bound: float  # the limit or tolerance
+    count: int  # samples (or intervals) that fail
+    first_t: float
+    first_where: str  # joint or part
+    first_value: float
+    worst_t: float
+    worst_where: str
+    worst_value: float
+
+    def message(self) -> str:
+        u = f" {self.unit}" if self.unit else ""
+        return (f"{self.check}: first at t = {self.first_t:.4f} s on {self.first_where}: "
+                f"{self.first_value:.6g}{u} (bound {self.bound:.6g}{u}); worst at t = "
+                f"{self.worst_t:.4f} s on {self.worst_where}: {self.worst_value:.6g}{u}; "
+                f"{self.count} failing")
+
+
+def _finding(check: str, kind: str, unit: str, bound: float, excess: np.ndarray,
+             value: np.ndarray, times: np.ndarray, names: list[str]) -> Finding | None:
+    """A finding from per-(sample, element) ``excess`` (> 0 fails) and ``value``."""
+    excess = np.atleast_2d(np.asarray(excess, dtype=float).T).T
+    value = np.atleast_2d(np.asarray(value, dtype=float).T).T
+    bad = np.nan_to_num(excess, nan=np.inf) > 0.0
+    if not bad.any():
+        return None
+    rows = np.flatnonzero(bad.any(axis=1))
+    k0 = int(rows[0])
+    j0 = int(np.flatnonzero(bad[k0])[0])
+    flat = np.nan_to_num(excess, nan=np.inf).ravel()
+    kw, jw = divmod(int(np.argmax(flat)), excess.shape[1])
+    return Finding(check, kind, unit, float(bound), int(len(rows)), float(times[k0]),
+                   names[j0], float(value[k0, j0]), float(times[kw]), names[jw],
+                   float(value[kw, jw]))
 
 
 @dataclass
 class ValidationReport:
     ok: bool
     samples: int
-    max_torque_ratio: float  # max |tau| / limit
+    robot_hash: str
+    max_torque_ratio: float  # max |tau| / limit (samples and midpoints)
     max_velocity_ratio: float
     max_acceleration_ratio: float
+    max_jerk_ratio: float
     min_margin_leg_type1: float
     min_margin_leg_type2: float
     min_margin_platform: float
     min_leg_clearance: float  # [m]
     max_spherical_tilt_deg: float
     theta_range_ok: bool
-    violations: list[str] = field(default_factory=list)
-    tau: np.ndarray | None = None  # (M, 9) [N m]
+    findings: list[Finding] = field(default_factory=list)
+    tolerances: dict = field(default_factory=dict)
+    checked_points: int = 0  # samples + midpoints evaluated with the full dynamics
+    tau: np.ndarray | None = None  # (M, 9) [N m] on the samples
     position: np.ndarray | None = None  # (M, 3) platform [m]
     quaternion: np.ndarray | None = None  # (M, 4) x, y, z, w
     psi: np.ndarray | None = None  # (M, 3) [rad]
-    feedforward_error: float | None = None  # max |tau_file - tau| [N m] (validate_file)
-    duration: float | None = None  # [s] (validate_file)
-    header: dict | None = field(default=None, repr=False)  # the header read (validate_file)
-    #: the samples validated, exactly as read from the file (validate_file): send these
+    feedforward_error: float | None = None  # max |tau_file - tau| [N m]
+    duration: float | None = None  # [s]
+    header: dict | None = field(default=None, repr=False)  # validate_file only
+    #: the samples validated, exactly as read (validate_file): send these
     data: np.ndarray | None = field(default=None, repr=False)
 
+    @property
+    def defects(self) -> list[Finding]:
+        return [f for f in self.findings if f.kind == "defect"]
+
+    @property
+    def violations(self) -> list[str]:
+        """Messages of every finding (defects first)."""
+        return self.messages()
+
+    def messages(self) -> list[str]:
+        order = sorted(self.findings, key=lambda f: f.kind != "defect")
+        return [f.message() for f in order]
+
+    @property
+    def exit_code(self) -> int:
+        """0 valid; 2 the file is not a consistent motion of this robot; 1 a limit."""
+        if self.defects:
+            return 2
+        return 1 if self.findings else 0
+
     def summary(self) -> dict:
-        keys = ("ok", "samples", "max_torque_ratio", "max_velocity_ratio",
-                "max_acceleration_ratio", "min_margin_leg_type1", "min_margin_leg_type2",
-                "min_margin_platform", "min_leg_clearance", "max_spherical_tilt_deg",
-                "theta_range_ok", "violations")
-        return {k: getattr(self, k) for k in keys}
+        keys = ("ok", "samples", "robot_hash", "max_torque_ratio", "max_velocity_ratio",
+                "max_acceleration_ratio", "max_jerk_ratio", "min_margin_leg_type1",
+                "min_margin_leg_type2", "min_margin_platform", "min_leg_clearance",
+                "max_spherical_tilt_deg", "theta_range_ok", "checked_points", "tolerances")
+        out = {k: getattr(self, k) for k in keys}
+        out["exit_code"] = self.exit_code
+        out["findings"] = self.messages()
+        return out
+
+
+def _failed(n: int, robot: Robot, findings: list[Finding], tol: dict) -> ValidationReport:
+    return ValidationReport(False, n, robot.hash, math.inf, math.inf, math.inf, math.inf,
+                            0.0, 0.0, 0.0, -math.inf, 180.0, False, findings, tol)
+
+
+def hermite(dt: float, th: np.ndarray, v: np.ndarray, a: np.ndarray, k: np.ndarray,
+            s: np.ndarray):
+    """(theta, theta_dot, theta_ddot) at fraction s in [0, 1] of interval k (arrays) of
+    the quintic Hermite interpolant through the samples (th, v, a) spaced dt [s]."""
+    s = s[:, None]
+    p0, p1, v0, v1, a0, a1 = th[k], th[k + 1], v[k] * dt, v[k + 1] * dt, a[k] * dt**2, \
+        a[k + 1] * dt**2
+    s2, s3, s4, s5 = s**2, s**3, s**4, s**5
+    h0 = 1 - 10 * s3 + 15 * s4 - 6 * s5
+    h1 = s - 6 * s3 + 8 * s4 - 3 * s5
+    h2 = 0.5 * (s2 - 3 * s3 + 3 * s4 - s5)
+    h3 = 0.5 * (s3 - 2 * s4 + s5)
+    h4 = -4 * s3 + 7 * s4 - 3 * s5
+    h5 = 10 * s3 - 15 * s4 + 6 * s5
+    pos = h0 * p0 + h1 * v0 + h2 * a0 + h3 * a1 + h4 * v1 + h5 * p1
+    d0 = -30 * s2 + 60 * s3 - 30 * s4
+    d1 = 1 - 18 * s2 + 32 * s3 - 15 * s4
+    d2 = 0.5 * (2 * s - 9 * s2 + 12 * s3 - 5 * s4)
+    d3 = 0.5 * (3 * s2 - 8 * s3 + 5 * s4)
+    d4 = -12 * s2 + 28 * s3 - 15 * s4
+    vel = (d0 * (p0 - p1) + d1 * v0 + d2 * a0 + d3 * a1 + d4 * v1) / dt
+    e0 = -60 * s + 180 * s2 - 120 * s3
+    e1 = -36 * s + 96 * s2 - 60 * s3
+    e2 = 0.5 * (2 - 18 * s + 36 * s2 - 20 * s3)
+    e3 = 0.5 * (6 * s - 24 * s2 + 20 * s3)
+    e4 = -24 * s + 84 * s2 - 60 * s3
+    acc = (e0 * (p0 - p1) + e1 * v0 + e2 * a0 + e3 * a1 + e4 * v1) / dt**2
+    return pos, vel, acc
+
+
+def hermite_midpoints(dt: float, th: np.ndarray, v: np.ndarray, a: np.ndarray):
+    """(theta, theta_dot, theta_ddot) halfway between consecutive samples on the quintic
+    Hermite interpolant of (theta, v, a) at both ends (the C^2 motion through them)."""
+    k = np.arange(len(th) - 1)
+    return hermite(dt, th, v, a, k, np.full(len(k), 0.5))
+
+
+def _dynamics(dyn: ClosedLoopDynamics, q: np.ndarray, thd: np.ndarray, thdd: np.ndarray):
+    return dyn.actuated_inverse_dynamics_batch(q, thd, thdd)
+
+
+def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
+                    theta_ddot: np.ndarray, robot: Robot, rate: float,
+                    x_guess: np.ndarray, limits: Limits | None = None,
+                    platform: np.ndarray | None = None,
+                    tau_file: np.ndarray | None = None,
+                    midpoints: bool = True) -> ValidationReport:
+    """Validate a sampled motion of ``robot``: every check of docs/validation.md.
+
+    t (n,) [s]; theta, theta_dot, theta_ddot (n, 9); ``rate`` [Hz] the declared rate;
+    ``x_guess`` (n, 9) minimal coordinates seeding the forward kinematics (e.g. the
+    file's platform columns; only a starting guess, and the first one is checked);
+    ``limits`` tighter than the robot's (default: the robot's hardware limits);
+    ``platform`` (n, 10) position, quaternion, psi to compare with the forward
+    kinematics; ``tau_file`` (n, 9) feed-forward torques to compare with Pinocchio's.
+    """
+    lim = robot.limits if limits is None else robot.limits.tightened(**limits.as_dict())
+    t = np.asarray(t, dtype=float)
+    arrays = [np.asarray(a, dtype=float) for a in (theta, theta_dot, theta_ddot)]
+    n = len(t)
+    for name, arr in zip(("theta", "theta_dot", "theta_ddot"), arrays, strict=True):
+        if arr.shape != (n, 9):
+            raise InputError(f"{name} must be ({n}, 9), got {arr.shape}")
+    th, v, a = arrays
+    findings: list[Finding] = []
+    # ------------------------------------------------------------ grid and rate
+    lo, hi = RATE_RANGE
+    if not (math.isfinite(rate) and lo <= rate <= hi):
+        f = Finding("rate", "defect", "Hz", lo, 1, 0.0, "header", float(rate), 0.0, "header",
+                    float(rate))
+        return _failed(n, robot, [f], {})
+    dt = 1.0 / rate
+    tol = Tolerances(dt, lim.jerk)
+    tol_d = tol.as_dict()
+    if n < 2 or not np.all(np.isfinite(np.c_[t, th, v, a])):
+        f = Finding("samples", "defect", "", 2, 1, 0.0, "file", float(n), 0.0, "file", n)
+        return _failed(n, robot, [f], tol_d)
+    grid = np.arange(n) / rate
+    if grid[-1] > MAX_DURATION:
+        f = Finding("duration", "defect", "s", MAX_DURATION, 1, float(t[-1]), "file",
+                    float(grid[-1]), float(t[-1]), "file", float(grid[-1]))
+        return _failed(n, robot, [f], tol_d)
+    err = np.abs(t - grid)
+    g = _finding("time grid (t_k = k / rate)", "defect", "s", TIME_TOL,
+                 err - TIME_TOL - 1e-12 * grid, err, t, ["time"])
+    if g is not None:
+        return _failed(n, robot, [g], tol_d)
+    # ------------------------------------------------------------ rest at both ends
+    for k, end in ((0, "start"), (n - 1, "end")):
+        for arr, bound, what, unit in ((v, REST_VELOCITY_TOL, "velocity", "rad/s"),
+                                       (a, REST_ACCELERATION_TOL, "acceleration", "rad/s^2")):
+            f = _finding(f"at rest at the {end} ({what})", "defect", unit, bound,
+                         np.abs(arr[k:k + 1]) - bound, arr[k:k + 1], t[k:k + 1], JOINTS)
+            if f:
+                findings.append(f)
+    # ------------------------------------------------------------ consistency (no jumps)
+    d_th, d_v, d_a = np.diff(th, axis=0), np.diff(v, axis=0), np.diff(a, axis=0)
+    fwd = d_th - v[:-1] * dt - a[:-1] * dt**2 / 2
+    bwd = d_th - v[1:] * dt + a[1:] * dt**2 / 2
+    pos_err = np.maximum(np.abs(fwd), np.abs(bwd))
+    vel_err = np.abs(d_v - (a[:-1] + a[1:]) * dt / 2)
+    t_int = t[:-1]
+    for check, e, bound, unit in (
+            ("position/velocity consistency", pos_err, tol.position, "rad"),
+            ("velocity/acceleration consistency", vel_err, tol.velocity, "rad/s")):
+        f = _finding(check, "defect", unit, bound, e - bound, e, t_int, JOINTS)
+        if f:
+            findings.append(f)
+    jerk = np.abs(d_a) / dt
+    # ------------------------------------------------------------ forward kinematics
+    x_guess = np.asarray(x_guess, dtype=float)
+    fk = robot_fk_batch(th, x_guess, robot)
+    if not fk.converged.all():
+        f = _finding("forward kinematics (no pose reproduces the joints)", "defect", "rad",
+                     1e-10, fk.residual - 1e-10, fk.residual, t, ["platform"])
+        if f:
+            findings.append(f)
+        return _failed(n, robot, findings, tol_d)
+    # a second seed, each sample from the previous sample's solution: the two agree
+    # unless the motion switches assembly branch (or the guesses were on another branch)
+    fk2 = robot_fk_batch(th, np.r_[fk.x[:1], fk.x[:-1]], robot, margins=False)
+    branch = np.abs(fk2.x - fk.x).max(axis=1)
+    branch = np.where(fk2.converged, branch, np.inf)
+    f = _finding("forward-kinematics branch continuity", "defect", "", BRANCH_TOL,
+                 branch - BRANCH_TOL, branch, t, ["platform"])
+    if f:
+        findings.append(f)
+    cfg = fk.cfg
+    quat = Rotation.from_matrix(fk.rotation).as_quat()
+    if platform is not None:
+        platform = np.asarray(platform, dtype=float)
+        dq = np.abs(np.einsum("ni,ni->n", platform[:, 3:7], quat))
+        ang = 2 * np.arccos(np.clip(dq, -1.0, 1.0))
+        errs = np.c_[np.abs(platform[:, 0:3] - cfg.position).max(axis=1), ang,
+                     np.abs(platform[:, 7:10] - cfg.psi).max(axis=1),
+                     np.abs(np.linalg.norm(platform[:, 3:7], axis=1) - 1.0)]
+        f = _finding("platform columns vs forward kinematics", "defect", "m or rad",
+                     POSE_TOL, errs - POSE_TOL, errs, t,
+                     ["position", "orientation", "psi", "quaternion norm"])
+        if f:
+            findings.append(f)
+    # ------------------------------------------------------------ dynamics (Pinocchio)
+    dyn = ClosedLoopDynamics(robot)
+    tau, rcond = _dynamics(dyn, cfg.q, v, a)
+    if tau_file is not None:
+        ff = np.abs(np.asarray(tau_file, dtype=float) - tau)
+        ff_err = float(np.nan_to_num(ff, nan=np.inf).max())
+        f = _finding("feed-forward torque vs Pinocchio", "defect", "N m", FEEDFORWARD_TOL,
+                     ff - FEEDFORWARD_TOL, ff, t, JOINTS)
+        if f:
+            findings.append(f)
+    else:
+        ff_err = None
+    # ------------------------------------------------------------ limits on the samples
+    tau_all, v_all, a_all, t_all = tau, v, a, t
+    cfg_points = [cfg]
+    rcond_all = rcond
+    checked = n
+    # ------------------------------------------------------------ between the samples
+    if midpoints:
+        pm, vm, am = hermite_midpoints(dt, th, v, a)
+        tm = t[:-1] + dt / 2
+        fkm = robot_fk_batch(pm, fk.x[:-1], robot)
+        if not fkm.converged.all():
+            f = _finding("forward kinematics between samples", "limit", "rad", 1e-10,
+                         fkm.residual - 1e-10, fkm.residual, tm, ["platform"])
+            if f:
+                findings.append(f)
+        else:
+            taum, rcm = _dynamics(dyn, fkm.cfg.q, vm, am)
+            tau_all = np.r_[tau, taum]
+            v_all, a_all, t_all = np.r_[v, vm], np.r_[a, am], np.r_[t, tm]
+            rcond_all = np.r_[rcond, rcm]
+            cfg_points.append(fkm.cfg)
+            checked += len(tm)
+    sph = np.vstack([spherical_tilts(c).reshape(len(c), 9) for c in cfg_points])
+    clear = np.concatenate([leg_clearance(c) for c in cfg_points])
+    findings += _limit_findings(lim, cfg_points, tau_all, v_all, a_all, t_all, rcond_all,
+                                jerk, t_int, sph, clear)
+    tilt = float(sph.max())
+    clearance = float(clear.min())
+    th_all = np.vstack([c.theta for c in cfg_points])
+    theta_ok = bool(np.all((th_all >= lim.theta_min - 1e-9) & (th_all <= lim.theta_max + 1e-9)))
+    m1 = min(float(c.margins.leg_type1.min()) for c in cfg_points)
+    m2 = min(float(c.margins.leg_type2.min()) for c in cfg_points)
+    mp = min(float(c.margins.platform.min()) for c in cfg_points)
+    rep = ValidationReport(
+        ok=not findings, samples=n, robot_hash=robot.hash,
+        max_torque_ratio=float(np.nan_to_num(np.abs(tau_all), nan=np.inf).max() / lim.torque),
+        max_velocity_ratio=float(np.abs(v_all).max() / lim.velocity),
+        max_acceleration_ratio=float(np.abs(a_all).max() / lim.acceleration),
+        max_jerk_ratio=float(jerk.max() / lim.jerk),
+        min_margin_leg_type1=m1, min_margin_leg_type2=m2, min_margin_platform=mp,
+        min_leg_clearance=clearance, max_spherical_tilt_deg=math.degrees(tilt),
+        theta_range_ok=theta_ok, findings=findings, tolerances=tol_d, checked_points=checked,
+        tau=tau, position=cfg.position.copy(), quaternion=quat, psi=cfg.psi.copy(),
+        feedforward_error=ff_err, duration=float(t[-1]))
+    return rep
+
+
+def _limit_findings(lim: Limits, cfgs: list, tau: np.ndarray, v: np.ndarray, a: np.ndarray,
+                    t: np.ndarray, rcond: np.ndarray, jerk: np.ndarray, t_int: np.ndarray,
+                    sph: np.ndarray, clear: np.ndarray) -> list[Finding]:
+    """Every limit on samples and midpoints (rows of the stacked arrays, in time order
+    of each block), one finding per limit."""
+    out: list[Finding | None] = []
+    atau = np.nan_to_num(np.abs(tau), nan=np.inf)
+    out.append(_finding("torque", "limit", "N m", lim.torque, atau - lim.torque * (1 + 1e-9),
+                        atau, t, JOINTS))
+    out.append(_finding("velocity", "limit", "rad/s", lim.velocity,
+                        np.abs(v) - lim.velocity * (1 + 1e-9), np.abs(v), t, JOINTS))
+    out.append(_finding("acceleration", "limit", "rad/s^2", lim.acceleration,
+                        np.abs(a) - lim.acceleration * (1 + 1e-9), np.abs(a), t, JOINTS))
+    out.append(_finding("jerk (between samples)", "limit", "rad/s^3", lim.jerk,
+                        jerk - lim.jerk * (1 + 1e-9), jerk, t_int, JOINTS))
+    out.append(_finding("parallel singularity (closure Jacobian)", "limit", "rcond", 1e-10,
+                        1e-10 - rcond, rcond, t, ["closures"]))
+    th = np.vstack([c.theta for c in cfgs])
+    below, above = lim.theta_min - th, th - lim.theta_max
+    out.append(_finding("actuated range", "limit", "rad", lim.theta_max,
+                        np.maximum(below, above) - 1e-9, th, t, JOINTS))
+    sph_names = [f"leg{i}_{s}" for i in range(3) for s in ("E", "F", "P")]
+    out.append(_finding("spherical joint tilt", "limit", "rad", lim.spherical,
+                        sph - lim.spherical, sph, t, sph_names))
+    m = np.vstack([np.c_[c.margins.leg_type1, c.margins.leg_type2, c.margins.platform]
+                   for c in cfgs])
+    m_names = ([f"leg{i} type I" for i in range(3)] + [f"leg{i} type II" for i in range(3)]
+               + ["platform"])
+    out.append(_finding("singularity margin", "limit", "", lim.margin, lim.margin - m, m, t,
+                        m_names))
+    out.append(_finding("leg interference (clearance)", "limit", "m", 0.0, -clear, clear, t,
+                        ["legs"]))
+    return [f for f in out if f is not None]
 
 
 def validate_joint_trajectory(theta: np.ndarray, theta_dot: np.ndarray,
-                              theta_ddot: np.ndarray, robot: Robot | None = None,
-                              limits: Limits | None = None,
-                              q_hint: np.ndarray | None = None) -> ValidationReport:
-    """Check every sample of a motion of ``robot`` against ``limits`` (default: the
-    robot's hardware limits; tighter ones may be given, looser ones are refused).
+                              theta_ddot: np.ndarray, robot: Robot, rate: float,
+                              x_guess: np.ndarray, limits: Limits | None = None,
+                              t: np.ndarray | None = None) -> ValidationReport:
+    """:func:`validate_motion` of samples on the grid k / ``rate`` (the pipeline's check
+    before it writes anything)."""
+    n = len(theta)
+    t = np.arange(n) / rate if t is None else t
+    return validate_motion(t, theta, theta_dot, theta_ddot, robot, rate, x_guess, limits)
 
-    ``q_hint`` is the tree configuration near the first sample (default: home); it only
-    selects the assembly branch of the forward kinematics.
+
+def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory") -> ValidationReport:
+    """Validate the bytes of a trajectory file for ``robot``.
+
+    Raises :class:`~sixplus3.errors.TrajectoryFileError` for a file that is unreadable,
+    corrupted (integrity digest) or made for another robot; returns a report whose
+    ``exit_code`` is 2 for a motion defect, 1 for a violated limit, 0 when valid.
     """
-    robot = robot or Robot.default()
-    limits = robot.limits if limits is None else robot.limits.tightened(**limits.as_dict())
-    dyn = ClosedLoopDynamics(robot)
-    n = theta.shape[0]
-    tau = np.zeros((n, 9))
-    q = home(robot).q[0] if q_hint is None else np.array(q_hint, dtype=float)
-    pos = np.zeros((n, 3))
-    quat = np.zeros((n, 4))
-    psi = np.zeros((n, 3))
-    violations: list[str] = []
-    for k in range(n):
-        try:
-            fk = robot_fk(theta[k], q_hint=q, model=dyn.clm)
-        except ConvergenceError:
-            violations.append(f"forward kinematics fails at sample {k}")
-            break
-        q = fk.q
-        pos[k], psi[k] = fk.position, fk.psi
-        quat[k] = Rotation.from_matrix(fk.rotation).as_quat()
-        try:
-            v, a = dyn.consistent_state(q, theta_dot[k], theta_ddot[k])
-            tau[k] = dyn.inverse_dynamics(q, v, a)
-        except SingularityError as exc:
-            violations.append(f"sample {k}: {exc}")
-            break
-    if violations:
-        return ValidationReport(False, n, math.inf, math.inf, math.inf, 0, 0, 0, -math.inf,
-                                180.0, False, violations)
-    cfg = robot_ik(pos, Rotation.from_quat(quat).as_matrix(), psi, robot)
-    if not cfg.ok.all():
-        violations.append("a recomputed pose is unreachable")
-    lm = measure_limits(cfg, tau, theta, theta_dot, theta_ddot, limits)
-    violations += lm.violations
-    return ValidationReport(not violations, n, lm.max_torque_ratio, lm.max_velocity_ratio,
-                            lm.max_acceleration_ratio, lm.min_margin_leg_type1,
-                            lm.min_margin_leg_type2, lm.min_margin_platform,
-                            lm.min_leg_clearance, math.degrees(lm.max_spherical_tilt),
-                            lm.theta_range_ok, violations, tau, pos, quat, psi)
+    header, data = parse(raw, name)
+    check_robot(header, robot, name)
+    try:
+        rate = float(header.get("rate_hz", float("nan")))
+    except (TypeError, ValueError):
+        rate = float("nan")
+    x_guess = np.c_[data[:, 37:40], _rotvec(data[:, 40:44]), data[:, 44:47]]
+    rep = validate_motion(data[:, 0], columns(data, "pos"), columns(data, "vel"),
+                          columns(data, "acc"), robot, rate, x_guess,
+                          platform=data[:, 37:47], tau_file=columns(data, "tau"))
+    rep.header, rep.data = header, data
+    return rep
+
+
+def _rotvec(quat: np.ndarray) -> np.ndarray:
+    """Rotation vectors of (possibly non-unit) quaternions; garbage in, a guess out."""
+    q = np.array(quat, dtype=float)
+    norm = np.linalg.norm(q, axis=1, keepdims=True)
+    q = np.where(norm > 1e-9, q / np.maximum(norm, 1e-300), [0.0, 0.0, 0.0, 1.0])
+    return Rotation.from_quat(q).as_rotvec()
 
 
 def validate_file(path: str | Path, robot: Robot | None = None) -> ValidationReport:
-    """Validate a trajectory file for ``robot`` (default ``Robot.default()``).
-
-    Raises :class:`TrajectoryFileError` for a file that is missing, corrupted or made for
-    another robot (bad input); returns a report whose ``ok`` is False when a limit is
-    violated.  The limits are the robot's hardware limits, never the file's.
-    """
+    """Validate a trajectory file for ``robot`` (default ``Robot.default()``): the file
+    is read once, and ``report.data`` holds exactly the samples validated."""
     robot = robot or Robot.default()
-    header, data = read_trajectory(Path(path), robot)
-    cfg0 = robot_ik(data[0, 37:40], Rotation.from_quat(data[0, 40:44]).as_matrix(),
-                    data[0, 44:47], robot)
-    if not cfg0.ok[0]:
-        raise TrajectoryFileError(f"{Path(path).name}: the first platform pose is unreachable")
-    rep = validate_joint_trajectory(columns(data, "pos"), columns(data, "vel"),
-                                    columns(data, "acc"), robot, None, cfg0.q[0])
-    tau_file = columns(data, "tau")
-    ff_err = float(np.abs(rep.tau - tau_file).max()) if rep.tau is not None else math.inf
-    rep.feedforward_error = ff_err
-    rep.duration = float(data[-1, 0])
-    rep.header, rep.data = header, data
-    if ff_err > 1e-6 * max(1.0, robot.limits.torque):
-        rep.violations.append(f"feed-forward torques differ from the recomputed ones by "
-                              f"{ff_err:.2e} N m")
-        rep.ok = False
-    return rep
+    return validate_bytes(read_bytes(path), robot, Path(path).name)
+
+
+__all__ = ["COLUMNS", "Finding", "Tolerances", "ValidationReport", "hermite", "hermite_midpoints",
+           "validate_bytes", "validate_file", "validate_joint_trajectory",
+           "validate_motion"]

@@ -164,6 +164,79 @@ class ClosedLoopDynamics:
             out += J.T @ np.asarray(f, dtype=float)
         return out
 
+    def actuated_inverse_dynamics(self, q: np.ndarray, theta_dot: np.ndarray,
+                                  theta_ddot: np.ndarray) -> tuple[np.ndarray, float]:
+        """(tau [N m], rcond) of the consistent motion through the closed configuration q
+        with actuated rates theta_dot [rad/s] and accelerations theta_ddot [rad/s^2].
+
+        The same equations as :meth:`consistent_state` + :meth:`inverse_dynamics`, with
+        one constraint Jacobian, one LU and one RNEA per call.
+        ``rcond`` is the 1-norm reciprocal condition estimate of J_pas; at or below
+        :data:`SINGULAR_RCOND` tau is NaN (a parallel singularity: no torque is defined).
+        """
+        m, d = self.model, self.data
+        Jc = self.clm.constraint_jacobian(q)
+        Jp = np.asfortranarray(Jc[:, self._pas])
+        lu, piv, info = lapack.dgetrf(Jp)
+        rcond = 0.0
+        if info == 0:
+            rcond, _ = lapack.dgecon(lu, np.abs(Jp).sum(axis=0).max(), norm="1")
+        if info != 0 or rcond <= SINGULAR_RCOND:
+            return np.full(len(self._act), np.nan), float(rcond)
+        X, _ = lapack.dgetrs(lu, piv, Jc[:, self._act])  # J_pas^-1 J_act
+        v = np.zeros(m.nv)
+        v[self._act] = theta_dot
+        v[self._pas] = -X @ theta_dot
+        gamma = self.clm.drift(q, v)  # world-aligned, like Jc
+        a = np.zeros(m.nv)
+        a[self._act] = theta_ddot
+        corr, _ = lapack.dgetrs(lu, piv, gamma)
+        a[self._pas] = -X @ theta_ddot - corr
+        h = pin.rnea(m, d, q, v, a)
+        return h[self._act] - X.T @ h[self._pas], float(rcond)
+
+    def actuated_inverse_dynamics_batch(self, q: np.ndarray, theta_dot: np.ndarray,
+                                        theta_ddot: np.ndarray) -> tuple[np.ndarray,
+                                                                         np.ndarray]:
+        """:meth:`actuated_inverse_dynamics` of n states at once: (tau (n, 9), rcond (n,)).
+
+        Two passes over the states with Pinocchio (constraint Jacobians; then drift and
+        RNEA) and the 27x27 linear algebra batched in between.  ``rcond`` is the exact
+        1-norm reciprocal condition number of J_pas; states at or below
+        :data:`SINGULAR_RCOND` get NaN torques.
+        """
+        m, d = self.model, self.data
+        n = len(q)
+        Jc = np.empty((n, self.clm.n_constraints, m.nv))
+        jac = self.clm.constraint_jacobian
+        for k in range(n):
+            Jc[k] = jac(q[k])  # world-aligned, like the drift below
+        Jp = Jc[:, :, self._pas]
+        with np.errstate(all="ignore"):
+            try:
+                inv = np.linalg.inv(Jp)
+            except np.linalg.LinAlgError:  # some state exactly singular: one by one
+                inv = np.stack([_safe_inv(J) for J in Jp])
+            rcond = 1.0 / (np.abs(Jp).sum(axis=1).max(axis=1)
+                           * np.abs(inv).sum(axis=1).max(axis=1))
+        rcond = np.nan_to_num(rcond, nan=0.0)
+        X = inv @ Jc[:, :, self._act]  # (n, 27, 9) J_pas^-1 J_act
+        v = np.zeros((n, m.nv))
+        v[:, self._act] = theta_dot
+        v[:, self._pas] = -np.einsum("nij,nj->ni", X, theta_dot)
+        a = np.zeros((n, m.nv))
+        a[:, self._act] = theta_ddot
+        a_pas = -np.einsum("nij,nj->ni", X, theta_ddot)
+        H = np.empty((n, m.nv))
+        drift, rnea, pas = self.clm.drift, pin.rnea, self._pas
+        for k in range(n):
+            ak = a[k]
+            ak[pas] = a_pas[k] - inv[k] @ drift(q[k], v[k])
+            H[k] = rnea(m, d, q[k], v[k], ak)
+        tau = H[:, self._act] - np.einsum("nij,ni->nj", X, H[:, pas])
+        tau[rcond <= SINGULAR_RCOND] = np.nan
+        return tau, rcond
+
     def gravity_torques(self, q: np.ndarray) -> np.ndarray:
         """Static actuator torques holding the robot still at q [N m]."""
         z = np.zeros(self.model.nv)
@@ -259,3 +332,10 @@ class ClosedLoopDynamics:
                 u = np.asarray(tau, dtype=float)
             q, v = self.step(q, v, u, dt, method, project)
         return Trajectory(np.arange(n) * dt, qs, vs, ke, pe, res)
+
+
+def _safe_inv(J: np.ndarray) -> np.ndarray:
+    try:
+        return np.linalg.inv(J)
+    except np.linalg.LinAlgError:
+        return np.full_like(J, np.inf)

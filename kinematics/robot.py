@@ -186,11 +186,14 @@ def crank_tips(position, rotation, psi, robot: Robot) -> np.ndarray:
     return P
 
 
-def robot_ik(position, rotation, psi=None, robot: Robot | None = None) -> RobotConfig:
+def robot_ik(position, rotation, psi=None, robot: Robot | None = None,
+             platform_margins: bool = True) -> RobotConfig:
     """Batched closed-form IK: platform pose (n, 3) [m], (n, 3, 3) and psi (n, 3) [rad]
     (default: the robot's home crank angles), in the robot's assembly mode.
 
     Failed samples have ``status != 0`` (bit i: leg i), zeros in q and theta, margins 0.
+    ``platform_margins=False`` skips the platform margin (an SVD per sample; NaN then):
+    for inner loops that need only the angles.
     """
     robot = robot or Robot.default()
     position, rotation, psi = _as_batch(position, rotation,
@@ -229,7 +232,8 @@ def robot_ik(position, rotation, psi=None, robot: Robot | None = None) -> RobotC
     margins = RobotMargins(
         leg_type1=np.stack([s.margin_I for s in legs], axis=1),
         leg_type2=np.stack([s.margin_II for s in legs], axis=1),
-        platform=np.where(bad, 0.0, platform_margin(rotation, P, position, geom)),
+        platform=(np.where(bad, 0.0, platform_margin(rotation, P, position, geom))
+                  if platform_margins else np.full(n, np.nan)),
     )
     return RobotConfig(status=status, leg_status=leg_status, position=position,
                        rotation=rotation, psi=psi, theta=theta, P=P, q=q, legs=tuple(legs),
@@ -458,3 +462,90 @@ def leg_clearance(cfg: RobotConfig) -> np.ndarray:
                     best = np.minimum(best, d)
     return np.where(cfg.ok, best - 2 * LINK_RADIUS, -np.inf)
 
+
+
+# --------------------------------------------------------------------- batched FK
+@dataclass(frozen=True)
+class BatchFK:
+    """Forward kinematics of many samples at once (:func:`robot_fk_batch`)."""
+
+    x: np.ndarray  # (n, 9) platform position [m], rotation vector [rad], psi [rad]
+    rotation: np.ndarray  # (n, 3, 3)
+    residual: np.ndarray  # (n,) max |theta(x) - theta| [rad]; inf where unsolved
+    iterations: int
+    cfg: RobotConfig  # the closed-form IK at x: q, margins, legs, ...
+
+    @property
+    def converged(self) -> np.ndarray:
+        return self.residual < 1e-10
+
+
+def ik_jacobian(cfg: RobotConfig) -> np.ndarray:
+    """(n, 9, 9) d theta / d (platform velocity [m/s], angular velocity [rad/s] in the
+    robot frame, crank rates [rad/s]), analytic, from each leg's K^-1 J (paper §III-C):
+
+        v_Pi = v + omega x (P_i - O) + psi_dot_i z_p x (P_i - R_i),
+        theta_dot_leg_i = (K^-1 J)_i R_leg_i^T v_Pi.
+    """
+    robot = cfg.robot
+    geom = robot.geometry
+    n = len(cfg)
+    out = np.zeros((n, 9, 9))
+    z = cfg.rotation[:, :, 2]
+    for i in range(NUM_LEGS):
+        D = cfg.legs[i].dtheta_dp() @ geom.leg_rotation(i).T  # (n, 3, 3) world -> theta
+        r = cfg.P[:, i] - cfg.position
+        R_i = cfg.position + np.einsum("nij,j->ni", cfg.rotation, geom.crank_axis_position(i))
+        rows = slice(3 * i, 3 * i + 3)
+        out[:, rows, 0:3] = D
+        out[:, rows, 3:6] = -D @ _skew(r)
+        out[:, rows, 6 + i] = np.einsum("nij,nj->ni", D, np.cross(z, cfg.P[:, i] - R_i))
+    return out
+
+
+def robot_fk_batch(theta: np.ndarray, x_guess: np.ndarray, robot: Robot | None = None,
+                   tol: float = 1e-12, max_iter: int = 12, margins: bool = True) -> BatchFK:
+    """Forward kinematics of n samples at once: Newton on the closed-form IK.
+
+    theta (n, 9) [rad]; x_guess (n, 9) minimal coordinates near the answer (they only
+    seed Newton; the answer is whatever pose reproduces theta in the robot's assembly
+    mode, reported with its residual).  Each step: theta(x) by the batched closed-form
+    IK, then x += (d theta / d x)^-1 (theta - theta(x)) with the analytic Jacobian of
+    :func:`ik_jacobian`; rotations are updated on SO(3).  Samples whose IK fails or
+    whose Jacobian is singular keep residual inf.  ``margins=False``: the result's
+    platform margins are NaN (not needed, e.g. for a second seed).
+    """
+    robot = robot or Robot.default()
+    theta = np.asarray(theta, dtype=float)
+    x = np.array(x_guess, dtype=float)
+    if theta.ndim != 2 or theta.shape[1] != 9 or x.shape != theta.shape:
+        raise InputError(f"theta and x_guess must be (n, 9), got {theta.shape}, {x.shape}")
+    pos, R, psi = x[:, 0:3].copy(), Rotation.from_rotvec(x[:, 3:6]).as_matrix(), x[:, 6:9].copy()
+    residual = np.full(len(x), np.inf)
+    it = 0
+    cfg = robot_ik(pos, R, psi, robot, platform_margins=False)
+    for it in range(max_iter + 1):
+        err = theta - cfg.theta
+        err = np.where(cfg.ok[:, None], err, np.inf)
+        residual = np.abs(err).max(axis=1)
+        todo = cfg.ok & (residual > tol)
+        if not todo.any() or it == max_iter:
+            break
+        Jm = ik_jacobian(cfg)
+        step = np.zeros((len(x), 9))
+        ok = todo & np.all(np.isfinite(Jm), axis=(1, 2))
+        if ok.any():
+            try:
+                step[ok] = np.linalg.solve(Jm[ok], err[ok][:, :, None])[:, :, 0]
+            except np.linalg.LinAlgError:
+                step[ok] = np.einsum("nij,nj->ni", np.linalg.pinv(Jm[ok]), err[ok])
+        big = np.abs(step).max(axis=1, keepdims=True)
+        step *= np.minimum(1.0, 0.2 / np.maximum(big, 1e-300))  # damp steps > 0.2
+        pos = pos + step[:, 0:3]
+        R = Rotation.from_rotvec(step[:, 3:6]).as_matrix() @ R
+        psi = psi + step[:, 6:9]
+        cfg = robot_ik(pos, R, psi, robot, platform_margins=False)
+    if margins:
+        cfg = robot_ik(pos, R, psi, robot)
+    xs = np.c_[pos, Rotation.from_matrix(R).as_rotvec(), psi]
+    return BatchFK(xs, R, residual, it, cfg)

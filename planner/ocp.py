@@ -383,6 +383,13 @@ class Problem:
         sol.solve_time, sol.solves = total, solves
         if sol.check is not None and sol.check.ok:
             sol = self._retime(sol, proxy)
+        if sol.check is not None:  # limits that bind between the nodes
+            for name, ratio in (("torque", sol.check.max_torque_ratio),
+                                ("velocity", sol.check.max_velocity_ratio),
+                                ("acceleration", sol.check.max_acceleration_ratio)):
+                if ratio > 0.99 and not any(a.startswith(name) for a in sol.active_limits):
+                    sol.active_limits.append(f"{name} ({ratio:.3f} of the limit in the 10x "
+                                             "dense check)")
         return sol
 
     def _retime(self, sol: Solution, platform_proxy: float, target: float = 0.995) -> Solution:
@@ -535,8 +542,10 @@ class Problem:
             lo[k, 0:6] = hi[k, 0:6] = wp_x[w, 0:6]
             if wp.psi is not None and not opt.lock_redundancy:
                 lo[k, 6:9] = hi[k, 6:9] = wp_x[w, 6:9]
-        lo[0, 9:18] = hi[0, 9:18] = 0.0  # start and end at rest
-        lo[N, 9:18] = hi[N, 9:18] = 0.0
+        # start and end at rest: zero velocity and zero acceleration, so that the torque
+        # starts and ends at the holding torque (no step at either end)
+        lo[0, 9:27] = hi[0, 9:27] = 0.0
+        lo[N, 9:27] = hi[N, 9:27] = 0.0
         return (np.r_[lo.ravel(), np.full(9 * N, -tmax), np.full(S, 0.02)],
                 np.r_[hi.ravel(), np.full(9 * N, tmax), np.full(S, 60.0)])
 

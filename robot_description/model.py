@@ -89,6 +89,17 @@ class ClosedLoopModel:
         self.constraint_datas = pin.StdVec_RigidConstraintData()
         for cm in self.constraint_models:
             self.constraint_datas.append(cm.createData())
+        # the same closures expressed LOCAL_WORLD_ALIGNED: Pinocchio's constraint Jacobian
+        # of these is J_A - J_B (linear, world-aligned) in one call
+        self._cm_lwa = pin.StdVec_RigidConstraintModel()
+        self._cd_lwa = pin.StdVec_RigidConstraintData()
+        for ia, ib in self.frame_pairs:
+            fa, fb = m.frames[ia], m.frames[ib]
+            cm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, m, fa.parentJoint,
+                                          fa.placement, fb.parentJoint, fb.placement, LWA)
+            self._cm_lwa.append(cm)
+            self._cd_lwa.append(cm.createData())
+        self._zero_v = np.zeros(m.nv)
         q_idx, v_idx = [], []
         for name in self.actuated_names:
             if not m.existJointName(name):
@@ -127,22 +138,23 @@ class ClosedLoopModel:
                                for a, b in self.frame_pairs])
 
     def constraint_jacobian(self, q: np.ndarray) -> np.ndarray:
-        """(27, nv) Jc = J_A - J_B (linear, world-aligned); also updates frame placements."""
+        """(27, nv) Jc = J_A - J_B (linear, world-aligned); also updates the joint
+        placements and Jacobians (not the frame placements)."""
         m, d = self.model, self.data
         pin.computeJointJacobians(m, d, q)
-        pin.updateFramePlacements(m, d)
-        return np.vstack([
-            pin.getFrameJacobian(m, d, a, LWA)[:3] - pin.getFrameJacobian(m, d, b, LWA)[:3]
-            for a, b in self.frame_pairs])
+        for cm, cd in zip(self._cm_lwa, self._cd_lwa, strict=True):
+            cm.calc(m, d, cd)
+        return pin.getConstraintsJacobian(m, d, self._cm_lwa, self._cd_lwa)
 
     def drift(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """(27,) gamma: closure acceleration at a = 0 (so that Jc a + gamma = 0) [m/s^2]."""
         m, d = self.model, self.data
-        pin.forwardKinematics(m, d, q, v, np.zeros(m.nv))
-        return np.concatenate([
-            pin.getFrameClassicalAcceleration(m, d, a, LWA).linear
-            - pin.getFrameClassicalAcceleration(m, d, b, LWA).linear
-            for a, b in self.frame_pairs])
+        pin.forwardKinematics(m, d, q, v, self._zero_v)
+        out = np.empty(3 * len(self.frame_pairs))
+        acc = pin.getFrameClassicalAcceleration
+        for k, (a, b) in enumerate(self.frame_pairs):
+            out[3 * k:3 * k + 3] = acc(m, d, a, LWA).linear - acc(m, d, b, LWA).linear
+        return out
 
     def frame_position(self, name: str) -> np.ndarray:
         """World position of a frame after the last kinematics update [m]."""

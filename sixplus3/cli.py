@@ -55,12 +55,15 @@ class _Group(click.Group):
     """Catches the root error once: one line, exit 2 (and an internal error: exit 3)."""
 
     def invoke(self, ctx: click.Context) -> Any:
-        from sixplus3.errors import Sixplus3Error
+        from sixplus3.errors import Sixplus3Error, ValidationFailed
 
         try:
             return super().invoke(ctx)
+        except ValidationFailed as exc:
+            click.echo(f"refused: {' '.join(str(exc).split())[:2000]}", err=True)
+            sys.exit(exc.exit_code)
         except Sixplus3Error as exc:
-            _fail(" ".join(str(exc).split()))
+            _fail(" ".join(str(exc).split())[:2000])
         except (click.exceptions.Exit, click.ClickException, click.Abort, SystemExit):
             raise
         except KeyboardInterrupt:
@@ -438,30 +441,54 @@ def demo(out_dir: str) -> None:
 def validate(csv_file: str, as_json: bool) -> None:
     """Check a trajectory file independently of the planner (exit 0 only if all ok).
 
-    The limits are the robot's hardware limits, never the file's.  Exit codes: 0 every
-    sample within limits; 1 a limit is violated; 2 the file is missing, corrupted or
-    made for another robot.
+    Every check of docs/validation.md, against the robot's hardware limits (never the
+    file's).  Exit codes: 0 a valid motion; 1 a limit is violated; 2 the file is missing,
+    corrupted, made for another robot, or not a consistent motion (time grid, rest at
+    the ends, jumps, platform columns, feed-forward torques).
     """
     from sixplus3.control.validation import validate_file
 
     robot = _robot()
     rep = validate_file(csv_file, robot)
     limits = robot.limits
-    out = {"file": csv_file, "robot": robot.hash, "ok": rep.ok, "samples": rep.samples,
-           "duration_s": rep.duration,
-           **{k: v for k, v in rep.summary().items() if k not in ("ok", "samples")},
+    out = {"file": csv_file, "duration_s": rep.duration, **rep.summary(),
            "feedforward_max_error": rep.feedforward_error}
     if as_json:
         click.echo(json.dumps(out, default=_json_default))
     else:
-        click.echo(f"{csv_file}: {rep.samples} samples, {rep.duration:.4f} s; max |tau| "
+        verdict = {0: "OK", 1: "LIMIT VIOLATED", 2: "NOT A VALID MOTION"}[rep.exit_code]
+        click.echo(f"{csv_file}: {rep.samples} samples + {rep.checked_points - rep.samples} "
+                   f"midpoints, {rep.duration or 0.0:.4f} s; max |tau| "
                    f"{rep.max_torque_ratio * limits.torque:.3f} N m (limit "
                    f"{limits.torque:g}); margins {rep.min_margin_leg_type1:.3f} / "
                    f"{rep.min_margin_leg_type2:.3f} / {rep.min_margin_platform:.3f} "
-                   f"(>= {limits.margin:g}); {'OK' if rep.ok else 'FAILED'}")
-        for v in rep.violations:
-            click.echo(f"  violation: {v}")
-    sys.exit(0 if rep.ok else 1)
+                   f"(>= {limits.margin:g}); {verdict}")
+        for msg in rep.messages():
+            click.echo(f"  {'defect' if rep.exit_code == 2 else 'violation'}: {msg}")
+    sys.exit(rep.exit_code)
+
+
+@main.command()
+@click.argument("csv_file", type=click.Path(dir_okay=False))
+@click.option("--udp", default="127.0.0.1:9870", show_default=True,
+              help="IPv4:PORT of the controller.")
+@click.option("--speed", default=1.0, show_default=True, type=float,
+              help="Replay speed in [0.01, 1]: < 1 is a real retiming, validated again.")
+@click.option("--dry-run", is_flag=True, help="Print the datagrams instead of sending.")
+def feed(csv_file: str, udp: str, speed: float, dry_run: bool) -> None:
+    """Send a trajectory file to the controller: read once, validate, send those samples.
+
+    Exit codes: 0 sent; 1 a limit is violated; 2 bad input or a bad file (nothing sent).
+    """
+    from sixplus3.control.feed import check_speed, parse_address, prepare_feed, send, udp_sender
+
+    address = parse_address(udp)
+    check_speed(speed)
+    plan = prepare_feed(csv_file, _robot(), speed)
+    emit = (lambda m: click.echo(m.decode())) if dry_run else udp_sender(address)
+    n = send(plan, emit)
+    click.echo(f"sent {n} samples of {plan.t[-1]:.4f} s at {plan.rate:g} Hz "
+               f"(speed {plan.speed:g})", err=True)
 
 
 @main.command()

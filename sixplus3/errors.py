@@ -95,8 +95,18 @@ class TrajectoryFileError(Sixplus3Error):
     """A trajectory file is missing, corrupted, forged or made for another robot."""
 
 
+class ValidationFailed(Sixplus3Error):
+    """A motion failed the gate: ``exit_code`` 1 for a violated limit, 2 for a motion
+    that is not consistent; ``report`` holds every finding."""
+
+    def __init__(self, message: str, exit_code: int, report: object = None) -> None:
+        self.exit_code = exit_code
+        self.report = report
+        super().__init__(message)
+
+
 __all__ = [
     "ConvergenceError", "GeometryError", "InfeasibleTaskError", "InputError", "LimitError",
     "SingularityError", "Sixplus3Error", "SmoothingError", "TaskError",
-    "TrajectoryFileError", "UnreachableError",
+    "TrajectoryFileError", "UnreachableError", "ValidationFailed",
 ]

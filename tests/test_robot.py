@@ -154,15 +154,15 @@ def _slow_motion(robot: Robot, rate: float = 500.0, duration: float = 0.4):
     th = np.array(sr.theta.map(n)(x.T)).T
     thd = np.array(sr.theta_dot.map(n)(x.T, xd.T)).T
     thdd = np.array(sr.theta_ddot.map(n)(x.T, xd.T, xdd.T)).T
-    return t, th, thd, thdd, np.array(sr.q(x0)).ravel()
+    return t, th, thd, thdd, x
 
 
 def test_a_file_for_one_robot_is_refused_for_another(tmp_path) -> None:
-    t, th, thd, thdd, q0 = _slow_motion(OTHER)
-    rep = validate_joint_trajectory(th, thd, thdd, OTHER, None, q0)
+    t, th, thd, thdd, x = _slow_motion(OTHER)
+    rep = validate_joint_trajectory(th, thd, thdd, OTHER, 500.0, x, t=t)
     assert rep.ok, rep.violations
-    csv, js = write_trajectory(tmp_path / "other.csv", t, th, thd, thdd, rep, OTHER,
-                               OTHER.limits, {"rate_hz": 500.0})
+    csv = write_trajectory(tmp_path / "other.csv", t, th, thd, thdd, rep, OTHER,
+                           OTHER.limits, {"rate_hz": 500.0})
     header, _ = read_trajectory(csv, OTHER)
     assert header["robot"]["hash"] == OTHER.hash
     assert Robot.from_dict(header["robot"]["parameters"]) == OTHER
@@ -179,7 +179,7 @@ def test_a_file_for_one_robot_is_refused_for_another(tmp_path) -> None:
     assert r.exit_code == 0, r.output
     # the validator uses the robot it is given: the motion is checked with its dynamics
     heavy = OTHER.replace(masses=MassModel(platform=30.0))
-    rep_heavy = validate_joint_trajectory(th, thd, thdd, heavy, None, q0)
+    rep_heavy = validate_joint_trajectory(th, thd, thdd, heavy, 500.0, x, t=t)
     assert rep_heavy.max_torque_ratio > 1.5 * rep.max_torque_ratio
 
 

@@ -24,7 +24,9 @@ def _save(fig, path: Path) -> str:
 
 def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, quaternion,
                     psi, torque_limit: float, margin: float, title: str = "") -> list[str]:
-    """Write torques.png, margins.png and joints.png into ``out_dir``."""
+    """Write <title>_torques.png, <title>_margins.png and <title>_joints.png into
+    ``out_dir`` (per-trajectory names: plans written to one folder do not overwrite each
+    other's plots)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -32,6 +34,7 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    prefix = f"{title}_" if title else ""
     names = actuated_joint_names()
     files = []
     fig, ax = plt.subplots(figsize=(9, 4.8))
@@ -43,7 +46,7 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
     ax.set_ylabel("actuator torque [N m] (Pinocchio)")
     ax.set_title(f"{title}: torques, limit +-{torque_limit:g} N m (red)", fontsize=10)
     ax.legend(ncol=5, fontsize=7)
-    files.append(_save(fig, out / "torques.png"))
+    files.append(_save(fig, out / f"{prefix}torques.png"))
 
     cfg = robot_ik(position, Rotation.from_quat(quaternion).as_matrix(), psi, robot)
     fig, ax = plt.subplots(figsize=(9, 4.8))
@@ -57,7 +60,7 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
     ax.set_ylabel("singularity margin (0 singular .. 1)")
     ax.set_title(f"{title}: singularity margins, threshold {margin:g} (red)", fontsize=10)
     ax.legend(ncol=4, fontsize=7)
-    files.append(_save(fig, out / "margins.png"))
+    files.append(_save(fig, out / f"{prefix}margins.png"))
 
     fig, ax = plt.subplots(figsize=(9, 4.8))
     for j in range(9):
@@ -69,5 +72,5 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
     ax.set_ylabel("angle [deg]")
     ax.set_title(f"{title}: actuated angles and crank angles (dotted)", fontsize=10)
     ax.legend(ncol=5, fontsize=7)
-    files.append(_save(fig, out / "joints.png"))
+    files.append(_save(fig, out / f"{prefix}joints.png"))
     return files
