@@ -101,6 +101,8 @@ def retime(report: ValidationReport, robot: Robot, speed: float) -> FeedPlan:
     vel, acc = vel * speed, acc * speed**2
     vel[[0, -1]] = 0.0
     acc[[0, -1]] = 0.0
+    assert report.position is not None and report.quaternion is not None
+    assert report.psi is not None
     # platform seeds for the forward kinematics: the validated poses, nearest sample
     near = np.minimum(np.rint(u / dt).astype(int), len(data) - 1)
     x_seed = np.c_[report.position[near], _rotvec(report.quaternion[near]),

@@ -265,6 +265,7 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
             raise InputError(f"{name} must be ({n}, 9), got {arr.shape}")
     th, v, a = arrays
     findings: list[Finding] = []
+    f: Finding | None
     # ------------------------------------------------------------ grid and rate
     lo, hi = RATE_RANGE
     if not (math.isfinite(rate) and lo <= rate <= hi):

@@ -6,7 +6,8 @@ naming the file and the valid range:
 
 - files larger than ``max_bytes`` (default 1 MiB);
 - bytes that are not UTF-8 (e.g. a Latin-1 file);
-- more than ``max_aliases`` YAML aliases (a "billion laughs" bomb is a few hundred bytes);
+- more than ``max_aliases`` YAML aliases, or aliases that expand the document to more
+  than ``max_values`` values (a "billion laughs" bomb is a few hundred bytes);
 - a mapping with the same key twice (YAML says it is an error; PyYAML keeps the last);
 - anything but plain data (PyYAML's safe loader: no Python objects).
 
@@ -25,6 +26,8 @@ from sixplus3.errors import InputError
 
 MAX_BYTES = 1 << 20
 MAX_ALIASES = 100
+#: Largest number of values a document may expand to (aliases counted as copies).
+MAX_VALUES = 100_000
 
 
 class _Loader(yaml.SafeLoader):
@@ -84,18 +87,47 @@ def read_text(path: str | Path, what: str, max_bytes: int = MAX_BYTES) -> str:
                          valid="UTF-8 text") from exc
 
 
-def parse_yaml(text: str, what: str, max_aliases: int = MAX_ALIASES) -> Any:
-    """Plain data from YAML text with bounded aliases and unique keys."""
+def _expanded_size(obj: Any, memo: dict[int, int], limit: int) -> int:
+    """Number of values in ``obj`` as a tree (aliases expanded), computed on the shared
+    graph in linear time; stops counting past ``limit``."""
+    key = id(obj)
+    if key in memo:
+        return memo[key]
+    n = 1
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            n += _expanded_size(k, memo, limit) + _expanded_size(v, memo, limit)
+            if n > limit:
+                break
+    elif isinstance(obj, list):
+        for v in obj:
+            n += _expanded_size(v, memo, limit)
+            if n > limit:
+                break
+    if isinstance(obj, (dict, list)):
+        memo[key] = n
+    return n
+
+
+def parse_yaml(text: str, what: str, max_aliases: int = MAX_ALIASES,
+               max_values: int = MAX_VALUES) -> Any:
+    """Plain data from YAML text with bounded aliases, bounded expanded size and unique
+    keys."""
     loader = _Loader(text)
     loader.max_aliases = max_aliases
     try:
-        return loader.get_single_data()
+        doc = loader.get_single_data()
     except yaml.YAMLError as exc:
         first = str(exc).strip().splitlines()
         msg = " ".join(line.strip() for line in first[:3])[:300]
         raise InputError(f"{what} is not valid YAML: {msg}", valid="YAML") from None
     finally:
         loader.dispose()
+    if _expanded_size(doc, {}, max_values) > max_values:
+        raise InputError(f"{what}: its aliases expand to more than {max_values} values "
+                         "(a YAML alias bomb?); write the values out",
+                         valid=f"<= {max_values} values")
+    return doc
 
 
 def read_yaml(path: str | Path, what: str = "file", max_bytes: int = MAX_BYTES,
