@@ -1,6 +1,6 @@
 """Trajectory files for the controller: one file, one atomic unit, one integrity digest.
 
-Layout (UTF-8 text; docs/trajectory-file.md is the contract)::
+Layout (UTF-8 text; docs/validation.md is the contract)::
 
     # sixplus3-trajectory/2 {"format": ..., "rate_hz": ..., "robot": {...}, ...}
     t,leg0_A_pos,leg0_A_vel,leg0_A_acc,leg0_A_tau,...,platform_x,...,psi_2
