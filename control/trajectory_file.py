@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from sixplus3.errors import GeometryError, LimitError, TrajectoryFileError
+from sixplus3.fileio import atomic_write
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
@@ -173,28 +174,14 @@ def _exclusive(path: Path) -> Iterator[None]:
 
 
 def write_atomically(path: Path, data: bytes) -> None:
-    """Replace ``path`` by ``data`` as one unit: temporary file in the same directory,
-    fsync, rename, fsync of the directory; an error leaves the old file untouched."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    """Replace ``path`` by ``data`` as one unit (:func:`sixplus3.fileio.atomic_write`);
+    an error leaves the old file untouched and is reported as a TrajectoryFileError."""
     try:
-        with open(tmp, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        dfd = os.open(path.parent, os.O_RDONLY)
-        try:
-            os.fsync(dfd)
-        finally:
-            os.close(dfd)
+        atomic_write(path, data)
     except OSError as exc:
         what = "the disk is full" if exc.errno == errno.ENOSPC else (exc.strerror or str(exc))
         raise TrajectoryFileError(f"cannot write {path}: {what}; the previous file, if any, "
                                   "is unchanged") from None
-    finally:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
 
 
 def write_trajectory(path: str | Path, t, theta, theta_dot, theta_ddot, report,

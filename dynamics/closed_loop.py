@@ -102,15 +102,20 @@ class ClosedLoopDynamics:
         """(nv, 9) dv/dtheta_dot; raises SingularityError at a parallel singularity."""
         return self._G_from(self.clm.constraint_jacobian(q))
 
-    def _G_from(self, Jc: np.ndarray) -> np.ndarray:
+    def _lu(self, Jc: np.ndarray):
+        """(lu, piv, rcond) of J_pas: LU, then LAPACK's 1-norm reciprocal condition
+        estimate, O(n^2) on top of the factorisation (an SVD would cost ~4x the solve);
+        rcond 0 when singular."""
         Jp = np.asfortranarray(Jc[:, self._pas])
-        # LU, then LAPACK's 1-norm reciprocal condition estimate: O(n^2) on top of the
-        # factorisation, where an SVD would cost ~4x the whole solve.
         lu, piv, info = lapack.dgetrf(Jp)
         rcond = 0.0
         if info == 0:
             rcond, _ = lapack.dgecon(lu, np.abs(Jp).sum(axis=0).max(), norm="1")
-        if info != 0 or rcond <= SINGULAR_RCOND:
+        return lu, piv, float(rcond)
+
+    def _G_from(self, Jc: np.ndarray) -> np.ndarray:
+        lu, piv, rcond = self._lu(Jc)
+        if rcond <= SINGULAR_RCOND:
             raise SingularityError(
                 f"parallel singularity: the closure Jacobian of the passive joints has "
                 f"reciprocal condition number {rcond:.2e} <= {SINGULAR_RCOND:g}; the "
@@ -176,13 +181,9 @@ class ClosedLoopDynamics:
         """
         m, d = self.model, self.data
         Jc = self.clm.constraint_jacobian(q)
-        Jp = np.asfortranarray(Jc[:, self._pas])
-        lu, piv, info = lapack.dgetrf(Jp)
-        rcond = 0.0
-        if info == 0:
-            rcond, _ = lapack.dgecon(lu, np.abs(Jp).sum(axis=0).max(), norm="1")
-        if info != 0 or rcond <= SINGULAR_RCOND:
-            return np.full(len(self._act), np.nan), float(rcond)
+        lu, piv, rcond = self._lu(Jc)
+        if rcond <= SINGULAR_RCOND:
+            return np.full(len(self._act), np.nan), rcond
         X, _ = lapack.dgetrs(lu, piv, Jc[:, self._act])  # J_pas^-1 J_act
         v = np.zeros(m.nv)
         v[self._act] = theta_dot
@@ -193,7 +194,7 @@ class ClosedLoopDynamics:
         corr, _ = lapack.dgetrs(lu, piv, gamma)
         a[self._pas] = -X @ theta_ddot - corr
         h = pin.rnea(m, d, q, v, a)
-        return h[self._act] - X.T @ h[self._pas], float(rcond)
+        return h[self._act] - X.T @ h[self._pas], rcond
 
     def actuated_inverse_dynamics_batch(self, q: np.ndarray, theta_dot: np.ndarray,
                                         theta_ddot: np.ndarray) -> tuple[np.ndarray,

@@ -144,7 +144,9 @@ def short_repr(value: object, limit: int = 80) -> str:
 
 def atomic_write(path: str | Path, data: bytes) -> None:
     """Write ``data`` to ``path`` so that an interruption leaves no partial file: a
-    temporary file in the same directory, flushed and fsynced, then renamed over it."""
+    temporary file in the same directory, flushed and fsynced, renamed over ``path``,
+    then the directory fsynced.  On any error the old file is untouched and the
+    temporary file removed; the OSError propagates."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
@@ -153,6 +155,11 @@ def atomic_write(path: str | Path, data: bytes) -> None:
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
+        dfd = os.open(path.parent, os.O_RDONLY)
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
     finally:
         if tmp.exists():
             tmp.unlink()
