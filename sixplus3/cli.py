@@ -415,11 +415,18 @@ def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None
 @click.option("--no-html", is_flag=True, help="Skip the MeshCat page.")
 @click.option("--locked", is_flag=True, help="Lock the crank angles at their home angles.")
 def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool) -> None:
-    """Plan TASK_FILE (YAML): plan -> smooth -> validate -> CSV, JSON, HTML, plots."""
+    """Plan TASK_FILE (YAML, or the name of an installed example such as tilt60_x):
+    plan -> smooth -> validate -> the trajectory file, its MeshCat page and plots."""
+    from pathlib import Path
+
+    from sixplus3 import examples
     from sixplus3.planner.task import load_task
 
     _check_rate(rate)
-    task = load_task(task_file)
+    if not Path(task_file).exists() and task_file in examples.names():
+        task = examples.load(task_file)
+    else:
+        task = load_task(task_file)
     task.limits_for(_robot())  # a looser limit than the robot's: refused before solving
     _run_plan(task, out_dir, rate, not no_html, locked)
 

@@ -35,6 +35,8 @@ task = task_from_dict({"waypoints": [{"position": home},
 sol = sixplus3.plan(task, robot, sixplus3.PlannerOptions(lock_redundancy=True))
 assert sol.is_feasible()
 assert planner.MINE == "planner"                 # still the user's after planning
+from sixplus3 import examples
+assert "tilt60_x" in examples.names() and len(examples.load("tilt60_x").waypoints) == 2
 print("planned", round(sol.final_time, 4))
 """
 
@@ -58,9 +60,10 @@ def test_the_wheel_installs_only_the_sixplus3_namespace(wheel) -> None:
     assert top == {"sixplus3", wheel.name.split("-")[0] + "-" + wheel.name.split("-")[1]
                    + ".dist-info"}, top
     for part in ("robot_description", "kinematics", "dynamics", "design", "planner",
-                 "control", "visualization"):
+                 "control", "visualization", "examples"):
         assert f"sixplus3/{part}/__init__.py" in names
     assert "sixplus3/robot_description/urdf/sixplus3.urdf" in names
+    assert "sixplus3/examples/tilt60_x.yaml" in names
     assert any(n.endswith("dist-info/licenses/LICENSE") for n in names)
 
 

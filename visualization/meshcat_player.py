@@ -44,9 +44,15 @@ def frames_from_samples(robot: Robot, t, position, quaternion, psi, fps: float =
 @functools.lru_cache(maxsize=1)
 def _server():
     """The one meshcat server of this process (meshcat-python #87)."""
+    import contextlib
+    import io
+
     import meshcat
 
-    vis = meshcat.Visualizer()
+    # meshcat prints its server's URL on creation: a dead URL when only a page is
+    # written, so it is kept quiet here; the live `play` command prints viewer_url()
+    with contextlib.redirect_stdout(io.StringIO()):
+        vis = meshcat.Visualizer()
     # camera ~1 m from the base centre (meshcat's camera frame is y-up)
     vis["/Cameras/default/rotated/<object>"].set_property("position", [0.75, 0.55, 0.75])
     return vis
