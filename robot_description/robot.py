@@ -22,6 +22,7 @@ import functools
 import hashlib
 import json
 import math
+from collections import OrderedDict
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -351,14 +352,22 @@ def _no_unknown(where: str, doc: dict[str, Any], known: set[str]) -> None:
                             f"one of the known keys {sorted(known)}", "unknown key")
 
 
-_CACHE: dict[tuple[str, str], Any] = {}
+_CACHE: OrderedDict[tuple[str, str], Any] = OrderedDict()
+#: Products kept per process (URDF texts, parsed models, CasADi models, compiled
+#: libraries, layouts): a design sweep over many robots evicts the least recently used.
+CACHE_SIZE = 64
 
 
 def _cached(key: tuple[str, str], make: Any) -> Any:
-    """A per-process cache of immutable products, keyed by (kind, robot hash)."""
-    if key not in _CACHE:
-        _CACHE[key] = make()
-    return _CACHE[key]
+    """A per-process LRU cache of immutable products, keyed by (kind, robot hash)."""
+    if key in _CACHE:
+        _CACHE.move_to_end(key)
+        return _CACHE[key]
+    value = make()
+    _CACHE[key] = value
+    while len(_CACHE) > CACHE_SIZE:
+        _CACHE.popitem(last=False)
+    return value
 
 
 def load_robot(path: str | Path) -> Robot:
