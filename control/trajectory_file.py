@@ -45,7 +45,8 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.errors import GeometryError, LimitError, TrajectoryFileError
+from sixplus3 import fileio
+from sixplus3.errors import GeometryError, InputError, LimitError, TrajectoryFileError
 from sixplus3.fileio import atomic_write
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
@@ -323,15 +324,10 @@ def parse(raw: bytes, name: str = "trajectory") -> tuple[dict, np.ndarray]:
 
 def read_bytes(path: str | Path) -> bytes:
     """The bytes of a trajectory file (at most :data:`MAX_BYTES`)."""
-    path = Path(path)
     try:
-        with open(path, "rb") as fh:
-            raw = fh.read(MAX_BYTES + 1)
-    except OSError as exc:
-        raise TrajectoryFileError(f"cannot read {path}: {exc.strerror or exc}") from None
-    if len(raw) > MAX_BYTES:
-        raise TrajectoryFileError(f"{path.name} is larger than {MAX_BYTES} bytes")
-    return raw
+        return fileio.read_bytes(path, "trajectory file", MAX_BYTES)
+    except InputError as exc:
+        raise TrajectoryFileError(str(exc), value=exc.value, valid=exc.valid) from None
 
 
 def read_trajectory(path: str | Path, robot: Robot | None = None) -> tuple[dict, np.ndarray]:

@@ -68,17 +68,23 @@ _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
                         _Loader.construct_mapping)
 
 
-def read_text(path: str | Path, what: str, max_bytes: int = MAX_BYTES) -> str:
-    """The UTF-8 text of a user file of at most ``max_bytes``; raises InputError."""
+def read_bytes(path: str | Path, what: str, max_bytes: int = MAX_BYTES) -> bytes:
+    """The bytes of a user file of at most ``max_bytes``; raises InputError."""
     path = Path(path)
     try:
         with open(path, "rb") as fh:
             raw = fh.read(max_bytes + 1)
     except OSError as exc:
-        raise InputError(f"cannot read {what} {path}: {exc.strerror or exc}") from exc
+        raise InputError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
     if len(raw) > max_bytes:
         raise InputError(f"{what} {path} is larger than {max_bytes} bytes", value=len(raw),
                          valid=f"<= {max_bytes} bytes")
+    return raw
+
+
+def read_text(path: str | Path, what: str, max_bytes: int = MAX_BYTES) -> str:
+    """The UTF-8 text of a user file of at most ``max_bytes``; raises InputError."""
+    raw = read_bytes(path, what, max_bytes)
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError as exc:
