@@ -32,6 +32,7 @@ from sixplus3.control.validation import (
     validate_motion,
 )
 from sixplus3.errors import InputError, ValidationFailed
+from sixplus3.kinematics import rotations as rot
 from sixplus3.robot_description.robot import Robot
 
 #: Replay speeds accepted (1 = as planned).
@@ -116,9 +117,7 @@ def retime(report: ValidationReport, robot: Robot, speed: float) -> FeedPlan:
 
 
 def _rotvec(quat: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_quat(quat).as_rotvec()
+    return rot.rotvec_from_quat(quat)
 
 
 def prepare_feed(path: str | Path, robot: Robot, speed: float = 1.0) -> FeedPlan:

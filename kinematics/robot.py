@@ -21,9 +21,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError
+from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.leg import LegState, failing_chain, leg_ik, status_reason
 from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, _cached
 
@@ -33,7 +33,7 @@ if TYPE_CHECKING:
 
 def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """R = Rz(yaw) Ry(pitch) Rx(roll) (URDF/ROS fixed-axis convention) [rad]."""
-    return Rotation.from_euler("xyz", [roll, pitch, yaw]).as_matrix()
+    return rot.matrix_from_rpy(roll, pitch, yaw)
 
 
 @dataclass(frozen=True)
@@ -222,7 +222,7 @@ def robot_ik(position, rotation, psi=None, robot: Robot | None = None,
             q[:, lay[f"leg{i}_{name}"]] = val
     iq = lay["platform_free"]
     q[:, iq:iq + 3] = position
-    q[:, iq + 3:iq + 7] = Rotation.from_matrix(rotation).as_quat()  # (x, y, z, w)
+    q[:, iq + 3:iq + 7] = rot.quat_from_matrix(rotation)  # (x, y, z, w)
     for i in range(NUM_LEGS):
         q[:, lay[f"platform_crank{i}"]] = psi[:, i]
     bad = status != 0
@@ -394,7 +394,7 @@ def robot_fk(theta, robot: Robot | None = None, q_hint=None, tol: float = 1e-12,
     quat = q[iq + 3:iq + 7]
     psi = np.array([q[clm.q_index(f"platform_crank{i}")] for i in range(NUM_LEGS)])
     return RobotFK(q=q, position=q[iq:iq + 3].copy(),
-                   rotation=Rotation.from_quat(quat).as_matrix(), psi=psi, residual=res,
+                   rotation=rot.matrix_from_quat(quat)[0], psi=psi, residual=res,
                    iterations=it)
 
 
@@ -520,7 +520,7 @@ def robot_fk_batch(theta: np.ndarray, x_guess: np.ndarray, robot: Robot | None =
     x = np.array(x_guess, dtype=float)
     if theta.ndim != 2 or theta.shape[1] != 9 or x.shape != theta.shape:
         raise InputError(f"theta and x_guess must be (n, 9), got {theta.shape}, {x.shape}")
-    pos, R, psi = x[:, 0:3].copy(), Rotation.from_rotvec(x[:, 3:6]).as_matrix(), x[:, 6:9].copy()
+    pos, R, psi = x[:, 0:3].copy(), rot.matrix_from_rotvec(x[:, 3:6]), x[:, 6:9].copy()
     residual = np.full(len(x), np.inf)
     it = 0
     cfg = robot_ik(pos, R, psi, robot, platform_margins=False)
@@ -542,10 +542,10 @@ def robot_fk_batch(theta: np.ndarray, x_guess: np.ndarray, robot: Robot | None =
         big = np.abs(step).max(axis=1, keepdims=True)
         step *= np.minimum(1.0, 0.2 / np.maximum(big, 1e-300))  # damp steps > 0.2
         pos = pos + step[:, 0:3]
-        R = Rotation.from_rotvec(step[:, 3:6]).as_matrix() @ R
+        R = rot.matrix_from_rotvec(step[:, 3:6]) @ R
         psi = psi + step[:, 6:9]
         cfg = robot_ik(pos, R, psi, robot, platform_margins=False)
     if margins:
         cfg = robot_ik(pos, R, psi, robot)
-    xs = np.c_[pos, Rotation.from_matrix(R).as_rotvec(), psi]
+    xs = np.c_[pos, rot.rotvec_from_matrix(R), psi]
     return BatchFK(xs, R, residual, it, cfg)
