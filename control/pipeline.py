@@ -82,7 +82,8 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
     secs["validate"] = time.perf_counter() - t2
     if not rep.ok:
         raise TrajectoryFileError("the smoothed trajectory fails validation, nothing written: "
-                                  + "; ".join(rep.messages()))
+                                  + "; ".join(rep.messages()),
+                                  value=rep.messages(), valid="a valid trajectory")
     say(f"  validated {rep.samples} samples and {rep.checked_points - rep.samples} "
         f"midpoints with Pinocchio: max|tau| {rep.max_torque_ratio * sol.limits.torque:.3f} "
         f"N m, min margins {rep.min_margin_leg_type1:.3f}/{rep.min_margin_leg_type2:.3f}/"

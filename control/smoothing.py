@@ -119,7 +119,8 @@ def smooth(sol: Solution, rate: float = 1000.0) -> Smoothed:
         res = otg.calculate(inp, traj)
         if res not in (Result.Working, Result.Finished):
             raise SmoothingError(f"Ruckig failed on segment {k} ({res}): the plan's knots "
-                                 "violate the velocity or acceleration limits")
+                                 "violate the velocity or acceleration limits",
+                                 value=str(res), valid="Result.Working or Result.Finished")
         if traj.duration > dt * (1 + 1e-9):
             stretched += 1
         segments.append(traj)

@@ -168,7 +168,8 @@ def _exclusive(path: Path) -> Iterator[None]:
         except BlockingIOError:
             raise TrajectoryFileError(
                 f"another process is writing {path.name} right now; it wins, this write "
-                "was abandoned (the file it leaves is complete)") from None
+                "was abandoned (the file it leaves is complete)",
+                value=path.name, valid="one writer at a time") from None
         yield
     finally:
         os.close(fd)
@@ -182,7 +183,9 @@ def write_atomically(path: Path, data: bytes) -> None:
     except OSError as exc:
         what = "the disk is full" if exc.errno == errno.ENOSPC else (exc.strerror or str(exc))
         raise TrajectoryFileError(f"cannot write {path}: {what}; the previous file, if any, "
-                                  "is unchanged") from None
+                                  "is unchanged",
+                                  value=str(path),
+                                  valid="a writable directory with free space") from None
 
 
 def write_trajectory(path: str | Path, t, theta, theta_dot, theta_ddot, report,
@@ -195,13 +198,15 @@ def write_trajectory(path: str | Path, t, theta, theta_dot, theta_ddot, report,
     """
     if report is None or not report.ok:
         reasons = "; ".join(report.messages()) if report is not None else "not validated"
-        raise TrajectoryFileError(f"refusing to write an invalid trajectory: {reasons}")
+        raise TrajectoryFileError(f"refusing to write an invalid trajectory: {reasons}",
+                                  value=reasons, valid="a passed validation report")
     if report.robot_hash != robot.hash:
         raise TrajectoryFileError("refusing to write: the validation report is for another "
-                                  "robot")
+                                  "robot", value=report.robot_hash, valid=robot.hash)
     path = Path(path)
     if path.suffix != SUFFIX:
-        raise TrajectoryFileError(f"trajectory files end in {SUFFIX}, got {path.name}")
+        raise TrajectoryFileError(f"trajectory files end in {SUFFIX}, got {path.name}",
+                                  value=path.name, valid=f"*{SUFFIX}")
     output_path(path.parent, path.stem)  # the name is safe and stays in its directory
     data = samples_array(t, theta, theta_dot, theta_ddot, report.tau, report.position,
                          report.quaternion, report.psi)
@@ -229,14 +234,18 @@ def check_robot(header: dict, robot: Robot, name: str) -> None:
     recorded hash)."""
     rec = header.get("robot")
     if not isinstance(rec, dict) or not isinstance(rec.get("parameters"), dict):
-        raise TrajectoryFileError(f"{name}: the header records no robot parameters")
+        raise TrajectoryFileError(f"{name}: the header records no robot parameters",
+                                  value=None, valid="robot.parameters in the header")
     try:
         recorded = Robot.from_dict(rec["parameters"])
     except (GeometryError, LimitError, TypeError, ValueError) as exc:
-        raise TrajectoryFileError(f"{name}: the recorded robot is invalid: {exc}") from exc
+        raise TrajectoryFileError(f"{name}: the recorded robot is invalid: {exc}",
+                                  value=rec.get("parameters"),
+                                  valid="valid robot parameters") from exc
     if recorded.hash != rec.get("hash"):
         raise TrajectoryFileError(f"{name}: the recorded robot parameters do not match the "
-                                  "recorded robot hash (edited header)")
+                                  "recorded robot hash (edited header)",
+                                  value=rec.get("hash"), valid=recorded.hash)
     if recorded.hash != robot.hash:
         diff = _robot_diff(recorded.as_dict(), robot.as_dict())
         raise TrajectoryFileError(
@@ -273,52 +282,67 @@ def parse(raw: bytes, name: str = "trajectory") -> tuple[dict, np.ndarray]:
         old = raw.startswith(b"t,") or raw.startswith(b"# sixplus3-trajectory/")
         raise TrajectoryFileError(
             f"{name}: not a {FORMAT} file" + (" (an older format: re-plan it)" if old else ""),
-            valid=f"first line '# {FORMAT} {{header}}'")
+            valid=f"first line '# {FORMAT} {{header}}'", value=raw[:40])
     try:
         header = json.loads(raw[len(prefix):nl].decode("utf-8"), parse_constant=_no_constants)
     except (UnicodeDecodeError, ValueError) as exc:
-        raise TrajectoryFileError(f"{name}: the header is not valid JSON ({str(exc)[:120]})") \
+        raise TrajectoryFileError(f"{name}: the header is not valid JSON ({str(exc)[:120]})",
+                                  value=str(exc)[:120], valid="JSON without NaN/Infinity") \
             from None
     if not isinstance(header, dict) or header.get("format") != FORMAT:
-        raise TrajectoryFileError(f"{name}: the header does not declare format {FORMAT}")
+        raise TrajectoryFileError(f"{name}: the header does not declare format {FORMAT}",
+                                  value=header.get("format") if isinstance(header, dict) else None,
+                                  valid=FORMAT)
     body = raw[nl + 1:]
     integ = header.get("integrity")
     if not isinstance(integ, dict) or integ.get("algorithm") != "sha256":
-        raise TrajectoryFileError(f"{name}: the header has no sha256 integrity digest")
+        raise TrajectoryFileError(f"{name}: the header has no sha256 integrity digest",
+                                  value=integ, valid="{algorithm: sha256, digest}")
     if digest(header, body) != integ.get("digest"):
         raise TrajectoryFileError(f"{name}: integrity digest mismatch: the header or the "
-                                  "samples were edited, truncated or corrupted")
+                                  "samples were edited, truncated or corrupted",
+                                  value=integ.get("digest"),
+                                  valid="the SHA-256 of the header and samples")
     try:
         text = body.decode("ascii")
     except UnicodeDecodeError:
-        raise TrajectoryFileError(f"{name}: the samples are not plain ASCII numbers") from None
+        raise TrajectoryFileError(f"{name}: the samples are not plain ASCII numbers",
+                                  value=None, valid="ASCII numbers") from None
     lines = text.split("\n")
     if lines and lines[-1] == "":
         lines.pop()
     if not lines or lines[0].split(",") != COLUMNS:
         raise TrajectoryFileError(f"{name}: line 2 must be the {len(COLUMNS)} column names "
-                                  f"{','.join(COLUMNS[:3])},...,{COLUMNS[-1]}")
+                                  f"{','.join(COLUMNS[:3])},...,{COLUMNS[-1]}",
+                                  value=lines[0][:80] if lines else None,
+                                  valid=",".join(COLUMNS))
     rows = lines[1:]
     if len(rows) < 2:
-        raise TrajectoryFileError(f"{name}: {len(rows)} samples; a trajectory has >= 2")
+        raise TrajectoryFileError(f"{name}: {len(rows)} samples; a trajectory has >= 2",
+                                  value=len(rows), valid=">= 2 samples")
     ncol = len(COLUMNS)
     bad = next((k for k, r in enumerate(rows) if r.count(",") != ncol - 1), None)
     if bad is not None:
-        raise TrajectoryFileError(f"{name}: sample row {bad + 1} does not have {ncol} values")
+        raise TrajectoryFileError(f"{name}: sample row {bad + 1} does not have {ncol} values",
+                                  value=bad + 1, valid=f"{ncol} values per row")
     try:
         data = np.array(",".join(rows).split(","), dtype=np.float64).reshape(len(rows), ncol)
     except ValueError as exc:
-        raise TrajectoryFileError(f"{name}: unreadable number ({str(exc)[:80]})") from None
+        raise TrajectoryFileError(f"{name}: unreadable number ({str(exc)[:80]})",
+                                  value=str(exc)[:80], valid="numbers") from None
     finite = np.isfinite(data)
     if not finite.all():
         r, c = np.argwhere(~finite)[0]
         raise TrajectoryFileError(f"{name}: non-finite value in column {COLUMNS[c]} at sample "
-                                  f"{r} (t = {data[r, 0]:g} s)")
+                                  f"{r} (t = {data[r, 0]:g} s)",
+                                  value=float(data[r, c]), valid="finite numbers")
     for key, want in (("samples", len(rows)), ("columns", COLUMNS)):
         if header.get(key) != want:
-            raise TrajectoryFileError(f"{name}: header field {key} does not match the samples")
+            raise TrajectoryFileError(f"{name}: header field {key} does not match the samples",
+                                      value=header.get(key), valid="consistent with the samples")
     if not math.isclose(float(header.get("duration_s", -1)), data[-1, 0], abs_tol=1e-12):
-        raise TrajectoryFileError(f"{name}: header duration differs from the last sample")
+        raise TrajectoryFileError(f"{name}: header duration differs from the last sample",
+                                  value=header.get("duration_s"), valid=float(data[-1, 0]))
     return header, data
 
 

@@ -263,7 +263,8 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
     n = len(t)
     for name, arr in zip(("theta", "theta_dot", "theta_ddot"), arrays, strict=True):
         if arr.shape != (n, 9):
-            raise InputError(f"{name} must be ({n}, 9), got {arr.shape}")
+            raise InputError(f"{name} must be ({n}, 9), got {arr.shape}",
+                             value=arr.shape, valid=f"({n}, 9)")
     th, v, a = arrays
     findings: list[Finding] = []
     f: Finding | None

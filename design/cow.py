@@ -72,7 +72,8 @@ def compute_cow(robot: Robot | None = None, step: float = 0.01, z_step: float = 
     home angles; singularity signs are those at the robot's home pose."""
     values = (step, z_step, extent, z_max)
     if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
-        raise InputError(f"COW grid parameters must be finite numbers, got {values}")
+        raise InputError(f"COW grid parameters must be finite numbers, got {values}",
+                         value=values, valid="finite numbers [m]")
     if not (1e-3 <= step <= 0.1 and 1e-3 <= z_step <= 0.2 and 0 < extent <= 2
             and 0 < z_max <= 2):
         raise InputError(f"step, z_step, extent, z_max must be in [0.001, 0.1], "

@@ -71,7 +71,8 @@ class ClosedLoopDynamics:
                                  value=val, valid=">= 0")
         if model is not None:
             if robot is not None and model.robot is not None and model.robot.hash != robot.hash:
-                raise InputError("ClosedLoopDynamics: the model given is of another robot")
+                raise InputError("ClosedLoopDynamics: the model given is of another robot",
+                                 value=model.robot.hash, valid=robot.hash)
             self.clm = model
         else:
             self.clm = (robot or Robot.default()).closed_loop_model()
@@ -93,10 +94,12 @@ class ClosedLoopDynamics:
     def _check_state(self, q: np.ndarray, *vs: np.ndarray) -> None:
         m = self.model
         if q.shape != (m.nq,) or not np.all(np.isfinite(q)):
-            raise InputError(f"q must be {m.nq} finite numbers, got shape {q.shape}")
+            raise InputError(f"q must be {m.nq} finite numbers, got shape {q.shape}",
+                             value=q.shape, valid=f"({m.nq},) finite")
         for v in vs:
             if v.shape != (m.nv,) or not np.all(np.isfinite(v)):
-                raise InputError(f"v and a must be {m.nv} finite numbers, got {v.shape}")
+                raise InputError(f"v and a must be {m.nv} finite numbers, got {v.shape}",
+                                 value=v.shape, valid=f"({m.nv},) finite")
 
     def G(self, q: np.ndarray) -> np.ndarray:
         """(nv, 9) dv/dtheta_dot; raises SingularityError at a parallel singularity."""
@@ -119,7 +122,8 @@ class ClosedLoopDynamics:
             raise SingularityError(
                 f"parallel singularity: the closure Jacobian of the passive joints has "
                 f"reciprocal condition number {rcond:.2e} <= {SINGULAR_RCOND:g}; the "
-                "actuators cannot determine the motion, no torque is defined")
+                "actuators cannot determine the motion, no torque is defined",
+                value=rcond, valid=f"> {SINGULAR_RCOND:g}")
         X, _ = lapack.dgetrs(lu, piv, Jc[:, self._act])
         G = np.zeros((self.model.nv, len(self._act)))
         G[self._act] = np.eye(len(self._act))
@@ -164,7 +168,8 @@ class ClosedLoopDynamics:
         out = np.zeros(m.nv)
         for name, f in f_ext.items():
             if not m.existFrame(name):
-                raise InputError(f"unknown frame {name!r} for an external force")
+                raise InputError(f"unknown frame {name!r} for an external force",
+                                 value=name, valid="a frame of the model")
             J = pin.getFrameJacobian(m, d, m.getFrameId(name), pin.LOCAL_WORLD_ALIGNED)[:3]
             out += J.T @ np.asarray(f, dtype=float)
         return out
@@ -282,7 +287,8 @@ class ClosedLoopDynamics:
             q_next = pin.integrate(m, q, dt / 6.0 * (v + 2 * v2 + 2 * v3 + v4))
             v_next = v + dt / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
         else:
-            raise InputError(f"unknown integration method {method!r}: use 'rk4' or 'euler'")
+            raise InputError(f"unknown integration method {method!r}: use 'rk4' or 'euler'",
+                             value=method, valid="rk4 or euler")
         if project:
             q_next, v_next = self.project(q_next, v_next)
         return q_next, v_next
@@ -313,7 +319,8 @@ class ClosedLoopDynamics:
         ``tau`` is None (unactuated), a (9,) constant or a callable (t, q, v) -> (9,).
         """
         if not (math.isfinite(dt) and dt > 0 and math.isfinite(duration) and duration > 0):
-            raise InputError(f"dt and duration must be positive, got {dt}, {duration}")
+            raise InputError(f"dt and duration must be positive, got {dt}, {duration}",
+                             value=(dt, duration), valid="finite, > 0 [s]")
         n = int(round(duration / dt)) + 1
         q, v = np.array(q0, dtype=float), np.array(v0, dtype=float)
         qs, vs = np.zeros((n, self.model.nq)), np.zeros((n, self.model.nv))

@@ -165,7 +165,8 @@ def _as_points(points: np.ndarray | list, name: str = "points") -> np.ndarray:
     if arr.ndim == 1:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != 3:
-        raise InputError(f"{name} must have shape (n, 3) or (3,), got {np.shape(points)}")
+        raise InputError(f"{name} must have shape (n, 3) or (3,), got {np.shape(points)}",
+                         value=np.shape(points), valid="(n, 3) or (3,)")
     return np.ascontiguousarray(arr)
 
 
@@ -195,9 +196,11 @@ def leg_ik_point(
     """IK of one point; raises :class:`UnreachableError` naming the chain that fails."""
     arr = np.asarray(p, dtype=np.float64)
     if arr.shape != (3,):
-        raise InputError(f"p must be 3 numbers [m], got shape {arr.shape}")
+        raise InputError(f"p must be 3 numbers [m], got shape {arr.shape}",
+                         value=arr.shape, valid="(3,) [m]")
     if not np.all(np.isfinite(arr)):
-        raise InputError(f"p must be finite, got {arr.tolist()}")
+        raise InputError(f"p must be finite, got {arr.tolist()}",
+                         value=arr.tolist(), valid="finite [m]")
     state = leg_ik(arr, geometry, mode, load)
     st = int(state.status[0])
     if st != 0:
@@ -303,10 +306,13 @@ def leg_fk_point(theta: np.ndarray | list, geometry: LegGeometry = DEFAULT_GEOME
     """FK of one theta (3,); raises :class:`ConvergenceError` when no assembly is found."""
     arr = np.asarray(theta, dtype=np.float64)
     if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise InputError(f"theta must be 3 finite angles [rad], got {np.asarray(theta)!r}")
+        raise InputError(f"theta must be 3 finite angles [rad], got {np.asarray(theta)!r}",
+                         value=np.asarray(theta).tolist(), valid="3 finite angles [rad]")
     state = leg_fk(arr, geometry, mode, hint_theta_s)
     st = int(state.status[0])
     if st != 0:
         raise ConvergenceError(f"leg forward kinematics failed for theta={arr.tolist()} rad "
-                               f"in mode {AssemblyMode.parse(mode)}: {status_reason(st)}")
+                               f"in mode {AssemblyMode.parse(mode)}: {status_reason(st)}",
+                               value=arr.tolist(),
+                               valid="angles the leg can assemble in this mode")
     return state

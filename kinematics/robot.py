@@ -163,13 +163,16 @@ def _as_batch(position, rotation, psi):
     position = np.broadcast_to(position, (n, 3))
     rotation = np.broadcast_to(rotation, (n, 3, 3))
     if position.shape[-1] != 3 or rotation.shape[-2:] != (3, 3):
-        raise InputError("position must be (n, 3) [m] and rotation (n, 3, 3)")
+        raise InputError("position must be (n, 3) [m] and rotation (n, 3, 3)",
+                         value=(position.shape, rotation.shape), valid="(n, 3) and (n, 3, 3)")
     for name, arr in (("position", position), ("rotation", rotation), ("psi", psi)):
         if not np.all(np.isfinite(arr)):
-            raise InputError(f"{name} must be finite (got NaN or inf)")
+            raise InputError(f"{name} must be finite (got NaN or inf)",
+                             value=name, valid="finite numbers")
     err = np.abs(np.einsum("nji,njk->nik", rotation, rotation) - np.eye(3)).max()
     if err > 1e-6:
-        raise InputError(f"rotation is not orthonormal (|R^T R - I| = {err:.2e})")
+        raise InputError(f"rotation is not orthonormal (|R^T R - I| = {err:.2e})",
+                         value=err, valid="|R^T R - I| <= 1e-6")
     return np.ascontiguousarray(position), np.ascontiguousarray(rotation), np.array(psi)
 
 
@@ -248,7 +251,8 @@ def robot_ik_pose(position, rpy=(0.0, 0.0, 0.0), psi=None,
     psi = robot.home_psi if psi is None else psi
     pos = np.asarray(position, dtype=float)
     if pos.shape != (3,) or np.asarray(rpy).shape != (3,) or np.asarray(psi).shape != (3,):
-        raise InputError("position, rpy and psi must each be 3 numbers")
+        raise InputError("position, rpy and psi must each be 3 numbers",
+                         value=(pos.shape, np.shape(rpy), np.shape(psi)), valid="(3,) each")
     cfg = robot_ik(pos, rpy_matrix(*rpy), psi, robot)
     if cfg.status[0]:
         for i in range(NUM_LEGS):
@@ -360,16 +364,19 @@ def robot_fk(theta, robot: Robot | None = None, q_hint=None, tol: float = 1e-12,
 
     if model is not None and model.robot is not None:
         if robot is not None and robot.hash != model.robot.hash:
-            raise InputError("robot_fk: the model given is of another robot")
+            raise InputError("robot_fk: the model given is of another robot",
+                             value=model.robot.hash, valid=robot.hash)
         robot = model.robot
     robot = robot or Robot.default()
     clm = model or robot.closed_loop_model()
     theta = np.asarray(theta, dtype=float)
     if theta.shape != (9,) or not np.all(np.isfinite(theta)):
-        raise InputError(f"theta must be 9 finite angles [rad], got shape {theta.shape}")
+        raise InputError(f"theta must be 9 finite angles [rad], got shape {theta.shape}",
+                         value=theta.shape, valid="(9,) finite [rad]")
     q = (home(robot).q[0] if q_hint is None else np.array(q_hint, dtype=float)).copy()
     if q.shape != (clm.model.nq,):
-        raise InputError(f"q_hint must have {clm.model.nq} entries, got {q.shape}")
+        raise InputError(f"q_hint must have {clm.model.nq} entries, got {q.shape}",
+                         value=q.shape, valid=f"({clm.model.nq},)")
     q[clm.idx_q_act] = theta
     pas = clm.idx_v_pas
     res = math.inf
@@ -382,7 +389,8 @@ def robot_fk(theta, robot: Robot | None = None, q_hint=None, tol: float = 1e-12,
             raise ConvergenceError(
                 f"robot forward kinematics did not converge: closure residual {res:.3e} m "
                 f"after {it} iterations (tolerance {tol:g} m); theta may be unreachable or "
-                "the hint is on another assembly branch")
+                "the hint is on another assembly branch",
+                value=res, valid=f"closure residual < {tol:g} m")
         Jp = clm.constraint_jacobian(q)[:, pas]
         dv = np.zeros(clm.model.nv)
         dv[pas] = -np.linalg.lstsq(Jp, r, rcond=None)[0]
@@ -519,7 +527,8 @@ def robot_fk_batch(theta: np.ndarray, x_guess: np.ndarray, robot: Robot | None =
     theta = np.asarray(theta, dtype=float)
     x = np.array(x_guess, dtype=float)
     if theta.ndim != 2 or theta.shape[1] != 9 or x.shape != theta.shape:
-        raise InputError(f"theta and x_guess must be (n, 9), got {theta.shape}, {x.shape}")
+        raise InputError(f"theta and x_guess must be (n, 9), got {theta.shape}, {x.shape}",
+                         value=(theta.shape, x.shape), valid="(n, 9) each")
     pos, R, psi = x[:, 0:3].copy(), rot.matrix_from_rotvec(x[:, 3:6]), x[:, 6:9].copy()
     residual = np.full(len(x), np.inf)
     it = 0

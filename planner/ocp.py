@@ -183,26 +183,31 @@ def choose_static_psi(task: Task, robot: Robot, lim: Limits, locked: bool,
 
             raise InfeasibleTaskError(
                 f"{where} is outside the workspace: leg {leg} {failing_chain(st)} chain: "
-                f"{status_reason(st)}", k, "reach")
+                f"{status_reason(st)}", k, "reach",
+                value=wp.position.tolist(), valid="inside the workspace")
         if not theta_ok.any():
             raise InfeasibleTaskError(
                 f"{where}: an actuated angle leaves [{math.degrees(lim.theta_min):g}, "
                 f"{math.degrees(lim.theta_max):g}] deg (base collision) for every crank "
-                "choice", k, "theta range")
+                "choice", k, "theta range",
+                value=wp.position.tolist(),
+                valid=f"[{math.degrees(lim.theta_min):g}, {math.degrees(lim.theta_max):g}] deg")
         if not sph_ok.any():
             raise InfeasibleTaskError(
                 f"{where}: a spherical joint exceeds {math.degrees(lim.spherical):g} deg for "
-                "every crank choice", k, "spherical joints")
+                "every crank choice", k, "spherical joints",
+                value=wp.position.tolist(), valid=f"<= {math.degrees(lim.spherical):g} deg")
         if not clear_ok.any():
             raise InfeasibleTaskError(
                 f"{where}: links of different legs interfere for every crank choice",
-                k, "leg interference")
+                k, "leg interference", value=wp.position.tolist(), valid="clearance >= 0 m")
         order = np.argsort(-margin)
         if margin[order[0]] < lim.margin:
             raise InfeasibleTaskError(
                 f"{where}: no crank choice keeps every singularity margin >= {lim.margin:g} "
                 f"(best {margin[order[0]]:.4f} at psi = "
-                f"{np.round(np.degrees(psis[order[0]]), 1).tolist()} deg)", k, "margin")
+                f"{np.round(np.degrees(psis[order[0]]), 1).tolist()} deg)", k, "margin",
+                value=float(margin[order[0]]), valid=f">= {lim.margin:g}")
         chosen = None
         best_tau = math.inf
         for idx in order[:40]:
@@ -220,7 +225,7 @@ def choose_static_psi(task: Task, robot: Robot, lim: Limits, locked: bool,
             raise InfeasibleTaskError(
                 f"{where}: holding the platform at rest needs {best_tau:.2f} N m > "
                 f"{lim.torque:g} N m (torque limit) for every crank choice with margins "
-                f">= {lim.margin:g}", k, "torque")
+                f">= {lim.margin:g}", k, "torque", value=best_tau, valid=f"<= {lim.torque:g} N m")
         out.append(psis[chosen])
     return np.array(out)
 
@@ -487,7 +492,7 @@ class Problem:
         Tv = w[36 * (N + 1) + 9 * N:]
         if not found:
             raise InfeasibleTaskError(self._diagnose(x, xd, u, tau, status), None,
-                                      "solver: " + status)
+                                      "solver: " + status, value=status, valid="Solve_Succeeded")
         t = np.concatenate([[0.0], np.cumsum(np.repeat(Tv / ns, ns))])
         theta = np.array(sr.theta.map(N + 1)(x.T)).T
         residuals = {
@@ -706,7 +711,8 @@ def plan(task: Task, robot: Robot | None = None,
         raise InfeasibleTaskError(
             "the solved plan fails its dense re-check: "
             + "; ".join(sol.check.violations if sol.check else ["not checked"]),
-            None, "dense check")
+            None, "dense check",
+                value=sol.check.violations if sol.check else None, valid="every limit met")
     return sol
 
 

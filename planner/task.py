@@ -148,7 +148,8 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
             norm = np.linalg.norm(qq)
             if not (abs(norm - 1.0) < 1e-3):
                 raise TaskError(f"task field waypoints[{k}].quaternion: norm {norm:.6f}, must "
-                                "be a unit quaternion (x, y, z, w) within 1e-3")
+                                "be a unit quaternion (x, y, z, w) within 1e-3",
+                                value=float(norm), valid="|q| = 1 within 1e-3")
             rot = Rotation.from_quat(qq / norm).as_matrix()
         else:
             rpy = np.radians(w.get("rpy", [0.0, 0.0, 0.0]))
@@ -159,7 +160,8 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
             if np.any(np.abs(np.sin(psi)) < 0.05):
                 raise TaskError(f"task field waypoints[{k}].psi: {w['psi']} deg puts a crank "
                                 "along its radius (platform singularity); use angles in "
-                                "(3, 177) deg or (-177, -3) deg")
+                                "(3, 177) deg or (-177, -3) deg",
+                                value=w['psi'], valid="(3, 177) or (-177, -3) deg")
         wps.append(Waypoint(pos, rot, psi))
     lim = {k: float(v) for k, v in doc.get("limits", {}).items()}
     return Task(tuple(wps), lim, str(doc.get("name", name)),

@@ -39,7 +39,7 @@ class AssemblyMode:
     def __post_init__(self) -> None:
         if len(self.signs) != 4 or any(s not in (1, -1) for s in self.signs):
             raise InputError(f"assembly mode signs must be four values in {{+1, -1}}, got "
-                             f"{self.signs!r}")
+                             f"{self.signs!r}", value=self.signs, valid="four values in {+1, -1}")
 
     @property
     def name(self) -> str:
@@ -57,7 +57,7 @@ class AssemblyMode:
             raise InputError(
                 f"unknown assembly mode {name!r}: use four characters of '+'/'-' for "
                 "(th1, th_s3, th2, th3), e.g. '++++', or 'default'"
-            )
+            , value=name, valid="four of '+'/'-', or 'default'")
         return cls(tuple(1 if ch == "+" else -1 for ch in key))  # type: ignore[arg-type]
 
     @classmethod

@@ -31,23 +31,29 @@ def parse_closures(path: Path) -> tuple[list[tuple[str, str]], list[str], list[s
     doc = read_yaml(path, "closures file")
     if not isinstance(doc, dict):
         raise InputError(f"closures file {path}: expected a mapping with keys closed_loop, "
-                         "type, name_mot")
+                         "type, name_mot",
+                         value=type(doc).__name__,
+                         valid="a mapping with keys closed_loop, type, name_mot")
     for key in ("closed_loop", "type", "name_mot"):
         if key not in doc or not isinstance(doc[key], list):
-            raise InputError(f"closures file {path}: missing list '{key}'")
+            raise InputError(f"closures file {path}: missing list '{key}'",
+                             value=key, valid="lists closed_loop, type, name_mot")
     pairs = doc["closed_loop"]
     types = doc["type"]
     if len(pairs) != len(types):
         raise InputError(f"closures file {path}: {len(pairs)} closed_loop pairs but "
-                         f"{len(types)} types")
+                         f"{len(types)} types",
+                         value=(len(pairs), len(types)),
+                         valid="as many types as closed_loop pairs")
     for k, pair in enumerate(pairs):
         if not (isinstance(pair, list) and len(pair) == 2 and all(isinstance(s, str)
                                                                    for s in pair)):
-            raise InputError(f"closures file {path}: closed_loop[{k}] must be two frame names")
+            raise InputError(f"closures file {path}: closed_loop[{k}] must be two frame names",
+                             value=pair, valid="two frame names")
     for k, t in enumerate(types):
         if t != "3d":
             raise InputError(f"closures file {path}: type[{k}] = {t!r}; only '3d' (spherical "
-                             "joint) closures exist in this robot")
+                             "joint) closures exist in this robot", value=t, valid="'3d'")
     return [tuple(p) for p in pairs], list(types), [str(n) for n in doc["name_mot"]]
 
 
@@ -77,7 +83,8 @@ class ClosedLoopModel:
             ids = []
             for name in (a, b):
                 if not m.existFrame(name):
-                    raise InputError(f"closure frame {name!r} is not in {self.source}")
+                    raise InputError(f"closure frame {name!r} is not in {self.source}",
+                                     value=name, valid=f"a frame of {self.source}")
                 ids.append(m.getFrameId(name))
             fa, fb = m.frames[ids[0]], m.frames[ids[1]]
             cm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, m, fa.parentJoint,
@@ -103,10 +110,12 @@ class ClosedLoopModel:
         q_idx, v_idx = [], []
         for name in self.actuated_names:
             if not m.existJointName(name):
-                raise InputError(f"actuated joint {name!r} is not in {self.source}")
+                raise InputError(f"actuated joint {name!r} is not in {self.source}",
+                                 value=name, valid=f"a joint of {self.source}")
             j = m.joints[m.getJointId(name)]
             if j.nq != 1 or j.nv != 1:
-                raise InputError(f"actuated joint {name!r} must be a 1-DoF revolute joint")
+                raise InputError(f"actuated joint {name!r} must be a 1-DoF revolute joint",
+                                 value=name, valid="a 1-DoF revolute joint")
             q_idx.append(j.idx_q)
             v_idx.append(j.idx_v)
         self.idx_q_act = np.array(q_idx)
@@ -167,7 +176,9 @@ class ClosedLoopModel:
 def _check_sizes(pairs: list, act: list, where: str) -> None:
     if len(pairs) != 3 * NUM_LEGS or len(act) != 3 * NUM_LEGS:
         raise InputError(f"{where}: expected {3 * NUM_LEGS} closures and "
-                         f"{3 * NUM_LEGS} actuated joints, got {len(pairs)} and {len(act)}")
+                         f"{3 * NUM_LEGS} actuated joints, got {len(pairs)} and {len(act)}",
+                         value=(len(pairs), len(act)),
+                         valid=f"{3 * NUM_LEGS} and {3 * NUM_LEGS}")
 
 
 def closed_loop_model(robot: Robot | None = None) -> ClosedLoopModel:
@@ -192,7 +203,7 @@ def closed_loop_model(robot: Robot | None = None) -> ClosedLoopModel:
 def load_model_from(urdf: Path, closures: Path) -> ClosedLoopModel:
     """Load another URDF + closures pair from files (not cached; gravity -z)."""
     if not Path(urdf).exists():
-        raise InputError(f"URDF not found: {urdf}")
+        raise InputError(f"URDF not found: {urdf}", value=str(urdf), valid="an existing URDF file")
     model = pin.buildModelFromUrdf(str(urdf))
     pairs, _types, act = parse_closures(closures)
     _check_sizes(pairs, act, str(closures))

@@ -334,7 +334,9 @@ def design_optimize(coarse_step: float, fine_step: float, ws_step: float, readin
     try:
         res = optimize(coarse_step, fine_step, ws_step, rd, progress=not as_json)
     except ValueError as exc:
-        raise InputError(str(exc)) from None
+        raise InputError(str(exc),
+                         value=(coarse_step, fine_step, ws_step),
+                         valid="positive grid steps [m]") from None
     if as_json:
         out = {"found": res.found, "l2": res.l2, "l4": res.l4, "ex": res.ex,
                "area_m2": res.area_m2, "paper_design_area_m2": res.paper_design_area_m2,

@@ -75,7 +75,8 @@ def read_bytes(path: str | Path, what: str, max_bytes: int = MAX_BYTES) -> bytes
         with open(path, "rb") as fh:
             raw = fh.read(max_bytes + 1)
     except OSError as exc:
-        raise InputError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+        raise InputError(f"cannot read {what} {path}: {exc.strerror or exc}",
+                         value=str(path), valid="a readable file") from None
     if len(raw) > max_bytes:
         raise InputError(f"{what} {path} is larger than {max_bytes} bytes", value=len(raw),
                          valid=f"<= {max_bytes} bytes")
@@ -90,7 +91,7 @@ def read_text(path: str | Path, what: str, max_bytes: int = MAX_BYTES) -> str:
     except UnicodeDecodeError as exc:
         raise InputError(f"{what} {path} is not UTF-8 text (byte {exc.start}: "
                          f"{raw[exc.start:exc.start + 1]!r}); save it as UTF-8",
-                         valid="UTF-8 text") from exc
+                         valid="UTF-8 text", value=exc.start) from exc
 
 
 def _expanded_size(obj: Any, memo: dict[int, int], limit: int) -> int:
@@ -126,13 +127,13 @@ def parse_yaml(text: str, what: str, max_aliases: int = MAX_ALIASES,
     except yaml.YAMLError as exc:
         first = str(exc).strip().splitlines()
         msg = " ".join(line.strip() for line in first[:3])[:300]
-        raise InputError(f"{what} is not valid YAML: {msg}", valid="YAML") from None
+        raise InputError(f"{what} is not valid YAML: {msg}", valid="YAML", value=msg) from None
     finally:
         loader.dispose()
     if _expanded_size(doc, {}, max_values) > max_values:
         raise InputError(f"{what}: its aliases expand to more than {max_values} values "
                          "(a YAML alias bomb?); write the values out",
-                         valid=f"<= {max_values} values")
+                         valid=f"<= {max_values} values", value=max_values + 1)
     return doc
 
 

@@ -488,3 +488,31 @@ def test_bad_task_files_exit_2_with_one_line(tmp_path, content, needle) -> None:
 def test_bad_arguments_exit_2_with_one_line(tmp_path, args) -> None:
     code, lines = _run([*args[:1], *args[1:]], tmp_path)
     assert code == 2 and len(lines) == 1, lines
+
+
+def test_errors_carry_the_value_and_the_valid_range(valid, tmp_path) -> None:
+    """Every error raised on purpose says what was wrong and what is allowed, as
+    attributes (the CLI prints the message; a program reads these)."""
+    from sixplus3.errors import Sixplus3Error
+    from sixplus3.kinematics.robot import robot_fk, robot_ik_pose
+
+    _, raw, header, data = valid
+    bad_file = tmp_path / "x.csv"
+    bad_file.write_bytes(raw[:-50])
+    cases = [
+        lambda: robot_ik_pose((0.0, 0.0, 1.2)),
+        lambda: robot_ik_pose((0.0, math.nan, 0.3)),
+        lambda: robot_fk(np.zeros(8)),
+        lambda: ROBOT.limits.tightened(torque=11.0),
+        lambda: Robot.from_dict({"geometry": {"leg": {"l2": -1}}}),
+        lambda: task_from_dict({"waypoints": [{"position": [0, 0, 0.3]}]}),
+        lambda: validate_file(bad_file, ROBOT),
+        lambda: validate_file(tmp_path / "missing.csv", ROBOT),
+        lambda: tf.output_path(tmp_path, ".."),
+        lambda: prepare_feed(bad_file, ROBOT, 5.0),
+    ]
+    for make in cases:
+        with pytest.raises(Sixplus3Error) as err:
+            make()
+        assert err.value.valid is not None, (str(err.value), err.value.value)
+        assert str(err.value)
