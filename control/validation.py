@@ -238,10 +238,6 @@ def hermite_midpoints(dt: float, th: np.ndarray, v: np.ndarray, a: np.ndarray):
     return hermite(dt, th, v, a, k, np.full(len(k), 0.5))
 
 
-def _dynamics(dyn: ClosedLoopDynamics, q: np.ndarray, thd: np.ndarray, thdd: np.ndarray):
-    return dyn.actuated_inverse_dynamics_batch(q, thd, thdd)
-
-
 def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
                     theta_ddot: np.ndarray, robot: Robot, rate: float,
                     x_guess: np.ndarray, limits: Limits | None = None,
@@ -362,7 +358,8 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
     # linear algebra releases the GIL: 1.3x measured on 2 cores)
     jobs = [(cfg.q, v, a)] + ([(fkm.cfg.q, vm, am)] if fkm is not None else [])
     with ThreadPoolExecutor(max_workers=len(jobs)) as pool:
-        results = list(pool.map(lambda job: _dynamics(ClosedLoopDynamics(robot), *job), jobs))
+        results = list(pool.map(
+            lambda job: ClosedLoopDynamics(robot).actuated_inverse_dynamics_batch(*job), jobs))
     tau, rcond = results[0]
     if tau_file is not None:
         ff = np.abs(np.asarray(tau_file, dtype=float) - tau)

@@ -128,7 +128,7 @@ def platform_margin(rotation: np.ndarray, P: np.ndarray, position: np.ndarray,
         rows = slice(3 * i, 3 * i + 3)
         J[:, rows, 0:3] = np.eye(3)
         # omega x r = -[r]x omega
-        J[:, rows, 3:6] = -_skew(r) / L
+        J[:, rows, 3:6] = -rot.skew(r) / L
         J[:, rows, 6 + i] = np.cross(z, s) / c
     sv = np.linalg.svd(J, compute_uv=False)
     return sv[:, -1] / sv[:, 0]
@@ -142,14 +142,6 @@ def _rot(axis: int, a: np.ndarray) -> np.ndarray:
     R[:, axis, axis] = 1.0
     R[:, i, i], R[:, i, j], R[:, j, i], R[:, j, j] = c, -s, s, c
     return R
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    out = np.zeros((*v.shape[:-1], 3, 3))
-    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
-    return out
 
 
 def _as_batch(position, rotation, psi):
@@ -506,7 +498,7 @@ def ik_jacobian(cfg: RobotConfig) -> np.ndarray:
         R_i = cfg.position + np.einsum("nij,j->ni", cfg.rotation, geom.crank_axis_position(i))
         rows = slice(3 * i, 3 * i + 3)
         out[:, rows, 0:3] = D
-        out[:, rows, 3:6] = -D @ _skew(r)
+        out[:, rows, 3:6] = -D @ rot.skew(r)
         out[:, rows, 6 + i] = np.einsum("nij,nj->ni", D, np.cross(z, cfg.P[:, i] - R_i))
     return out
 

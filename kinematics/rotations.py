@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
+def skew(v: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) [v]x, the cross-product matrices of vectors (..., 3)."""
     out = np.zeros((*v.shape[:-1], 3, 3))
     out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
     out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
@@ -31,7 +32,7 @@ def matrix_from_rotvec(r: np.ndarray) -> np.ndarray:
     safe = np.where(small, 1.0, t)
     a = np.where(small, 1 - t2 / 6 + t2 * t2 / 120, np.sin(safe) / safe)
     b = np.where(small, 0.5 - t2 / 24 + t2 * t2 / 720, (1 - np.cos(safe)) / safe**2)
-    K = _skew(r)
+    K = skew(r)
     return np.eye(3) + a[:, None, None] * K + b[:, None, None] * (K @ K)
 
 

@@ -28,30 +28,37 @@ class InputError(Sixplus3Error, ValueError):
     """A user-supplied value is malformed (wrong shape, NaN, unknown name, ...)."""
 
 
-class GeometryError(InputError):
-    """A robot parameter is out of its valid range or inconsistent with another."""
+class _NamedValueError(InputError):
+    """A named value out of its valid range: ``name``, ``value``, ``valid``."""
 
-    def __init__(self, parameter: str, value: object, valid: str, hint: str = "") -> None:
-        self.parameter = parameter
-        msg = f"invalid robot parameter {parameter}={value!r}: must be {valid}"
+    what = "value"
+
+    def __init__(self, name: str, value: object, valid: str, hint: str = "") -> None:
+        self.name = name
+        msg = f"invalid {self.what} {name}={value!r}: must be {valid}"
         if hint:
             msg += f" ({hint})"
         super().__init__(msg, value=value, valid=valid)
 
 
-class LimitError(InputError):
+class GeometryError(_NamedValueError):
+    """A robot parameter is out of its valid range or inconsistent with another."""
+
+    what = "robot parameter"
+
+    @property
+    def parameter(self) -> str:
+        return self.name
+
+
+class LimitError(_NamedValueError):
     """A limit is non-finite, non-positive, or looser than the robot's hardware limit.
 
     The robot's hardware limits are the authority: a task or a file may only tighten
     them.
     """
 
-    def __init__(self, name: str, value: object, valid: str, hint: str = "") -> None:
-        self.name = name
-        msg = f"invalid limit {name}={value!r}: must be {valid}"
-        if hint:
-            msg += f" ({hint})"
-        super().__init__(msg, value=value, valid=valid)
+    what = "limit"
 
 
 class TaskError(InputError):
