@@ -51,7 +51,7 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
     :class:`InfeasibleTaskError` for an infeasible task and :class:`TrajectoryFileError`
     if the smoothed trajectory fails its validation; in both cases nothing is written.
     """
-    robot = robot or Robot.default()
+    robot = task.robot_for(robot or Robot.default())  # with the task's payload/tool/mounting
     say = progress or (lambda s: None)
     out = Path(out_dir)
     csv_path = output_path(out, task.name)  # a safe name, inside out_dir: before the solve

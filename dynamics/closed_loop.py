@@ -11,6 +11,10 @@ columns split by actuated / passive coordinates).
   Valid for a consistent motion (Jc v = 0, Jc a + gamma = 0).  A singular J_pas (the
   actuators locked, the mechanism can still move: a parallel singularity) raises
   :class:`SingularityError`.
+- Motors (``Robot.motors``): the reflected rotor inertia is the actuated joints'
+  ``model.armature`` (included by ``rnea`` and ``crba``); the joint friction
+  f(theta_dot) = b theta_dot + tau_c tanh(theta_dot / omega_c) is added to every inverse
+  dynamics result and subtracted from the applied torque in the forward dynamics.
 - Constrained forward dynamics: Pinocchio ``constraintDynamics`` with the 27 CONTACT_3D
   constraints and Baumgarte stabilisation; a step is RK4 (or semi-implicit Euler)
   followed by a projection onto the closure manifold.
@@ -89,6 +93,9 @@ class ClosedLoopDynamics:
         self.prox = pin.ProximalSettings(1e-12, mu, 10)
         self._act = self.clm.idx_v_act
         self._pas = self.clm.idx_v_pas
+        motors = self.robot.motors if self.robot is not None else None
+        self._friction = (motors.friction if motors is not None
+                          else (lambda w: np.zeros_like(np.asarray(w, dtype=float))))
 
     # ------------------------------------------------------------------ kinematics
     def _check_state(self, q: np.ndarray, *vs: np.ndarray) -> None:
@@ -159,7 +166,7 @@ class ClosedLoopDynamics:
         h = pin.rnea(self.model, self.data, q, v, a)
         if f_ext:
             h = h - self._external_generalized_force(q, f_ext)
-        return G.T @ h
+        return G.T @ h + self._friction(v[self._act])
 
     def _external_generalized_force(self, q: np.ndarray, f_ext: dict[str, np.ndarray]):
         m, d = self.model, self.data
@@ -199,7 +206,7 @@ class ClosedLoopDynamics:
         corr, _ = lapack.dgetrs(lu, piv, gamma)
         a[self._pas] = -X @ theta_ddot - corr
         h = pin.rnea(m, d, q, v, a)
-        return h[self._act] - X.T @ h[self._pas], rcond
+        return h[self._act] - X.T @ h[self._pas] + self._friction(theta_dot), rcond
 
     def actuated_inverse_dynamics_batch(self, q: np.ndarray, theta_dot: np.ndarray,
                                         theta_ddot: np.ndarray) -> tuple[np.ndarray,
@@ -240,6 +247,7 @@ class ClosedLoopDynamics:
             ak[pas] = a_pas[k] - inv[k] @ drift(q[k], v[k])
             H[k] = rnea(m, d, q[k], v[k], ak)
         tau = H[:, self._act] - np.einsum("nij,ni->nj", X, H[:, pas])
+        tau += self._friction(theta_dot)
         tau[rcond <= SINGULAR_RCOND] = np.nan
         return tau, rcond
 
@@ -254,7 +262,7 @@ class ClosedLoopDynamics:
         q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
         self._check_state(q, v)
         tau_full = np.zeros(self.model.nv)
-        tau_full[self._act] = tau
+        tau_full[self._act] = np.asarray(tau, dtype=float) - self._friction(v[self._act])
         a = pin.constraintDynamics(self.model, self.data, q, v, tau_full, self.cmodels,
                                    self.cdatas, self.prox)
         return ForwardResult(a=a.copy(), forces=self.data.lambda_c.copy())
@@ -307,8 +315,10 @@ class ClosedLoopDynamics:
         return q, v
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> tuple[float, float]:
-        """(kinetic, potential) energy [J]; potential is zero at z = 0."""
-        k = pin.computeKineticEnergy(self.model, self.data, q, v)
+        """(kinetic, potential) energy [J]; potential is zero at z = 0.  The kinetic
+        energy is v^T M v / 2 with the mass matrix of ``crba``, so it includes the
+        rotors (armature)."""
+        k = 0.5 * v @ pin.crba(self.model, self.data, q) @ v
         u = pin.computePotentialEnergy(self.model, self.data, q)
         return float(k), float(u)
 

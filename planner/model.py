@@ -13,7 +13,8 @@ here from two ingredients that cannot drift from the numeric model:
 Dynamics: a symbolic recursive Newton-Euler pass over the tree (world frame, joint
 rates qd = Jq xd from the IK) gives the tree's generalized forces; by virtual work
 Q(x, xd, xdd) = Jq^T tau_tree + (platform force, E^T platform moment) and the actuator
-torques satisfy tau^T d(theta) = Q^T dx, i.e. tau = (d theta / d x)^-T Q.
+torques satisfy tau^T d(theta) = Q^T dx, i.e. tau = (d theta / d x)^-T Q, plus the
+motors' own term I_a theta_ddot + b theta_dot + tau_c tanh(theta_dot / omega_c).
 tests/test_planner.py
 checks tau against Pinocchio's constrained inverse dynamics (tau = G^T rnea).
 """
@@ -358,9 +359,14 @@ def _build(robot: Robot) -> SymbolicRobot:
               if model.joints[j].shortname() == "JointModelFreeFlyer")
     Q = Jq.T @ tau_tree + ca.vertcat(f[ff], E.T @ n[ff], ca.SX.zeros(3, 1))
     Jth = ca.jacobian(theta, x)
-    tau = ca.solve(Jth.T, Q)
     th_dot = Jth @ xd
     th_ddot = ca.jtimes(th_dot, x, xd) + Jth @ xdd
+    # the motors (robot_description.physical): reflected rotor inertia and joint friction,
+    # entered from Robot.motors (not read back from the Pinocchio model's armature)
+    mot = robot.motors
+    motor = (mot.armature * th_ddot + mot.viscous * th_dot
+             + mot.coulomb * ca.tanh(th_dot / mot.coulomb_velocity))
+    tau = ca.solve(Jth.T, Q) + motor
 
     # Spherical-joint tilt cosines (kinematics.robot.spherical_tilts), 3 per leg: E, F, P.
     ref = spherical_reference(robot)
@@ -380,7 +386,7 @@ def _build(robot: Robot) -> SymbolicRobot:
     tau_sym = ca.SX.sym("tau", NX)
     node = ca.Function(
         "node", [x, xd, xdd, tau_sym],
-        [ca.vertcat(Jth.T @ tau_sym - Q, th_dot, th_ddot, theta, ca.vertcat(*reach),
+        [ca.vertcat(Jth.T @ (tau_sym - motor) - Q, th_dot, th_ddot, theta, ca.vertcat(*reach),
                     ca.vertcat(*sph), *margins_out, clear)], opts)
     return SymbolicRobot(
         theta=ca.Function("theta", [x], [theta], opts),

@@ -240,8 +240,10 @@ class Problem:
 
     def __init__(self, task: Task, robot: Robot | None = None,
                  options: PlannerOptions | None = None) -> None:
-        self.task = task
-        self.robot = robot or Robot.default()
+        # the task's setup (payload, tool, mounting) on the robot; TCP waypoints become
+        # platform poses through that robot's tool
+        self.robot = task.robot_for(robot or Robot.default())
+        self.task = task.in_platform_frame(self.robot)
         self.limits = task.limits_for(self.robot)
         self.options = options or PlannerOptions()
         self.sr = self.robot.symbolic()

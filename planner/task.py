@@ -15,6 +15,11 @@ Example (units: m and degrees in the file, SI inside)::
       acceleration: 150             # |theta_ddot| [rad/s^2] (robot: 200)
       margin: 0.08                  # every singularity margin (robot: 0.05)
     nodes_per_segment: 12
+    frame: platform                 # or tcp: waypoints give the tool centre point's pose
+    setup:                          # optional: the physical setup of the day
+      mounting: floor               # or ceiling (gravity +z in the robot frame)
+      payload: {mass: 0.5, com: [0, 0, 0.05], inertia: [1e-3, 1e-3, 1e-3, 0, 0, 0]}
+      tool: {xyz: [0, 0, 0.12], rpy: [0, 0, 0]}   # TCP in the platform frame [m, deg]
 
 The motion starts and ends at rest and passes through the waypoints in order; the timing
 is free.  A bad file raises :class:`TaskError` naming the field, its value and the range;
@@ -25,17 +30,18 @@ robot (:meth:`Task.limits_for`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import jsonschema
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from sixplus3.errors import InputError, TaskError
+from sixplus3.errors import GeometryError, InputError, TaskError
 from sixplus3.fileio import read_yaml, short_repr
 from sixplus3.robot_description.limits import Limits
-from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.physical import Payload, Tool
+from sixplus3.robot_description.robot import MOUNTINGS, Robot
 
 _VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
 SCHEMA = {
@@ -72,6 +78,32 @@ SCHEMA = {
             },
         },
         "nodes_per_segment": {"type": "integer", "minimum": 4, "maximum": 60},
+        "frame": {"enum": ["platform", "tcp"]},
+        "setup": {
+            "type": "object", "additionalProperties": False,
+            "properties": {
+                "mounting": {"enum": sorted(MOUNTINGS)},
+                "payload": {
+                    "type": "object", "additionalProperties": False, "required": ["mass"],
+                    "properties": {
+                        "mass": {"type": "number", "minimum": 0, "maximum": 20},
+                        "com": {**_VEC3, "items": {"type": "number", "minimum": -1,
+                                                   "maximum": 1}},
+                        "inertia": {"type": "array", "items": {"type": "number"},
+                                    "minItems": 6, "maxItems": 6},
+                    },
+                },
+                "tool": {
+                    "type": "object", "additionalProperties": False,
+                    "properties": {
+                        "xyz": {**_VEC3, "items": {"type": "number", "minimum": -1,
+                                                   "maximum": 1}},
+                        "rpy": {**_VEC3, "items": {"type": "number", "minimum": -180,
+                                                   "maximum": 180}},
+                    },
+                },
+            },
+        },
     },
 }
 
@@ -91,10 +123,38 @@ class Task:
     name: str = "task"
     nodes_per_segment: int = 12
     source: dict | None = None  # the validated file content, for the trajectory header
+    #: "platform": waypoints are the platform centre's poses; "tcp": the tool's
+    frame: str = "platform"
+    #: the physical setup the task replaces on the robot (None: the robot's own)
+    payload: Payload | None = None
+    tool: Tool | None = None
+    mounting: str | None = None
 
     @property
     def n_segments(self) -> int:
         return len(self.waypoints) - 1
+
+    def robot_for(self, robot: Robot) -> Robot:
+        """``robot`` with the task's payload, tool and mounting (its limits unchanged)."""
+        changes: dict = {}
+        if self.payload is not None:
+            changes["payload"] = self.payload
+        if self.tool is not None:
+            changes["tool"] = self.tool
+        if self.mounting is not None:
+            changes["gravity"] = MOUNTINGS[self.mounting]
+        return robot.replace(**changes) if changes else robot
+
+    def in_platform_frame(self, robot: Robot) -> Task:
+        """The task with every waypoint as a platform pose (TCP waypoints converted with
+        ``robot.tool``; ``robot`` should be :meth:`robot_for`'s)."""
+        if self.frame == "platform":
+            return self
+        wps = []
+        for wp in self.waypoints:
+            p, R = robot.tool.platform_pose(wp.position, wp.rotation)
+            wps.append(Waypoint(p, R, wp.psi))
+        return replace(self, waypoints=tuple(wps), frame="platform")
 
     def limits_for(self, robot: Robot) -> Limits:
         """The robot's hardware limits, tightened by the task's; raises
@@ -164,8 +224,21 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
                                 value=w['psi'], valid="(3, 177) or (-177, -3) deg")
         wps.append(Waypoint(pos, rot, psi))
     lim = {k: float(v) for k, v in doc.get("limits", {}).items()}
+    setup = doc.get("setup", {})
+    try:
+        payload = Payload(**setup["payload"]) if "payload" in setup else None
+        tool = None
+        if "tool" in setup:
+            t = setup["tool"]
+            tool = Tool(xyz=t.get("xyz", (0.0, 0.0, 0.0)),
+                        rpy=tuple(math.radians(a) for a in t.get("rpy", (0.0, 0.0, 0.0))))
+    except GeometryError as exc:
+        raise TaskError(f"task field setup.{exc.name}: {exc}", value=exc.value,
+                        valid=exc.valid) from None
     return Task(tuple(wps), lim, str(doc.get("name", name)),
-                int(doc.get("nodes_per_segment", 12)), source=doc)
+                int(doc.get("nodes_per_segment", 12)), source=doc,
+                frame=str(doc.get("frame", "platform")), payload=payload, tool=tool,
+                mounting=setup.get("mounting"))
 
 
 def load_task(path: str | Path) -> Task:

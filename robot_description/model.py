@@ -197,7 +197,10 @@ def closed_loop_model(robot: Robot | None = None) -> ClosedLoopModel:
     model.gravity = pin.Motion(np.array(robot.gravity), np.zeros(3))
     pairs, act = closure_pairs(), actuated_joint_names()
     _check_sizes(pairs, act, "robot")
-    return ClosedLoopModel(model, pairs, act, f"robot {robot.hash[:12]}", robot)
+    clm = ClosedLoopModel(model, pairs, act, f"robot {robot.hash[:12]}", robot)
+    # the reflected rotor inertia of the motors: rnea and crba include model.armature
+    model.armature[clm.idx_v_act] = robot.motors.armature
+    return clm
 
 
 def load_model_from(urdf: Path, closures: Path) -> ClosedLoopModel:

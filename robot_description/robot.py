@@ -33,6 +33,7 @@ from sixplus3.errors import GeometryError
 from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
 from sixplus3.robot_description.geometry import GRAVITY, LegGeometry
 from sixplus3.robot_description.limits import Limits
+from sixplus3.robot_description.physical import MotorModel, Payload, Tool
 
 if TYPE_CHECKING:
     from sixplus3.planner.model import SymbolicRobot
@@ -198,6 +199,12 @@ class Robot:
         "doc": "masses of the moving parts [kg]"})
     limits: Limits = field(default_factory=Limits, metadata={
         "doc": "hardware limits: the authority every plan and file is checked against"})
+    motors: MotorModel = field(default_factory=MotorModel, metadata={
+        "doc": "rotor inertia, transmission, friction, encoder of the actuated joints"})
+    payload: Payload = field(default_factory=Payload, metadata={
+        "doc": "rigid load fixed to the platform (mass, centre of mass, inertia)"})
+    tool: Tool = field(default_factory=Tool, metadata={
+        "doc": "tool centre point in the platform frame"})
     gravity: tuple[float, float, float] = field(default=MOUNTINGS["floor"], metadata={
         "doc": "gravity in the robot frame [m/s^2] (floor mounting: -z)"})
     home_position: tuple[float, float, float] = field(default=(0.0, 0.0, 0.30), metadata={
@@ -208,7 +215,8 @@ class Robot:
 
     def __post_init__(self) -> None:
         for attr, kind in (("geometry", RobotGeometry), ("masses", MassModel),
-                           ("limits", Limits)):
+                           ("limits", Limits), ("motors", MotorModel),
+                           ("payload", Payload), ("tool", Tool)):
             if not isinstance(getattr(self, attr), kind):
                 raise GeometryError(attr, getattr(self, attr), f"a {kind.__name__}")
         object.__setattr__(self, "mode", AssemblyMode.parse(self.mode))
@@ -247,6 +255,16 @@ class Robot:
     def leg(self) -> LegGeometry:
         return self.geometry.leg
 
+    @property
+    def mounting(self) -> str:
+        """``floor``, ``ceiling`` or ``custom`` (a gravity vector of another direction)."""
+        return next((k for k, v in MOUNTINGS.items() if v == self.gravity), "custom")
+
+    @property
+    def moving_mass(self) -> float:
+        """Links plus payload [kg]."""
+        return self.masses.total + self.payload.mass
+
     # ------------------------------------------------------------------ identity
     def as_dict(self) -> dict[str, Any]:
         """Every parameter as plain JSON-able values (SI units, angles in rad)."""
@@ -257,6 +275,10 @@ class Robot:
             "mode": self.mode.name,
             "masses": asdict(self.masses),
             "limits": asdict(self.limits),
+            "motors": asdict(self.motors),
+            "payload": {k: list(v) if isinstance(v, tuple) else v
+                        for k, v in asdict(self.payload).items()},
+            "tool": {k: list(v) for k, v in asdict(self.tool).items()},
             "gravity": list(self.gravity),
             "home_position": list(self.home_position),
             "home_psi": list(self.home_psi),
@@ -270,7 +292,7 @@ class Robot:
         """
         if not isinstance(doc, dict):
             raise GeometryError("robot", type(doc).__name__, "a mapping of parameters")
-        known = {f.name for f in fields(cls)}
+        known = {f.name for f in fields(cls)} | {"mounting"}
         _no_unknown("robot", doc, known)
         kw: dict[str, Any] = {}
         if "geometry" in doc:
@@ -288,6 +310,18 @@ class Robot:
             lim = _mapping("limits", doc["limits"])
             _no_unknown("limits", lim, {f.name for f in fields(Limits)})
             kw["limits"] = Limits(**lim)
+        for key, kind in (("motors", MotorModel), ("payload", Payload), ("tool", Tool)):
+            if key in doc:
+                sub = _mapping(key, doc[key])
+                _no_unknown(key, sub, {f.name for f in fields(kind)})
+                kw[key] = kind(**sub)
+        if "mounting" in doc:
+            if "gravity" in doc:
+                raise GeometryError("mounting", doc["mounting"], "either mounting or "
+                                    "gravity, not both")
+            if doc["mounting"] not in MOUNTINGS:
+                raise GeometryError("mounting", doc["mounting"], f"one of {sorted(MOUNTINGS)}")
+            kw["gravity"] = MOUNTINGS[doc["mounting"]]
         for key in ("mode", "gravity", "home_position", "home_psi", "name"):
             if key in doc:
                 kw[key] = doc[key]
@@ -333,10 +367,10 @@ class Robot:
     def summary(self) -> str:
         """One line naming the design, the assembly and the mounting."""
         leg = self.leg
-        mount = next((k for k, v in MOUNTINGS.items() if v == self.gravity), "custom")
         return (f"{self.name}: l2 = {leg.l2:.3f}, l4 = {leg.l4:.3f}, ex = {leg.ex:.3f}, "
-                f"ey = {leg.ey:.3f} m; assembly mode {self.mode.name}; {mount} mounting; "
-                f"hash {self.hash[:12]}")
+                f"ey = {leg.ey:.3f} m; assembly mode {self.mode.name}; {self.mounting} "
+                f"mounting; rotor {self.motors.armature:.4f} kg m^2 at the joint; payload "
+                f"{self.payload.mass:g} kg; hash {self.hash[:12]}")
 
 
 def _mapping(name: str, v: object) -> dict[str, Any]:
