@@ -111,18 +111,31 @@ def compiled_functions(robot: Robot) -> dict[str, ca.Function]:
     if not codegen_enabled():
         log.info("planner code generation disabled or no C compiler: interpreted functions")
         return {}
-    return _cached(("compiled", robot.hash), lambda: _compiled(robot))
+    from sixplus3.planner.model import structure
+
+    libs = _cached(("compiled", structure(robot).hash), lambda: _compiled(robot))
+    if not libs:
+        return {}
+    # fix the setup parameters (payload, mounting, motors) of this robot: one library
+    # serves every setup of a structure
+    sr = robot.symbolic()
+    out = {}
+    for name, ext in libs.items():
+        ins = [ca.MX.sym(f"in{k}", ext.size1_in(k), ext.size2_in(k))
+               for k in range(ext.n_in() - 1)]
+        out[name] = ca.Function(name, ins, [ext(*ins, ca.DM(sr.params))])
+    return out
 
 
 def _compiled(robot: Robot) -> dict[str, ca.Function]:
     sr = robot.symbolic()
-    sources = {name: _source(getattr(sr, name)) for name in COMPILED}
+    sources = {name: _source(getattr(sr, f"{name}_p")) for name in COMPILED}
     try:
         libs = _build(sources, cache_dir())
     except (OSError, RuntimeError) as exc:
         log.warning("planner code generation failed (%s); using interpreted functions", exc)
         return {}
-    return {name: ca.external(name, str(libs[name])) for name in COMPILED}
+    return {name: ca.external(f"{name}_p", str(libs[name])) for name in COMPILED}
 
 
 __all__ = ["cache_dir", "codegen_enabled", "compiled_functions"]

@@ -84,6 +84,10 @@ class SymbolicRobot:
     margins: ca.Function  # x -> (leg type I (9,), leg type II det (3,), platform line det)
     spherical_cos: ca.Function  # x -> (9,) cosines of the S-joint tilts
     node: ca.Function  # (x, xd, u, tau) -> the 70 path-constraint rows of one point
+    #: ``node`` with the setup as a last input p (:func:`setup_parameters`): one compiled
+    #: library serves every payload, mounting and motor model of a structure
+    node_p: ca.Function
+    params: np.ndarray  # this robot's p
 
     #: Row layout of ``node``: name -> (start, stop)
     NODE_ROWS = {"dynamics": (0, 9), "theta_dot": (9, 18), "theta_ddot": (18, 27),
@@ -230,15 +234,72 @@ def leg_clearance_rows(links) -> ca.SX:
     return ca.vertcat(*rows)
 
 
+#: Layout of the setup parameters p: gravity (3), payload mass (1), centre of mass (3),
+#: inertia (6: ixx iyy izz ixy ixz iyz), motors: armature, viscous, Coulomb, its speed.
+N_SETUP = 17
+
+
+def structure(robot: Robot) -> Robot:
+    """The robot without what :func:`setup_parameters` carries (payload, mounting,
+    motors) and what the constraint functions never see (limits, tool): its symbolic
+    model and compiled code are shared by every robot of the same structure.  The home
+    pose stays: it defines the spherical joints' mounting axes."""
+    from sixplus3.robot_description.physical import MotorModel, Payload, Tool
+
+    return Robot(geometry=robot.geometry, mode=robot.mode, masses=robot.masses,
+                 motors=MotorModel(), payload=Payload(), tool=Tool(),
+                 home_position=robot.home_position, home_psi=robot.home_psi)
+
+
+def setup_parameters(robot: Robot) -> np.ndarray:
+    """(N_SETUP,) the setup of ``robot`` as the symbolic model's parameter vector."""
+    pl, mot = robot.payload, robot.motors
+    return np.r_[robot.gravity, pl.mass, pl.com, pl.inertia, mot.armature, mot.viscous,
+                 mot.coulomb, mot.coulomb_velocity].astype(float)
+
+
 def symbolic_robot(robot: Robot | None = None) -> SymbolicRobot:
-    """The CasADi functions of ``robot`` (default ``Robot.default()``), built once per
-    process and robot (cached by the robot's hash; CasADi functions are immutable)."""
+    """The CasADi functions of ``robot`` (default ``Robot.default()``).
+
+    The expressions are built once per process and *structure* (:func:`structure`),
+    with the setup (payload, gravity, motors) as parameters; each robot's functions fix
+    them to its values (cached by the robot's hash; CasADi functions are immutable)."""
     robot = robot or Robot.default()
-    return _cached(("symbolic", robot.hash), lambda: _build(robot))
+    return _cached(("symbolic", robot.hash), lambda: _specialise(robot))
 
 
-def _build(robot: Robot) -> SymbolicRobot:
+def _specialise(robot: Robot) -> SymbolicRobot:
+    core = _cached(("symbolic-core", structure(robot).hash),
+                   lambda: _build(structure(robot)))
+    p = setup_parameters(robot)
+    opts = {"cse": True}
+    x, xd, xdd = ca.SX.sym("x", NX), ca.SX.sym("xd", NX), ca.SX.sym("xdd", NX)
+    tau = ca.SX.sym("tau", NX)
+    return SymbolicRobot(
+        theta=core.theta, theta_dot=core.theta_dot, theta_ddot=core.theta_ddot,
+        tau=ca.Function("tau", [x, xd, xdd], [core.tau(x, xd, xdd, p)], opts),
+        q=core.q, reach=core.reach, margins=core.margins,
+        spherical_cos=core.spherical_cos,
+        node=ca.Function("node", [x, xd, xdd, tau], [core.node_p(x, xd, xdd, tau, p)], opts),
+        node_p=core.node_p, params=p)
+
+
+@dataclass(frozen=True)
+class _Core:
+    theta: ca.Function
+    theta_dot: ca.Function
+    theta_ddot: ca.Function
+    tau: ca.Function  # (x, xd, xdd, p)
+    q: ca.Function
+    reach: ca.Function
+    margins: ca.Function
+    spherical_cos: ca.Function
+    node_p: ca.Function  # (x, xd, u, tau, p)
+
+
+def _build(robot: Robot) -> _Core:
     model = robot.closed_loop_model().model
+    setup = ca.SX.sym("p", N_SETUP)
     geom = robot.geometry
     mode: AssemblyMode = robot.mode
     x = ca.SX.sym("x", NX)
@@ -323,7 +384,7 @@ def _build(robot: Robot) -> SymbolicRobot:
     w_plat = ca.vertcat(W[2, 1], W[0, 2], W[1, 0])
     E = ca.jacobian(w_plat, rd)  # omega = E(r) r_dot
     a_plat = ca.jtimes(w_plat, r, rd) + E @ rdd
-    grav = ca.DM(np.asarray(model.gravity.linear))
+    grav = setup[0:3]
     zero = ca.SX.zeros(3, 1)
     om, al, acc = [zero] * model.njoints, [zero] * model.njoints, [zero] * model.njoints
     axes = {}
@@ -349,23 +410,31 @@ def _build(robot: Robot) -> SymbolicRobot:
         N[j] = Iw @ al[j] + ca.cross(om[j], Iw @ om[j])
     f = {j: F[j] for j in range(1, model.njoints)}
     n = {j: N[j] + ca.cross(com[j], F[j]) for j in range(1, model.njoints)}  # about t_j
+    # the payload: a rigid body on the platform, from the parameters
+    ff = next(j for j in range(1, model.njoints)
+              if model.joints[j].shortname() == "JointModelFreeFlyer")
+    m_pl, c_pl, i6 = setup[3], R @ setup[4:7], setup[7:13]
+    I_pl = ca.vertcat(ca.horzcat(i6[0], i6[3], i6[4]), ca.horzcat(i6[3], i6[1], i6[5]),
+                      ca.horzcat(i6[4], i6[5], i6[2]))
+    Iw_pl = R @ I_pl @ R.T
+    a_pl = acc[ff] + ca.cross(al[ff], c_pl) + ca.cross(om[ff], ca.cross(om[ff], c_pl))
+    F_pl = m_pl * (a_pl - grav)
+    f[ff] = f[ff] + F_pl
+    n[ff] = n[ff] + Iw_pl @ al[ff] + ca.cross(om[ff], Iw_pl @ om[ff]) + ca.cross(c_pl, F_pl)
     for j in range(model.njoints - 1, 0, -1):
         par = model.parents[j]
         if par > 0:
             f[par] = f[par] + f[j]
             n[par] = n[par] + n[j] + ca.cross(ot[j] - ot[par], f[j])
     tau_tree = ca.vertcat(*[ca.dot(axes[j], n[j]) for j in rev])
-    ff = next(j for j in range(1, model.njoints)
-              if model.joints[j].shortname() == "JointModelFreeFlyer")
     Q = Jq.T @ tau_tree + ca.vertcat(f[ff], E.T @ n[ff], ca.SX.zeros(3, 1))
     Jth = ca.jacobian(theta, x)
     th_dot = Jth @ xd
     th_ddot = ca.jtimes(th_dot, x, xd) + Jth @ xdd
     # the motors (robot_description.physical): reflected rotor inertia and joint friction,
-    # entered from Robot.motors (not read back from the Pinocchio model's armature)
-    mot = robot.motors
-    motor = (mot.armature * th_ddot + mot.viscous * th_dot
-             + mot.coulomb * ca.tanh(th_dot / mot.coulomb_velocity))
+    # from the parameters (Robot.motors; not read back from the Pinocchio armature)
+    motor = (setup[13] * th_ddot + setup[14] * th_dot
+             + setup[15] * ca.tanh(th_dot / setup[16]))
     tau = ca.solve(Jth.T, Q) + motor
 
     # Spherical-joint tilt cosines (kinematics.robot.spherical_tilts), 3 per leg: E, F, P.
@@ -384,20 +453,20 @@ def _build(robot: Robot) -> SymbolicRobot:
     clear = leg_clearance_rows(links)
     opts = {"cse": True}
     tau_sym = ca.SX.sym("tau", NX)
-    node = ca.Function(
-        "node", [x, xd, xdd, tau_sym],
+    node_p = ca.Function(
+        "node_p", [x, xd, xdd, tau_sym, setup],
         [ca.vertcat(Jth.T @ (tau_sym - motor) - Q, th_dot, th_ddot, theta, ca.vertcat(*reach),
                     ca.vertcat(*sph), *margins_out, clear)], opts)
-    return SymbolicRobot(
+    return _Core(
         theta=ca.Function("theta", [x], [theta], opts),
         theta_dot=ca.Function("theta_dot", [x, xd], [th_dot], opts),
         theta_ddot=ca.Function("theta_ddot", [x, xd, xdd], [th_ddot], opts),
-        tau=ca.Function("tau", [x, xd, xdd], [tau], opts),
+        tau=ca.Function("tau", [x, xd, xdd, setup], [tau], opts),
         q=ca.Function("q", [x], [ca.vertcat(*qvec)], opts),
         reach=ca.Function("reach", [x], [ca.vertcat(*reach)], opts),
         margins=ca.Function("margins", [x], margins_out, opts),
         spherical_cos=ca.Function("spherical_cos", [x], [ca.vertcat(*sph)], opts),
-        node=node,
+        node_p=node_p,
     )
 
 

@@ -222,10 +222,13 @@ def choose_static_psi(task: Task, robot: Robot, lim: Limits, locked: bool,
                 break
             best_tau = min(best_tau, float(np.abs(tau).max()))
         if chosen is None:
+            given = task.limits.get("torque", robot.limits.torque)
             raise InfeasibleTaskError(
                 f"{where}: holding the platform at rest needs {best_tau:.2f} N m > "
-                f"{lim.torque:g} N m (torque limit) for every crank choice with margins "
-                f">= {lim.margin:g}", k, "torque", value=best_tau, valid=f"<= {lim.torque:g} N m")
+                f"{lim.torque:g} N m (the torque limit planned to: {given:g} N m x "
+                f"torque_fraction {task.torque_fraction:g}) for every crank choice with "
+                f"margins >= {lim.margin:g}", k, "torque", value=best_tau,
+                valid=f"<= {lim.torque:g} N m")
         out.append(psis[chosen])
     return np.array(out)
 

@@ -15,6 +15,7 @@ Example (units: m and degrees in the file, SI inside)::
       acceleration: 150             # |theta_ddot| [rad/s^2] (robot: 200)
       margin: 0.08                  # every singularity margin (robot: 0.05)
     nodes_per_segment: 12
+    torque_fraction: 0.9            # plan to this share of the torque limit (default 0.9)
     frame: platform                 # or tcp: waypoints give the tool centre point's pose
     setup:                          # optional: the physical setup of the day
       mounting: floor               # or ceiling (gravity +z in the robot frame)
@@ -42,6 +43,10 @@ from sixplus3.fileio import read_yaml, short_repr
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.physical import Payload, Tool
 from sixplus3.robot_description.robot import MOUNTINGS, Robot
+
+#: Default share of the torque limit a plan may use: 10 % is left for the feedback of the
+#: drives' position/velocity loops (measured need: docs/planner.md, "Feedback reserve").
+DEFAULT_TORQUE_FRACTION = 0.9
 
 _VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
 SCHEMA = {
@@ -79,6 +84,7 @@ SCHEMA = {
         },
         "nodes_per_segment": {"type": "integer", "minimum": 4, "maximum": 60},
         "frame": {"enum": ["platform", "tcp"]},
+        "torque_fraction": {"type": "number", "minimum": 0.5, "maximum": 1.0},
         "setup": {
             "type": "object", "additionalProperties": False,
             "properties": {
@@ -129,6 +135,9 @@ class Task:
     payload: Payload | None = None
     tool: Tool | None = None
     mounting: str | None = None
+    #: the share of the (task's) torque limit the plan may use; the rest is the reserve
+    #: for the controller's feedback (the validator checks the hardware limit)
+    torque_fraction: float = DEFAULT_TORQUE_FRACTION
 
     @property
     def n_segments(self) -> int:
@@ -157,9 +166,11 @@ class Task:
         return replace(self, waypoints=tuple(wps), frame="platform")
 
     def limits_for(self, robot: Robot) -> Limits:
-        """The robot's hardware limits, tightened by the task's; raises
-        :class:`~sixplus3.errors.LimitError` if the task asks for a looser one."""
-        return robot.limits.tightened(**self.limits)
+        """The limits to plan to: the robot's hardware limits, tightened by the task's,
+        with the torque limit scaled by :attr:`torque_fraction` (the feedback reserve).
+        Raises :class:`~sixplus3.errors.LimitError` if the task asks for a looser one."""
+        lim = robot.limits.tightened(**self.limits)
+        return lim.tightened(torque=lim.torque * self.torque_fraction)
 
 
 def _path(error: jsonschema.ValidationError) -> str:
@@ -230,15 +241,16 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
         tool = None
         if "tool" in setup:
             t = setup["tool"]
-            tool = Tool(xyz=t.get("xyz", (0.0, 0.0, 0.0)),
-                        rpy=tuple(math.radians(a) for a in t.get("rpy", (0.0, 0.0, 0.0))))
+            roll, pitch, yaw = (math.radians(a) for a in t.get("rpy", (0.0, 0.0, 0.0)))
+            tool = Tool(xyz=t.get("xyz", (0.0, 0.0, 0.0)), rpy=(roll, pitch, yaw))
     except GeometryError as exc:
         raise TaskError(f"task field setup.{exc.name}: {exc}", value=exc.value,
                         valid=exc.valid) from None
     return Task(tuple(wps), lim, str(doc.get("name", name)),
                 int(doc.get("nodes_per_segment", 12)), source=doc,
                 frame=str(doc.get("frame", "platform")), payload=payload, tool=tool,
-                mounting=setup.get("mounting"))
+                mounting=setup.get("mounting"),
+                torque_fraction=float(doc.get("torque_fraction", DEFAULT_TORQUE_FRACTION)))
 
 
 def load_task(path: str | Path) -> Task:

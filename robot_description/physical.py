@@ -169,12 +169,9 @@ class Tool:
     @property
     def rotation(self) -> np.ndarray:
         """R_platform_tcp (3, 3)."""
-        r, p, y = self.rpy
-        cr, sr, cp, sp, cy, sy = (math.cos(r), math.sin(r), math.cos(p), math.sin(p),
-                                  math.cos(y), math.sin(y))
-        return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                         [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                         [-sp, cp * sr, cp * cr]])
+        from scipy.spatial.transform import Rotation
+
+        return Rotation.from_euler("xyz", self.rpy).as_matrix()  # Rz(y) Ry(p) Rx(r)
 
     def platform_pose(self, p_tcp: np.ndarray, R_tcp: np.ndarray) -> tuple[np.ndarray,
                                                                          np.ndarray]:

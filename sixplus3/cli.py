@@ -64,6 +64,8 @@ class _Group(click.Group):
             sys.exit(exc.exit_code)
         except Sixplus3Error as exc:
             _fail(" ".join(str(exc).split())[:2000])
+        except OSError as exc:  # an output path that cannot be written, a full disk
+            _fail(f"{exc.strerror or exc}: {exc.filename or ''}"[:2000])
         except (click.exceptions.Exit, click.ClickException, click.Abort, SystemExit):
             raise
         except KeyboardInterrupt:
@@ -291,6 +293,33 @@ def robot_show(as_json: bool) -> None:
     click.echo(json.dumps(doc, indent=1))
 
 
+@robot.command("export")
+@click.argument("fmt", type=click.Choice(["urdf", "mjcf", "yaml"]))
+@click.option("-o", "--out", "out_file", default=None, type=click.Path(dir_okay=False),
+              help="Write to this file (atomically) instead of stdout.")
+def robot_export(fmt: str, out_file: str | None) -> None:
+    """Write the robot as URDF (tree), MJCF (MuJoCo, closures included) or YAML
+    (its parameters: the input of --robot)."""
+    robot = _robot()
+    if fmt == "urdf":
+        text = robot.urdf()
+    elif fmt == "mjcf":
+        from sixplus3.robot_description.mjcf import mjcf
+
+        text = mjcf(robot)
+    else:
+        import yaml
+
+        text = yaml.safe_dump(robot.as_dict(), sort_keys=False)
+    if out_file is None:
+        click.echo(text, nl=False)
+        return
+    from sixplus3.fileio import atomic_write
+
+    atomic_write(out_file, text.encode())
+    click.echo(f"wrote {out_file}", err=True)
+
+
 @main.group()
 def design() -> None:
     """Optimal leg design and workspace (paper §V)."""
@@ -444,10 +473,41 @@ def demo(out_dir: str) -> None:
     _run_plan(task_from_dict(demo_task(_robot())), out_dir, 1000.0, True, False)
 
 
+def _task_robot(task_file: str | None) -> Robot:
+    """The invocation's robot with a task file's setup (payload, tool, mounting)."""
+    robot = _robot()
+    if task_file is None:
+        return robot
+    from sixplus3.planner.task import load_task
+
+    return load_task(task_file).robot_for(robot)
+
+
+_gain_options = [
+    click.option("--kp", default=300.0, show_default=True, type=float,
+                 help="PD stiffness of the replay [N m/rad]."),
+    click.option("--kd", default=6.0, show_default=True, type=float,
+                 help="PD damping of the replay [N m s/rad]."),
+]
+
+
+def _gains(f):
+    for opt in reversed(_gain_options):
+        f = opt(f)
+    return f
+
+
 @main.command()
 @click.argument("csv_file", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-def validate(csv_file: str, as_json: bool) -> None:
+@click.option("--task", "task_file", default=None, type=click.Path(dir_okay=False),
+              help="Apply this task file's setup (payload, tool, mounting) to the robot.")
+@click.option("--simulate", "with_sim", is_flag=True,
+              help="Also check in MuJoCo: its inverse dynamics against the file's torques, "
+                   "and feed-forward + PD replay against the torque limit.")
+@_gains
+def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool,
+             kp: float, kd: float) -> None:
     """Check a trajectory file independently of the planner (exit 0 only if all ok).
 
     Every check of docs/validation.md, against the robot's hardware limits (never the
@@ -457,11 +517,19 @@ def validate(csv_file: str, as_json: bool) -> None:
     """
     from sixplus3.control.validation import validate_file
 
-    robot = _robot()
+    robot = _task_robot(task_file)
     rep = validate_file(csv_file, robot)
     limits = robot.limits
     out = {"file": csv_file, "duration_s": rep.duration, **rep.summary(),
            "feedforward_max_error": rep.feedforward_error}
+    code = rep.exit_code
+    eng = None
+    if with_sim and code != 2:
+        from sixplus3.control.simulation import engine_check
+
+        eng = engine_check(robot, rep, kp, kd)
+        out["mujoco"] = eng.summary()
+        code = 2 if 2 in (code, eng.exit_code) else max(code, eng.exit_code)
     if as_json:
         click.echo(json.dumps(out, default=_json_default))
     else:
@@ -474,7 +542,54 @@ def validate(csv_file: str, as_json: bool) -> None:
                    f"(>= {limits.margin:g}); {verdict}")
         for msg in rep.messages():
             click.echo(f"  {'defect' if rep.exit_code == 2 else 'violation'}: {msg}")
-    sys.exit(rep.exit_code)
+        if eng is not None:
+            sm = eng.simulation
+            click.echo(f"  MuJoCo: inverse dynamics vs the file {eng.feedforward_error:.2e} "
+                       f"N m; replay at {sm.rate_hz:g} Hz with Kp {kp:g}, Kd {kd:g}: "
+                       f"tracking error max {math.degrees(sm.max_tracking_error_rad):.3f} "
+                       f"deg, PD share {100 * sm.pd_share:.1f}%, peak |tau| "
+                       f"{sm.peak_total_torque:.3f} N m")
+            for msg in eng.messages:
+                click.echo(f"  MuJoCo: {msg}")
+    sys.exit(code)
+
+
+@main.command()
+@click.argument("csv_file", type=click.Path(dir_okay=False))
+@click.option("--task", "task_file", default=None, type=click.Path(dir_okay=False),
+              help="Apply this task file's setup (payload, tool, mounting) to the robot.")
+@click.option("--ff-scale", default=1.0, show_default=True, type=float,
+              help="Scale the feed-forward torques by this factor, in [0, 2].")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@_gains
+def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: bool,
+             kp: float, kd: float) -> None:
+    """Replay a trajectory file in MuJoCo at its rate: feed-forward + PD.
+
+    The file is validated first (a defective file is not simulated: exit 2).  Reports
+    the tracking error, the PD share of the torque and the peak total torque; exit 1 if
+    that peak is over the hardware limit.
+    """
+    from sixplus3.control.simulation import simulate_file
+
+    robot = _task_robot(task_file)
+    rep, sim = simulate_file(csv_file, robot, kp, kd, ff_scale)
+    if sim is None:
+        _fail(f"{csv_file} is not a valid motion: " + "; ".join(rep.messages())[:1500])
+    assert sim is not None
+    if as_json:
+        click.echo(json.dumps(sim.summary()))
+    else:
+        click.echo(f"{csv_file}: {sim.samples} ticks at {sim.rate_hz:g} Hz, Kp {kp:g}, "
+                   f"Kd {kd:g}, feed-forward x{ff_scale:g}")
+        click.echo(f"  tracking error: max {math.degrees(sim.max_tracking_error_rad):.4f} "
+                   f"deg, rms {math.degrees(sim.rms_tracking_error_rad):.4f} deg, final "
+                   f"{math.degrees(sim.final_tracking_error_rad):.4f} deg")
+        click.echo(f"  PD share {100 * sim.pd_share:.2f}% (max |tau_PD| "
+                   f"{sim.max_pd_torque:.3f} N m); peak |tau| {sim.peak_total_torque:.3f} N m "
+                   f"(limit {sim.torque_limit:g}); closure residual "
+                   f"{sim.max_closure_residual_m:.1e} m")
+    sys.exit(0 if sim.within_torque_limit else 1)
 
 
 @main.command()

@@ -1,0 +1,326 @@
+"""Replay and cross-check trajectories in MuJoCo, an engine that shares no code with ours.
+
+The robot is exported as MJCF (:mod:`sixplus3.robot_description.mjcf`).  Two things
+are done with it:
+
+- **Constrained inverse dynamics** (:func:`mujoco_inverse_dynamics`): at each sample,
+  MuJoCo's own kinematics give the tree velocity and acceleration that realise the
+  actuated rates (the closure Jacobian Jc from the site Jacobians, its drift from
+  ``mj_jacDot``); then [S^T Jc^T] [tau; lambda] = M qacc + qfrc_bias is solved (M from
+  ``mj_fullM``, armature included) and the motors' friction law is added.  Only the
+  configuration is taken from our kinematics, and MuJoCo's closure residual checks it.
+- **Closed-loop replay** (:func:`simulate`): from the file's first state, the
+  controller runs at the file's rate with a zero-order hold: every tick
+  u = s tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref - theta_dot), with the
+  plant's friction MuJoCo's own (viscous ``damping`` and dry ``frictionloss``, not the
+  planner's smoothed law).  It reports the tracking error, the share of the PD in the
+  torque, and the peak total torque against the hardware limit.
+
+``mujoco`` is an optional dependency (``pip install sixplus3[sim]``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sixplus3.errors import InputError
+from sixplus3.robot_description.mjcf import TIMESTEP, build_mjcf
+from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.urdf import actuated_joint_names, closure_pairs
+
+#: Default PD gains of the replay [N m/rad, N m s/rad]: about 100 rad/s bandwidth,
+#: critically damped, on a joint of 0.03 kg m^2 (rotor + links).
+KP, KD = 300.0, 6.0
+
+
+def _mujoco():
+    try:
+        import mujoco
+    except ImportError:  # pragma: no cover - depends on the install
+        raise InputError("MuJoCo is not installed: pip install 'sixplus3[sim]'",
+                         value="mujoco", valid="the mujoco package installed") from None
+    return mujoco
+
+
+class MujocoRobot:
+    """A MuJoCo model of ``robot`` and the mapping to Pinocchio's coordinates."""
+
+    def __init__(self, robot: Robot | None = None, timestep: float = TIMESTEP) -> None:
+        mj = self.mj = _mujoco()
+        self.robot = robot or Robot.default()
+        self.model = mj.MjModel.from_xml_string(build_mjcf(self.robot, timestep))
+        self.data = mj.MjData(self.model)
+        clm = self.robot.closed_loop_model()
+        pm = clm.model
+        m = self.model
+        self.nv = m.nv
+        # Pinocchio joint -> MuJoCo addresses
+        self._hinges: list[tuple[int, int, int, int]] = []  # (pin iq, pin iv, mj qadr, dadr)
+        self._free: tuple[int, int] | None = None
+        for j in range(1, pm.njoints):
+            jid = mj.mj_name2id(m, mj.mjtObj.mjOBJ_JOINT, pm.names[j])
+            jm = pm.joints[j]
+            if jm.shortname() == "JointModelFreeFlyer":
+                self._free = (jm.idx_q, int(m.jnt_qposadr[jid]))
+            else:
+                self._hinges.append((jm.idx_q, jm.idx_v, int(m.jnt_qposadr[jid]),
+                                     int(m.jnt_dofadr[jid])))
+        self.act_dof = np.array([m.jnt_dofadr[mj.mj_name2id(m, mj.mjtObj.mjOBJ_JOINT, n)]
+                                 for n in actuated_joint_names()])
+        self.act_qpos = np.array([m.jnt_qposadr[mj.mj_name2id(m, mj.mjtObj.mjOBJ_JOINT, n)]
+                                  for n in actuated_joint_names()])
+        self._sites = [(mj.mj_name2id(m, mj.mjtObj.mjOBJ_SITE, a),
+                        mj.mj_name2id(m, mj.mjtObj.mjOBJ_SITE, b)) for a, b in closure_pairs()]
+        self._S = np.zeros((len(self.act_dof), m.nv))
+        self._S[np.arange(len(self.act_dof)), self.act_dof] = 1.0
+
+    # ------------------------------------------------------------------ state
+    def qpos_from_pinocchio(self, q: np.ndarray) -> np.ndarray:
+        qpos = np.zeros(self.model.nq)
+        for iq, _iv, qa, _da in self._hinges:
+            qpos[qa] = q[iq]
+        assert self._free is not None
+        iq, qa = self._free
+        qpos[qa:qa + 3] = q[iq:iq + 3]
+        x, y, z, w = q[iq + 3:iq + 7]
+        qpos[qa + 3:qa + 7] = (w, x, y, z)
+        return qpos
+
+    def _forward(self, qpos: np.ndarray, qvel: np.ndarray | None = None) -> None:
+        d = self.data
+        d.qpos[:] = qpos
+        d.qvel[:] = 0.0 if qvel is None else qvel
+        d.qacc[:] = 0.0
+        self.mj.mj_forward(self.model, d)
+
+    def closure_residual(self) -> float:
+        """Largest distance between the two sites of a closure, after the last update [m]."""
+        d = self.data
+        return float(max(np.linalg.norm(d.site_xpos[a] - d.site_xpos[b])
+                         for a, b in self._sites))
+
+    def closure_jacobian(self) -> np.ndarray:
+        """(27, nv) Jc = J(site1) - J(site2), world frame, at the last update."""
+        mj, m, d = self.mj, self.model, self.data
+        rows = []
+        ja, jb = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        for a, b in self._sites:
+            mj.mj_jacSite(m, d, ja, None, a)
+            mj.mj_jacSite(m, d, jb, None, b)
+            rows.append(ja - jb)
+        return np.vstack(rows)
+
+    def closure_drift(self) -> np.ndarray:
+        """(27,) Jc_dot qvel at the last update (``mj_jacDot`` at the site points)."""
+        mj, m, d = self.mj, self.model, self.data
+        out = []
+        ja, jb, jr = np.zeros((3, m.nv)), np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        for a, b in self._sites:
+            mj.mj_jacDot(m, d, ja, jr, d.site_xpos[a], m.site_bodyid[a])
+            mj.mj_jacDot(m, d, jb, jr, d.site_xpos[b], m.site_bodyid[b])
+            out.append((ja - jb) @ d.qvel)
+        return np.concatenate(out)
+
+    def inverse_dynamics(self, q: np.ndarray, theta_dot: np.ndarray,
+                         theta_ddot: np.ndarray) -> tuple[np.ndarray, float]:
+        """(tau [N m], closure residual [m]) of the actuated motion through the
+        configuration q (Pinocchio's coordinates) with MuJoCo's dynamics."""
+        mj, m, d = self.mj, self.model, self.data
+        qpos = self.qpos_from_pinocchio(q)
+        self._forward(qpos)
+        res = self.closure_residual()
+        Jc = self.closure_jacobian()
+        A = np.vstack([self._S, Jc])
+        qvel = np.linalg.solve(A, np.r_[theta_dot, np.zeros(len(Jc))])
+        self._forward(qpos, qvel)
+        qacc = np.linalg.solve(A, np.r_[theta_ddot, -self.closure_drift()])
+        M = np.zeros((m.nv, m.nv))
+        mj.mj_fullM(m, d, M)
+        rhs = M @ qacc + d.qfrc_bias
+        sol = np.linalg.solve(np.hstack([self._S.T, Jc.T]), rhs)
+        tau = sol[:len(self.act_dof)] + self.robot.motors.friction(theta_dot)
+        return tau, res
+
+
+def mujoco_inverse_dynamics(robot: Robot, q: np.ndarray, theta_dot: np.ndarray,
+                            theta_ddot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's constrained inverse dynamics of n states: (tau (n, 9), residual (n,))."""
+    sim = MujocoRobot(robot)
+    out = [sim.inverse_dynamics(q[k], theta_dot[k], theta_ddot[k]) for k in range(len(q))]
+    return np.array([o[0] for o in out]), np.array([o[1] for o in out])
+
+
+@dataclass
+class SimulationReport:
+    """What the closed-loop replay measured (angles [rad], torques [N m])."""
+
+    rate_hz: float
+    kp: float
+    kd: float
+    feedforward_scale: float
+    samples: int
+    duration_s: float
+    max_tracking_error_rad: float
+    rms_tracking_error_rad: float
+    final_tracking_error_rad: float
+    max_pd_torque: float
+    pd_share: float  # ||tau_pd|| / ||tau_total|| over every joint and tick (2-norms)
+    peak_total_torque: float
+    torque_limit: float
+    max_closure_residual_m: float
+
+    @property
+    def within_torque_limit(self) -> bool:
+        return self.peak_total_torque <= self.torque_limit
+
+    def summary(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["within_torque_limit"] = self.within_torque_limit
+        return out
+
+
+def _check(name: str, v: float, lo: float, hi: float) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
+            math.isfinite(v) and lo <= v <= hi):
+        raise InputError(f"{name} = {v!r} is out of range", value=v, valid=f"[{lo}, {hi}]")
+    return float(v)
+
+
+def simulate(robot: Robot, q0: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
+             tau_ff: np.ndarray, rate: float, kp: float = KP, kd: float = KD,
+             feedforward_scale: float = 1.0, timestep: float = TIMESTEP) -> SimulationReport:
+    """Replay a sampled motion in MuJoCo under feed-forward + PD at ``rate`` [Hz].
+
+    ``q0`` is the first sample's configuration (Pinocchio's coordinates; the motion must
+    start at rest or at theta_dot[0]).  Gains and the feed-forward scale are checked.
+    """
+    kp = _check("kp", kp, 0.0, 1e5)
+    kd = _check("kd", kd, 0.0, 1e4)
+    s = _check("feedforward_scale", feedforward_scale, 0.0, 2.0)
+    rate = _check("rate", rate, 10.0, 1e5)
+    n_sub = round(1.0 / (rate * timestep))
+    if n_sub < 1 or abs(n_sub * timestep * rate - 1.0) > 1e-9:
+        raise InputError(f"the control period 1/{rate:g} s is not a multiple of the "
+                         f"simulation step {timestep:g} s", value=rate,
+                         valid=f"a rate dividing {1 / timestep:g} Hz")
+    sim = MujocoRobot(robot, timestep)
+    mj, m, d = sim.mj, sim.model, sim.data
+    qpos = sim.qpos_from_pinocchio(q0)
+    sim._forward(qpos)
+    Jc = sim.closure_jacobian()
+    qvel = np.linalg.solve(np.vstack([sim._S, Jc]), np.r_[theta_dot[0], np.zeros(len(Jc))])
+    sim._forward(qpos, qvel)
+    n = len(theta)
+    err = np.zeros((n, theta.shape[1]))
+    pd = np.zeros_like(err)
+    total = np.zeros_like(err)
+    res = 0.0
+    for k in range(n):
+        th = d.qpos[sim.act_qpos]
+        thd = d.qvel[sim.act_dof]
+        err[k] = theta[k] - th
+        pd[k] = kp * err[k] + kd * (theta_dot[k] - thd)
+        total[k] = s * tau_ff[k] + pd[k]
+        d.ctrl[:] = total[k]
+        if k < n - 1:
+            for _ in range(n_sub):
+                mj.mj_step(m, d)
+            res = max(res, sim.closure_residual())
+    absmax = np.abs(err).max(axis=1)
+    return SimulationReport(
+        rate_hz=rate, kp=kp, kd=kd, feedforward_scale=s, samples=n,
+        duration_s=(n - 1) / rate,
+        max_tracking_error_rad=float(absmax.max()),
+        rms_tracking_error_rad=float(np.sqrt(np.mean(err ** 2))),
+        final_tracking_error_rad=float(absmax[-1]),
+        max_pd_torque=float(np.abs(pd).max()),
+        pd_share=float(np.linalg.norm(pd)) / max(float(np.linalg.norm(total)), 1e-300),
+        peak_total_torque=float(np.abs(total).max()),
+        torque_limit=robot.limits.torque,
+        max_closure_residual_m=res)
+
+
+def first_configuration(robot: Robot, rep) -> np.ndarray:
+    """Pinocchio configuration of a validated report's first sample (its platform pose
+    and crank angles from the validator's own forward kinematics)."""
+    from sixplus3.kinematics.robot import robot_ik
+    from sixplus3.kinematics.rotations import matrix_from_quat
+
+    R = matrix_from_quat(rep.quaternion[0])[0]
+    cfg = robot_ik(rep.position[0], R, rep.psi[0], robot)
+    return np.asarray(cfg.q[0])
+
+
+def simulate_file(path: str | Path, robot: Robot | None = None, kp: float = KP,
+                  kd: float = KD, feedforward_scale: float = 1.0):
+    """Validate a trajectory file, then replay it in MuJoCo: (validation, simulation).
+
+    A file with a motion defect (exit code 2) is not simulated (simulation is None).
+    """
+    from sixplus3.control.trajectory_file import columns
+    from sixplus3.control.validation import validate_file
+
+    robot = robot or Robot.default()
+    rep = validate_file(path, robot)
+    if rep.exit_code == 2 or rep.data is None or rep.position is None:
+        return rep, None
+    rate = float(rep.header["rate_hz"]) if rep.header else float("nan")
+    sim = simulate(robot, first_configuration(robot, rep), columns(rep.data, "pos"),
+                   columns(rep.data, "vel"), columns(rep.data, "tau"), rate, kp, kd,
+                   feedforward_scale)
+    return rep, sim
+
+
+@dataclass
+class EngineCheck:
+    """The MuJoCo stage of ``validate --simulate`` on a validated file."""
+
+    feedforward_error: float  # max |tau_file - tau_MuJoCo| over every sample [N m]
+    closure_residual: float  # MuJoCo's closure residual at our configurations [m]
+    simulation: SimulationReport
+    exit_code: int  # 0 ok; 1 peak total torque over the limit; 2 feed-forward mismatch
+    messages: list[str]
+
+    def summary(self) -> dict[str, Any]:
+        return {"mujoco_feedforward_error": self.feedforward_error,
+                "mujoco_closure_residual": self.closure_residual,
+                "simulation": self.simulation.summary(), "exit_code": self.exit_code,
+                "messages": self.messages}
+
+
+def engine_check(robot: Robot, rep, kp: float = KP, kd: float = KD) -> EngineCheck:
+    """Check a validated report's file in MuJoCo: its feed-forward torques against
+    MuJoCo's constrained inverse dynamics on every sample (a defect beyond the
+    validator's feed-forward tolerance), then the closed-loop replay's peak total torque
+    against the hardware limit (a violation above it)."""
+    from sixplus3.control.trajectory_file import columns
+    from sixplus3.control.validation import FEEDFORWARD_TOL
+    from sixplus3.kinematics.robot import robot_ik
+    from sixplus3.kinematics.rotations import matrix_from_quat
+
+    if rep.data is None or rep.position is None or rep.quaternion is None:
+        raise InputError("engine_check needs a report of validate_file with its samples",
+                         value=None, valid="a report with data")
+    data = rep.data
+    q = robot_ik(rep.position, matrix_from_quat(rep.quaternion), rep.psi, robot).q
+    tau, res = mujoco_inverse_dynamics(robot, q, columns(data, "vel"), columns(data, "acc"))
+    ff = float(np.abs(tau - columns(data, "tau")).max())
+    rate = float(rep.header["rate_hz"]) if rep.header else float("nan")
+    sim = simulate(robot, q[0], columns(data, "pos"), columns(data, "vel"),
+                   columns(data, "tau"), rate, kp, kd)
+    code, msgs = 0, []
+    if not ff <= FEEDFORWARD_TOL:
+        code = 2
+        msgs.append(f"feed-forward torque vs MuJoCo's inverse dynamics: {ff:.3g} N m > "
+                    f"{FEEDFORWARD_TOL:g} N m")
+    if not sim.within_torque_limit:
+        code = code or 1
+        msgs.append(f"feed-forward + PD (Kp {kp:g}, Kd {kd:g}) in MuJoCo peaks at "
+                    f"{sim.peak_total_torque:.3f} N m > {sim.torque_limit:g} N m: no "
+                    "headroom for the feedback")
+    return EngineCheck(ff, float(res.max()), sim, code, msgs)

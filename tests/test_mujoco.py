@@ -1,0 +1,168 @@
+"""A second physics engine: MuJoCo, built from the MJCF export, against Pinocchio.
+
+MuJoCo shares no code with our dynamics: its kinematics give the velocities and
+accelerations of the tree (site Jacobians and mj_jacDot), its mass matrix and bias
+forces the torques.  Only the configuration comes from our kinematics, and MuJoCo's
+closure residual checks it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from sixplus3.cli import main
+from sixplus3.control.pipeline import run_plan
+from sixplus3.control.simulation import (
+    MujocoRobot,
+    engine_check,
+    mujoco_inverse_dynamics,
+    simulate_file,
+)
+from sixplus3.control.trajectory_file import columns
+from sixplus3.control.validation import FEEDFORWARD_TOL, validate_file
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.errors import InputError
+from sixplus3.examples import load as load_example
+from sixplus3.kinematics.robot import robot_ik, robot_ik_pose
+from sixplus3.kinematics.rotations import matrix_from_quat
+from sixplus3.planner.task import task_from_dict
+from sixplus3.robot_description.physical import Payload
+from sixplus3.robot_description.robot import Robot
+
+mujoco = pytest.importorskip("mujoco")
+
+ROBOT = Robot.default()
+EXAMPLES = Path(__file__).parents[1] / "examples"
+
+
+@pytest.fixture(scope="module")
+def planned(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("mj")
+    task = task_from_dict({"name": "short", "waypoints": [
+        {"position": [0.0, 0.0, 0.30]}, {"position": [0.01, 0.0, 0.31], "rpy": [15, 0, 0]}],
+        "nodes_per_segment": 8})
+    return run_plan(task, out, ROBOT, html=False, plots=False).csv
+
+
+@pytest.fixture(scope="module")
+def ceiling(tmp_path_factory) -> tuple[Path, Robot]:
+    """The ceiling example: a TCP task with a payload, planned and validated."""
+    out = tmp_path_factory.mktemp("ceiling")
+    task = load_example("ceiling_handle")
+    return run_plan(task, out, ROBOT, html=False, plots=False).csv, task.robot_for(ROBOT)
+
+
+def test_mjcf_is_the_robot() -> None:
+    """The export has the tree, the 9 closures, 9 motors, the armature, the payload."""
+    heavy = ROBOT.replace(payload=Payload(mass=0.5))
+    sim = MujocoRobot(heavy)
+    m = sim.model
+    assert (m.nq, m.nv, m.neq, m.nu) == (37, 36, 9, 9)
+    np.testing.assert_allclose(m.dof_armature[sim.act_dof], heavy.motors.armature)
+    assert np.count_nonzero(m.dof_armature) == 9
+    np.testing.assert_allclose(m.dof_damping[sim.act_dof], heavy.motors.viscous)
+    total = float(m.body_mass.sum())
+    assert total == pytest.approx(heavy.moving_mass, abs=1e-6)
+    assert total == pytest.approx(MujocoRobot(ROBOT).model.body_mass.sum() + 0.5, abs=1e-6)
+
+
+@pytest.mark.parametrize("robot", [ROBOT, Robot.mounted("ceiling", payload=Payload(
+    mass=0.7, com=(0.02, 0.0, 0.05), inertia=(1e-3, 2e-3, 1.5e-3, 0, 1e-4, 0)))],
+    ids=["default", "ceiling+payload"])
+def test_mujoco_inverse_dynamics_matches_pinocchio_at_random_states(robot) -> None:
+    rng = np.random.default_rng(1)
+    dyn = ClosedLoopDynamics(robot)
+    cfgs = [robot_ik_pose((0.03, -0.02, 0.32), (0.2, -0.1, 0.3), (1.4, 1.7, 1.2), robot),
+            robot_ik_pose((-0.04, 0.03, 0.28), (-0.3, 0.2, -0.4), (1.8, 1.3, 1.6), robot)]
+    sim = MujocoRobot(robot)
+    for cfg in cfgs:
+        q = cfg.q[0]
+        thd, thdd = rng.normal(scale=2.0, size=9), rng.normal(scale=80.0, size=9)
+        tau_pin, _ = dyn.actuated_inverse_dynamics(q, thd, thdd)
+        tau_mj, res = sim.inverse_dynamics(q, thd, thdd)
+        assert res < 1e-12  # MuJoCo sees the closures closed at our configuration
+        assert np.abs(tau_mj - tau_pin).max() < 1e-6
+
+
+def test_mujoco_inverse_dynamics_matches_the_planned_file(planned: Path) -> None:
+    rep = validate_file(planned, ROBOT)
+    assert rep.ok
+    q = robot_ik(rep.position, matrix_from_quat(rep.quaternion), rep.psi, ROBOT).q
+    tau, res = mujoco_inverse_dynamics(ROBOT, q, columns(rep.data, "vel"),
+                                       columns(rep.data, "acc"))
+    assert res.max() < 1e-10
+    assert np.abs(tau - columns(rep.data, "tau")).max() <= FEEDFORWARD_TOL
+    # and the rotors matter: without their armature MuJoCo's torques differ visibly
+    bare = ROBOT.replace(motors=ROBOT.motors.__class__(rotor_inertia=0.0))
+    tau0, _ = mujoco_inverse_dynamics(bare, q, columns(rep.data, "vel"),
+                                      columns(rep.data, "acc"))
+    assert np.abs(tau0 - tau).max() > 0.5
+
+
+def test_open_loop_replay_stays_close(planned: Path) -> None:
+    """Feed-forward only, no feedback: the drift over the short plan stays below 0.5 deg
+    (the plant's friction is MuJoCo's dry friction, not the planner's smooth law)."""
+    _, sim = simulate_file(planned, ROBOT, kp=0.0, kd=0.0)
+    assert sim is not None and sim.pd_share == 0.0
+    assert sim.max_tracking_error_rad < math.radians(0.5)
+    assert sim.max_closure_residual_m < 1e-5
+
+
+def test_pd_share_is_small_and_grows_with_a_wrong_feedforward(planned: Path) -> None:
+    _, good = simulate_file(planned, ROBOT)
+    _, weak = simulate_file(planned, ROBOT, feedforward_scale=0.9)
+    assert good is not None and weak is not None
+    assert good.pd_share < 0.1
+    assert weak.pd_share > 1.5 * good.pd_share
+    assert weak.max_tracking_error_rad > 1.5 * good.max_tracking_error_rad
+    # the planner's 10 % torque reserve covers the feedback: within the hardware limit
+    assert good.within_torque_limit
+
+
+def test_ceiling_example_plans_validates_and_simulates(ceiling) -> None:
+    path, robot = ceiling
+    rep = validate_file(path, robot)
+    assert rep.ok and rep.exit_code == 0
+    eng = engine_check(robot, rep)
+    assert eng.feedforward_error <= FEEDFORWARD_TOL and eng.exit_code == 0, eng.messages
+    # the file's first TCP pose is the task's first waypoint
+    task = load_example("ceiling_handle")
+    R = matrix_from_quat(rep.quaternion[0])[0]
+    p_tcp, R_tcp = robot.tool.tcp_pose(rep.position[0], R)
+    np.testing.assert_allclose(p_tcp, task.waypoints[0].position, atol=1e-6)
+    np.testing.assert_allclose(R_tcp, task.waypoints[0].rotation, atol=1e-6)
+    # the payload and the mounting are in the torques: the default robot refuses the file
+    res = CliRunner().invoke(main, ["validate", str(path)])
+    assert res.exit_code == 2 and "robot mismatch" in res.output
+    res = CliRunner().invoke(main, ["validate", str(path), "--simulate", "--json", "--task",
+                                    str(EXAMPLES / "ceiling_handle.yaml")])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    assert out["mujoco"]["mujoco_feedforward_error"] <= FEEDFORWARD_TOL
+
+
+def test_cli_simulate_and_bad_gains(planned: Path) -> None:
+    runner = CliRunner()
+    res = runner.invoke(main, ["simulate", str(planned), "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    assert out["within_torque_limit"] and out["samples"] > 10
+    for bad in (["--kp", "-1"], ["--kd", "nan"], ["--ff-scale", "5"]):
+        res = runner.invoke(main, ["simulate", str(planned), *bad])
+        assert res.exit_code == 2 and "Traceback" not in res.output, res.output
+    with pytest.raises(InputError):
+        simulate_file(planned, ROBOT, kp=float("inf"))
+
+
+def test_export_mjcf_loads_in_mujoco(tmp_path) -> None:
+    out = tmp_path / "robot.xml"
+    res = CliRunner().invoke(main, ["robot", "export", "mjcf", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    m = mujoco.MjModel.from_xml_path(str(out))
+    assert m.neq == 9 and m.nu == 9
