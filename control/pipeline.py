@@ -7,6 +7,8 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import numpy as np
+
 from sixplus3.control.smoothing import Smoothed, check_rate, smooth
 from sixplus3.control.trajectory_file import output_path, write_trajectory
 from sixplus3.control.validation import ValidationReport, validate_joint_trajectory
@@ -70,6 +72,14 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
         f"{sol.check.min_margin:.3f}")
     t1 = time.perf_counter()
     sm = smooth(sol, rate=rate)
+    if task.start_theta is not None:
+        # the first sample is the robot's state, exactly (FK -> plan -> IK returns it to
+        # rounding; anything more would be a bug, not a motion to send)
+        gap = float(np.abs(sm.theta[0] - task.start_theta).max())
+        if gap > 1e-9:
+            raise TrajectoryFileError(f"the plan does not start at the given state: "
+                                      f"{gap:.2e} rad away", value=gap, valid="<= 1e-9 rad")
+        sm.theta[0] = task.start_theta
     secs["smooth"] = time.perf_counter() - t1
     say(f"  smoothed with Ruckig at {rate:g} Hz (jerk limit {sm.jerk_limit:.3g} rad/s^3): "
         f"{len(sm.t)} samples, duration {sm.duration:.4f} s "

@@ -42,7 +42,7 @@ class Smoothed:
     theta_dot: np.ndarray  # (M, 9) [rad/s]
     theta_ddot: np.ndarray  # (M, 9) [rad/s^2]
     x_guess: np.ndarray  # (M, 9) the plan's minimal coordinates near each sample
-    planned_duration: float  # [s] the plan's
+    planned_duration: float  # [s] the plan's, plus its dwells
     duration: float  # [s] of the output (a whole number of periods)
     stretched_segments: int  # Ruckig segments longer than one period
     smoothed_segments: int  # segments Ruckig recomputed (the plan's jerk above the limit)
@@ -63,11 +63,11 @@ def check_rate(rate: float) -> float:
     return float(rate)
 
 
-def _joint_samples(sol: Solution, times: np.ndarray, a: float):
-    """Actuated (theta, theta_dot, theta_ddot) and x of the plan stretched by ``a`` at
-    output times ``times`` [s]."""
+def _joint_samples(sol: Solution, times: np.ndarray, a: float, t0: float = 0.0):
+    """Actuated (theta, theta_dot, theta_ddot) and x of the plan's piece starting at plan
+    time ``t0``, stretched by ``a``, at piece-local output times ``times`` [s]."""
     sr = sol.robot.symbolic()
-    x, xd, xdd = sol.sample(times / a)
+    x, xd, xdd = sol.sample(t0 + times / a)
     xd, xdd = xd / a, xdd / a**2
     n = len(times)
     th = np.array(sr.theta.map(n)(x.T)).T
@@ -76,17 +76,61 @@ def _joint_samples(sol: Solution, times: np.ndarray, a: float):
     return th, thd, thdd, x
 
 
+def rest_pieces(sol: Solution) -> list[tuple[float, float, float]]:
+    """(start, end, dwell after it) [s] of the plan's rest-to-rest pieces: the motion is
+    split at every waypoint where it stops (``stop`` or ``dwell``)."""
+    times = np.concatenate([[0.0], np.cumsum(sol.segment_times)])
+    wps = sol.task.waypoints if sol.task is not None else ()
+    cuts = [0] + [w for w in range(1, len(times) - 1) if wps and wps[w].stop] + [
+        len(times) - 1]
+    return [(float(times[a]), float(times[b]), float(wps[b].dwell) if wps else 0.0)
+            for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+
+
 def smooth(sol: Solution, rate: float = 1000.0) -> Smoothed:
     """Resample ``sol`` at ``rate`` [Hz] on a uniform grid, jerk-limited by the robot's
-    jerk limit (``sol.limits.jerk``), with velocity and acceleration limits planned to."""
+    jerk limit (``sol.limits.jerk``), with velocity and acceleration limits planned to.
+
+    A plan that stops at waypoints is smoothed piece by piece (each rest to rest, each a
+    whole number of periods, so every stop lands on a sample), with each waypoint's
+    dwell held at rest in between.
+    """
     rate = check_rate(rate)
+    dt = 1.0 / rate
+    parts = []
+    pieces = rest_pieces(sol)
+    for k, (t0, t1, dwell) in enumerate(pieces):
+        p = _smooth_piece(sol, t0, t1, rate)
+        if k > 0:  # the previous piece's last sample is this one's first (both at rest)
+            p = {key: (v[1:] if isinstance(v, np.ndarray) else v) for key, v in p.items()}
+        parts.append(p)
+        hold = round(dwell * rate)
+        if hold > 0:
+            last_th, last_x = p["theta"][-1], p["x_guess"][-1]
+            z = np.zeros((hold, 9))
+            parts.append({"theta": np.tile(last_th, (hold, 1)), "theta_dot": z,
+                          "theta_ddot": z, "x_guess": np.tile(last_x, (hold, 1)),
+                          "stretched": 0, "smoothed": 0, "deviation": 0.0})
+    cat = {key: np.concatenate([p[key] for p in parts])
+           for key in ("theta", "theta_dot", "theta_ddot", "x_guess")}
+    t = np.arange(len(cat["theta"])) / rate
+    jerk = np.abs(np.diff(cat["theta_ddot"], axis=0)).max() / dt if len(t) > 1 else 0.0
+    return Smoothed(rate, t, cat["theta"], cat["theta_dot"], cat["theta_ddot"],
+                    cat["x_guess"], float(sol.final_time) + sum(d for *_, d in pieces),
+                    float(t[-1]),
+                    sum(p["stretched"] for p in parts), sum(p["smoothed"] for p in parts),
+                    sol.limits.jerk, float(jerk), max(p["deviation"] for p in parts))
+
+
+def _smooth_piece(sol: Solution, t0: float, t1: float, rate: float) -> dict:
+    """One rest-to-rest piece [t0, t1] of the plan at ``rate`` (see the module doc)."""
     lim = sol.limits
     dt = 1.0 / rate
-    T = float(sol.final_time)
+    T = float(t1 - t0)
     periods = max(1, math.ceil(T * rate - 1e-9))
     a = periods * dt / T  # >= 1: a whole number of periods
     kt = np.arange(periods + 1) / rate
-    th, thd, thdd, xk = _joint_samples(sol, kt, a)
+    th, thd, thdd, xk = _joint_samples(sol, kt, a, t0)
     thd[[0, -1]] = 0.0  # at rest, exactly (the NLP's bounds hold them at 0 to rounding)
     thdd[[0, -1]] = 0.0
     otg = Ruckig(9)
@@ -150,11 +194,11 @@ def smooth(sol: Solution, rate: float = 1000.0) -> Smoothed:
         # plan time of each output sample: its knot index plus the fraction of its segment
         frac = np.clip((t - starts[seg]) / np.asarray(durations)[seg], 0.0, 1.0)
         plan_t = np.minimum((seg + frac) * dt, kt[-1])
-        ref, _, _, x_guess = _joint_samples(sol, plan_t, a)
+        ref, _, _, x_guess = _joint_samples(sol, plan_t, a, t0)
         deviation = float(np.abs(out_th - ref).max())
-    jerk = np.abs(np.diff(out_thdd, axis=0)).max() / dt if len(t) > 1 else 0.0
-    return Smoothed(rate, t, out_th, out_thd, out_thdd, x_guess, T, float(t[-1]), stretched,
-                    smoothed, lim.jerk, float(jerk), deviation)
+    return {"theta": out_th, "theta_dot": out_thd, "theta_ddot": out_thdd,
+            "x_guess": x_guess, "stretched": stretched, "smoothed": smoothed,
+            "deviation": deviation}
 
 
 def _plan_between(th, thd, thdd, k: int, s: float, dt: float):

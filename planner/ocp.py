@@ -246,7 +246,7 @@ class Problem:
         # the task's setup (payload, tool, mounting) on the robot; TCP waypoints become
         # platform poses through that robot's tool
         self.robot = task.robot_for(robot or Robot.default())
-        self.task = task.in_platform_frame(self.robot)
+        self.task = task.resolved(self.robot)
         self.limits = task.limits_for(self.robot)
         self.options = options or PlannerOptions()
         self.sr = self.robot.symbolic()
@@ -325,7 +325,8 @@ class Problem:
 
     def solve(self) -> Solution:
         task, opt = self.task, self.options
-        at_rest = {0, len(task.waypoints) - 1}
+        at_rest = {0, len(task.waypoints) - 1} | {w for w, wp in enumerate(task.waypoints)
+                                                   if wp.stop}
         psi_wp = choose_static_psi(task, self.robot, self.limits, opt.lock_redundancy,
                                    at_rest)
         if opt.lock_redundancy:
@@ -552,6 +553,8 @@ class Problem:
             lo[k, 0:6] = hi[k, 0:6] = wp_x[w, 0:6]
             if wp.psi is not None and not opt.lock_redundancy:
                 lo[k, 6:9] = hi[k, 6:9] = wp_x[w, 6:9]
+            if wp.stop:  # at rest there: zero velocity and acceleration
+                lo[k, 9:27] = hi[k, 9:27] = 0.0
         # start and end at rest: zero velocity and zero acceleration, so that the torque
         # starts and ends at the holding torque (no step at either end)
         lo[0, 9:27] = hi[0, 9:27] = 0.0

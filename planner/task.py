@@ -9,6 +9,8 @@ Example (units: m and degrees in the file, SI inside)::
       - position: [0.0, 0.0, 0.30]
         quaternion: [0.2588, 0, 0, 0.9659]   # x, y, z, w
         psi: [90, 90, 90]           # optional crank angles [deg]; free otherwise
+        stop: true                  # optional: come to rest here (v = 0, a = 0)
+        dwell: 0.5                  # optional: then hold the pose [s] (implies stop)
     limits:                         # optional: only tightens the robot's hardware limits
       torque: 9                     # |tau| [N m]            (robot: 10)
       velocity: 10                  # |theta_dot| [rad/s]    (robot: 14.8)
@@ -17,15 +19,18 @@ Example (units: m and degrees in the file, SI inside)::
     nodes_per_segment: 12
     torque_fraction: 0.9            # plan to this share of the torque limit (default 0.9)
     frame: platform                 # or tcp: waypoints give the tool centre point's pose
+    start: {theta: [...9 deg...]}   # optional: the robot's current actuated angles
+    start_psi: home                 # or free: first crank angles (when not given)
+    end_psi: start                  # or free: last crank angles (when not given)
     setup:                          # optional: the physical setup of the day
       mounting: floor               # or ceiling (gravity +z in the robot frame)
       payload: {mass: 0.5, com: [0, 0, 0.05], inertia: [1e-3, 1e-3, 1e-3, 0, 0, 0]}
       tool: {xyz: [0, 0, 0.12], rpy: [0, 0, 0]}   # TCP in the platform frame [m, deg]
 
-The motion starts and ends at rest and passes through the waypoints in order; the timing
-is free.  A bad file raises :class:`TaskError` naming the field, its value and the range;
-a limit looser than the robot's raises :class:`LimitError` when the task is planned for a
-robot (:meth:`Task.limits_for`).
+The motion starts and ends at rest and passes through the waypoints in order (stopping
+where asked); the timing is free.  A bad file raises :class:`TaskError` naming the
+field, its value and the range; a limit looser than the robot's raises
+:class:`LimitError` when the task is planned for a robot (:meth:`Task.limits_for`).
 """
 
 from __future__ import annotations
@@ -57,7 +62,7 @@ SCHEMA = {
         "name": {"type": "string", "maxLength": 200},
         "description": {"type": "string"},
         "waypoints": {
-            "type": "array", "minItems": 2, "maxItems": 50,
+            "type": "array", "minItems": 1, "maxItems": 50,
             "items": {
                 "type": "object", "required": ["position"], "additionalProperties": False,
                 "properties": {
@@ -69,6 +74,8 @@ SCHEMA = {
                                    "minItems": 4, "maxItems": 4},
                     "psi": {**_VEC3, "items": {"type": "number", "minimum": -180,
                                                "maximum": 180}},
+                    "stop": {"type": "boolean"},
+                    "dwell": {"type": "number", "minimum": 0, "maximum": 60},
                 },
                 "not": {"required": ["rpy", "quaternion"]},
             },
@@ -84,6 +91,14 @@ SCHEMA = {
         },
         "nodes_per_segment": {"type": "integer", "minimum": 4, "maximum": 60},
         "frame": {"enum": ["platform", "tcp"]},
+        "start": {
+            "type": "object", "additionalProperties": False, "required": ["theta"],
+            "properties": {"theta": {"type": "array", "minItems": 9, "maxItems": 9,
+                                     "items": {"type": "number", "minimum": -90,
+                                               "maximum": 360}}},
+        },
+        "start_psi": {"enum": ["home", "free"]},
+        "end_psi": {"enum": ["start", "free"]},
         "torque_fraction": {"type": "number", "minimum": 0.5, "maximum": 1.0},
         "setup": {
             "type": "object", "additionalProperties": False,
@@ -119,6 +134,9 @@ class Waypoint:
     position: np.ndarray  # (3,) platform centre [m]
     rotation: np.ndarray  # (3, 3)
     psi: np.ndarray | None = None  # (3,) crank angles [rad] or None (free)
+    #: come to rest here (zero velocity and acceleration); ``dwell`` [s] then holds it
+    stop: bool = False
+    dwell: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -138,10 +156,18 @@ class Task:
     #: the share of the (task's) torque limit the plan may use; the rest is the reserve
     #: for the controller's feedback (the validator checks the hardware limit)
     torque_fraction: float = DEFAULT_TORQUE_FRACTION
+    #: the robot's current 9 actuated angles [rad]: the motion starts there (forward
+    #: kinematics gives the first waypoint, crank angles included)
+    start_theta: np.ndarray | None = None
+    #: crank angles at the first waypoint when not given: the robot's home ones ("home")
+    #: or chosen by the planner ("free"); at the last: the first's ("start") or "free"
+    start_psi: str = "home"
+    end_psi: str = "start"
 
     @property
     def n_segments(self) -> int:
-        return len(self.waypoints) - 1
+        """Segments of the motion (a start state adds one)."""
+        return len(self.waypoints) - 1 + (self.start_theta is not None)
 
     def robot_for(self, robot: Robot) -> Robot:
         """``robot`` with the task's payload, tool and mounting (its limits unchanged)."""
@@ -154,16 +180,41 @@ class Task:
             changes["gravity"] = MOUNTINGS[self.mounting]
         return robot.replace(**changes) if changes else robot
 
-    def in_platform_frame(self, robot: Robot) -> Task:
-        """The task with every waypoint as a platform pose (TCP waypoints converted with
-        ``robot.tool``; ``robot`` should be :meth:`robot_for`'s)."""
-        if self.frame == "platform":
-            return self
-        wps = []
-        for wp in self.waypoints:
-            p, R = robot.tool.platform_pose(wp.position, wp.rotation)
-            wps.append(Waypoint(p, R, wp.psi))
-        return replace(self, waypoints=tuple(wps), frame="platform")
+    def resolved(self, robot: Robot) -> Task:
+        """The task as the planner takes it, for ``robot`` (:meth:`robot_for`'s):
+
+        - every waypoint a platform pose (TCP waypoints converted with ``robot.tool``);
+        - a ``start_theta`` turned into the first waypoint by forward kinematics (from
+          the robot's home branch), crank angles included;
+        - the crank angles of the first waypoint, when not given, the robot's home ones
+          (``start_psi: home``), and those of the last the first's (``end_psi: start``).
+        """
+        wps = list(self.waypoints)
+        if self.frame == "tcp":
+            wps = [Waypoint(*robot.tool.platform_pose(wp.position, wp.rotation), wp.psi,
+                            wp.stop, wp.dwell) for wp in wps]
+        if self.start_theta is not None:
+            from sixplus3.errors import ConvergenceError
+            from sixplus3.kinematics.robot import robot_fk
+
+            try:
+                fk = robot_fk(self.start_theta, robot)
+            except ConvergenceError as exc:
+                raise TaskError(f"task field start.theta: no assembly of the robot has "
+                                f"these actuated angles ({exc})",
+                                value=np.degrees(self.start_theta).round(3).tolist(),
+                                valid="the actuated angles of a reachable state") from None
+            wps.insert(0, Waypoint(fk.position, fk.rotation, fk.psi, stop=True))
+        if len(wps) < 2:
+            raise TaskError("a task needs at least two waypoints (or a start state and "
+                            "one waypoint)", value=len(wps), valid=">= 2")
+        if wps[0].psi is None and self.start_psi == "home":
+            wps[0] = replace(wps[0], psi=np.asarray(robot.home_psi, dtype=float))
+        if wps[-1].psi is None and self.end_psi == "start" and wps[0].psi is not None:
+            wps[-1] = replace(wps[-1], psi=np.array(wps[0].psi, dtype=float))
+        return replace(self, waypoints=tuple(wps), frame="platform", start_theta=None,
+                       start_psi="free", end_psi="free")
+
 
     def limits_for(self, robot: Robot) -> Limits:
         """The limits to plan to: the robot's hardware limits, tightened by the task's,
@@ -211,6 +262,10 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
                         f"{short_repr(e.instance)})", value=short_repr(e.instance),
                         valid=short_repr(e.schema, 200))
     assert isinstance(doc, dict)
+    if len(doc["waypoints"]) < 2 and "start" not in doc:
+        raise TaskError("task field waypoints: one waypoint needs a start state (start: "
+                        "{theta: [...]}); otherwise give at least two",
+                        value=len(doc["waypoints"]), valid=">= 2 waypoints, or a start")
     wps = []
     for k, w in enumerate(doc["waypoints"]):
         pos = np.array(w["position"], dtype=float)
@@ -233,7 +288,9 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
                                 "along its radius (platform singularity); use angles in "
                                 "(3, 177) deg or (-177, -3) deg",
                                 value=w['psi'], valid="(3, 177) or (-177, -3) deg")
-        wps.append(Waypoint(pos, rot, psi))
+        dwell = float(w.get("dwell", 0.0))
+        wps.append(Waypoint(pos, rot, psi, stop=bool(w.get("stop", False)) or dwell > 0,
+                            dwell=dwell))
     lim = {k: float(v) for k, v in doc.get("limits", {}).items()}
     setup = doc.get("setup", {})
     try:
@@ -250,7 +307,11 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
                 int(doc.get("nodes_per_segment", 12)), source=doc,
                 frame=str(doc.get("frame", "platform")), payload=payload, tool=tool,
                 mounting=setup.get("mounting"),
-                torque_fraction=float(doc.get("torque_fraction", DEFAULT_TORQUE_FRACTION)))
+                torque_fraction=float(doc.get("torque_fraction", DEFAULT_TORQUE_FRACTION)),
+                start_theta=(np.radians(np.array(doc["start"]["theta"], dtype=float))
+                             if "start" in doc else None),
+                start_psi=str(doc.get("start_psi", "home")),
+                end_psi=str(doc.get("end_psi", "start")))
 
 
 def load_task(path: str | Path) -> Task:
@@ -265,3 +326,16 @@ def load_task(path: str | Path) -> Task:
 
 def rotvec(R: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(R).as_rotvec()
+
+
+def move_to_start(task: Task, theta: np.ndarray, robot: Robot) -> Task:
+    """A task from the robot's current actuated angles ``theta`` [rad] to ``task``'s start
+    state (its first waypoint with its crank angles, at rest), for ``robot``."""
+    first = task.resolved(task.robot_for(robot)).waypoints[0]
+    return Task((replace(first, stop=True, dwell=0.0),), dict(task.limits),
+                f"{task.name}_move_to_start", task.nodes_per_segment, source=None,
+                payload=task.payload, tool=task.tool, mounting=task.mounting,
+                torque_fraction=task.torque_fraction,
+                start_theta=np.asarray(theta, dtype=float), start_psi="free",
+                end_psi="free")
+

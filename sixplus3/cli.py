@@ -462,6 +462,26 @@ def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool)
     _run_plan(task, out_dir, rate, not no_html, locked)
 
 
+@main.command("move-to-start", context_settings=_NUMERIC_ARGS)
+@click.argument("task_file", type=click.Path(dir_okay=False))
+@click.option("--theta", nargs=9, type=float, required=True, metavar="A0 B0 C0 ... C2",
+              help="The robot's current actuated angles [deg], legs 0..2 each A, B, C.")
+@click.option("-o", "--out", "out_dir", default="out", show_default=True,
+              help="Output directory.")
+@click.option("--rate", default=1000.0, show_default=True, help="Controller rate [Hz].")
+def move_to_start_cmd(task_file: str, theta: tuple[float, ...], out_dir: str,
+                      rate: float) -> None:
+    """Plan from the robot's current state to a task's start state (at rest)."""
+    import numpy as np
+
+    from sixplus3.planner.task import load_task, move_to_start
+
+    if not all(math.isfinite(v) for v in theta):
+        _fail(f"--theta must be 9 finite angles [deg], got {list(theta)}")
+    task = move_to_start(load_task(task_file), np.radians(theta), _robot())
+    _run_plan(task, out_dir, rate, False, False)
+
+
 @main.command()
 @click.option("-o", "--out", "out_dir", default="out", show_default=True,
               type=click.Path(file_okay=False), help="Output directory.")
