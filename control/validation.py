@@ -160,6 +160,9 @@ class ValidationReport:
     quaternion: np.ndarray | None = None  # (M, 4) x, y, z, w
     psi: np.ndarray | None = None  # (M, 3) [rad]
     feedforward_error: float | None = None  # max |tau_file - tau| [N m]
+    #: max |tau(k+1) - tau(k)| / dt over the samples [N m/s]: reported, not a gate check
+    #: (the planner bounds it between its own points, docs/validation.md)
+    max_torque_rate: float | None = None
     duration: float | None = None  # [s]
     header: dict | None = field(default=None, repr=False)  # validate_file only
     #: the samples validated, exactly as read (validate_file): send these
@@ -189,7 +192,8 @@ class ValidationReport:
         keys = ("ok", "samples", "robot_hash", "max_torque_ratio", "max_velocity_ratio",
                 "max_acceleration_ratio", "max_jerk_ratio", "min_margin_leg_type1",
                 "min_margin_leg_type2", "min_margin_platform", "min_leg_clearance",
-                "max_spherical_tilt_deg", "theta_range_ok", "checked_points", "tolerances")
+                "max_spherical_tilt_deg", "theta_range_ok", "checked_points", "tolerances",
+                "max_torque_rate")
         out = {k: getattr(self, k) for k in keys}
         out["exit_code"] = self.exit_code
         out["findings"] = self.messages()
@@ -403,7 +407,9 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
         min_leg_clearance=clearance, max_spherical_tilt_deg=math.degrees(tilt),
         theta_range_ok=theta_ok, findings=findings, tolerances=tol_d, checked_points=checked,
         tau=tau, position=cfg.position.copy(), quaternion=quat, psi=cfg.psi.copy(),
-        feedforward_error=ff_err, duration=float(t[-1]))
+        feedforward_error=ff_err, duration=float(t[-1]),
+        max_torque_rate=(float(np.nan_to_num(np.abs(np.diff(tau, axis=0)), nan=np.inf).max()
+                               / np.diff(t).min()) if n > 1 else 0.0))
     return rep
 
 

@@ -469,8 +469,11 @@ class Problem:
         tmax = safety["torque"] * lim.torque
         lb, ub = self._node_bounds(lim, sign1, sign2, platform_proxy, safety, reserve)
         lbx, ubx = self._variable_bounds(wp_x, tmax)
-        lbg = np.r_[np.zeros(18 * N), np.tile(lb, 2 * N + 1)]
-        ubg = np.r_[np.zeros(18 * N), np.tile(ub, 2 * N + 1)]
+        # smoothness rows (see _template): per limit, 2 x 9N rows "<= 0", then 2 x 9N ">= 0"
+        smooth_lo = np.tile(np.r_[np.full(18 * N, -np.inf), np.zeros(18 * N)], 2)
+        smooth_hi = np.tile(np.r_[np.zeros(18 * N), np.full(18 * N, np.inf)], 2)
+        lbg = np.r_[np.zeros(18 * N), np.tile(lb, 2 * N + 1), smooth_lo]
+        ubg = np.r_[np.zeros(18 * N), np.tile(ub, 2 * N + 1), smooth_hi]
         tau0 = np.clip(np.array(sr.tau.map(N + 1)(x0.T, xd0.T, xdd0.T)), -tmax, tmax)
         z0 = np.vstack([x0.T, xd0.T, xdd0.T, tau0])
         w0 = np.clip(np.r_[z0.ravel(order="F"), ((tau0[:, :-1] + tau0[:, 1:]) / 2).ravel(
@@ -485,7 +488,8 @@ class Problem:
             solver = tmpl["solver"]
             D = self._variable_scale(tmax)
             args = {"x0": w0 / D}
-        args.update(p=D, lbx=lbx / D, ubx=ubx / D, lbg=lbg, ubg=ubg)
+        args.update(p=np.r_[D, lim.jerk, lim.torque_rate], lbx=lbx / D, ubx=ubx / D,
+                    lbg=lbg, ubg=ubg)
         t_start = time.perf_counter()
         res = solver(**args)
         solve_time = time.perf_counter() - t_start
@@ -582,7 +586,11 @@ class Problem:
             return _TEMPLATES[key]
         N = ns * S
         nw = 36 * (N + 1) + 9 * N + S
-        Ws, D = ca.MX.sym("w", nw), ca.MX.sym("scale", nw)  # IPOPT's variables are w / D
+        # parameters: the variable scaling D (IPOPT's variables are w / D), then the
+        # jerk [rad/s^3] and torque-rate [N m/s] limits of the smoothness rows below
+        P = ca.MX.sym("p", nw + 2)
+        Ws, D = ca.MX.sym("w", nw), P[0:nw]
+        jerk_lim, rate_lim = P[nw], P[nw + 1]
         W = Ws * D
         Z = ca.reshape(W[0:36 * (N + 1)], 36, N + 1)
         TAUM = ca.reshape(W[36 * (N + 1):36 * (N + 1) + 9 * N], 9, N)
@@ -608,10 +616,22 @@ class Problem:
         mapped = node.map(2 * N + 1, "thread", 2) if compiled else node.map(2 * N + 1)
         G = mapped(ca.horzcat(X, Xm), ca.horzcat(XD, XDm), ca.horzcat(U, Um),
                    ca.horzcat(TAU, TAUM))
-        g = ca.vertcat(ca.vec(g_int), ca.vec(G))
+        # smoothness: actuated jerk and torque rate bounded between consecutive points
+        # (node k, midpoint k, node k+1; half an interval apart): |d| <= limit * h / 2,
+        # as the two rows d - limit h/2 <= 0 and d + limit h/2 >= 0
+        def rate_rows(nodes, mids, limit):
+            d1, d2 = mids - nodes[:, 0:N], nodes[:, 1:N + 1] - mids
+            room = limit * half
+            return ca.vertcat(ca.vec(d1 - room), ca.vec(d2 - room), ca.vec(d1 + room),
+                              ca.vec(d2 + room))
+
+        g_smooth = ca.vertcat(
+            rate_rows(G[18:27, 0:N + 1], G[18:27, N + 1:2 * N + 1], jerk_lim),
+            rate_rows(TAU, TAUM, rate_lim))
+        g = ca.vertcat(ca.vec(g_int), ca.vec(G), g_smooth)
         # regularisation: mean squared acceleration, scaled to ~1 at 100 (m or rad)/s^2
         f = ca.sum1(T) + opt.regularisation * ca.sumsqr(U / 100.0) / (N + 1) * ca.sum1(T)
-        nlp: dict[str, Any] = {"x": Ws, "p": D, "f": f, "g": g}
+        nlp: dict[str, Any] = {"x": Ws, "p": P, "f": f, "g": g}
         ipopt: dict[str, Any] = {"max_iter": opt.max_iter, "tol": opt.tol, "acceptable_tol": 1e-4,
                  "hessian_approximation": "limited-memory",
                  # 3 pairs instead of IPOPT's 6: fewer back-solves per iteration, and a

@@ -16,6 +16,8 @@ Example (units: m and degrees in the file, SI inside)::
       velocity: 10                  # |theta_dot| [rad/s]    (robot: 14.8)
       acceleration: 150             # |theta_ddot| [rad/s^2] (robot: 200)
       margin: 0.08                  # every singularity margin (robot: 0.05)
+      jerk: 1.0e5                   # |d theta_ddot/dt| [rad/s^3]  (robot: 2e5)
+      torque_rate: 1500             # |d tau/dt| [N m/s]           (robot: 2000)
     nodes_per_segment: 12
     torque_fraction: 0.9            # plan to this share of the torque limit (default 0.9)
     frame: platform                 # or tcp: waypoints give the tool centre point's pose
@@ -86,6 +88,8 @@ SCHEMA = {
                 "torque": {"type": "number", "exclusiveMinimum": 0},
                 "velocity": {"type": "number", "exclusiveMinimum": 0},
                 "acceleration": {"type": "number", "exclusiveMinimum": 0},
+                "jerk": {"type": "number", "exclusiveMinimum": 0},
+                "torque_rate": {"type": "number", "exclusiveMinimum": 0},
                 "margin": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1},
             },
         },

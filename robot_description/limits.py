@@ -34,6 +34,10 @@ class Limits:
                        "smoothing enforces and the validator derives its consistency "
                        "tolerances from (about 2x the largest jerk of the planned example "
                        "tasks; the drives' torque rise allows far more)", "rad/s^3")
+    torque_rate: float = _lim(2000.0, "|d tau / dt| of every actuated joint, bounded "
+                              "inside the planner (a smoothness choice: a full 10 N m "
+                              "swing takes at least 10 ms; no datasheet value; the planned "
+                              "examples reached 1.1-2.7 kN m/s without it)", "N m/s")
     margin: float = _lim(0.05, "smallest admissible singularity margin (leg type I/II, "
                          "platform; scale-free, 0 singular .. 1 ideal)", "1")
     theta_min: float = _lim(0.0, "lower end of the actuated range", "rad")
@@ -44,7 +48,7 @@ class Limits:
 
     #: limits where a smaller value is tighter (the others: margin larger, theta range
     #: narrower)
-    UPPER = ("torque", "velocity", "acceleration", "jerk", "spherical")
+    UPPER = ("torque", "velocity", "acceleration", "jerk", "torque_rate", "spherical")
 
     def __post_init__(self) -> None:
         for f in fields(self):
