@@ -429,6 +429,18 @@ def _check_rate(rate: float) -> None:
         _fail(f"--rate must be in [{lo:g}, {hi:g}] Hz, got {rate!r}")
 
 
+def _load_task_or_example(task_file: str):
+    """A task file, or the name of an installed example (when no such file exists)."""
+    from pathlib import Path
+
+    from sixplus3 import examples
+    from sixplus3.planner.task import load_task
+
+    if not Path(task_file).exists() and task_file in examples.names():
+        return examples.load(task_file)
+    return load_task(task_file)
+
+
 def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None:
     from sixplus3.control.pipeline import run_plan
     from sixplus3.planner.ocp import PlannerOptions
@@ -448,16 +460,9 @@ def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None
 def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool) -> None:
     """Plan TASK_FILE (YAML, or the name of an installed example such as tilt60_x):
     plan -> smooth -> validate -> the trajectory file, its MeshCat page and plots."""
-    from pathlib import Path
-
-    from sixplus3 import examples
-    from sixplus3.planner.task import load_task
 
     _check_rate(rate)
-    if not Path(task_file).exists() and task_file in examples.names():
-        task = examples.load(task_file)
-    else:
-        task = load_task(task_file)
+    task = _load_task_or_example(task_file)
     task.limits_for(_robot())  # a looser limit than the robot's: refused before solving
     _run_plan(task, out_dir, rate, not no_html, locked)
 
@@ -474,11 +479,12 @@ def move_to_start_cmd(task_file: str, theta: tuple[float, ...], out_dir: str,
     """Plan from the robot's current state to a task's start state (at rest)."""
     import numpy as np
 
-    from sixplus3.planner.task import load_task, move_to_start
+    from sixplus3.planner.task import move_to_start
 
+    _check_rate(rate)
     if not all(math.isfinite(v) for v in theta):
         _fail(f"--theta must be 9 finite angles [deg], got {list(theta)}")
-    task = move_to_start(load_task(task_file), np.radians(theta), _robot())
+    task = move_to_start(_load_task_or_example(task_file), np.radians(theta), _robot())
     _run_plan(task, out_dir, rate, False, False)
 
 
