@@ -394,6 +394,9 @@ class Problem:
         sol.solve_time, sol.solves = total, solves
         if sol.check is not None and sol.check.ok:
             sol = self._retime(sol, proxy)
+        target = self._target_duration(sol)
+        if target is not None:
+            sol = self._fixed_duration(sol, target, psi_wp, proxy, safety, reserve)
         if sol.check is not None:  # limits that bind between the nodes
             for name, ratio in (("torque", sol.check.max_torque_ratio),
                                 ("velocity", sol.check.max_velocity_ratio),
@@ -402,6 +405,63 @@ class Problem:
                     sol.active_limits.append(f"{name} ({ratio:.3f} of the limit in the 10x "
                                              "dense check)")
         return sol
+
+    def _target_duration(self, sol: Solution) -> float | None:
+        """The duration the task asks for (None: minimum time); raises if it is shorter
+        than the minimum-time plan."""
+        task = self.task
+        if task.duration is None and task.speed is None:
+            return None
+        if not (sol.check is not None and sol.check.ok):
+            return None  # the minimum-time plan failed its check: reported as is
+        t_min = sol.final_time
+        if task.duration is not None:
+            target = task.duration
+        else:
+            assert task.speed is not None
+            target = t_min / task.speed
+        if target < t_min * (1.0 - 1e-9):
+            raise InfeasibleTaskError(
+                f"a duration of {target:.4f} s is shorter than the minimum-time plan "
+                f"({t_min:.4f} s) within the limits", None, "duration", value=target,
+                valid=f">= {t_min:.4f} s")
+        return float(target)
+
+    def _stretched(self, sol: Solution, a: float) -> Solution:
+        """``sol`` uniformly slower by ``a`` >= 1 (the path kept; torques recomputed),
+        dense-checked."""
+        tau = np.array(self.sr.tau.map(len(sol.t))(sol.x.T, (sol.xd / a).T,
+                                                    (sol.xdd / a**2).T)).T
+        new = Solution(
+            found=True, status=sol.status, final_time=sol.final_time * a,
+            solve_time=sol.solve_time, iterations=sol.iterations,
+            segment_times=sol.segment_times * a, t=sol.t * a, x=sol.x, xd=sol.xd / a,
+            xdd=sol.xdd / a**2, tau=tau, theta=sol.theta, residuals=sol.residuals,
+            active_limits=[], robot=sol.robot, limits=sol.limits, options=sol.options,
+            task=sol.task, nlp_point=None, solves=sol.solves,
+            time_scale=sol.time_scale * a)
+        new.check = dense_check(new, factor=10)
+        return new
+
+    def _fixed_duration(self, sol: Solution, target: float, psi_wp, proxy, safety,
+                        reserve) -> Solution:
+        """A plan of exactly ``target`` seconds that minimises the mean squared torque,
+        warm-started from the minimum-time plan stretched uniformly to that duration
+        (which is the fallback when the effort solve fails its dense check)."""
+        slow = self._stretched(sol, target / sol.final_time)
+        try:
+            eff = self._solve_once(psi_wp, proxy, safety, warm=slow,
+                                   reserve=reserve, duration=target)
+        except InfeasibleTaskError:
+            eff = None
+        best = slow
+        if eff is not None and eff.check is not None and eff.check.ok:
+            best = eff
+        best.solve_time = sol.solve_time + (eff.solve_time if eff is not None else 0.0)
+        best.solves = sol.solves + 1
+        if not (best.check is not None and best.check.ok):
+            return sol  # neither passed: the minimum-time plan and its diagnosis
+        return best
 
     def _retime(self, sol: Solution, platform_proxy: float, target: float = 0.995) -> Solution:
         """Compress the verified plan uniformly in time up to ``target`` of its limits.
@@ -450,7 +510,7 @@ class Problem:
 
     def _solve_once(self, psi_wp: np.ndarray, platform_proxy: float, safety: dict,
                     warm: Solution | None = None, time_scale: float = 1.0,
-                    reserve: dict | None = None) -> Solution:
+                    reserve: dict | None = None, duration: float | None = None) -> Solution:
         task, opt, sr = self.task, self.options, self.sr
         lim = self.limits
         ns, S = task.nodes_per_segment, task.n_segments
@@ -472,8 +532,9 @@ class Problem:
         # smoothness rows (see _template): per limit, 2 x 9N rows "<= 0", then 2 x 9N ">= 0"
         smooth_lo = np.tile(np.r_[np.full(18 * N, -np.inf), np.zeros(18 * N)], 2)
         smooth_hi = np.tile(np.r_[np.zeros(18 * N), np.full(18 * N, np.inf)], 2)
-        lbg = np.r_[np.zeros(18 * N), np.tile(lb, 2 * N + 1), smooth_lo]
-        ubg = np.r_[np.zeros(18 * N), np.tile(ub, 2 * N + 1), smooth_hi]
+        T_lo, T_hi = (0.0, np.inf) if duration is None else (duration, duration)
+        lbg = np.r_[np.zeros(18 * N), np.tile(lb, 2 * N + 1), smooth_lo, T_lo]
+        ubg = np.r_[np.zeros(18 * N), np.tile(ub, 2 * N + 1), smooth_hi, T_hi]
         tau0 = np.clip(np.array(sr.tau.map(N + 1)(x0.T, xd0.T, xdd0.T)), -tmax, tmax)
         z0 = np.vstack([x0.T, xd0.T, xdd0.T, tau0])
         w0 = np.clip(np.r_[z0.ravel(order="F"), ((tau0[:, :-1] + tau0[:, 1:]) / 2).ravel(
@@ -488,8 +549,9 @@ class Problem:
             solver = tmpl["solver"]
             D = self._variable_scale(tmax)
             args = {"x0": w0 / D}
-        args.update(p=np.r_[D, lim.jerk, lim.torque_rate], lbx=lbx / D, ubx=ubx / D,
-                    lbg=lbg, ubg=ubg)
+        weights = (1.0, 0.0) if duration is None else (0.0, 1.0)
+        args.update(p=np.r_[D, lim.jerk, lim.torque_rate, weights], lbx=lbx / D,
+                    ubx=ubx / D, lbg=lbg, ubg=ubg)
         t_start = time.perf_counter()
         res = solver(**args)
         solve_time = time.perf_counter() - t_start
@@ -588,9 +650,11 @@ class Problem:
         nw = 36 * (N + 1) + 9 * N + S
         # parameters: the variable scaling D (IPOPT's variables are w / D), then the
         # jerk [rad/s^3] and torque-rate [N m/s] limits of the smoothness rows below
-        P = ca.MX.sym("p", nw + 2)
+        P = ca.MX.sym("p", nw + 4)
         Ws, D = ca.MX.sym("w", nw), P[0:nw]
         jerk_lim, rate_lim = P[nw], P[nw + 1]
+        # objective weights: duration (minimum time) and effort (fixed duration)
+        w_time, w_effort = P[nw + 2], P[nw + 3]
         W = Ws * D
         Z = ca.reshape(W[0:36 * (N + 1)], 36, N + 1)
         TAUM = ca.reshape(W[36 * (N + 1):36 * (N + 1) + 9 * N], 9, N)
@@ -628,9 +692,14 @@ class Problem:
         g_smooth = ca.vertcat(
             rate_rows(G[18:27, 0:N + 1], G[18:27, N + 1:2 * N + 1], jerk_lim),
             rate_rows(TAU, TAUM, rate_lim))
-        g = ca.vertcat(ca.vec(g_int), ca.vec(G), g_smooth)
-        # regularisation: mean squared acceleration, scaled to ~1 at 100 (m or rad)/s^2
-        f = ca.sum1(T) + opt.regularisation * ca.sumsqr(U / 100.0) / (N + 1) * ca.sum1(T)
+        # the total duration, as a row: free for minimum time, fixed by its bounds
+        g = ca.vertcat(ca.vec(g_int), ca.vec(G), g_smooth, ca.sum1(T))
+        # regularisation: mean squared acceleration, scaled to ~1 at 100 (m or rad)/s^2;
+        # effort: mean squared torque over the nodes and midpoints, ~1 at 10 N m
+        effort = (ca.sumsqr(TAU) + ca.sumsqr(TAUM)) / (100.0 * (2 * N + 1))
+        f = (w_time * ca.sum1(T)
+             + opt.regularisation * ca.sumsqr(U / 100.0) / (N + 1) * ca.sum1(T)
+             + w_effort * effort)
         nlp: dict[str, Any] = {"x": Ws, "p": P, "f": f, "g": g}
         ipopt: dict[str, Any] = {"max_iter": opt.max_iter, "tol": opt.tol, "acceptable_tol": 1e-4,
                  "hessian_approximation": "limited-memory",

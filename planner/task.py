@@ -20,6 +20,8 @@ Example (units: m and degrees in the file, SI inside)::
       torque_rate: 1500             # |d tau/dt| [N m/s]           (robot: 2000)
     nodes_per_segment: 12
     torque_fraction: 0.9            # plan to this share of the torque limit (default 0.9)
+    duration: 2.0                   # optional: exactly this long [s], minimum effort; or
+    speed: 0.5                      # optional: the minimum time / 0.5 (also minimum effort)
     frame: platform                 # or tcp: waypoints give the tool centre point's pose
     start: {theta: [...9 deg...]}   # optional: the robot's current actuated angles
     start_psi: home                 # or free: first crank angles (when not given)
@@ -101,6 +103,8 @@ SCHEMA = {
                                      "items": {"type": "number", "minimum": -90,
                                                "maximum": 360}}},
         },
+        "duration": {"type": "number", "exclusiveMinimum": 0, "maximum": 600},
+        "speed": {"type": "number", "exclusiveMinimum": 0, "maximum": 1},
         "start_psi": {"enum": ["home", "free"]},
         "end_psi": {"enum": ["start", "free"]},
         "torque_fraction": {"type": "number", "minimum": 0.5, "maximum": 1.0},
@@ -167,6 +171,10 @@ class Task:
     #: or chosen by the planner ("free"); at the last: the first's ("start") or "free"
     start_psi: str = "home"
     end_psi: str = "start"
+    #: timing: None/None is minimum time; ``duration`` [s] fixes it (minimum effort
+    #: within the limits); ``speed`` in (0, 1] is the minimum time divided by it
+    duration: float | None = None
+    speed: float | None = None
 
     @property
     def n_segments(self) -> int:
@@ -266,6 +274,10 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
                         f"{short_repr(e.instance)})", value=short_repr(e.instance),
                         valid=short_repr(e.schema, 200))
     assert isinstance(doc, dict)
+    if "duration" in doc and "speed" in doc:
+        raise TaskError("task fields duration and speed: give one of them, not both",
+                        value=(doc["duration"], doc["speed"]),
+                        valid="duration [s] or speed in (0, 1]")
     if len(doc["waypoints"]) < 2 and "start" not in doc:
         raise TaskError("task field waypoints: one waypoint needs a start state (start: "
                         "{theta: [...]}); otherwise give at least two",
@@ -315,7 +327,9 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
                 start_theta=(np.radians(np.array(doc["start"]["theta"], dtype=float))
                              if "start" in doc else None),
                 start_psi=str(doc.get("start_psi", "home")),
-                end_psi=str(doc.get("end_psi", "start")))
+                end_psi=str(doc.get("end_psi", "start")),
+                duration=float(doc["duration"]) if "duration" in doc else None,
+                speed=float(doc["speed"]) if "speed" in doc else None)
 
 
 def load_task(path: str | Path) -> Task:

@@ -13,9 +13,10 @@ from sixplus3.cli import main
 from sixplus3.control.pipeline import run_plan
 from sixplus3.control.trajectory_file import columns, read_trajectory
 from sixplus3.control.validation import validate_file
-from sixplus3.errors import TaskError
+from sixplus3.errors import InfeasibleTaskError, TaskError
 from sixplus3.kinematics.robot import robot_fk, robot_ik
 from sixplus3.kinematics.rotations import matrix_from_quat
+from sixplus3.planner.ocp import Problem
 from sixplus3.planner.task import move_to_start, task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -149,3 +150,28 @@ def test_torque_rate_and_jerk_are_bounded_inside_the_planner(a_to_b, tmp_path) -
     assert res.report.max_torque_rate <= 500.0 * 1.35
     assert res.solution.limits.jerk == 2.0e4 and res.report.max_jerk_ratio <= 1.0
     assert res.smoothed.duration > res0.smoothed.duration
+
+
+def test_fixed_duration_and_speed(a_to_b, tmp_path) -> None:
+    """A fixed duration is met to one controller period and minimises the effort: less
+    mean squared torque than the minimum-time plan stretched uniformly to it; speed 0.5
+    doubles the minimum time; a duration below the minimum is refused naming it."""
+    res0, _ = a_to_b
+    t_min = res0.solution.final_time
+    res, data = _plan({"name": "fixed", "waypoints": [A, B], "nodes_per_segment": 8,
+                       "duration": 0.4}, tmp_path)
+    assert res.solution.final_time == pytest.approx(0.4, abs=1e-9)
+    assert abs(data[-1, 0] - 0.4) <= 1e-3 + 1e-12
+    tau = columns(data, "tau")
+    prob_sol = res.solution
+    slow = Problem(prob_sol.task, ROBOT)._stretched(res0.solution, 0.4 / t_min)
+    assert slow.check is not None and slow.check.ok
+    assert np.mean(prob_sol.tau ** 2) < np.mean(slow.tau ** 2)
+    assert np.abs(tau).max() < 0.5 * ROBOT.limits.torque
+    spd, _ = _plan({"name": "half", "waypoints": [A, B], "nodes_per_segment": 8,
+                    "speed": 0.5}, tmp_path)
+    assert spd.solution.final_time == pytest.approx(2 * t_min, rel=1e-6)
+    with pytest.raises(InfeasibleTaskError, match="minimum-time plan"):
+        _plan({"name": "short", "waypoints": [A, B], "duration": 0.5 * t_min}, tmp_path)
+    with pytest.raises(TaskError, match="duration and speed"):
+        task_from_dict({"waypoints": [A, B], "duration": 1.0, "speed": 0.5})
