@@ -81,11 +81,10 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
                                       f"{gap:.2e} rad away", value=gap, valid="<= 1e-9 rad")
         sm.theta[0] = task.start_theta
     secs["smooth"] = time.perf_counter() - t1
-    say(f"  smoothed with Ruckig at {rate:g} Hz (jerk limit {sm.jerk_limit:.3g} rad/s^3): "
-        f"{len(sm.t)} samples, duration {sm.duration:.4f} s "
-        f"(+{100 * sm.added_fraction:.2f}%), {sm.stretched_segments} segments stretched, "
-        f"max jerk {sm.max_jerk:.3g} rad/s^3, deviation from the plan "
-        f"{sm.max_deviation:.2e} rad")
+    say(f"  sampled at {rate:g} Hz, {sm.smoothed_segments} transitions certified by "
+        f"Ruckig (jerk limit {sm.jerk_limit:.3g} rad/s^3): {len(sm.t)} samples, duration "
+        f"{sm.duration:.4f} s (+{100 * sm.added_fraction:.2f}%, time stretch "
+        f"{sm.time_stretch:.4f}), max jerk {sm.max_jerk:.3g} rad/s^3")
     t2 = time.perf_counter()
     rep = validate_joint_trajectory(sm.theta, sm.theta_dot, sm.theta_ddot, robot, rate,
                                     sm.x_guess, sol.limits, t=sm.t)
@@ -110,7 +109,8 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
                     "options": asdict(sol.options)},
         "smoothing": {"rate_hz": rate, "planned_duration_s": sm.planned_duration,
                       "duration_s": sm.duration, "added_fraction": sm.added_fraction,
-                      "stretched_segments": sm.stretched_segments,
+                      "time_stretch": sm.time_stretch,
+                      "certified_transitions": sm.smoothed_segments,
                       "jerk_limit_rad_s3": sm.jerk_limit, "max_jerk_rad_s3": sm.max_jerk,
                       "max_deviation_rad": sm.max_deviation},
     }

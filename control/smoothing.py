@@ -1,24 +1,31 @@
-"""Jerk-limited resampling of a plan at the controller rate with Ruckig.
+"""Jerk-limited resampling of a plan at the controller rate, certified with Ruckig.
 
-1. The plan is stretched uniformly in time by the smallest factor that makes its
-   duration a whole number of controller periods (at most one period longer; a uniform
-   stretch keeps the path and scales rates by 1/a and accelerations by 1/a^2).
+Per rest-to-rest piece of the plan (the whole plan, or the pieces between its stops):
+
+1. The piece is stretched uniformly in time by the smallest factor that makes it a whole
+   number of controller periods **and** keeps its jerk (sampled 4x finer than the
+   output) within the robot's jerk limit (a uniform stretch by a keeps the path and scales
+   rates by 1/a, accelerations by 1/a^2 and jerk by 1/a^3: every limit only gets
+   easier, the torques move towards the holding torque).
 2. Knots: the stretched plan sampled at every period, (theta, theta_dot, theta_ddot) in
-   actuated-joint space.
-3. Ruckig joins consecutive knots, segment by segment, with the limits planned to
-   (velocity, acceleration, and the robot's **jerk** limit), ``minimum_duration`` = one
-   period.  A segment whose jerk (or other) limit cannot be met in one period is
-   stretched by Ruckig, which delays everything after it; the output is then resampled
-   on the uniform grid and, once the motion has come to rest, held until the next
-   grid point.  ``intermediate_positions`` is never set (it calls a cloud service,
-   LIBRARY-NOTES).
+   actuated-joint space.  They are the output.
+3. Ruckig checks every knot-to-knot transition: a profile within the velocity,
+   acceleration and jerk limits that takes exactly one period (``minimum_duration``),
+   or, where Ruckig refuses a tiny move numerically, the constant-jerk cubic through
+   both knots.  The count of transitions it cannot certify in one period is reported
+   (``Smoothed.stretched_segments``, in the file's header); it does not change the
+   output: time-synchronising nine joints, Ruckig sometimes needs 1.1 periods where
+   the plan itself (jerk-checked on a 4x grid) takes one.  The gate re-checks the jerk.
+   ``intermediate_positions`` is never set (it calls a cloud service, LIBRARY-NOTES).
 
-Why knots on the output grid: between the OCP's nodes (3-5 ms apart) Ruckig's own
-jerk-limited profile departs from the plan's accelerations by up to ~100 rad/s^2, and
-the re-check then found 13 to 59 N m instead of the plan's 9.8 N m (measured on the
-demo task): the controller must receive the validated plan, not a reinterpolation of
-it.  The result is always re-validated with the full dynamics before anything is
-written (:mod:`sixplus3.control.validation`).
+Why not let Ruckig reshape segments: joining the knots with Ruckig's own profiles,
+segment by segment, departs from the plan (accelerations up to ~100 rad/s^2 off between
+the OCP's nodes; 13 to 59 N m instead of 9.8 N m on the demo task), and stretching single
+segments with exact knot targets gave motions 5-60x longer that failed validation
+(torque 31-94 N m, measured on a small task with the jerk limit at 0.5-0.9x the plan's).
+The planner bounds the jerk itself (docs/planner.md), so the stretch is 1 unless the
+limits were tightened after planning.  The result is always re-validated with the full
+dynamics before anything is written (:mod:`sixplus3.control.validation`).
 """
 
 from __future__ import annotations
@@ -27,9 +34,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from ruckig import InputParameter, Result, Ruckig, Trajectory
+from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
-from sixplus3.control.validation import RATE_RANGE, hermite
+from sixplus3.control.validation import RATE_RANGE
 from sixplus3.errors import SmoothingError
 from sixplus3.planner.ocp import Solution
 
@@ -44,11 +51,13 @@ class Smoothed:
     x_guess: np.ndarray  # (M, 9) the plan's minimal coordinates near each sample
     planned_duration: float  # [s] the plan's, plus its dwells
     duration: float  # [s] of the output (a whole number of periods)
-    stretched_segments: int  # Ruckig segments longer than one period
-    smoothed_segments: int  # segments Ruckig recomputed (the plan's jerk above the limit)
+    stretched_segments: int  # transitions Ruckig could not certify in one period
+    smoothed_segments: int  # knot-to-knot transitions certified by Ruckig
     jerk_limit: float  # [rad/s^3] the limit Ruckig enforced (the robot's)
     max_jerk: float  # [rad/s^3] the largest jerk of the output (differences of theta_ddot)
     max_deviation: float  # [rad] largest |theta_out - theta_plan| at the output samples
+    #: largest uniform time stretch of a piece (>= 1; whole-period rounding included)
+    time_stretch: float = 1.0
 
     @property
     def added_fraction(self) -> float:
@@ -110,7 +119,8 @@ def smooth(sol: Solution, rate: float = 1000.0) -> Smoothed:
             z = np.zeros((hold, 9))
             parts.append({"theta": np.tile(last_th, (hold, 1)), "theta_dot": z,
                           "theta_ddot": z, "x_guess": np.tile(last_x, (hold, 1)),
-                          "stretched": 0, "smoothed": 0, "deviation": 0.0})
+                          "stretched": 0, "smoothed": 0, "deviation": 0.0,
+                          "time_stretch": 1.0})
     cat = {key: np.concatenate([p[key] for p in parts])
            for key in ("theta", "theta_dot", "theta_ddot", "x_guess")}
     t = np.arange(len(cat["theta"])) / rate
@@ -119,91 +129,82 @@ def smooth(sol: Solution, rate: float = 1000.0) -> Smoothed:
                     cat["x_guess"], float(sol.final_time) + sum(d for *_, d in pieces),
                     float(t[-1]),
                     sum(p["stretched"] for p in parts), sum(p["smoothed"] for p in parts),
-                    sol.limits.jerk, float(jerk), max(p["deviation"] for p in parts))
+                    sol.limits.jerk, float(jerk), max(p["deviation"] for p in parts),
+                    max(p["time_stretch"] for p in parts))
 
 
 def _smooth_piece(sol: Solution, t0: float, t1: float, rate: float) -> dict:
-    """One rest-to-rest piece [t0, t1] of the plan at ``rate`` (see the module doc)."""
+    """One rest-to-rest piece [t0, t1] of the plan at ``rate`` (see the module doc).
+
+    The piece is stretched uniformly (jerk scales as 1/a^3, acceleration 1/a^2, speed
+    1/a, so every limit only gets easier) by the smallest factor that makes it a whole
+    number of periods with its jerk (on a 4x grid) within the robot's limit; then Ruckig
+    checks every knot-to-knot transition as a jerk-, acceleration- and velocity-limited
+    profile of one period, and the transitions it cannot certify are counted.
+    """
     lim = sol.limits
     dt = 1.0 / rate
     T = float(t1 - t0)
-    periods = max(1, math.ceil(T * rate - 1e-9))
-    a = periods * dt / T  # >= 1: a whole number of periods
-    kt = np.arange(periods + 1) / rate
-    th, thd, thdd, xk = _joint_samples(sol, kt, a, t0)
-    thd[[0, -1]] = 0.0  # at rest, exactly (the NLP's bounds hold them at 0 to rounding)
-    thdd[[0, -1]] = 0.0
+    stretch = 1.0  # requested uniform stretch beyond the whole-period rounding
     otg = Ruckig(9)
-    # Ruckig only if the plan needs it: some segment whose jerk (the change of the knots'
-    # accelerations over one period) is above the robot's jerk limit.  Otherwise the plan
-    # is already a jerk-limited motion through its knots, and a synchronised Ruckig
-    # profile near the acceleration limit would only stretch it (measured: 35 of 5590
-    # segments of a slow task stretched, and the output then left the limits).  If one
-    # segment needs it, every segment goes through Ruckig, so that the whole output is
-    # one jerk-limited profile.
-    need = np.abs(np.diff(thdd, axis=0)).max(axis=1) > lim.jerk * dt
-    need[:] = need.any()
-    segments: list[Trajectory | None] = []
-    durations, stretched, smoothed = [], 0, int(need.sum())  # 0 or all
-    for k in range(periods):
-        if not need[k]:
-            segments.append(None)
-            durations.append(dt)
+    for _ in range(6):  # the cube-root step converges in one or two rounds
+        periods = max(1, math.ceil(T * stretch * rate - 1e-9))
+        a = periods * dt / T  # >= stretch: a whole number of periods
+        kt = np.arange(periods + 1) / rate
+        th, thd, thdd, xk = _joint_samples(sol, kt, a, t0)
+        thd[[0, -1]] = 0.0  # at rest, exactly (the NLP's bounds hold them at 0)
+        thdd[[0, -1]] = 0.0
+        # the jerk inside the periods, not only between knots: the plan on a 4x grid
+        fine = np.arange(4 * periods + 1) / (4 * rate)
+        thdd_f = _joint_samples(sol, fine, a, t0)[2]
+        jerk = np.abs(np.diff(thdd_f, axis=0)).max() * 4 * rate
+        if jerk > lim.jerk:
+            stretch = a * (jerk / lim.jerk) ** (1.0 / 3.0) * (1.0 + 1e-3)
             continue
-        inp = InputParameter(9)
-        inp.current_position, inp.current_velocity = th[k].tolist(), thd[k].tolist()
-        inp.current_acceleration = thdd[k].tolist()
-        inp.target_position, inp.target_velocity = th[k + 1].tolist(), thd[k + 1].tolist()
-        inp.target_acceleration = thdd[k + 1].tolist()
-        inp.max_velocity = [lim.velocity] * 9
-        inp.max_acceleration = [lim.acceleration] * 9
-        inp.max_jerk = [lim.jerk] * 9
-        inp.minimum_duration = dt
-        traj = Trajectory(9)
-        res = otg.calculate(inp, traj)
-        if res not in (Result.Working, Result.Finished):
-            raise SmoothingError(f"Ruckig failed on segment {k} ({res}): the plan's knots "
-                                 "violate the velocity or acceleration limits",
-                                 value=str(res), valid="Result.Working or Result.Finished")
-        if traj.duration > dt * (1 + 1e-9):
-            stretched += 1
-        segments.append(traj)
-        durations.append(traj.duration)
-    if stretched == 0:
-        # every segment took exactly one period: the output is the knots themselves
-        t, out_th, out_thd, out_thdd, x_guess = kt, th, thd, thdd, xk
-        deviation = 0.0
-    else:
-        starts = np.concatenate([[0.0], np.cumsum(durations)])
-        total = float(starts[-1])
-        m = math.ceil(total * rate - 1e-9)
-        t = np.arange(m + 1) / rate
-        seg = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, periods - 1)
-        out = np.zeros((3, len(t), 9))
-        for i, (tt, s) in enumerate(zip(t, seg, strict=True)):
-            if tt >= total:  # at rest after the end: hold the final state
-                out[0, i], out[1, i], out[2, i] = th[-1], 0.0, 0.0
+        late = 0
+        for k in range(periods):
+            inp = InputParameter(9)
+            inp.current_position, inp.current_velocity = th[k].tolist(), thd[k].tolist()
+            inp.current_acceleration = thdd[k].tolist()
+            inp.target_position = th[k + 1].tolist()
+            inp.target_velocity = thd[k + 1].tolist()
+            inp.target_acceleration = thdd[k + 1].tolist()
+            inp.max_velocity = [lim.velocity] * 9
+            inp.max_acceleration = [lim.acceleration] * 9
+            inp.max_jerk = [lim.jerk] * 9
+            inp.minimum_duration = dt
+            traj = Trajectory(9)
+            try:
+                res = otg.calculate(inp, traj)
+            except RuckigError:
+                # Ruckig refuses some tiny moves (~1e-8 rad) in its first step; such a
+                # transition is certified by the constant-jerk cubic through both knots
+                if not _constant_jerk_fits(th[k:k + 2], thd[k:k + 2], thdd[k:k + 2], dt,
+                                           lim.jerk):
+                    late += 1
                 continue
-            seg_k = segments[s]
-            if seg_k is None:  # the plan's own segment: its knot, or the cubic between
-                p, v, acc = _plan_between(th, thd, thdd, s, float(tt - starts[s]), dt)
-            else:
-                p, v, acc = seg_k.at_time(float(tt - starts[s]))
-            out[:, i] = p, v, acc
-        out_th, out_thd, out_thdd = out
-        # plan time of each output sample: its knot index plus the fraction of its segment
-        frac = np.clip((t - starts[seg]) / np.asarray(durations)[seg], 0.0, 1.0)
-        plan_t = np.minimum((seg + frac) * dt, kt[-1])
-        ref, _, _, x_guess = _joint_samples(sol, plan_t, a, t0)
-        deviation = float(np.abs(out_th - ref).max())
-    return {"theta": out_th, "theta_dot": out_thd, "theta_ddot": out_thdd,
-            "x_guess": x_guess, "stretched": stretched, "smoothed": smoothed,
-            "deviation": deviation}
+            if res not in (Result.Working, Result.Finished) or traj.duration > dt * (
+                    1 + 1e-9):
+                late += 1
+        return {"theta": th, "theta_dot": thd, "theta_ddot": thdd, "x_guess": xk,
+                "stretched": late, "smoothed": periods - late, "deviation": 0.0,
+                "time_stretch": a}
+    raise SmoothingError(
+        f"no uniform stretch up to {stretch:.2f}x makes the piece [{t0:.4f}, {t1:.4f}] s "
+        "a jerk-limited motion at the controller rate", value=stretch,
+        valid=f"jerk <= {lim.jerk:g} rad/s^3 between samples")
 
 
-def _plan_between(th, thd, thdd, k: int, s: float, dt: float):
-    """The plan between knots k and k+1, s [s] after knot k: the quintic Hermite
-    interpolant of both knots' (theta, theta_dot, theta_ddot), the same interpolant the
-    validator checks between samples."""
-    p, v, a = hermite(dt, th, thd, thdd, np.array([k]), np.array([s / dt]))
-    return p[0], v[0], a[0]
+def _constant_jerk_fits(th: np.ndarray, thd: np.ndarray, thdd: np.ndarray, dt: float,
+                        jerk: float) -> bool:
+    """Whether one constant jerk within ``jerk`` joins the two knots (rows 0 and 1) in
+    one period: theta_ddot linear, theta_dot quadratic and theta cubic, matched to 1e-9
+    (relative) at the second knot."""
+    j = (thdd[1] - thdd[0]) / dt
+    v = thd[0] + thdd[0] * dt + j * dt**2 / 2
+    p = th[0] + thd[0] * dt + thdd[0] * dt**2 / 2 + j * dt**3 / 6
+    return bool(np.all(np.abs(j) <= jerk)
+                and np.all(np.abs(v - thd[1]) <= 1e-9 * (1 + np.abs(thd[1]))
+                           + 1e-3 * jerk * dt**2)
+                and np.all(np.abs(p - th[1]) <= 1e-12 + 1e-3 * jerk * dt**3))
+

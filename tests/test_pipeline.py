@@ -17,6 +17,7 @@ from sixplus3.cli import main
 from sixplus3.control.pipeline import run_plan
 from sixplus3.control.smoothing import smooth
 from sixplus3.control.trajectory_file import COLUMNS, columns, read_trajectory, write_trajectory
+from sixplus3.control.validation import validate_joint_trajectory
 from sixplus3.errors import TrajectoryFileError
 from sixplus3.planner.ocp import plan
 from sixplus3.planner.task import task_from_dict
@@ -64,25 +65,32 @@ def test_end_to_end_plan_writes_validated_files(planned) -> None:
     assert not list(out.glob(".*tmp*"))  # no temporary files left behind
 
 
-def test_smoothing_keeps_the_plan_and_smooths_where_the_jerk_limit_binds() -> None:
+def test_smoothing_keeps_the_plan_and_stretches_where_the_jerk_limit_binds() -> None:
     sol = plan(task_from_dict(SMALL))
     sm = smooth(sol)
-    assert abs(sm.added_fraction) <= 0.02 and sm.stretched_segments == 0
-    assert sm.smoothed_segments == 0 and sm.max_deviation == 0.0
+    assert abs(sm.added_fraction) <= 0.02 and sm.max_deviation == 0.0
+    # Ruckig certifies the transitions in one period (a few may need ~1.1 periods when
+    # synchronising nine joints: counted, docs/planner.md)
+    assert sm.smoothed_segments + sm.stretched_segments == len(sm.t) - 1
+    assert sm.stretched_segments <= 0.1 * (len(sm.t) - 1)
     np.testing.assert_allclose(sm.t, np.arange(len(sm.t)) / 1000.0, rtol=0, atol=1e-15)
     assert sm.max_jerk <= sm.jerk_limit
-    # limits whose jerk bound the plan exceeds: Ruckig recomputes those segments (and
-    # stretches them), the output stays on the grid and within the jerk limit; the gate
-    # then decides (segment-wise Ruckig with exact knot targets deviates a lot from the
-    # plan: the planner itself does not bound jerk yet, docs/planner.md)
-    tight = dataclasses.replace(sol, limits=sol.limits.tightened(jerk=sm.max_jerk * 0.9))
-    slow = smooth(tight)
-    assert slow.smoothed_segments > 0 and slow.stretched_segments > 0
-    assert slow.duration > sm.duration and slow.max_deviation > 0.0
-    np.testing.assert_allclose(slow.t, np.arange(len(slow.t)) / 1000.0, rtol=0, atol=1e-15)
-    jerk = np.abs(np.diff(slow.theta_ddot, axis=0)) / np.diff(slow.t)[:, None]
-    assert jerk.max() <= slow.jerk_limit * (1 + 1e-6)
-    assert np.all(slow.theta_dot[[0, -1]] == 0) and np.all(slow.theta_ddot[[0, -1]] == 0)
+    # a jerk limit the plan exceeds (0.5x its jerk): the motion is stretched uniformly,
+    # stays on the grid, meets the jerk limit, and the re-validation with the full
+    # dynamics and the hardware limits passes
+    for f in (0.9, 0.5):
+        tight = dataclasses.replace(sol, limits=sol.limits.tightened(jerk=sm.max_jerk * f))
+        slow = smooth(tight)
+        assert slow.time_stretch > 1.0 and slow.duration > sm.duration
+        assert slow.duration < sm.duration * (1.0 / f) ** (1 / 3) * 1.05  # cube-root law
+        np.testing.assert_allclose(slow.t, np.arange(len(slow.t)) / 1000.0, rtol=0,
+                                   atol=1e-15)
+        assert slow.max_jerk <= slow.jerk_limit
+        assert np.all(slow.theta_dot[[0, -1]] == 0) and np.all(slow.theta_ddot[[0, -1]] == 0)
+        rep = validate_joint_trajectory(slow.theta, slow.theta_dot, slow.theta_ddot,
+                                        sol.robot, 1000.0, slow.x_guess, tight.limits,
+                                        t=slow.t)
+        assert rep.ok, rep.messages()
 
 
 def test_an_invalid_trajectory_is_never_written(planned, tmp_path) -> None:
