@@ -79,6 +79,14 @@ class MotorModel:
         "doc": "speed over which the Coulomb term is smoothed by tanh [rad/s]"})
     encoder_bits: int = field(default=20, metadata={
         "doc": "motor encoder resolution [bit per motor turn] (SGMCS: 20-bit)"})
+    rated_torque: float = field(default=5.0, metadata={
+        "doc": "motor rated torque [N m] (SGMCS-05B: 5 N m): the unit of the drives' "
+               "torque commands (0.1 % of rated)"})
+    zero_offsets: tuple[float, ...] = field(default=(0.0,) * 9, metadata={
+        "doc": "joint angle [rad] at which each motor's position reads 0 (legs 0..2, "
+               "each A, B, C); set at commissioning"})
+    directions: tuple[int, ...] = field(default=(1,) * 9, metadata={
+        "doc": "+1 or -1: the sign of each motor's positive turn about the joint axis"})
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "rotor_inertia", _num(
@@ -95,6 +103,17 @@ class MotorModel:
         b = self.encoder_bits
         if isinstance(b, bool) or not isinstance(b, int) or not 8 <= b <= 32:
             raise GeometryError("motors.encoder_bits", b, "an integer in [8, 32]")
+        object.__setattr__(self, "rated_torque", _num(
+            "motors.rated_torque", self.rated_torque, "in (0, 1000] N m", 0.0, 1000.0,
+            True))
+        offs = _vec("motors.zero_offsets", self.zero_offsets, 9, "rad")
+        if max(abs(o) for o in offs) > 2 * math.pi:
+            raise GeometryError("motors.zero_offsets", offs, "within one turn (|.| <= 2 pi)")
+        object.__setattr__(self, "zero_offsets", offs)
+        dirs = tuple(self.directions) if isinstance(self.directions, (list, tuple)) else ()
+        if len(dirs) != 9 or any(isinstance(d, bool) or d not in (1, -1) for d in dirs):
+            raise GeometryError("motors.directions", self.directions, "nine values +1 or -1")
+        object.__setattr__(self, "directions", tuple(int(d) for d in dirs))
 
     @property
     def armature(self) -> float:

@@ -275,7 +275,8 @@ class Robot:
             "mode": self.mode.name,
             "masses": asdict(self.masses),
             "limits": asdict(self.limits),
-            "motors": asdict(self.motors),
+            "motors": {k: list(v) if isinstance(v, tuple) else v
+                       for k, v in asdict(self.motors).items()},
             "payload": {k: list(v) if isinstance(v, tuple) else v
                         for k, v in asdict(self.payload).items()},
             "tool": {k: list(v) for k, v in asdict(self.tool).items()},

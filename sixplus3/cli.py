@@ -618,6 +618,31 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
     sys.exit(0 if sim.within_torque_limit else 1)
 
 
+@main.command("export")
+@click.argument("csv_file", type=click.Path(dir_okay=False))
+@click.option("--format", "fmt", required=True,
+              type=click.Choice(["ros2-yaml", "ros2-json", "drive-csv"]),
+              help="ROS 2 trajectory_msgs/JointTrajectory, or a servo-drive table "
+                   "(encoder counts, counts/s, torque in 0.1 % of rated).")
+@click.option("-o", "--out", "out_file", default=None, type=click.Path(dir_okay=False),
+              help="Write to this file (atomically) instead of stdout.")
+@click.option("--task", "task_file", default=None, type=click.Path(dir_okay=False),
+              help="Apply this task file's setup (payload, tool, mounting) to the robot.")
+def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | None) -> None:
+    """Export a trajectory file for the controller side, after validating it (exit 1
+    for a violated limit, 2 for a bad file: nothing is written)."""
+    from sixplus3.control.exports import export_file
+
+    text = export_file(csv_file, _task_robot(task_file), fmt)
+    if out_file is None:
+        click.echo(text, nl=False)
+        return
+    from sixplus3.fileio import atomic_write
+
+    atomic_write(out_file, text.encode())
+    click.echo(f"wrote {out_file}", err=True)
+
+
 @main.command()
 @click.argument("csv_file", type=click.Path(dir_okay=False))
 @click.option("--udp", default="127.0.0.1:9870", show_default=True,

@@ -1,0 +1,128 @@
+"""Exports of a validated trajectory for the controller side.
+
+Only a file that passes the gate is exported: :func:`export_file` validates the bytes it
+reads (for the robot of the invocation) and converts exactly those samples.
+
+- **ROS 2** (:func:`ros2_joint_trajectory`): a ``trajectory_msgs/msg/JointTrajectory``
+  as a plain mapping (YAML or JSON): ``joint_names`` (the nine actuated joints, legs
+  0..2 each A, B, C, as in the URDF), one point per sample with ``positions`` [rad],
+  ``velocities`` [rad/s], ``accelerations`` [rad/s^2], ``effort`` [N m] at the joint and
+  ``time_from_start`` {sec, nanosec}.  ``ros2 topic pub`` and ``rclpy``'s
+  ``set_message_fields`` take it as is.
+- **Drive** (:func:`drive_table`): the same samples in the units of servo drives in
+  cyclic synchronous position or torque mode (e.g. Yaskawa SGD7S in CSP/CST), per axis:
+  position in encoder counts of the motor, velocity in counts/s, torque in 0.1 % of the
+  motor's rated torque.  With N the belt ratio, 2^b the counts per motor turn, d the
+  axis direction and theta_0 the zero offset (``Robot.motors``)::
+
+      counts   = round(d (theta - theta_0) N 2^b / (2 pi))
+      counts/s = d theta_dot N 2^b / (2 pi)
+      torque   = round(1000 d tau / (N tau_rated))       [0.1 % of rated]
+
+  The header carries every parameter used.  Rounding the position to a count changes
+  the angle by at most half a count: 2 pi / (2 N 2^b) = 1.4 microrad at the joint.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sixplus3.errors import ValidationFailed
+from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.urdf import actuated_joint_names
+
+FORMATS = ("ros2-yaml", "ros2-json", "drive-csv")
+
+
+def ros2_joint_trajectory(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
+                          theta_ddot: np.ndarray, tau: np.ndarray,
+                          frame_id: str = "base_link") -> dict[str, Any]:
+    """A ``trajectory_msgs/msg/JointTrajectory`` as a mapping (header stamp zero: start
+    on reception)."""
+    points = []
+    for k in range(len(t)):
+        ns_total = int(round(float(t[k]) * 1e9))
+        points.append({
+            "positions": [float(v) for v in theta[k]],
+            "velocities": [float(v) for v in theta_dot[k]],
+            "accelerations": [float(v) for v in theta_ddot[k]],
+            "effort": [float(v) for v in tau[k]],
+            "time_from_start": {"sec": ns_total // 1_000_000_000,
+                                "nanosec": ns_total % 1_000_000_000},
+        })
+    return {"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": frame_id},
+            "joint_names": actuated_joint_names(), "points": points}
+
+
+def drive_units(robot: Robot) -> dict[str, Any]:
+    """The conversion parameters of :func:`drive_table` (recorded in its header)."""
+    m = robot.motors
+    return {"gear_ratio": m.gear_ratio, "encoder_bits": m.encoder_bits,
+            "counts_per_motor_turn": 2 ** m.encoder_bits,
+            "counts_per_joint_rad": m.gear_ratio * 2 ** m.encoder_bits / (2 * math.pi),
+            "rated_torque_motor_n_m": m.rated_torque,
+            "torque_unit": "0.1 % of the motor's rated torque",
+            "zero_offsets_rad": list(m.zero_offsets), "directions": list(m.directions),
+            "axes": actuated_joint_names()}
+
+
+def drive_table(robot: Robot, t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
+                tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(position counts (n, 9) int64, velocity counts/s (n, 9), torque in 0.1 % of rated
+    (n, 9) int64) of joint-side samples."""
+    m = robot.motors
+    d = np.asarray(m.directions, dtype=float)
+    k = m.gear_ratio * 2 ** m.encoder_bits / (2 * math.pi)
+    counts = np.rint(d * (theta - np.asarray(m.zero_offsets)) * k).astype(np.int64)
+    vel = d * theta_dot * k
+    torque = np.rint(1000.0 * d * tau / (m.gear_ratio * m.rated_torque)).astype(np.int64)
+    return counts, vel, torque
+
+
+def export_file(path: str | Path, robot: Robot, fmt: str) -> str:
+    """Validate the trajectory file at ``path`` for ``robot`` and return its export in
+    ``fmt`` (one of :data:`FORMATS`); raises :class:`ValidationFailed` (nothing is
+    exported) when the file is not a valid motion within the limits."""
+    from sixplus3.control.trajectory_file import columns
+    from sixplus3.control.validation import validate_file
+    from sixplus3.errors import InputError
+
+    if fmt not in FORMATS:
+        raise InputError(f"unknown export format {fmt!r}", value=fmt,
+                         valid=", ".join(FORMATS))
+    rep = validate_file(path, robot)
+    if rep.exit_code != 0 or rep.data is None:
+        raise ValidationFailed("not exported: " + "; ".join(rep.messages()),
+                               exit_code=rep.exit_code, report=rep)
+    data = rep.data
+    t, th, thd, thdd, tau = (data[:, 0], columns(data, "pos"), columns(data, "vel"),
+                             columns(data, "acc"), columns(data, "tau"))
+    if fmt.startswith("ros2"):
+        msg = ros2_joint_trajectory(t, th, thd, thdd, tau)
+        if fmt == "ros2-json":
+            return json.dumps(msg) + "\n"
+        import yaml
+
+        return yaml.safe_dump(msg, sort_keys=False)
+    counts, vel, torque = drive_table(robot, t, th, thd, tau)
+    out = io.StringIO()
+    out.write("# sixplus3 drive table " + json.dumps({
+        "source": Path(path).name, "robot_hash": robot.hash,
+        "rate_hz": (rep.header or {}).get("rate_hz"), **drive_units(robot)}) + "\n")
+    w = csv.writer(out, lineterminator="\n")
+    names = actuated_joint_names()
+    w.writerow(["t_s"] + [f"{n}_{q}" for n in names for q in ("counts", "counts_per_s",
+                                                                "torque_0p1pct")])
+    for i in range(len(t)):
+        row: list[Any] = [f"{t[i]:.9f}"]
+        for j in range(len(names)):
+            row += [int(counts[i, j]), f"{vel[i, j]:.6f}", int(torque[i, j])]
+        w.writerow(row)
+    return out.getvalue()

@@ -1,0 +1,89 @@
+"""Exports for the controller side: ROS 2 JointTrajectory and a servo-drive table, only
+of files that pass the gate."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from sixplus3.cli import main
+from sixplus3.control.exports import drive_table, export_file
+from sixplus3.control.pipeline import run_plan
+from sixplus3.control.trajectory_file import columns, read_trajectory
+from sixplus3.errors import GeometryError, InputError, TrajectoryFileError
+from sixplus3.planner.task import task_from_dict
+from sixplus3.robot_description.physical import MotorModel
+from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.urdf import actuated_joint_names
+
+ROBOT = Robot.default()
+
+
+@pytest.fixture(scope="module")
+def planned(tmp_path_factory):
+    out = tmp_path_factory.mktemp("exp")
+    task = task_from_dict({"name": "exp", "nodes_per_segment": 6, "waypoints": [
+        {"position": [0, 0, 0.30]}, {"position": [0.02, 0, 0.31], "rpy": [8, 0, 0]}]})
+    path = run_plan(task, out, ROBOT, html=False, plots=False).csv
+    return path, read_trajectory(path, ROBOT)[1]
+
+
+def test_ros2_joint_trajectory_is_the_file(planned) -> None:
+    path, data = planned
+    msg = yaml.safe_load(export_file(path, ROBOT, "ros2-yaml"))
+    assert msg["joint_names"] == actuated_joint_names()
+    assert len(msg["points"]) == len(data)
+    for k in (0, len(data) // 2, len(data) - 1):
+        p = msg["points"][k]
+        assert p["positions"] == list(columns(data, "pos")[k])  # exact (%.17g round trip)
+        assert p["effort"] == list(columns(data, "tau")[k])
+        t = p["time_from_start"]["sec"] + 1e-9 * p["time_from_start"]["nanosec"]
+        assert t == pytest.approx(data[k, 0], abs=1e-9)
+        assert 0 <= p["time_from_start"]["nanosec"] < 1_000_000_000
+    assert json.loads(export_file(path, ROBOT, "ros2-json")) == msg
+
+
+def test_drive_table_units(planned) -> None:
+    path, data = planned
+    offs = tuple(np.linspace(-0.5, 0.5, 9))
+    dirs = (1, -1, 1, 1, -1, 1, -1, 1, 1)
+    robot = ROBOT.replace(motors=MotorModel(zero_offsets=offs, directions=dirs))
+    th, thd, tau = columns(data, "pos"), columns(data, "vel"), columns(data, "tau")
+    counts, vel, torque = drive_table(robot, data[:, 0], th, thd, tau)
+    n, bits = 72 / 34, 20
+    # back to joint angles: within half a count of the file
+    back = counts / (n * 2 ** bits / (2 * math.pi)) * np.array(dirs) + np.array(offs)
+    assert np.abs(back - th).max() <= 0.5 * 2 * math.pi / (n * 2 ** bits) + 1e-12
+    np.testing.assert_allclose(vel * np.array(dirs) / (n * 2 ** bits / (2 * math.pi)), thd,
+                               atol=1e-12)
+    # 0.1 % of the 5 N m rated motor torque: the joint torque through the belt
+    np.testing.assert_allclose(torque * np.array(dirs) * 5.0 * n / 1000.0, tau,
+                               atol=0.5 * 5.0 * n / 1000.0 + 1e-12)
+    assert np.abs(torque).max() <= 1000 * 10.0 / (n * 5.0) + 1  # the 10 N m joint limit
+    with pytest.raises(GeometryError, match="directions"):
+        MotorModel(directions=(1,) * 8 + (2,))
+
+
+def test_only_valid_files_are_exported(planned, tmp_path) -> None:
+    path, _ = planned
+    lines = path.read_text().splitlines(keepends=True)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("".join(lines[:-5]))  # cut: the integrity digest no longer matches
+    runner = CliRunner()
+    res = runner.invoke(main, ["export", str(bad), "--format", "ros2-yaml"])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    out = tmp_path / "ok.csv"
+    res = runner.invoke(main, ["export", str(path), "--format", "drive-csv", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    head = json.loads(out.read_text().splitlines()[0].split(" ", 4)[4])
+    assert head["encoder_bits"] == 20 and head["gear_ratio"] == pytest.approx(72 / 34)
+    weak = ROBOT.replace(limits=ROBOT.limits.tightened(torque=1.0))
+    with pytest.raises(TrajectoryFileError, match="robot mismatch"):  # not exported
+        export_file(path, weak, "ros2-yaml")
+    with pytest.raises(InputError, match="format"):
+        export_file(path, ROBOT, "excel")
