@@ -244,7 +244,9 @@ def check_robot(header: dict, robot: Robot, name: str) -> None:
                                   valid="valid robot parameters") from exc
     if recorded.hash != rec.get("hash"):
         raise TrajectoryFileError(f"{name}: the recorded robot parameters do not match the "
-                                  "recorded robot hash (edited header)",
+                                  "recorded robot hash (an edited header, or a file of an "
+                                  "older sixplus3 whose robot had fewer parameters: "
+                                  "re-plan it)",
                                   value=rec.get("hash"), valid=recorded.hash)
     if recorded.hash != robot.hash:
         diff = _robot_diff(recorded.as_dict(), robot.as_dict())

@@ -673,7 +673,9 @@ def feed(csv_file: str, udp: str, speed: float, dry_run: bool) -> None:
 @click.option("--no-wait", is_flag=True, help="Do not wait for Ctrl-C after loading.")
 def play(csv_file: str, html_out: str | None, no_wait: bool) -> None:
     """Animate a trajectory file in MeshCat (live; the URL is printed) or as HTML."""
-    from sixplus3.control.trajectory_file import read_trajectory
+    from pathlib import Path
+
+    from sixplus3.control.trajectory_file import columns, read_trajectory
     from sixplus3.visualization.meshcat_player import (
         animate,
         frames_from_samples,
@@ -684,7 +686,8 @@ def play(csv_file: str, html_out: str | None, no_wait: bool) -> None:
     robot = _robot()
     _, data = read_trajectory(csv_file, robot)
     frames = frames_from_samples(robot, data[:, 0], data[:, 37:40], data[:, 40:44],
-                                 data[:, 44:47])
+                                 data[:, 44:47], title=f"sixplus3: {Path(csv_file).stem}",
+                                 theta_dot=columns(data, "vel"))
     if html_out:
         path = write_html(frames, html_out)
         click.echo(f"wrote {path} ({len(frames.q)} frames, slowed down "

@@ -118,6 +118,9 @@ def test_playback_page_renders_the_robot(planned, tmp_path) -> None:
     assert r.exit_code == 0 and page.exists(), r.output
     text = page.read_text()
     assert "<script" in text and "http://" not in text.split("<script")[1][:2000]
+    # a title and a banner naming the motion, its real duration and the slow-motion factor
+    assert f"<title>sixplus3: {res.csv.stem}</title>" in text
+    assert "s motion, shown" in text and "x slower, looping" in text
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     assert chromium, "Debian's chromium is needed (make test installs it)"
     shot = tmp_path / "shot.png"
@@ -150,4 +153,6 @@ def test_playback_page_renders_the_robot(planned, tmp_path) -> None:
     r_, g_, b_ = img[..., 0], img[..., 1], img[..., 2]
     orange = (r_ > 150) & (g_ > 60) & (g_ < 170) & (b_ < 90)  # the spherical joints
     dark = (r_ < 70) & (g_ < 70) & (b_ < 70)  # carbon links, motors
+    magenta = (r_ > 150) & (g_ < 90) & (b_ > 150)  # the platform path trace
     assert orange.sum() > 50 and dark.sum() > 200, (orange.sum(), dark.sum())
+    assert magenta.sum() > 20, magenta.sum()

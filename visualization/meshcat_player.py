@@ -26,11 +26,24 @@ class Frames:
     q: np.ndarray  # (F, nq)
     fps: float
     slowdown: float  # animation time / real time
+    path: np.ndarray | None = None  # (M, 3) platform centre along the motion [m]
+    duration: float = 0.0  # real duration of the motion [s]
+    title: str = "sixplus3"
+    #: (K, 3) points to mark (e.g. where the motion stops or its waypoints) [m]
+    marks: np.ndarray | None = None
+
+#: Times the page and the live viewer replay the animation (MeshCat has no endless loop
+#: through its Python API; at a few seconds per play this is hours).
+REPETITIONS = 10_000
 
 
 def frames_from_samples(robot: Robot, t, position, quaternion, psi, fps: float = 30.0,
-                        min_seconds: float = 3.0) -> Frames:
-    """Tree configurations at ``fps``, slowed down so the animation lasts >= min_seconds."""
+                        min_seconds: float = 3.0, title: str = "sixplus3",
+                        theta_dot=None) -> Frames:
+    """Tree configurations at ``fps``, slowed down so the animation lasts >= min_seconds.
+
+    The platform path is kept for a trace; with ``theta_dot`` the samples at rest inside
+    the motion (stops, dwells) and at both ends are marked."""
     duration = float(t[-1])
     slowdown = max(1.0, min_seconds / max(duration, 1e-9))
     n = max(2, int(round(duration * slowdown * fps)) + 1)
@@ -38,7 +51,12 @@ def frames_from_samples(robot: Robot, t, position, quaternion, psi, fps: float =
     idx = np.clip(np.searchsorted(t, ts), 0, len(t) - 1)
     cfg = robot_ik(position[idx], Rotation.from_quat(quaternion[idx]).as_matrix(), psi[idx],
                    robot)
-    return Frames(robot, cfg.q, fps, slowdown)
+    marks = np.asarray(position)[[0, -1]]
+    if theta_dot is not None:
+        rest = np.flatnonzero(~np.asarray(theta_dot).any(axis=1))
+        marks = np.asarray(position)[rest]
+    return Frames(robot, cfg.q, fps, slowdown, np.asarray(position, dtype=float),
+                  duration, title, marks)
 
 
 @functools.lru_cache(maxsize=1)
@@ -53,8 +71,8 @@ def _server():
     # written, so it is kept quiet here; the live `play` command prints viewer_url()
     with contextlib.redirect_stdout(io.StringIO()):
         vis = meshcat.Visualizer()
-    # camera ~1 m from the base centre (meshcat's camera frame is y-up)
-    vis["/Cameras/default/rotated/<object>"].set_property("position", [0.75, 0.55, 0.75])
+    # camera ~0.8 m from the base centre (meshcat's camera frame is y-up)
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [0.55, 0.45, 0.55])
     return vis
 
 
@@ -91,17 +109,55 @@ def animate(frames: Frames):
     finally:
         viz.viewer = vis
     viz.display(frames.q[0])
-    vis.set_animation(anim, play=True, repetitions=0)
+    _overlay(vis, frames)
+    vis.set_animation(anim, play=True, repetitions=REPETITIONS)
     return vis
+
+
+def _overlay(vis, frames: Frames) -> None:
+    """The platform centre's path as a line, and a small sphere at each marked point."""
+    import meshcat.geometry as g
+    import meshcat.transformations as tf
+
+    vis["sixplus3_path"].delete()
+    if frames.path is not None and len(frames.path) > 1:
+        step = max(1, len(frames.path) // 2000)
+        pts = frames.path[::step].T.astype(np.float32)
+        vis["sixplus3_path/line"].set_object(g.Line(
+            g.PointsGeometry(pts), g.LineBasicMaterial(color=0xC020C0, linewidth=2)))
+    if frames.marks is not None:
+        for k, p in enumerate(_distinct(frames.marks)):
+            node = vis[f"sixplus3_path/mark{k}"]
+            node.set_object(g.Sphere(0.006), g.MeshLambertMaterial(color=0xC020C0))
+            node.set_transform(tf.translation_matrix(p))
+
+
+def _distinct(points: np.ndarray, tol: float = 1e-4) -> list[np.ndarray]:
+    out: list[np.ndarray] = []
+    for p in np.asarray(points, dtype=float):
+        if all(np.linalg.norm(p - q) > tol for q in out):
+            out.append(p)
+    return out[:50]
 
 
 def write_html(frames: Frames, out: str | Path) -> Path:
     """A self-contained page (JS inlined, no network) with the animation; atomic."""
+    import html
+
     from sixplus3.fileio import atomic_write
 
     vis = animate(frames)
     out = Path(out)
-    atomic_write(out, vis.static_html().encode())
+    page = vis.static_html()
+    title = html.escape(frames.title)
+    info = (f"{title}: {frames.duration:.3f} s motion, shown {frames.slowdown:.0f}x "
+            f"slower, looping; magenta: the platform centre's path and where it rests")
+    page = page.replace("<title>MeshCat</title>", f"<title>{title}</title>", 1)
+    banner = ('<div style="position:fixed;top:8px;left:8px;z-index:10;padding:4px 8px;'
+              'font:14px sans-serif;background:rgba(255,255,255,0.85);border-radius:4px">'
+              f'{info}</div>')
+    page = page.replace("<body>", "<body>" + banner, 1)
+    atomic_write(out, page.encode())
     return out
 
 
