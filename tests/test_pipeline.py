@@ -43,7 +43,8 @@ def test_end_to_end_plan_writes_validated_files(planned) -> None:
     res, out = planned
     assert res.csv.exists() and res.html.exists()
     assert sorted(Path(p).name for p in res.plots) == [
-        "small_joints.png", "small_margins.png", "small_torques.png"]
+        "small_joints.png", "small_margins.png", "small_platform.png", "small_rates.png",
+        "small_torques.png"]
     header, data = read_trajectory(res.csv)
     assert header["columns"] == COLUMNS and header["rate_hz"] == 1000.0
     assert header["validation"]["ok"] and header["planner"]["status"].startswith("Solve")

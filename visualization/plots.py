@@ -23,10 +23,16 @@ def _save(fig, path: Path) -> str:
 
 
 def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, quaternion,
-                    psi, torque_limit: float, margin: float, title: str = "") -> list[str]:
-    """Write <title>_torques.png, <title>_margins.png and <title>_joints.png into
-    ``out_dir`` (per-trajectory names: plans written to one folder do not overwrite each
-    other's plots)."""
+                    psi, torque_limit: float, margin: float, title: str = "",
+                    theta_dot=None, theta_ddot=None, planned_torque: float | None = None
+                    ) -> list[str]:
+    """Write <title>_torques.png, <title>_margins.png, <title>_joints.png,
+    <title>_platform.png and, with the rates given, <title>_rates.png into ``out_dir``
+    (per-trajectory names: plans written to one folder do not overwrite each other).
+
+    Torques, speeds and accelerations are drawn one panel per leg (its joints A, B, C),
+    with the hardware limits (red, dashed) and the torque planned to (orange, dotted);
+    legends sit outside the axes so that no limit line is hidden."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -36,17 +42,51 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
     out.mkdir(parents=True, exist_ok=True)
     prefix = f"{title}_" if title else ""
     names = actuated_joint_names()
+    lim = robot.limits
     files = []
-    fig, ax = plt.subplots(figsize=(9, 4.8))
-    for j in range(9):
-        ax.plot(t, tau[:, j], lw=1.2, label=names[j])
-    for s in (1, -1):
-        ax.axhline(s * torque_limit, color="r", ls="--", lw=1.0)
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("actuator torque [N m] (Pinocchio)")
-    ax.set_title(f"{title}: torques, limit +-{torque_limit:g} N m (red)", fontsize=10)
-    ax.legend(ncol=5, fontsize=7)
-    files.append(_save(fig, out / f"{prefix}torques.png"))
+
+    def per_leg(values, ylabel: str, hw: float, fname: str, what: str, planned=None):
+        fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+        for i, ax in enumerate(axes):
+            for j in range(3 * i, 3 * i + 3):
+                ax.plot(t, values[:, j], lw=1.2, label=names[j])
+            for sgn in (1, -1):
+                ax.axhline(sgn * hw, color="r", ls="--", lw=1.0,
+                           label="hardware limit" if sgn == 1 else None)
+                if planned is not None:
+                    ax.axhline(sgn * planned, color="orange", ls=":", lw=1.2,
+                               label="planned to" if sgn == 1 else None)
+            ax.set_ylabel(ylabel, fontsize=8)
+            ax.set_ylim(-1.08 * hw, 1.08 * hw)
+            ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
+        axes[-1].set_xlabel("t [s]")
+        peak = float(np.abs(values).max())
+        axes[0].set_title(f"{title}: {what}, peak {peak:.3g} of {hw:.3g} "
+                          f"({100 * peak / hw:.1f} %)", fontsize=10)
+        fig.tight_layout()
+        return _save(fig, out / f"{prefix}{fname}.png")
+
+    files.append(per_leg(tau, "torque [N m]", torque_limit, "torques", "actuator torques",
+                         planned_torque))
+    if theta_dot is not None and theta_ddot is not None:
+        fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+        for ax, values, hw, label in ((axes[0], theta_dot, lim.velocity, "speed [rad/s]"),
+                                      (axes[1], theta_ddot, lim.acceleration,
+                                       "acceleration [rad/s^2]")):
+            for j in range(9):
+                ax.plot(t, values[:, j], lw=1.0, label=names[j])
+            for sgn in (1, -1):
+                ax.axhline(sgn * hw, color="r", ls="--", lw=1.0)
+            ax.set_ylabel(label, fontsize=8)
+            ax.set_ylim(-1.08 * hw, 1.08 * hw)
+        axes[0].legend(loc="center left", bbox_to_anchor=(1.01, 0.0), fontsize=7)
+        axes[1].set_xlabel("t [s]")
+        axes[0].set_title(
+            f"{title}: joint speeds (peak {np.abs(theta_dot).max() / lim.velocity:.0%} of "
+            f"the limit) and accelerations (peak "
+            f"{np.abs(theta_ddot).max() / lim.acceleration:.0%}); limits red", fontsize=10)
+        fig.tight_layout()
+        files.append(_save(fig, out / f"{prefix}rates.png"))
 
     cfg = robot_ik(position, Rotation.from_quat(quaternion).as_matrix(), psi, robot)
     fig, ax = plt.subplots(figsize=(9, 4.8))
@@ -54,23 +94,40 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
         ax.plot(t, cfg.margins.leg_type1[:, i], lw=1.0, label=f"leg {i} type I")
         ax.plot(t, cfg.margins.leg_type2[:, i], lw=1.0, ls="--", label=f"leg {i} type II")
     ax.plot(t, cfg.margins.platform, "k", lw=1.5, label="platform")
-    ax.axhline(margin, color="r", ls="--", lw=1.0)
+    ax.axhline(margin, color="r", ls="--", lw=1.0, label="threshold")
     ax.set_ylim(0, 1)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("singularity margin (0 singular .. 1)")
     ax.set_title(f"{title}: singularity margins, threshold {margin:g} (red)", fontsize=10)
-    ax.legend(ncol=4, fontsize=7)
+    ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
+    fig.tight_layout()
     files.append(_save(fig, out / f"{prefix}margins.png"))
 
-    fig, ax = plt.subplots(figsize=(9, 4.8))
-    for j in range(9):
-        ax.plot(t, np.degrees(theta[:, j]), lw=1.2, label=names[j])
-    for i in range(3):
-        ax.plot(t, np.degrees(psi[:, i]), "k", ls=":", lw=1.0,
-                label="cranks psi" if i == 0 else None)
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("angle [deg]")
-    ax.set_title(f"{title}: actuated angles and crank angles (dotted)", fontsize=10)
-    ax.legend(ncol=5, fontsize=7)
+    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    for i, ax in enumerate(axes):
+        for j in range(3 * i, 3 * i + 3):
+            ax.plot(t, np.degrees(theta[:, j]), lw=1.2, label=names[j])
+        ax.plot(t, np.degrees(psi[:, i]), "k", ls=":", lw=1.2, label=f"crank psi {i}")
+        ax.set_ylabel("angle [deg]", fontsize=8)
+        ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
+    axes[-1].set_xlabel("t [s]")
+    axes[0].set_title(f"{title}: actuated angles and crank angles (dotted), per leg",
+                      fontsize=10)
+    fig.tight_layout()
     files.append(_save(fig, out / f"{prefix}joints.png"))
+
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    for k, c in enumerate("xyz"):
+        axes[0].plot(t, 1000 * np.asarray(position)[:, k], lw=1.2, label=c)
+    rpy = np.degrees(Rotation.from_quat(quaternion).as_euler("xyz"))
+    for k, c in enumerate(("roll", "pitch", "yaw")):
+        axes[1].plot(t, rpy[:, k], lw=1.2, label=c)
+    axes[0].set_ylabel("platform centre [mm]", fontsize=8)
+    axes[1].set_ylabel("orientation [deg] (R = Rz Ry Rx)", fontsize=8)
+    axes[1].set_xlabel("t [s]")
+    for ax in axes:
+        ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
+    axes[0].set_title(f"{title}: platform pose", fontsize=10)
+    fig.tight_layout()
+    files.append(_save(fig, out / f"{prefix}platform.png"))
     return files
