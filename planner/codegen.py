@@ -85,7 +85,9 @@ def _build(sources: dict[str, str], directory: Path) -> dict[str, Path]:
             stderr=subprocess.STDOUT)))
     if jobs:
         print("sixplus3: compiling the planner's constraint functions (once per machine "
-              f"and model, ~1 min) into {directory}", file=sys.stderr, flush=True)
+              f"and robot structure, ~1-3 min) into {directory}", file=sys.stderr,
+              flush=True)
+        _wait_with_progress([job[4] for job in jobs])
     errors = []
     for name, lib, c_path, tmp_lib, proc in jobs:
         out, _ = proc.communicate()
@@ -99,6 +101,31 @@ def _build(sources: dict[str, str], directory: Path) -> dict[str, Path]:
     if errors:
         raise RuntimeError("compiling the planner functions failed:\n" + "\n".join(errors))
     return libs
+
+
+def _wait_with_progress(procs: list[subprocess.Popen]) -> None:
+    """Wait for the compilers, showing the elapsed time (a tqdm line on a terminal, a
+    line every 30 s otherwise) so a first run never looks hung."""
+    import time
+
+    from tqdm import tqdm
+
+    start = time.monotonic()
+    tty = sys.stderr.isatty()
+    with tqdm(total=None, desc="sixplus3: gcc", bar_format="{desc}: {elapsed} elapsed",
+              file=sys.stderr, disable=not tty) as bar:
+        last = start
+        while any(p.poll() is None for p in procs):
+            time.sleep(0.5)
+            bar.update(0)
+            bar.refresh()
+            now = time.monotonic()
+            if not tty and now - last >= 30.0:
+                print(f"sixplus3: still compiling, {now - start:.0f} s elapsed",
+                      file=sys.stderr, flush=True)
+                last = now
+    print(f"sixplus3: compiled in {time.monotonic() - start:.0f} s", file=sys.stderr,
+          flush=True)
 
 
 def compiled_functions(robot: Robot) -> dict[str, ca.Function]:
