@@ -126,18 +126,25 @@ class MujocoRobot:
             out.append((ja - jb) @ d.qvel)
         return np.concatenate(out)
 
+    def set_state(self, q: np.ndarray, theta_dot: np.ndarray) -> tuple[np.ndarray, float]:
+        """Put MuJoCo at the configuration q (Pinocchio's coordinates) with the tree
+        velocity that realises the actuated rates: [S; Jc] qvel = [theta_dot; 0], from
+        MuJoCo's own closure Jacobian.  Returns ([S; Jc], closure residual [m])."""
+        qpos = self.qpos_from_pinocchio(q)
+        self._forward(qpos)
+        res = self.closure_residual()
+        A = np.vstack([self._S, self.closure_jacobian()])
+        qvel = np.linalg.solve(A, np.r_[theta_dot, np.zeros(len(A) - len(self._S))])
+        self._forward(qpos, qvel)
+        return A, res
+
     def inverse_dynamics(self, q: np.ndarray, theta_dot: np.ndarray,
                          theta_ddot: np.ndarray) -> tuple[np.ndarray, float]:
         """(tau [N m], closure residual [m]) of the actuated motion through the
         configuration q (Pinocchio's coordinates) with MuJoCo's dynamics."""
         mj, m, d = self.mj, self.model, self.data
-        qpos = self.qpos_from_pinocchio(q)
-        self._forward(qpos)
-        res = self.closure_residual()
-        Jc = self.closure_jacobian()
-        A = np.vstack([self._S, Jc])
-        qvel = np.linalg.solve(A, np.r_[theta_dot, np.zeros(len(Jc))])
-        self._forward(qpos, qvel)
+        A, res = self.set_state(q, theta_dot)
+        Jc = A[len(self._S):]
         qacc = np.linalg.solve(A, np.r_[theta_ddot, -self.closure_drift()])
         M = np.zeros((m.nv, m.nv))
         mj.mj_fullM(m, d, M)
@@ -210,11 +217,7 @@ def simulate(robot: Robot, q0: np.ndarray, theta: np.ndarray, theta_dot: np.ndar
                          valid=f"a rate dividing {1 / timestep:g} Hz")
     sim = MujocoRobot(robot, timestep)
     mj, m, d = sim.mj, sim.model, sim.data
-    qpos = sim.qpos_from_pinocchio(q0)
-    sim._forward(qpos)
-    Jc = sim.closure_jacobian()
-    qvel = np.linalg.solve(np.vstack([sim._S, Jc]), np.r_[theta_dot[0], np.zeros(len(Jc))])
-    sim._forward(qpos, qvel)
+    sim.set_state(q0, theta_dot[0])
     n = len(theta)
     err = np.zeros((n, theta.shape[1]))
     pd = np.zeros_like(err)

@@ -150,14 +150,14 @@ def _smooth_piece(sol: Solution, t0: float, t1: float, rate: float) -> dict:
     for _ in range(6):  # the cube-root step converges in one or two rounds
         periods = max(1, math.ceil(T * stretch * rate - 1e-9))
         a = periods * dt / T  # >= stretch: a whole number of periods
-        kt = np.arange(periods + 1) / rate
-        th, thd, thdd, xk = _joint_samples(sol, kt, a, t0)
+        # the plan on a 4x grid: the jerk inside the periods, not only between knots;
+        # the knots (the output) are every 4th point
+        fine = np.arange(4 * periods + 1) / (4 * rate)
+        th_f, thd_f, thdd_f, x_f = _joint_samples(sol, fine, a, t0)
+        jerk = np.abs(np.diff(thdd_f, axis=0)).max() * 4 * rate
+        th, thd, thdd, xk = th_f[::4], thd_f[::4].copy(), thdd_f[::4].copy(), x_f[::4]
         thd[[0, -1]] = 0.0  # at rest, exactly (the NLP's bounds hold them at 0)
         thdd[[0, -1]] = 0.0
-        # the jerk inside the periods, not only between knots: the plan on a 4x grid
-        fine = np.arange(4 * periods + 1) / (4 * rate)
-        thdd_f = _joint_samples(sol, fine, a, t0)[2]
-        jerk = np.abs(np.diff(thdd_f, axis=0)).max() * 4 * rate
         if jerk > lim.jerk:
             stretch = a * (jerk / lim.jerk) ** (1.0 / 3.0) * (1.0 + 1e-3)
             continue

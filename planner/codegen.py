@@ -143,14 +143,18 @@ def compiled_functions(robot: Robot) -> dict[str, ca.Function]:
     libs = _cached(("compiled", structure(robot).hash), lambda: _compiled(robot))
     if not libs:
         return {}
-    # fix the setup parameters (payload, mounting, motors) of this robot: one library
-    # serves every setup of a structure
-    sr = robot.symbolic()
+    return _cached(("compiled-setup", robot.hash), lambda: _with_setup(robot, libs))
+
+
+def _with_setup(robot: Robot, libs: dict[str, ca.Function]) -> dict[str, ca.Function]:
+    """The libraries with this robot's setup parameters (payload, mounting, motors)
+    fixed: one library serves every setup of a structure."""
+    params = ca.DM(robot.symbolic().params)
     out = {}
     for name, ext in libs.items():
         ins = [ca.MX.sym(f"in{k}", ext.size1_in(k), ext.size2_in(k))
                for k in range(ext.n_in() - 1)]
-        out[name] = ca.Function(name, ins, [ext(*ins, ca.DM(sr.params))])
+        out[name] = ca.Function(name, ins, [ext(*ins, params)])
     return out
 
 

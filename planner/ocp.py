@@ -303,7 +303,10 @@ class Problem:
         ``fraction`` of the velocity, acceleration and torque limits.
 
         Under t -> a t on a fixed path theta_dot scales by 1/a, theta_ddot and the
-        inertial torques (tau - tau_gravity) by 1/a^2, exactly.  Samples whose gravity
+        inertial torques (tau - tau_gravity) by 1/a^2, exactly for the links and the
+        rotors; the joint friction scales less (its viscous part by 1/a), which the
+        dense check of the result covers (:meth:`_retime` keeps the original plan if it
+        fails).  Samples whose gravity
         torque alone exceeds the fraction get the largest stretch the formula allows
         (1e3-fold headroom floor), i.e. they are reported as needing a very slow motion.
         """
@@ -428,7 +431,8 @@ class Problem:
         return float(target)
 
     def _stretched(self, sol: Solution, a: float) -> Solution:
-        """``sol`` uniformly slower by ``a`` >= 1 (the path kept; torques recomputed),
+        """``sol`` with time scaled uniformly by ``a`` (slower for a > 1; the path kept,
+        rates / a, accelerations / a^2, torques recomputed with the whole model),
         dense-checked."""
         tau = np.array(self.sr.tau.map(len(sol.t))(sol.x.T, (sol.xd / a).T,
                                                     (sol.xdd / a**2).T)).T
@@ -479,16 +483,8 @@ class Problem:
         a = float(self._time_stretch(x, xd, xdd, target).max())
         if not 0.5 < a < 1.0:
             return sol
-        tau_g = np.array(self.sr.tau.map(len(sol.t))(sol.x.T, 0 * sol.xd.T, 0 * sol.xdd.T)).T
-        new = Solution(
-            found=True, status=sol.status, final_time=sol.final_time * a,
-            solve_time=sol.solve_time, iterations=sol.iterations,
-            segment_times=sol.segment_times * a, t=sol.t * a, x=sol.x, xd=sol.xd / a,
-            xdd=sol.xdd / a**2, tau=tau_g + (sol.tau - tau_g) / a**2, theta=sol.theta,
-            residuals=sol.residuals, active_limits=[], robot=sol.robot, limits=sol.limits,
-            options=sol.options, task=sol.task,
-            nlp_point=sol.nlp_point, solves=sol.solves, time_scale=a)
-        new.check = dense_check(new, factor=10)
+        new = self._stretched(sol, a)
+        assert new.check is not None
         if not new.check.ok:
             return sol
         safety = {"torque": 1.0, "velocity": 1.0, "acceleration": 1.0}

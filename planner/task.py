@@ -350,10 +350,8 @@ def move_to_start(task: Task, theta: np.ndarray, robot: Robot) -> Task:
     """A task from the robot's current actuated angles ``theta`` [rad] to ``task``'s start
     state (its first waypoint with its crank angles, at rest), for ``robot``."""
     first = task.resolved(task.robot_for(robot)).waypoints[0]
-    return Task((replace(first, stop=True, dwell=0.0),), dict(task.limits),
-                f"{task.name}_move_to_start", task.nodes_per_segment, source=None,
-                payload=task.payload, tool=task.tool, mounting=task.mounting,
-                torque_fraction=task.torque_fraction,
-                start_theta=np.asarray(theta, dtype=float), start_psi="free",
-                end_psi="free")
+    return replace(task, waypoints=(replace(first, stop=True, dwell=0.0),),
+                   name=f"{task.name}_move_to_start", source=None, frame="platform",
+                   start_theta=np.asarray(theta, dtype=float), start_psi="free",
+                   end_psi="free", duration=None, speed=None)
 

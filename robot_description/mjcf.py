@@ -29,18 +29,14 @@ import numpy as np
 import pinocchio as pin
 
 from sixplus3.robot_description.robot import Robot, _cached
-from sixplus3.robot_description.urdf import actuated_joint_names, closure_pairs
+from sixplus3.robot_description.urdf import _f, _vec, actuated_joint_names, closure_pairs
 
 #: Simulation time step [s] of the exported model.
 TIMESTEP = 1e-4
 
 
-def _f(x: float) -> str:
-    return f"{float(x):.17g}"
-
-
 def _v(v) -> str:
-    return " ".join(_f(x) for x in np.asarray(v, dtype=float).ravel())
+    return _vec(np.asarray(v, dtype=float).ravel())
 
 
 def _quat_wxyz(R: np.ndarray) -> np.ndarray:

@@ -33,7 +33,7 @@ from sixplus3.errors import GeometryError
 from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
 from sixplus3.robot_description.geometry import GRAVITY, LegGeometry
 from sixplus3.robot_description.limits import Limits
-from sixplus3.robot_description.physical import MotorModel, Payload, Tool
+from sixplus3.robot_description.physical import MotorModel, Payload, Tool, _vec
 
 if TYPE_CHECKING:
     from sixplus3.planner.model import SymbolicRobot
@@ -168,13 +168,8 @@ POINT_MASS = MassModel(point_mass=True)
 
 # ----------------------------------------------------------------------------- the robot
 def _vec3(name: str, v: Any, unit: str) -> tuple[float, float, float]:
-    try:
-        arr = [float(x) for x in v]
-    except (TypeError, ValueError):
-        raise GeometryError(name, v, f"three finite numbers [{unit}]") from None
-    if len(arr) != 3 or not all(math.isfinite(x) for x in arr):
-        raise GeometryError(name, v, f"three finite numbers [{unit}]")
-    return arr[0], arr[1], arr[2]
+    x, y, z = _vec(name, v, 3, unit)
+    return x, y, z
 
 
 #: Gravity vectors in the robot frame of the named mountings [m/s^2].

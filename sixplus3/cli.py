@@ -311,13 +311,7 @@ def robot_export(fmt: str, out_file: str | None) -> None:
         import yaml
 
         text = yaml.safe_dump(robot.as_dict(), sort_keys=False)
-    if out_file is None:
-        click.echo(text, nl=False)
-        return
-    from sixplus3.fileio import atomic_write
-
-    atomic_write(out_file, text.encode())
-    click.echo(f"wrote {out_file}", err=True)
+    _emit(text, out_file)
 
 
 @main.group()
@@ -499,6 +493,17 @@ def demo(out_dir: str) -> None:
     _run_plan(task_from_dict(demo_task(_robot())), out_dir, 1000.0, True, False)
 
 
+def _emit(text: str, out_file: str | None) -> None:
+    """``text`` to stdout, or atomically to ``out_file``."""
+    if out_file is None:
+        click.echo(text, nl=False)
+        return
+    from sixplus3.fileio import atomic_write
+
+    atomic_write(out_file, text.encode())
+    click.echo(f"wrote {out_file}", err=True)
+
+
 def _task_robot(task_file: str | None) -> Robot:
     """The invocation's robot with a task file's setup (payload, tool, mounting)."""
     robot = _robot()
@@ -634,13 +639,7 @@ def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | N
     from sixplus3.control.exports import export_file
 
     text = export_file(csv_file, _task_robot(task_file), fmt)
-    if out_file is None:
-        click.echo(text, nl=False)
-        return
-    from sixplus3.fileio import atomic_write
-
-    atomic_write(out_file, text.encode())
-    click.echo(f"wrote {out_file}", err=True)
+    _emit(text, out_file)
 
 
 @main.command()
