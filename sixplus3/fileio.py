@@ -16,6 +16,7 @@ Atomic writes of one file live here too (:func:`atomic_write`).
 
 from __future__ import annotations
 
+import errno
 import os
 from pathlib import Path
 from typing import Any
@@ -153,8 +154,22 @@ def atomic_write(path: str | Path, data: bytes) -> None:
     """Write ``data`` to ``path`` so that an interruption leaves no partial file: a
     temporary file in the same directory, flushed and fsynced, renamed over ``path``,
     then the directory fsynced.  On any error the old file is untouched and the
-    temporary file removed; the OSError propagates."""
+    temporary file removed; the OSError propagates, naming ``path``.  Only a regular
+    file (or nothing) is ever replaced: a device, a directory or a FIFO at ``path`` is
+    refused, never swapped for a file."""
+    import stat
+
     path = Path(path)
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        mode = None
+    if mode is not None and not stat.S_ISREG(mode):
+        raise IsADirectoryError(errno.EISDIR if stat.S_ISDIR(mode) else errno.EINVAL,
+                                "not a regular file, not replaced", str(path))
+    if not path.parent.is_dir():
+        raise FileNotFoundError(errno.ENOENT, "no such directory for the output",
+                                str(path))
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
         with open(tmp, "wb") as fh:

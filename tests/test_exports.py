@@ -87,3 +87,20 @@ def test_only_valid_files_are_exported(planned, tmp_path) -> None:
         export_file(path, weak, "ros2-yaml")
     with pytest.raises(InputError, match="format"):
         export_file(path, ROBOT, "excel")
+
+
+def test_outputs_never_replace_a_non_regular_file(tmp_path) -> None:
+    """An output path that is a FIFO (or a device) is refused with one line naming it,
+    exit 2, and left as it was; a missing directory is named too."""
+    import os
+    import stat
+
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    runner = CliRunner()
+    res = runner.invoke(main, ["robot", "export", "mjcf", "-o", str(fifo)])
+    assert res.exit_code == 2 and "not a regular file" in res.output and str(fifo) in res.output
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+    missing = tmp_path / "no" / "x.xml"
+    res = runner.invoke(main, ["robot", "export", "mjcf", "-o", str(missing)])
+    assert res.exit_code == 2 and str(missing) in res.output and "Traceback" not in res.output
