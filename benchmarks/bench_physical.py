@@ -5,8 +5,9 @@ the motor model plus a 0.5 kg payload; MuJoCo replay of every file; largest tilt
 
 Each variant is planned end to end (``run_plan``: plan, smooth, validate, write) with the
 default 90 % torque fraction; max |tau| is the validator's, over the hardware limit.  Each
-file is then replayed in MuJoCo (``simulate_file``, Kp 300, Kd 6, 1 kHz zero-order hold):
-tracking error, PD share of the torque, peak total torque.
+file then goes through ``validate --simulate``'s MuJoCo stage (``engine_check``): MuJoCo's
+constrained inverse dynamics against the file's torques on every sample, and the replay
+(Kp 300, Kd 6, 1 kHz zero-order hold): tracking error, PD share, peak total torque.
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from dataclasses import replace
 from pathlib import Path
 
 from sixplus3.control.pipeline import run_plan
-from sixplus3.control.simulation import simulate_file
+from sixplus3.control.simulation import engine_check
+from sixplus3.control.validation import validate_file
 from sixplus3.errors import Sixplus3Error
 from sixplus3.planner.analysis import largest_tilt
 from sixplus3.planner.task import load_task
@@ -45,8 +47,8 @@ def main() -> None:
         p for p in (ROOT / "examples").glob("*.yaml"))
     out = Path(args.out or tempfile.mkdtemp(prefix="sixplus3-physical-"))
     print("| task | model | duration [s] | max abs(tau)/limit | plan wall [s] | "
-          "MuJoCo max err [deg] | PD share | peak tau+PD [N m] |")
-    print("|---|---|---|---|---|---|---|---|")
+          "MuJoCo ID vs file [N m] | MuJoCo max err [deg] | PD share | peak tau+PD [N m] |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for path in tasks:
         task = load_task(path)
         for name, robot in VARIANTS.items():
@@ -63,11 +65,12 @@ def main() -> None:
             wall = time.perf_counter() - t0
             rep = res.report
             planned_robot = task.robot_for(robot)
-            _, sim = simulate_file(res.csv, planned_robot)
-            assert sim is not None
+            eng = engine_check(planned_robot, validate_file(res.csv, planned_robot))
+            sim = eng.simulation
             print(f"| {task.name} | {name} | {res.smoothed.duration:.4f} | "
                   f"{rep.max_torque_ratio * res.solution.limits.torque / robot.limits.torque:.3f}"
-                  f" | {wall:.1f} | {math.degrees(sim.max_tracking_error_rad):.3f} | "
+                  f" | {wall:.1f} | {eng.feedforward_error:.1e} | "
+                  f"{math.degrees(sim.max_tracking_error_rad):.3f} | "
                   f"{100 * sim.pd_share:.1f}% | {sim.peak_total_torque:.2f} |", flush=True)
     print()
     print("Largest static tilt at home [deg] (cranks free / locked at 90 deg):")
