@@ -3,8 +3,8 @@
 Per rest-to-rest piece of the plan (the whole plan, or the pieces between its stops):
 
 1. The piece is stretched uniformly in time by the smallest factor that makes it a whole
-   number of controller periods **and** keeps its jerk (sampled 4x finer than the
-   output) within the robot's jerk limit (a uniform stretch by a keeps the path and scales
+   number of controller periods **and** keeps its jerk, acceleration and speed (sampled
+   4x finer than the output) within the limits (a uniform stretch by a keeps the path and scales
    rates by 1/a, accelerations by 1/a^2 and jerk by 1/a^3: every limit only gets
    easier, the torques move towards the holding torque).
 2. Knots: the stretched plan sampled at every period, (theta, theta_dot, theta_ddot) in
@@ -138,9 +138,9 @@ def _smooth_piece(sol: Solution, t0: float, t1: float, rate: float) -> dict:
 
     The piece is stretched uniformly (jerk scales as 1/a^3, acceleration 1/a^2, speed
     1/a, so every limit only gets easier) by the smallest factor that makes it a whole
-    number of periods with its jerk (on a 4x grid) within the robot's limit; then Ruckig
-    checks every knot-to-knot transition as a jerk-, acceleration- and velocity-limited
-    profile of one period, and the transitions it cannot certify are counted.
+    number of periods with its jerk, acceleration and speed (on a 4x grid) within the
+    limits; then Ruckig checks every knot-to-knot transition as a jerk-, acceleration-
+    and velocity-limited profile of one period, and the transitions it cannot certify are counted.
     """
     lim = sol.limits
     dt = 1.0 / rate
@@ -158,8 +158,13 @@ def _smooth_piece(sol: Solution, t0: float, t1: float, rate: float) -> dict:
         th, thd, thdd, xk = th_f[::4], thd_f[::4].copy(), thdd_f[::4].copy(), x_f[::4]
         thd[[0, -1]] = 0.0  # at rest, exactly (the NLP's bounds hold them at 0)
         thdd[[0, -1]] = 0.0
-        if jerk > lim.jerk:
-            stretch = a * (jerk / lim.jerk) ** (1.0 / 3.0) * (1.0 + 1e-3)
+        # between its nodes the plan's interpolation can overshoot the node bounds
+        # slightly: the stretch covers speed (1/a) and acceleration (1/a^2) too
+        need = max(jerk / lim.jerk, 0.0) ** (1.0 / 3.0)
+        need = max(need, np.abs(thd_f).max() / lim.velocity,
+                   math.sqrt(np.abs(thdd_f).max() / lim.acceleration))
+        if need > 1.0:
+            stretch = a * need * (1.0 + 1e-3)
             continue
         late = 0
         for k in range(periods):

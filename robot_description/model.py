@@ -106,6 +106,8 @@ class ClosedLoopModel:
                                           fa.placement, fb.parentJoint, fb.placement, LWA)
             self._cm_lwa.append(cm)
             self._cd_lwa.append(cm.createData())
+        self._calcs = [(cm.calc, cd) for cm, cd in zip(self._cm_lwa, self._cd_lwa,
+                                                         strict=True)]
         self._zero_v = np.zeros(m.nv)
         q_idx, v_idx = [], []
         for name in self.actuated_names:
@@ -151,19 +153,18 @@ class ClosedLoopModel:
         placements and Jacobians (not the frame placements)."""
         m, d = self.model, self.data
         pin.computeJointJacobians(m, d, q)
-        for cm, cd in zip(self._cm_lwa, self._cd_lwa, strict=True):
-            cm.calc(m, d, cd)
+        for calc, cd in self._calcs:
+            calc(m, d, cd)
         return pin.getConstraintsJacobian(m, d, self._cm_lwa, self._cd_lwa)
 
     def drift(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """(27,) gamma: closure acceleration at a = 0 (so that Jc a + gamma = 0) [m/s^2]."""
         m, d = self.model, self.data
         pin.forwardKinematics(m, d, q, v, self._zero_v)
-        out = np.empty(3 * len(self.frame_pairs))
         acc = pin.getFrameClassicalAcceleration
-        for k, (a, b) in enumerate(self.frame_pairs):
-            out[3 * k:3 * k + 3] = acc(m, d, a, LWA).linear - acc(m, d, b, LWA).linear
-        return out
+        # the Motion difference in C++, one array per closure (the validator's hot loop)
+        return np.array([(acc(m, d, a, LWA) - acc(m, d, b, LWA)).linear
+                         for a, b in self.frame_pairs]).ravel()
 
     def frame_position(self, name: str) -> np.ndarray:
         """World position of a frame after the last kinematics update [m]."""
