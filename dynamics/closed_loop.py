@@ -220,6 +220,7 @@ class ClosedLoopDynamics:
         """
         m, d = self.model, self.data
         n = len(q)
+        theta_dot = np.asarray(theta_dot, dtype=float)
         Jc = np.empty((n, self.clm.n_constraints, m.nv))
         jac = self.clm.constraint_jacobian
         for k in range(n):
@@ -242,14 +243,37 @@ class ClosedLoopDynamics:
         a_pas = -np.einsum("nij,nj->ni", X, theta_ddot)
         H = np.empty((n, m.nv))
         drift, rnea, pas = self.clm.drift, pin.rnea, self._pas
+        moving = np.any(theta_dot != 0.0, axis=1)  # at rest the drift is exactly 0
         for k in range(n):
             ak = a[k]
-            ak[pas] = a_pas[k] - inv[k] @ drift(q[k], v[k])
+            ak[pas] = a_pas[k] - inv[k] @ drift(q[k], v[k]) if moving[k] else a_pas[k]
             H[k] = rnea(m, d, q[k], v[k], ak)
         tau = H[:, self._act] - np.einsum("nij,ni->nj", X, H[:, pas])
         tau += self._friction(theta_dot)
         tau[rcond <= SINGULAR_RCOND] = np.nan
         return tau, rcond
+
+    def holding_torques_batch(self, q: np.ndarray) -> np.ndarray:
+        """(n, 9) static actuator torques holding the robot still at n configurations
+        [N m]: tau = g_act - J_act^T y with J_pas^T y = g_pas (the closed-loop balance of
+        :meth:`actuated_inverse_dynamics_batch` at v = a = 0, one solve instead of an
+        inverse).  Singular states give NaN or inf; callers compare with a limit."""
+        m, d = self.model, self.data
+        n = len(q)
+        Jc = np.empty((n, self.clm.n_constraints, m.nv))
+        g = np.empty((n, m.nv))
+        jac, grav = self.clm.constraint_jacobian, pin.computeGeneralizedGravity
+        for k in range(n):
+            Jc[k] = jac(q[k])
+            g[k] = grav(m, d, q[k])
+        Jp = Jc[:, :, self._pas]
+        with np.errstate(all="ignore"):
+            try:
+                y = np.linalg.solve(np.swapaxes(Jp, 1, 2), g[:, self._pas, None])[..., 0]
+            except np.linalg.LinAlgError:
+                y = np.full((n, len(self._pas)), np.nan)
+            tau = g[:, self._act] - np.einsum("nij,ni->nj", Jc[:, :, self._act], y)
+        return tau
 
     def gravity_torques(self, q: np.ndarray) -> np.ndarray:
         """Static actuator torques holding the robot still at q [N m]."""

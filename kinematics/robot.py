@@ -441,17 +441,19 @@ def leg_segments(cfg: RobotConfig) -> np.ndarray:
     return out
 
 
-def leg_clearance(cfg: RobotConfig) -> np.ndarray:
+def leg_clearance(cfg: RobotConfig, rows: np.ndarray | None = None) -> np.ndarray:
     """(n,) smallest surface distance between links of different legs [m] (negative:
     interference), with every link a capsule of radius ``LINK_RADIUS``.
 
     Only the moving upper links are compared (AD, DP, GE, HF): the short cranks BG, CH of
     adjacent legs start 1.3 cm apart at the corners of the base triangle by design
     (l6 = l7 = 0.13 m, the paper's minimum from its CAD), which is the base layout's
-    business, not the motion's.
+    business, not the motion's.  ``rows`` (n,) bool: compute only those rows (the others
+    get -inf, like unsolved ones).
     """
-    seg = leg_segments(cfg)
-    best = np.full(len(cfg), np.inf)
+    sel = cfg.ok if rows is None else cfg.ok & np.asarray(rows, dtype=bool)
+    seg = leg_segments(cfg)[sel]
+    best = np.full(len(seg), np.inf)
     upper = (0, 1, 3, 5)
     for i in range(NUM_LEGS):
         for j in range(i + 1, NUM_LEGS):
@@ -460,7 +462,9 @@ def leg_clearance(cfg: RobotConfig) -> np.ndarray:
                     d = _segment_distance(seg[:, i, a, 0], seg[:, i, a, 1],
                                           seg[:, j, b, 0], seg[:, j, b, 1])
                     best = np.minimum(best, d)
-    return np.where(cfg.ok, best - 2 * LINK_RADIUS, -np.inf)
+    out = np.full(len(cfg), -np.inf)
+    out[sel] = best - 2 * LINK_RADIUS
+    return out
 
 
 

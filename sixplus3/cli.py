@@ -413,6 +413,86 @@ def report(ws_step: float) -> None:
     click.echo(leg_report(_robot(), ws_step=ws_step))
 
 
+@main.command()
+@click.option("-o", "--out", "out_dir", default="out/atlas", show_default=True,
+              type=click.Path(file_okay=False), help="Output directory (atlas.nc, PNGs).")
+@click.option("--step", default=0.02, show_default=True, type=float,
+              help="Position grid step [m].")
+@click.option("--azimuth-step", default=15.0, show_default=True, type=float,
+              help="Tilt-direction step [deg] (tilt-axis azimuths 0..360).")
+@click.option("--torsion", "torsions", multiple=True, type=float,
+              help="Torsion angle [deg] (repeat for several; default 0).")
+@click.option("--max-tilt", default=180.0, show_default=True, type=float,
+              help="Largest tilt searched [deg].")
+@click.option("--resolution", default=1.0, show_default=True, type=float,
+              help="Bisection resolution of the tilt [deg].")
+@click.option("--z", "z_range", nargs=2, type=float, default=None,
+              help="Only heights in [ZMIN, ZMAX] [m] (default: the reachable region).")
+@click.option("--workers", default=2, show_default=True, type=int,
+              help="Dask LocalCluster worker processes (one thread each).")
+@click.option("--scheduler", default=None,
+              help="A Dask scheduler address (tcp://host:8786) instead of a LocalCluster; "
+              "'synchronous' runs in this process.")
+@click.option("--chunk", default=48, show_default=True, type=int,
+              help="Positions per Dask task.")
+@click.option("--no-figures", is_flag=True, help="Write only the data file.")
+def atlas(out_dir: str, step: float, azimuth_step: float, torsions: tuple[float, ...],
+          max_tilt: float, resolution: float, z_range: tuple[float, float] | None,
+          workers: int, scheduler: str | None, chunk: int, no_figures: bool) -> None:
+    """The orientation-workspace atlas: the largest tilt in every direction at every
+    position, cranks free vs locked (NetCDF + maps; docs/atlas.md)."""
+    import time
+    from pathlib import Path
+
+    import numpy as np
+
+    from sixplus3.design import atlas as at
+
+    st = at.AtlasSettings(step=step, azimuth_step_deg=azimuth_step,
+                          torsions_deg=tuple(torsions) or (0.0,), max_tilt_deg=max_tilt,
+                          resolution_deg=resolution).check()
+    at.check_run(workers, chunk)
+    if z_range is not None and not (all(math.isfinite(v) for v in z_range)
+                                    and 0 < z_range[0] <= z_range[1] <= 3):
+        _fail(f"--z must be 0 < ZMIN <= ZMAX <= 3 m, got {z_range[0]!r} {z_range[1]!r}")
+    robot = _robot()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    xs, ys, zs = at.position_grid(robot, st.step)
+    if z_range is not None:
+        lo, hi = z_range
+        zs = zs[(zs >= lo - 1e-9) & (zs <= hi + 1e-9)]
+        if not len(zs):
+            _fail(f"--z [{lo}, {hi}] m holds no grid height (the grid has "
+                  f"{at.position_grid(robot, st.step)[2][[0, -1]].round(3).tolist()} m)")
+    npos = len(xs) * len(ys) * len(zs)
+    where = f"LocalCluster of {workers} workers" if scheduler is None else scheduler
+    click.echo(f"atlas of {robot.name}: {npos} positions ({len(xs)} x {len(ys)} x {len(zs)},"
+               f" {st.step * 100:g} cm) x {len(st.azimuths_deg)} directions x "
+               f"{len(st.torsions_deg)} torsion(s), cranks free and locked; {where}")
+    t0 = time.perf_counter()
+    ds = at.compute_atlas(robot, st, scheduler=scheduler, workers=workers, chunk=chunk,
+                          grid=(xs, ys, zs), progress=True)
+    path = at.save(ds, out / "atlas.nc")
+    click.echo(f"wrote {path} ({time.perf_counter() - t0:.1f} s)")
+    if not no_figures:
+        polar = at.home_polar(robot, st)
+        for f in at.figures(ds, out, robot, polar):
+            click.echo(f"wrote {f}")
+        click.echo("at home, largest tilt over directions: free "
+                   f"{np.nanmin(polar['free']):.1f} deg (min) .. {np.nanmax(polar['free']):.1f}"
+                   f" (max); locked {np.nanmin(polar['locked']):.1f} .. "
+                   f"{np.nanmax(polar['locked']):.1f} deg")
+    vol = at.volumes(ds)
+    t = next(iter(vol["free"]))
+    click.echo("volume where every direction tilts at least [L]: "
+               + "; ".join(f"{k:g} deg: free {vol['free'][t][k]:.2f}, locked "
+                           f"{vol['locked'][t][k]:.2f}" for k in at.THRESHOLDS_DEG)
+               + f" (zero-tilt workspace: free {vol['free'][t]['zero tilt']:.2f}, locked "
+               f"{vol['locked'][t]['zero tilt']:.2f})")
+    click.echo(at.headline(ds))
+
+
 #: Controller rates accepted [Hz].
 RATE_RANGE = (10.0, 10000.0)
 

@@ -1,0 +1,679 @@
+"""The orientation-workspace atlas: how far the platform tilts, everywhere, in every
+direction, with the three redundant cranks free versus locked at home.
+
+For every platform-centre position of a grid, every tilt direction and every torsion,
+the atlas reports the **largest tilt** [deg] of an admissible pose, found by the scheme
+of :func:`sixplus3.planner.analysis.largest_tilt`: a scan in ``scan_deg`` steps from 0 to
+the first inadmissible tilt, then bisection to ``resolution_deg``.  A position whose
+zero-tilt pose is inadmissible gets NaN.
+
+Orientation: R = Rot(axis(beta), alpha) @ Rz(torsion), with axis(beta) = (cos beta,
+sin beta, 0).  beta is the **tilt-axis azimuth** (0 deg: a rotation about +x, the
+``largest_tilt(axis="x")`` case; 90 deg: about +y), alpha >= 0 the tilt; the azimuths
+cover 0..360 deg because +alpha about beta is -alpha about beta + 180 deg.
+
+A pose is **admissible** when some candidate crank choice passes, in this order (the
+first check no candidate passes is the pose's ``binding`` code):
+
+1. ``reach``      every chain in reach (closed-form IK);
+2. ``theta``      every actuated angle in the robot's actuated range;
+3. ``spherical``  every spherical joint within the robot's spherical limit;
+4. ``leg margin`` every leg's type I and type II singularity margin >= the robot's
+                  ``limits.margin``;
+5. ``clearance``  no interference between the links of different legs;
+6. ``platform``   the platform's singularity margin >= ``limits.margin``;
+7. ``torque``     the static holding torque (Pinocchio, closed loop, with the robot's
+                  payload and mounting) within ``limits.torque`` on all nine motors.
+
+Candidates:
+
+- ``locked``: the cranks at the robot's home angles (one candidate);
+- ``free``: a searched choice.  The redundant joint of leg i moves only leg i's chain,
+  so checks 1-4 are done leg by leg on a grid of ``psi_step_deg`` over the planner's crank
+  range [45, 135] deg; the two best values per leg (by the leg's smallest margin) form
+  2^3 combinations, checked with 5-7, together with the home angles.  The free result is
+  therefore a lower bound on the exhaustive search's largest tilt (a finite search), and
+  it is never below the locked result: the free candidates include the locked one at
+  every tilt, and the scan and bisection then keep free >= locked (tests check it).
+
+Work is split into chunks of positions, each a Dask task (``dask.distributed``: a
+``LocalCluster`` by default, a scheduler address for a real cluster, or
+``scheduler="synchronous"`` to run in this process).  Every chunk is vectorised over its
+(position, direction, torsion) pairs: one batched IK call per bisection step.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from sixplus3.errors import InputError
+from sixplus3.kinematics.robot import leg_clearance, platform_margin, robot_ik, spherical_tilts
+from sixplus3.kinematics.rotations import matrix_from_rotvec
+from sixplus3.robot_description.robot import Robot
+
+if TYPE_CHECKING:  # pragma: no cover
+    import xarray as xr
+
+#: Binding codes (the first check no candidate passes just beyond the largest tilt).
+BINDING = ("none", "reach", "theta", "spherical", "leg margin", "clearance", "platform",
+           "torque", "max tilt")
+CRANKS = ("free", "locked")
+#: The planner's crank range (planner.ocp.PSI_MIN, PSI_MAX) [deg].
+PSI_RANGE_DEG = (45.0, 135.0)
+#: Volumes reported for "every direction tilts at least" these angles [deg].
+THRESHOLDS_DEG = (30.0, 45.0, 60.0, 90.0)
+
+
+@dataclass(frozen=True)
+class AtlasSettings:
+    """What the atlas computes; every value in the file's attributes."""
+
+    step: float = 0.02  # position grid [m]
+    azimuth_step_deg: float = 15.0  # tilt-axis azimuths 0, step, .. < 360 [deg]
+    torsions_deg: tuple[float, ...] = (0.0,)  # [deg]
+    max_tilt_deg: float = 180.0
+    scan_deg: float = 15.0  # the scan step before bisection [deg]
+    resolution_deg: float = 1.0  # bisection resolution [deg]
+    psi_step_deg: float = 7.5  # per-leg crank grid of the free search [deg]
+
+    def check(self) -> AtlasSettings:
+        vals = {"step": (self.step, 0.002, 0.2), "azimuth_step_deg": (self.azimuth_step_deg,
+                                                                      1.0, 180.0),
+                "max_tilt_deg": (self.max_tilt_deg, 1.0, 180.0),
+                "scan_deg": (self.scan_deg, 0.5, 90.0),
+                "resolution_deg": (self.resolution_deg, 0.01, 10.0),
+                "psi_step_deg": (self.psi_step_deg, 1.0, 45.0)}
+        for name, (v, lo, hi) in vals.items():
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
+                raise InputError(f"atlas {name} must be in [{lo:g}, {hi:g}], got {v!r}",
+                                 value=v, valid=f"[{lo:g}, {hi:g}]")
+        tors = tuple(self.torsions_deg)
+        if not tors or len(tors) > 36 or not all(
+                isinstance(t, (int, float)) and math.isfinite(t) and -180 <= t <= 180
+                for t in tors):
+            raise InputError(f"atlas torsions must be 1..36 angles in [-180, 180] deg, "
+                             f"got {tors!r}", value=tors, valid="[-180, 180] deg")
+        return self
+
+    @property
+    def azimuths_deg(self) -> np.ndarray:
+        return np.arange(0.0, 360.0 - 1e-9, self.azimuth_step_deg)
+
+
+# --------------------------------------------------------------------- one batch of poses
+def rotations(azimuth_deg: ArrayLike, tilt_deg: ArrayLike,
+              torsion_deg: ArrayLike) -> np.ndarray:
+    """(n, 3, 3) R = Rot(axis(azimuth), tilt) @ Rz(torsion), arrays broadcast to (n,)."""
+    b, a, t = np.broadcast_arrays(np.radians(azimuth_deg), np.radians(tilt_deg),
+                                  np.radians(torsion_deg))
+    tilt = matrix_from_rotvec(np.c_[np.cos(b.ravel()), np.sin(b.ravel()),
+                                    np.zeros(b.size)] * a.ravel()[:, None])
+    return tilt @ matrix_from_rotvec(np.c_[np.zeros((t.size, 2)), t.ravel()])
+
+
+class _Checker:
+    """Admissibility of batches of poses for one robot (module doc)."""
+
+    def __init__(self, robot: Robot, psi_step_deg: float):
+        from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+
+        self.robot = robot
+        self.lim = robot.limits
+        self.dyn = ClosedLoopDynamics(robot)
+        lo, hi = PSI_RANGE_DEG
+        self.psi_grid = np.radians(np.arange(lo, hi + 1e-9, psi_step_deg))
+        self.home = np.asarray(robot.home_psi, dtype=float)
+
+    def _leg_scores(self, pos: np.ndarray, R: np.ndarray):
+        """Per-leg checks 1-4 on the crank grid: (stage reached (n, G, 3), score)."""
+        n, G = len(pos), len(self.psi_grid)
+        psi = np.repeat(self.psi_grid[None, :, None], n, axis=0)
+        psi = np.broadcast_to(psi, (n, G, 3)).reshape(-1, 3)
+        cfg = robot_ik(np.repeat(pos, G, axis=0), np.repeat(R, G, axis=0), psi, self.robot,
+                       platform_margins=False)
+        lim = self.lim
+        reach = cfg.leg_status == 0  # (nG, 3)
+        th = cfg.theta.reshape(-1, 3, 3)
+        theta = reach & np.all((th >= lim.theta_min) & (th <= lim.theta_max), axis=2)
+        sph = theta & np.all(spherical_tilts(cfg) <= lim.spherical, axis=2)
+        m = np.minimum(cfg.margins.leg_type1, cfg.margins.leg_type2)
+        margin = sph & (m >= lim.margin)
+        stage = reach.astype(np.int8) + theta + sph + margin  # 0..4 checks passed
+        score = np.where(margin, m, -np.inf)
+        return stage.reshape(n, G, 3), score.reshape(n, G, 3)
+
+    def _full(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray,
+              legs_ok: np.ndarray | None = None):
+        """Checks of (n, k) candidate crank choices psi (n, k, 3): (stage (n, k) = number
+        of checks 1-7 passed, margin (n, k): the smallest margin where all pass, else
+        -inf).  ``legs_ok`` (n, k): checks 1-4 already known to pass (the free search's
+        leg-wise results), so only 5-7 are computed.
+
+        Costs go to the rows still alive: clearance after the leg checks, the platform
+        SVD after clearance, and the Pinocchio holding torque only for the best-margin
+        candidate of each pose, then the next best where it fails.
+        """
+        n, k = psi.shape[:2]
+        lim = self.lim
+        cfg = robot_ik(np.repeat(pos, k, axis=0), np.repeat(R, k, axis=0),
+                       psi.reshape(-1, 3), self.robot, platform_margins=False)
+        legm_margin = np.minimum(cfg.margins.leg_type1, cfg.margins.leg_type2).min(axis=1)
+        if legs_ok is None:
+            reach = cfg.ok
+            theta = reach & np.all((cfg.theta >= lim.theta_min)
+                                   & (cfg.theta <= lim.theta_max), axis=1)
+            sph = theta.copy()
+            if theta.any():
+                sph[theta] = np.all(spherical_tilts(_rows(cfg, theta)) <= lim.spherical,
+                                    axis=(1, 2))
+            legm = sph & (legm_margin >= lim.margin)
+            stage = reach.astype(np.int8) + theta + sph + legm
+        else:
+            legm = legs_ok.reshape(-1) & cfg.ok
+            stage = np.where(legm, 4, 3).astype(np.int8)
+        clear = legm & (leg_clearance(cfg, legm) >= 0.0)
+        plat = clear.copy()
+        if clear.any():
+            pm = platform_margin(cfg.rotation[clear], cfg.P[clear], cfg.position[clear],
+                                 self.robot.geometry)
+            plat[clear] = pm >= lim.margin
+            margin_all = np.full(n * k, -np.inf)
+            margin_all[clear] = np.minimum(pm, legm_margin[clear])
+        else:
+            margin_all = np.full(n * k, -np.inf)
+        margin_all = np.where(plat, margin_all, -np.inf).reshape(n, k)
+        stage = (stage + clear + plat).reshape(n, k)
+        # torque, lazily: best candidate first, then the next best where it fails
+        torque = np.zeros((n, k), dtype=bool)
+        order = np.argsort(-margin_all, axis=1)
+        undecided = np.ones(n, dtype=bool)
+        for r in range(k):
+            j = order[:, r]
+            cand = undecided & (margin_all[np.arange(n), j] > -np.inf)
+            if not cand.any():
+                break
+            rows = np.flatnonzero(cand)
+            flat = rows * k + j[rows]
+            tau = self.dyn.holding_torques_batch(cfg.q[flat])
+            good = np.all(np.abs(tau) <= lim.torque, axis=1)  # NaN (singular): False
+            torque[rows[good], j[rows[good]]] = True
+            undecided[rows[good]] = False
+        stage = stage + torque
+        return stage, np.where(torque, margin_all, -np.inf)
+
+    def admissible(self, pos: np.ndarray, R: np.ndarray, free: bool):
+        """(ok (n,), psi (n, 3) [rad] of the chosen candidate, binding code (n,))."""
+        n = len(pos)
+        home = np.broadcast_to(self.home, (n, 1, 3))
+        if not free:
+            s_home, m_home = self._full(pos, R, home)
+            return self._pick(home, s_home, m_home, np.zeros(n, dtype=np.int8))
+        stage_leg, score = self._leg_scores(pos, R)
+        best = np.argmax(score, axis=1)  # (n, 3)
+        second = np.argsort(-score, axis=1)[:, 1, :]
+        has2 = np.take_along_axis(score, second[:, None, :], axis=1)[:, 0] > -np.inf
+        second = np.where(has2, second, best)
+        # candidates: the best value per leg, and each leg in turn at its second best
+        idx = np.stack([best] + [np.where(np.arange(3) == i, second, best)
+                                 for i in range(3)], axis=1)  # (n, 4, 3)
+        cand = np.concatenate([self.psi_grid[idx], home], axis=1)  # + home: (n, 5, 3)
+        leg_best = stage_leg.max(axis=1)  # (n, 3) checks passed by each leg's best value
+        live = np.all(leg_best >= 4, axis=1)
+        stage = np.zeros((n, 5), dtype=np.int8)
+        margin = np.full((n, 5), -np.inf)
+        if live.any():
+            s, m = self._full(pos[live], R[live], cand[live, :4],
+                              legs_ok=np.ones((int(live.sum()), 4), dtype=bool))
+            stage[live, :4], margin[live, :4] = s, m
+        # the home candidate wherever no searched one passed: free >= locked by construction
+        rest = ~np.any(margin[:, :4] > -np.inf, axis=1)
+        if rest.any():
+            s, m = self._full(pos[rest], R[rest], home[rest])
+            stage[rest, 4:], margin[rest, 4:] = s, m
+        dead = np.where(live, 0, leg_best.min(axis=1)).astype(np.int8)
+        return self._pick(cand, stage, margin, dead)
+
+    @staticmethod
+    def _pick(cand: np.ndarray, stage: np.ndarray, margin: np.ndarray, dead: np.ndarray):
+        n = len(cand)
+        best = np.argmax(margin, axis=1)
+        ok = margin[np.arange(n), best] > -np.inf
+        psi = cand[np.arange(n), best]
+        reached = np.maximum(stage.max(axis=1), dead)
+        binding = np.where(ok, 0, reached + 1).astype(np.int8)  # 1 = reach .. 7 = torque
+        return ok, psi, binding
+
+
+def _rows(cfg, mask: np.ndarray):
+    """The rows ``mask`` of a RobotConfig as a new RobotConfig (for costly checks)."""
+    from dataclasses import fields, replace
+
+    from sixplus3.kinematics.robot import RobotMargins
+
+    def cut(obj):
+        return replace(obj, **{f.name: getattr(obj, f.name)[mask] for f in fields(obj)
+                               if isinstance(getattr(obj, f.name), np.ndarray)
+                               and getattr(obj, f.name).shape[:1] == mask.shape})
+
+    mg = cfg.margins
+    return replace(cut(cfg), legs=tuple(cut(s) for s in cfg.legs),
+                   margins=RobotMargins(mg.leg_type1[mask], mg.leg_type2[mask],
+                                        mg.platform[mask]))
+
+
+def largest_tilts(robot: Robot, positions: np.ndarray, azimuths_deg: ArrayLike,
+                  torsions_deg: ArrayLike = (0.0,), settings: AtlasSettings | None = None,
+                  checker: _Checker | None = None) -> dict[str, np.ndarray]:
+    """The atlas kernel: largest admissible tilt [deg] at ``positions`` (m, 3) [m] for
+    every azimuth and torsion [deg], cranks free and locked.
+
+    Returns arrays shaped (2, T, A, m) (cranks, torsion, azimuth, position):
+    ``max_tilt`` [deg] (NaN: the zero-tilt pose is inadmissible), ``binding`` (code into
+    :data:`BINDING`: what fails just beyond), and ``psi`` (2, T, A, m, 3) [deg] the crank
+    angles of the admissible pose at ``max_tilt``.
+    """
+    st = (settings or AtlasSettings()).check()
+    chk = checker or _Checker(robot, st.psi_step_deg)
+    pos = np.asarray(positions, dtype=float).reshape(-1, 3)
+    az = np.asarray(azimuths_deg, dtype=float)
+    tor = np.asarray(torsions_deg, dtype=float)
+    m, A, T = len(pos), len(az), len(tor)
+    # pairs, torsion-major: (T, A, m)
+    P = np.broadcast_to(pos[None, None], (T, A, m, 3)).reshape(-1, 3)
+    B = np.broadcast_to(az[None, :, None], (T, A, m)).ravel()
+    Z = np.broadcast_to(tor[:, None, None], (T, A, m)).ravel()
+    n = len(P)
+    out_tilt = np.full((2, n), np.nan)
+    out_bind = np.zeros((2, n), dtype=np.int8)
+    out_psi = np.full((2, n, 3), np.nan)
+    for c, free in enumerate((True, False)):
+        # zero tilt: the same pose for every azimuth of a (torsion, position)
+        P0 = np.broadcast_to(pos[None], (T, m, 3)).reshape(-1, 3)
+        Z0 = np.broadcast_to(tor[:, None], (T, m)).ravel()
+        ok0, psi0, b0 = (np.broadcast_to(x.reshape(T, 1, m, *x.shape[1:]),
+                                         (T, A, m, *x.shape[1:])).reshape(n, *x.shape[1:])
+                         for x in chk.admissible(P0, rotations(0.0, 0.0, Z0), free))
+        lo = np.where(ok0, 0.0, np.nan)
+        best_psi = np.where(ok0[:, None], psi0, np.nan)
+        bind = np.where(ok0, 0, b0).astype(np.int8)
+        hi = np.full(n, np.nan)
+        active = ok0.copy()
+        # scan upwards until the first inadmissible tilt
+        t = 0.0
+        while active.any():
+            t = min(t + st.scan_deg, st.max_tilt_deg)
+            idx = np.flatnonzero(active)
+            ok, psi, b = chk.admissible(P[idx], rotations(B[idx], t, Z[idx]), free)
+            lo[idx[ok]], best_psi[idx[ok]] = t, psi[ok]
+            hi[idx[~ok]], bind[idx[~ok]] = t, b[~ok]
+            active[idx[~ok]] = False
+            if t >= st.max_tilt_deg:
+                bind[idx[ok]] = BINDING.index("max tilt")
+                active[:] = False
+        # bisection inside the first failing scan interval
+        while True:
+            idx = np.flatnonzero(np.isfinite(hi) & (hi - lo > st.resolution_deg))
+            if not len(idx):
+                break
+            mid = 0.5 * (lo[idx] + hi[idx])
+            ok, psi, b = chk.admissible(P[idx], rotations(B[idx], mid, Z[idx]), free)
+            lo[idx[ok]], best_psi[idx[ok]] = mid[ok], psi[ok]
+            hi[idx[~ok]], bind[idx[~ok]] = mid[~ok], b[~ok]
+        out_tilt[c], out_bind[c], out_psi[c] = lo, bind, best_psi
+    return {"max_tilt": out_tilt.reshape(2, T, A, m),
+            "binding": out_bind.reshape(2, T, A, m),
+            "psi": np.degrees(out_psi).reshape(2, T, A, m, 3)}
+
+
+# --------------------------------------------------------------------- the grid
+def position_grid(robot: Robot, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(xs, ys, zs) [m] of a grid covering the robot's reachable region: the box around
+    every position where some leg-wise crank choice reaches the level platform, from
+    the leg reach on a coarse grid, plus one step of margin."""
+    g = robot.geometry
+    # no leg reaches further than base radius + |D - A| + |P - D| from the centre
+    extent = min(2.0, g.base_radius + g.leg.l1 + g.leg.dp + g.platform_radius
+                 + g.platform_crank)
+    coarse = 0.04
+    axis = np.arange(-extent, extent + 1e-9, coarse)
+    zs = np.arange(coarse, extent + 1e-9, coarse)
+    X, Y = np.meshgrid(axis, axis, indexing="ij")
+    chk = _Checker(robot, 15.0)
+    inside = []
+    for z in zs:
+        pos = np.c_[X.ravel(), Y.ravel(), np.full(X.size, z)]
+        stage, _ = chk._leg_scores(pos, np.broadcast_to(np.eye(3), (len(pos), 3, 3)))
+        ok = np.all(stage.max(axis=1) >= 1, axis=1)  # every leg reaches, some crank
+        if ok.any():
+            inside.append(pos[ok])
+    if not inside:
+        raise InputError("no position reaches the level platform: the robot has no "
+                         "workspace", value=robot.name, valid="a robot with a workspace")
+    pts = np.vstack(inside)
+    lo, hi = pts.min(axis=0) - coarse, pts.max(axis=0) + coarse
+    lo[2] = max(lo[2], step)
+
+    def ax(a: float, b: float) -> np.ndarray:
+        # symmetric about 0 in x and y so the home position's column is on the grid
+        return np.round(np.arange(math.floor(a / step), math.ceil(b / step) + 1) * step, 9)
+
+    return ax(lo[0], hi[0]), ax(lo[1], hi[1]), ax(lo[2], hi[2])
+
+
+# --------------------------------------------------------------------- Dask driver
+def _chunk_task(robot: Robot, positions: np.ndarray, settings: AtlasSettings,
+                ) -> dict[str, np.ndarray]:
+    """One Dask task: the kernel over a chunk of positions.
+
+    The batched IK kernel is a numba ``prange`` loop; with one task per core its threads
+    would oversubscribe the cores (measured: 3-9x slower with 2 workers on 2 cores), so a
+    task runs it on one thread.
+    """
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        return largest_tilts(robot, positions, settings.azimuths_deg, settings.torsions_deg,
+                             settings)
+    finally:
+        numba.set_num_threads(before)
+
+
+def check_run(workers: int, chunk: int) -> None:
+    """Refuse a worker count or chunk size out of range (before anything runs)."""
+    if not (isinstance(workers, int) and 1 <= workers <= 1024):
+        raise InputError(f"workers must be an integer in [1, 1024], got {workers!r}",
+                         value=workers, valid="[1, 1024]")
+    if not (isinstance(chunk, int) and 1 <= chunk <= 100000):
+        raise InputError(f"chunk must be an integer in [1, 100000], got {chunk!r}",
+                         value=chunk, valid="[1, 100000]")
+
+
+def compute_atlas(robot: Robot | None = None, settings: AtlasSettings | None = None,
+                  scheduler: str | None = None, workers: int = 2, chunk: int = 64,
+                  grid: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+                  progress: Callable[[int, int], None] | bool = False) -> xr.Dataset:
+    """The atlas of ``robot`` (default ``Robot.default()``) as an xarray Dataset.
+
+    ``scheduler``: None starts a ``dask.distributed.LocalCluster`` of ``workers``
+    single-threaded worker processes; ``"synchronous"`` runs the chunks in this process
+    (tests, debugging); anything else is a scheduler address (``tcp://host:8786``).
+    ``chunk``: positions per Dask task.  ``grid``: (xs, ys, zs) [m] instead of
+    :func:`position_grid`.  ``progress``: True for a tqdm bar, or a callback(done, total).
+    """
+    import time
+
+    robot = robot or Robot.default()
+    st = (settings or AtlasSettings()).check()
+    check_run(workers, chunk)
+    xs, ys, zs = grid if grid is not None else position_grid(robot, st.step)
+    X, Y, Z = np.meshgrid(xs, ys, zs, indexing="ij")
+    pts = np.c_[X.ravel(), Y.ravel(), Z.ravel()]
+    chunks = [pts[i:i + chunk] for i in range(0, len(pts), chunk)]
+    t0 = time.perf_counter()
+    results = _run_chunks(robot, chunks, st, scheduler, workers, progress)
+    wall = time.perf_counter() - t0
+    cat = {k: np.concatenate([r[k] for r in results], axis=3) for k in results[0]}
+    shape = (2, len(st.torsions_deg), len(st.azimuths_deg), len(xs), len(ys), len(zs))
+    return _dataset(robot, st, xs, ys, zs, cat, shape, wall, len(pts),
+                    workers if scheduler is None else None)
+
+
+def _run_chunks(robot: Robot, chunks: list, st: AtlasSettings, scheduler: str | None,
+                workers: int, progress) -> list[dict]:
+    bar = None
+    total = len(chunks)
+    if progress is True:
+        from tqdm import tqdm
+
+        bar = tqdm(total=total, unit="chunk", desc="atlas", leave=False)
+
+    def tick(done: int) -> None:
+        if bar is not None:
+            bar.update(1)
+        elif callable(progress):
+            progress(done, total)
+
+    out: list[Any] = [None] * total
+    try:
+        if scheduler == "synchronous":
+            for i, c in enumerate(chunks):
+                out[i] = _chunk_task(robot, c, st)
+                tick(i + 1)
+            return out
+        from dask.distributed import Client, LocalCluster, as_completed
+
+        cluster = None
+        if scheduler is None:
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=40)
+            client = Client(cluster)
+        else:
+            client = Client(scheduler, timeout=30)
+        try:
+            r = client.scatter(robot, broadcast=True)
+            futs = [client.submit(_chunk_task, r, c, st, pure=False) for c in chunks]
+            index = {f.key: i for i, f in enumerate(futs)}
+            for done, f in enumerate(as_completed(futs), 1):
+                out[index[f.key]] = f.result()
+                tick(done)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        return out
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _dataset(robot: Robot, st: AtlasSettings, xs, ys, zs, cat: dict, shape: tuple,
+             wall: float, npos: int, workers: int | None) -> xr.Dataset:
+    import xarray as xr
+
+    import sixplus3
+
+    dims = ("cranks", "torsion", "azimuth", "x", "y", "z")
+    tilt = cat["max_tilt"].reshape(shape).astype(np.float32)
+    bind = cat["binding"].reshape(shape).astype(np.int8)
+    psi = cat["psi"].reshape(*shape, 3).astype(np.float32)
+    ds = xr.Dataset(
+        {"max_tilt": (dims, tilt, {
+            "units": "degree", "long_name": "largest admissible tilt",
+            "description": "largest tilt about the horizontal axis at the given azimuth "
+                           "(scan then bisection); NaN where the zero-tilt pose is "
+                           "inadmissible"}),
+         "binding": (dims, bind, {
+             "long_name": "first check failing just beyond max_tilt",
+             "flag_values": np.arange(len(BINDING), dtype=np.int8),
+             "flag_meanings": " ".join(b.replace(" ", "_") for b in BINDING)}),
+         "psi": ((*dims, "leg"), psi, {
+             "units": "degree", "long_name": "crank angles of the admissible pose at "
+                                             "max_tilt"})},
+        coords={"cranks": ("cranks", list(CRANKS), {"description": "free: searched crank "
+                                                    "angles; locked: the home angles"}),
+                "torsion": ("torsion", np.asarray(st.torsions_deg, dtype=float),
+                            {"units": "degree", "long_name": "rotation about the platform "
+                             "normal, applied before the tilt"}),
+                "azimuth": ("azimuth", st.azimuths_deg,
+                            {"units": "degree", "long_name": "tilt-axis azimuth from +x"}),
+                "x": ("x", np.asarray(xs), {"units": "m"}),
+                "y": ("y", np.asarray(ys), {"units": "m"}),
+                "z": ("z", np.asarray(zs), {"units": "m", "long_name": "platform centre "
+                                            "height above the base"}),
+                "leg": ("leg", np.arange(3))},
+        attrs={"title": "sixplus3 orientation-workspace atlas",
+               "software": f"sixplus3 {getattr(sixplus3, '__version__', '')}".strip(),
+               "robot_name": robot.name, "robot_hash": robot.hash,
+               "robot_mode": robot.mode.name, "home_position_m": list(robot.home_position),
+               "home_psi_deg": np.degrees(robot.home_psi).tolist(),
+               "limit_torque_Nm": robot.limits.torque,
+               "limit_margin": robot.limits.margin,
+               "limit_spherical_deg": math.degrees(robot.limits.spherical),
+               "limit_theta_deg": [math.degrees(robot.limits.theta_min),
+                                   math.degrees(robot.limits.theta_max)],
+               "payload_kg": robot.payload.mass,
+               "gravity": list(robot.gravity),
+               "step_m": st.step, "azimuth_step_deg": st.azimuth_step_deg,
+               "max_tilt_deg": st.max_tilt_deg, "scan_deg": st.scan_deg,
+               "resolution_deg": st.resolution_deg, "psi_step_deg": st.psi_step_deg,
+               "psi_range_deg": list(PSI_RANGE_DEG),
+               "positions": npos, "wall_time_s": round(wall, 3),
+               "workers": workers if workers is not None else "external scheduler",
+               "definitions": "see sixplus3.design.atlas and docs/atlas.md"})
+    return ds
+
+
+# --------------------------------------------------------------------- summaries
+def all_directions(ds: xr.Dataset) -> xr.DataArray:
+    """Smallest over the azimuths of the largest tilt [deg]: how far the platform tilts
+    in *every* direction (NaN outside the zero-tilt workspace)."""
+    return ds["max_tilt"].min("azimuth", skipna=False)
+
+
+def volumes(ds: xr.Dataset, thresholds_deg: ArrayLike = THRESHOLDS_DEG) -> dict:
+    """{cranks: {torsion: {threshold: litres}}}: volume of the positions where every
+    direction tilts at least each threshold (each grid cell counts step^3)."""
+    step = float(ds.attrs["step_m"])
+    alld = all_directions(ds)
+    out: dict = {}
+    for c in ds["cranks"].values.tolist():
+        out[c] = {}
+        for t in ds["torsion"].values.tolist():
+            a = alld.sel(cranks=c, torsion=t).values
+            row: dict[str | float, float] = {
+                "zero tilt": float(np.isfinite(a).sum()) * step**3 * 1e3}
+            for th in np.atleast_1d(np.asarray(thresholds_deg, dtype=float)).tolist():
+                row[float(th)] = float((np.nan_to_num(a, nan=-1.0) >= th).sum()) * step**3 * 1e3
+            out[c][float(t)] = row
+    return out
+
+
+def headline(ds: xr.Dataset, threshold_deg: float = 45.0) -> str:
+    """One sentence: the volume where every direction tilts >= threshold, free vs locked
+    (at zero torsion, or the first torsion)."""
+    v = volumes(ds, (threshold_deg,))
+    t = 0.0 if 0.0 in v["free"] else next(iter(v["free"]))
+    return (f"with the cranks free, the platform tilts >= {threshold_deg:g} deg in every "
+            f"direction over {v['free'][t][float(threshold_deg)]:.2f} L of workspace; "
+            f"locked at home, {v['locked'][t][float(threshold_deg)]:.2f} L "
+            f"(torsion {t:g} deg, {ds.attrs['step_m'] * 100:g} cm grid, "
+            f"{ds.attrs['azimuth_step_deg']:g} deg directions)")
+
+
+def home_polar(robot: Robot, settings: AtlasSettings | None = None,
+               azimuth_step_deg: float = 5.0) -> dict[str, np.ndarray]:
+    """Largest tilt per direction at the robot's home position (both crank modes):
+    {"azimuth": (A,), "free": (A,), "locked": (A,)} [deg]."""
+    st = settings or AtlasSettings()
+    az = np.arange(0.0, 360.0 - 1e-9, azimuth_step_deg)
+    r = largest_tilts(robot, np.asarray(robot.home_position)[None], az, (0.0,), st)
+    return {"azimuth": az, "free": r["max_tilt"][0, 0, :, 0],
+            "locked": r["max_tilt"][1, 0, :, 0]}
+
+
+# --------------------------------------------------------------------- files and pictures
+def save(ds: xr.Dataset, path: str | Path) -> Path:
+    """Write the atlas as NetCDF-4 (h5netcdf) atomically: a temporary file renamed."""
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise InputError(f"output directory {str(path.parent)!r} does not exist",
+                         value=str(path.parent), valid="an existing directory")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        ds.to_netcdf(tmp, engine="h5netcdf")
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def load(path: str | Path) -> xr.Dataset:
+    import xarray as xr
+
+    return xr.load_dataset(path, engine="h5netcdf")
+
+
+def figures(ds: xr.Dataset, out_dir: str | Path, robot: Robot | None = None,
+            polar: dict | None = None, layers: int = 6) -> list[Path]:
+    """Per-layer maps of the all-direction tilt (free vs locked), the volume-vs-tilt
+    curve, and the polar plot at home (``polar`` from :func:`home_polar`)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    paths = []
+    alld = all_directions(ds).isel(torsion=0)
+    zs = ds["z"].values
+    filled = [k for k in range(len(zs)) if np.isfinite(alld.isel(z=k).values).any()]
+    pick = [filled[i] for i in np.unique(np.linspace(0, len(filled) - 1,
+                                                     min(layers, len(filled))).astype(int))]
+    if pick:
+        fig, axes = plt.subplots(len(pick), 2, figsize=(8, 3.2 * len(pick)), squeeze=False)
+        ext = [ds["x"].values[0], ds["x"].values[-1], ds["y"].values[0], ds["y"].values[-1]]
+        vmax = float(np.nanmax(alld.values)) if np.isfinite(alld.values).any() else 90.0
+        im = None
+        for r, k in enumerate(pick):
+            for c, mode in enumerate(CRANKS):
+                ax = axes[r, c]
+                a = alld.sel(cranks=mode).isel(z=k).values.T
+                im = ax.imshow(a, origin="lower", extent=ext, vmin=0, vmax=vmax,
+                               cmap="viridis", aspect="equal")
+                ax.set_title(f"{mode}, z = {zs[k]:.2f} m", fontsize=9)
+                ax.set_xlabel("x [m]")
+                ax.set_ylabel("y [m]")
+        if im is not None:
+            fig.colorbar(im, ax=axes, shrink=0.6, label="tilt in every direction [deg]")
+        fig.suptitle("Largest tilt reached in every direction (min over azimuths)")
+        paths.append(_save(fig, out / "atlas_layers.png", plt))
+    # volume vs threshold
+    th = np.arange(0.0, float(ds.attrs["max_tilt_deg"]) + 1e-9, 5.0)
+    v = volumes(ds, th)
+    t0 = next(iter(v["free"]))
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for mode in CRANKS:
+        ax.plot(th, [v[mode][t0][float(x)] for x in th], label=f"cranks {mode}")
+    ax.set_xlabel("tilt reached in every direction [deg]")
+    ax.set_ylabel("workspace volume [L]")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    paths.append(_save(fig, out / "atlas_volumes.png", plt))
+    if polar is not None:
+        fig = plt.figure(figsize=(5, 5))
+        ax = fig.add_subplot(projection="polar")
+        a = np.radians(np.r_[polar["azimuth"], polar["azimuth"][:1]])
+        for mode in CRANKS:
+            ax.plot(a, np.r_[polar[mode], polar[mode][:1]], label=f"cranks {mode}")
+        ax.set_title("Largest tilt [deg] per tilt-axis azimuth at home", fontsize=10)
+        ax.legend(loc="lower left", bbox_to_anchor=(0.8, -0.1))
+        paths.append(_save(fig, out / "atlas_home_polar.png", plt))
+    return paths
+
+
+def _save(fig, path: Path, plt) -> Path:
+    import io
+
+    from sixplus3.fileio import atomic_write
+
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    atomic_write(path, buf.getvalue())
+    return path
+
+
+__all__ = ["BINDING", "CRANKS", "AtlasSettings", "all_directions", "compute_atlas",
+           "figures", "headline", "home_polar", "largest_tilts", "load", "position_grid",
+           "rotations", "save", "volumes"]

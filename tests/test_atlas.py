@@ -1,0 +1,146 @@
+"""The orientation-workspace atlas (sixplus3.design.atlas, ``sixplus3 atlas``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+pytest.importorskip("xarray")
+pytest.importorskip("dask.distributed")
+
+from sixplus3.cli import main  # noqa: E402
+from sixplus3.design import atlas as at  # noqa: E402
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics  # noqa: E402
+from sixplus3.kinematics.robot import leg_clearance, robot_ik, spherical_tilts  # noqa: E402
+from sixplus3.planner.analysis import largest_tilt, static_feasible  # noqa: E402
+from sixplus3.robot_description.robot import Robot  # noqa: E402
+
+ROBOT = Robot.default()
+#: largest_tilt's scheme: 5 deg scan, 0.5 deg bisection
+LT = at.AtlasSettings(scan_deg=5.0, resolution_deg=0.5, max_tilt_deg=180.0)
+COARSE = at.AtlasSettings(step=0.08, azimuth_step_deg=60.0, resolution_deg=2.0)
+
+
+@pytest.fixture(scope="module")
+def coarse():
+    xs, ys, zs = at.position_grid(ROBOT, COARSE.step)
+    zs = zs[(zs > 0.2) & (zs < 0.5)][::2]
+    return at.compute_atlas(ROBOT, COARSE, scheduler="synchronous", grid=(xs, ys, zs))
+
+
+def test_agrees_with_largest_tilt_at_home() -> None:
+    res = at.largest_tilts(ROBOT, np.asarray(ROBOT.home_position)[None], [0.0, 90.0],
+                           (0.0,), LT)
+    for k, axis in enumerate("xy"):
+        locked = largest_tilt(ROBOT, axis, locked=True, max_deg=180.0)
+        free = largest_tilt(ROBOT, axis, locked=False, max_deg=180.0)
+        # the same candidate (home cranks) and scheme: the same number
+        assert res["max_tilt"][1, 0, k, 0] == pytest.approx(locked.tilt_deg, abs=1e-9)
+        # free: a finite leg-wise search, a lower bound of the exhaustive 7.5 deg grid
+        # (measured 3.1 deg below it about y, equal about x)
+        assert res["max_tilt"][0, 0, k, 0] <= free.tilt_deg + LT.resolution_deg
+        assert res["max_tilt"][0, 0, k, 0] >= free.tilt_deg - 5.0
+        assert res["max_tilt"][0, 0, k, 0] >= res["max_tilt"][1, 0, k, 0]
+
+
+def test_free_is_never_below_locked(coarse) -> None:
+    t = coarse["max_tilt"].values
+    free, locked = np.nan_to_num(t[0], nan=-1.0), np.nan_to_num(t[1], nan=-1.0)
+    assert np.isfinite(t[1]).sum() > 20  # the grid holds a workspace
+    assert np.all(free >= locked)
+    assert (free > locked).any()  # and the redundancy does something
+
+
+def _admissible(position, R, psi) -> bool:
+    """The full robot checks, independently of the atlas's code path."""
+    cfg = robot_ik(position, R, psi, ROBOT)
+    lim = ROBOT.limits
+    if not cfg.ok[0]:
+        return False
+    th = cfg.theta[0]
+    if np.any(th < lim.theta_min) or np.any(th > lim.theta_max):
+        return False
+    if spherical_tilts(cfg).max() > lim.spherical or leg_clearance(cfg)[0] < 0:
+        return False
+    if cfg.margins.minimum[0] < lim.margin:
+        return False
+    tau = ClosedLoopDynamics(ROBOT).gravity_torques(cfg.q[0])
+    return bool(np.abs(tau).max() <= lim.torque)
+
+
+def test_one_point_per_layer_rechecked(coarse) -> None:
+    t = coarse["max_tilt"]
+    checked = 0
+    for iz in range(coarse.sizes["z"]):
+        for mode in at.CRANKS:
+            layer = t.isel(z=iz).sel(cranks=mode, torsion=0.0).values  # (A, x, y)
+            ok = np.isfinite(layer) & (layer > 0) & (layer < COARSE.max_tilt_deg)
+            if not ok.any():
+                continue
+            ia, ix, iy = np.argwhere(ok)[len(np.argwhere(ok)) // 2]
+            pos = np.array([coarse.x.values[ix], coarse.y.values[iy], coarse.z.values[iz]])
+            az, tilt = float(coarse.azimuth.values[ia]), float(layer[ia, ix, iy])
+            psi = np.radians(coarse["psi"].isel(z=iz).sel(cranks=mode, torsion=0.0)
+                             .values[ia, ix, iy])
+            R = at.rotations(az, tilt, 0.0)[0]
+            assert _admissible(pos, R, psi), (mode, pos, az, tilt)
+            if mode == "locked":  # just beyond: no admissible pose (exact candidate set)
+                beyond = at.rotations(az, tilt + COARSE.resolution_deg, 0.0)[0]
+                assert not static_feasible(ROBOT, pos, beyond, ROBOT.limits, True)[0]
+            checked += 1
+    assert checked >= 2 * coarse.sizes["z"] - 1
+
+
+def test_data_file_round_trips(coarse, tmp_path) -> None:
+    path = at.save(coarse, tmp_path / "atlas.nc")
+    back = at.load(path)
+    for name in ("max_tilt", "binding", "psi"):
+        np.testing.assert_array_equal(back[name].values, coarse[name].values)
+        assert back[name].dims == coarse[name].dims
+    assert back["max_tilt"].attrs["units"] == "degree"
+    assert back.attrs["robot_hash"] == ROBOT.hash
+    assert list(back["cranks"].values) == ["free", "locked"]
+    assert at.volumes(back) == at.volumes(coarse)
+
+
+def test_volumes_and_headline(coarse) -> None:
+    v = at.volumes(coarse)
+    for mode in at.CRANKS:
+        row = v[mode][0.0]
+        seq = [row["zero tilt"]] + [row[float(x)] for x in at.THRESHOLDS_DEG]
+        assert all(a >= b for a, b in zip(seq, seq[1:], strict=False))  # nested volumes
+    assert v["free"][0.0][45.0] >= v["locked"][0.0][45.0]
+    assert "L of workspace" in at.headline(coarse)
+
+
+def test_dask_local_cluster_matches_synchronous(coarse) -> None:
+    g = (coarse.x.values[:4], coarse.y.values[3:7], coarse.z.values[:1])
+    a = at.compute_atlas(ROBOT, COARSE, scheduler="synchronous", grid=g, chunk=5)
+    b = at.compute_atlas(ROBOT, COARSE, workers=1, grid=g, chunk=5)
+    np.testing.assert_array_equal(a["max_tilt"].values, b["max_tilt"].values)
+
+
+def test_cli_atlas_and_bad_input(tmp_path) -> None:
+    r = CliRunner().invoke(main, ["atlas", "-o", str(tmp_path), "--step", "0.1",
+                                  "--azimuth-step", "120", "--z", "0.3", "0.3",
+                                  "--scheduler", "synchronous", "--resolution", "5"])
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "atlas.nc").stat().st_size > 0
+    assert (tmp_path / "atlas_home_polar.png").exists()
+    for args in (["--step", "0"], ["--step", "nan"], ["--azimuth-step", "-5"],
+                 ["--z", "0.9", "0.1"], ["--workers", "0"], ["--torsion", "inf"]):
+        r = CliRunner().invoke(main, ["atlas", "-o", str(tmp_path), *args,
+                                      "--scheduler", "synchronous"])
+        assert r.exit_code == 2, (args, r.output)
+        assert "Traceback" not in r.output and len(r.output.strip().splitlines()) == 1
+
+
+def test_rotation_convention() -> None:
+    """Azimuth 0 is a rotation about +x (largest_tilt's 'x'), 90 about +y."""
+    Rx = at.rotations(0.0, 30.0, 0.0)[0]
+    assert Rx[2, 1] == pytest.approx(math.sin(math.radians(30)))
+    Ry = at.rotations(90.0, 30.0, 0.0)[0]
+    assert Ry[0, 2] == pytest.approx(math.sin(math.radians(30)))
