@@ -131,6 +131,7 @@ class _Checker:
         lo, hi = PSI_RANGE_DEG
         self.psi_grid = np.radians(np.arange(lo, hi + 1e-9, psi_step_deg))
         self.home = np.asarray(robot.home_psi, dtype=float)
+        self.evaluations = 0  # poses judged (one per admissible() row)
 
     def _leg_scores(self, pos: np.ndarray, R: np.ndarray):
         """Per-leg checks 1-4 on the crank grid: (stage reached (n, G, 3), score)."""
@@ -212,6 +213,7 @@ class _Checker:
     def admissible(self, pos: np.ndarray, R: np.ndarray, free: bool):
         """(ok (n,), psi (n, 3) [rad] of the chosen candidate, binding code (n,))."""
         n = len(pos)
+        self.evaluations += n
         home = np.broadcast_to(self.home, (n, 1, 3))
         if not free:
             s_home, m_home = self._full(pos, R, home)
@@ -328,7 +330,8 @@ def largest_tilts(robot: Robot, positions: np.ndarray, azimuths_deg: ArrayLike,
             lo[idx[ok]], best_psi[idx[ok]] = mid[ok], psi[ok]
             hi[idx[~ok]], bind[idx[~ok]] = mid[~ok], b[~ok]
         out_tilt[c], out_bind[c], out_psi[c] = lo, bind, best_psi
-    return {"max_tilt": out_tilt.reshape(2, T, A, m),
+    return {"evaluations": np.array([chk.evaluations]),
+            "max_tilt": out_tilt.reshape(2, T, A, m),
             "binding": out_bind.reshape(2, T, A, m),
             "psi": np.degrees(out_psi).reshape(2, T, A, m, 3)}
 
@@ -422,10 +425,14 @@ def compute_atlas(robot: Robot | None = None, settings: AtlasSettings | None = N
     t0 = time.perf_counter()
     results = _run_chunks(robot, chunks, st, scheduler, workers, progress)
     wall = time.perf_counter() - t0
-    cat = {k: np.concatenate([r[k] for r in results], axis=3) for k in results[0]}
+    evaluations = int(sum(int(r["evaluations"][0]) for r in results))
+    cat = {k: np.concatenate([r[k] for r in results], axis=3) for k in results[0]
+           if k != "evaluations"}
     shape = (2, len(st.torsions_deg), len(st.azimuths_deg), len(xs), len(ys), len(zs))
-    return _dataset(robot, st, xs, ys, zs, cat, shape, wall, len(pts),
-                    workers if scheduler is None else None)
+    ds = _dataset(robot, st, xs, ys, zs, cat, shape, wall, len(pts),
+                  workers if scheduler is None else None)
+    ds.attrs["pose_evaluations"] = evaluations
+    return ds
 
 
 def _run_chunks(robot: Robot, chunks: list, st: AtlasSettings, scheduler: str | None,
@@ -636,6 +643,7 @@ def figures(ds: xr.Dataset, out_dir: str | Path, robot: Robot | None = None,
                 ax.set_ylabel("y [m]")
         if im is not None:
             fig.colorbar(im, ax=axes, shrink=0.6, label="tilt in every direction [deg]")
+        fig.subplots_adjust(hspace=0.45, top=1 - 0.5 / (3.2 * len(pick)))
         fig.suptitle("Largest tilt reached in every direction (min over azimuths)")
         paths.append(_save(fig, out / "atlas_layers.png", plt))
     # volume vs threshold

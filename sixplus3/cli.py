@@ -448,6 +448,13 @@ def atlas(out_dir: str, step: float, azimuth_step: float, torsions: tuple[float,
 
     from sixplus3.design import atlas as at
 
+    try:
+        import dask.distributed  # noqa: F401
+        import h5netcdf  # noqa: F401
+        import xarray  # noqa: F401
+    except ImportError as exc:
+        _fail(f"the atlas needs the 'atlas' extra ({exc.name} is missing): "
+              "pip install 'sixplus3[atlas]' (make install includes it)")
     st = at.AtlasSettings(step=step, azimuth_step_deg=azimuth_step,
                           torsions_deg=tuple(torsions) or (0.0,), max_tilt_deg=max_tilt,
                           resolution_deg=resolution).check()
