@@ -40,6 +40,9 @@ CLOSURES_PATH = URDF_DIR / "sixplus3_closures.yaml"
 POINT_MASS_URDF_PATH = URDF_DIR / "sixplus3_pointmass.urdf"
 
 ROD_RADIUS = 0.008
+#: The base beams (visual and collision), in each leg's frame: inwards of the actuated
+#: axis by BASE_GAP, BASE_WIDTH wide, centred BASE_Z below it [m].
+BASE_GAP, BASE_WIDTH, BASE_THICKNESS, BASE_Z = 0.015, 0.05, 0.02, -0.04
 JOINT_SPHERE = 0.014
 
 
@@ -93,16 +96,20 @@ class _Builder:
         return el
 
     def rod_link(self, name: str, mass: float, start, end, material: str,
-                 radius: float = ROD_RADIUS) -> ET.Element:
+                 radius: float = ROD_RADIUS, collision: bool = False) -> ET.Element:
         if self.masses.point_mass:
             el = self.link(name)
         else:
             com, inertia = _rod_inertia(mass, start, end, radius)
             el = self.link(name, mass, com, inertia)
-        self.cylinder(el, start, end, radius, material)
+        self.cylinder(el, start, end, radius, material, collision)
         return el
 
-    def cylinder(self, link: ET.Element, start, end, radius: float, material: str) -> None:
+    def cylinder(self, link: ET.Element, start, end, radius: float, material: str,
+                 collision: bool = False) -> None:
+        """A visual cylinder from ``start`` to ``end``; with ``collision``, also the
+        clearance model's link (radius ``LINK_RADIUS``, kinematics.robot.leg_clearance)
+        as a collision cylinder."""
         start, end = np.asarray(start, float), np.asarray(end, float)
         axis = end - start
         length = float(np.linalg.norm(axis))
@@ -115,6 +122,14 @@ class _Builder:
         geo = ET.SubElement(vis, "geometry")
         ET.SubElement(geo, "cylinder", radius=_f(radius), length=_f(length))
         ET.SubElement(vis, "material", name=material)
+        if collision:
+            from sixplus3.kinematics.robot import LINK_RADIUS
+
+            col = ET.SubElement(link, "collision")
+            ET.SubElement(col, "origin", xyz=_vec((start + end) / 2),
+                          rpy=_vec((0.0, pitch, yaw)))
+            ET.SubElement(ET.SubElement(col, "geometry"), "cylinder",
+                          radius=_f(LINK_RADIUS), length=_f(length))
 
     def sphere(self, link: ET.Element, center, radius: float, material: str) -> None:
         vis = ET.SubElement(link, "visual")
@@ -173,10 +188,25 @@ def build_urdf(robot: Robot | None = None) -> str:
     b = _Builder(geom, masses, root)
 
     base = b.link("base_link")
-    plate = ET.SubElement(base, "visual")
-    ET.SubElement(plate, "origin", xyz="0 0 -0.04", rpy="0 0 0")
-    ET.SubElement(ET.SubElement(plate, "geometry"), "cylinder", radius="0.2", length="0.02")
-    ET.SubElement(plate, "material", name="base")
+    # The base under each leg: a beam below its actuated axis, on the side of the robot's
+    # centre.  It fills the quadrant a crank may not enter, theta in (270, 360) deg
+    # (towards the centre and down, the paper's base collision), and a crank pointing
+    # down or outwards (theta in [180, 270]) passes beside it.  (A round plate of radius
+    # 0.2 m was drawn before, and the cranks swung through it.)
+    for i in range(NUM_LEGS):
+        R = geom.leg_rotation(i)
+        centre = geom.leg_origin(i) + R @ np.array(
+            [(geom.leg.l6 - geom.leg.l7) / 2, BASE_GAP + BASE_WIDTH / 2, BASE_Z])
+        # it stops 2 cm short of the cranks at B and C: at the corners of the base
+        # triangle a neighbour's crank hangs within 1.1 cm of this leg's axis line
+        size = (geom.leg.l6 + geom.leg.l7 - 0.04, BASE_WIDTH, BASE_THICKNESS)
+        for tag in ("visual", "collision"):
+            beam = ET.SubElement(base, tag)
+            ET.SubElement(beam, "origin", xyz=_vec(centre),
+                          rpy=_vec((0.0, 0.0, geom.leg_yaw(i))))
+            ET.SubElement(ET.SubElement(beam, "geometry"), "box", size=_vec(size))
+            if tag == "visual":
+                ET.SubElement(beam, "material", name="base")
     for p in geom.actuated_joint_positions():
         # motor housings along the actuated axes (visual only)
         b.sphere(base, p, 0.022, "motor")
@@ -191,7 +221,8 @@ def build_urdf(robot: Robot | None = None) -> str:
                "dynamics": (robot.motors.viscous, robot.motors.coulomb)}
         b.cylinder(base, A - (leg.l7 + 0.03) * x, A + (leg.l6 + 0.03) * x, 0.012, "motor")
         # RU chain
-        b.rod_link(f"leg{i}_proximal", masses.proximal, (0, 0, 0), (0, leg.l1, 0), "alu")
+        b.rod_link(f"leg{i}_proximal", masses.proximal, (0, 0, 0), (0, leg.l1, 0), "alu",
+                   collision=True)
         b.joint(f"leg{i}_A", "revolute", "base_link", f"leg{i}_proximal", xyz=A, rpy=yaw,
                 axis=(1, 0, 0), **act)
         ucross_d = b.link(f"leg{i}_ucrossD", 0.0 if pm else masses.ucross, (0, 0, 0),
@@ -205,7 +236,7 @@ def build_urdf(robot: Robot | None = None) -> str:
         else:
             com, inertia = _rod_inertia(masses.body, (0, 0, 0), (leg.dp, 0, 0), ROD_RADIUS)
             body = b.link(f"leg{i}_body", masses.body, com, inertia)
-        b.cylinder(body, (0, 0, 0), (leg.dp, 0, 0), ROD_RADIUS, "alu")
+        b.cylinder(body, (0, 0, 0), (leg.dp, 0, 0), ROD_RADIUS, "alu", collision=True)
         b.cylinder(body, (0, 0, 0), leg.e_b, ROD_RADIUS * 0.8, "alu")
         b.cylinder(body, (0, 0, 0), leg.f_b, ROD_RADIUS * 0.8, "alu")
         for pt in (leg.e_b, leg.f_b, (leg.dp, 0, 0)):
@@ -229,7 +260,7 @@ def build_urdf(robot: Robot | None = None) -> str:
             b.passive(f"leg{i}_{uj}a", f"leg{i}_crank{side}", f"leg{i}_ucross{uj}", (1, 0, 0),
                       xyz=(0, crank, 0))
             b.rod_link(f"leg{i}_distal{side}", masses.distal, (0, 0, 0), (0, link_len, 0),
-                       "carbon", radius=ROD_RADIUS * 0.75)
+                       "carbon", radius=ROD_RADIUS * 0.75, collision=True)
             b.passive(f"leg{i}_{uj}b", f"leg{i}_ucross{uj}", f"leg{i}_distal{side}", (0, 0, 1))
             b.frame(f"closedloop{k}_B", f"leg{i}_distal{side}", (0, link_len, 0))
 

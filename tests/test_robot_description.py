@@ -94,3 +94,60 @@ def test_malformed_closures_file_is_refused(tmp_path) -> None:
     bad.write_text(text)
     with pytest.raises(InputError, match="nowhere"):
         load_model_from(gen.URDF_PATH, bad)
+
+
+def test_base_plate_is_where_the_cranks_may_not_go_and_links_collide() -> None:
+    """The drawn base (three beams, visual = collision) lies in the quadrant the actuated
+    range forbids: no crank or proximal link at theta in [0, 270] deg enters it, and the
+    proximal link at 315 or 345 deg (the base-collision quadrant) does.  The clearance
+    links are collision cylinders of the clearance model's radius."""
+    import xml.etree.ElementTree as ET
+
+    from sixplus3.kinematics.robot import LINK_RADIUS
+    from sixplus3.robot_description.robot import Robot
+    from sixplus3.robot_description.urdf import ROD_RADIUS
+
+    robot = Robot.default()
+    root = ET.fromstring(robot.urdf())
+    base = root.find("link[@name='base_link']")
+    assert base is not None
+    g = robot.geometry
+    boxes = []
+    for c in base.findall("collision"):
+        box = c.find("geometry/box")
+        assert box is not None
+        size = np.array([float(v) for v in box.get("size").split()])
+        xyz = np.array([float(v) for v in c.find("origin").get("xyz").split()])
+        yaw = float(c.find("origin").get("rpy").split()[2])
+        boxes.append((xyz, yaw, size / 2))
+    vis = [v.find("geometry/box").get("size") for v in base.findall("visual")
+           if v.find("geometry/box") is not None]
+    assert len(boxes) == 3 and len(vis) == 3
+
+    def in_base(pts: np.ndarray) -> bool:
+        for xyz, yaw, half in boxes:
+            c, s_ = np.cos(yaw), np.sin(yaw)
+            d = pts - xyz
+            local = np.c_[c * d[:, 0] + s_ * d[:, 1], -s_ * d[:, 0] + c * d[:, 1], d[:, 2]]
+            if np.all(np.abs(local) <= half + ROD_RADIUS, axis=1).any():
+                return True
+        return False
+
+    def enters(i: int, offset: float, length: float, theta_deg: float) -> bool:
+        th = np.radians(theta_deg)
+        R = g.leg_rotation(i)
+        start = g.leg_origin(i) + offset * R[:, 0]
+        tip = start + R @ np.array([0.0, length * np.cos(th), length * np.sin(th)])
+        return in_base(start + np.linspace(0, 1, 400)[:, None] * (tip - start))
+
+    leg = g.leg
+    for i in range(3):
+        for off, length in ((0.0, leg.l1), (leg.l6, leg.l2), (-leg.l7, leg.l3)):
+            for th in np.arange(0.0, 270.0 + 1e-9, 5.0):
+                assert not enters(i, off, length, th), (i, off, th)
+        # the proximal link (mid-axis) in the forbidden quadrant meets the base
+        assert enters(i, 0.0, leg.l1, 315.0) and enters(i, 0.0, leg.l1, 345.0)
+    cyl = [c for c in root.iter("collision") if c.find("geometry/cylinder") is not None]
+    radii = sorted({float(c.find("geometry/cylinder").get("radius")) for c in cyl})
+    assert len(cyl) == 3 * 4  # per leg AD, DP, GE, HF
+    assert LINK_RADIUS in radii
