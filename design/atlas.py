@@ -55,6 +55,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from sixplus3.errors import InputError
+from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN, pose_masks
 from sixplus3.kinematics.robot import leg_clearance, platform_margin, robot_ik, spherical_tilts
 from sixplus3.kinematics.rotations import matrix_from_rotvec
 from sixplus3.robot_description.robot import Robot
@@ -66,8 +67,8 @@ if TYPE_CHECKING:  # pragma: no cover
 BINDING = ("none", "reach", "theta", "spherical", "leg margin", "clearance", "platform",
            "torque", "max tilt")
 CRANKS = ("free", "locked")
-#: The planner's crank range (planner.ocp.PSI_MIN, PSI_MAX) [deg].
-PSI_RANGE_DEG = (45.0, 135.0)
+#: The planner's crank range [deg].
+PSI_RANGE_DEG = (math.degrees(PSI_MIN), math.degrees(PSI_MAX))
 #: Volumes reported for "every direction tilts at least" these angles [deg].
 THRESHOLDS_DEG = (30.0, 45.0, 60.0, 90.0)
 
@@ -136,8 +137,7 @@ class _Checker:
     def _leg_scores(self, pos: np.ndarray, R: np.ndarray):
         """Per-leg checks 1-4 on the crank grid: (stage reached (n, G, 3), score)."""
         n, G = len(pos), len(self.psi_grid)
-        psi = np.repeat(self.psi_grid[None, :, None], n, axis=0)
-        psi = np.broadcast_to(psi, (n, G, 3)).reshape(-1, 3)
+        psi = np.broadcast_to(self.psi_grid[None, :, None], (n, G, 3)).reshape(-1, 3)
         cfg = robot_ik(np.repeat(pos, G, axis=0), np.repeat(R, G, axis=0), psi, self.robot,
                        platform_margins=False)
         lim = self.lim
@@ -168,28 +168,20 @@ class _Checker:
                        psi.reshape(-1, 3), self.robot, platform_margins=False)
         legm_margin = np.minimum(cfg.margins.leg_type1, cfg.margins.leg_type2).min(axis=1)
         if legs_ok is None:
-            reach = cfg.ok
-            theta = reach & np.all((cfg.theta >= lim.theta_min)
-                                   & (cfg.theta <= lim.theta_max), axis=1)
-            sph = theta.copy()
-            if theta.any():
-                sph[theta] = np.all(spherical_tilts(_rows(cfg, theta)) <= lim.spherical,
-                                    axis=(1, 2))
+            theta, sph = pose_masks(cfg, lim)
             legm = sph & (legm_margin >= lim.margin)
-            stage = reach.astype(np.int8) + theta + sph + legm
+            stage = cfg.ok.astype(np.int8) + theta + sph + legm
         else:
             legm = legs_ok.reshape(-1) & cfg.ok
             stage = np.where(legm, 4, 3).astype(np.int8)
         clear = legm & (leg_clearance(cfg, legm) >= 0.0)
         plat = clear.copy()
+        margin_all = np.full(n * k, -np.inf)
         if clear.any():
             pm = platform_margin(cfg.rotation[clear], cfg.P[clear], cfg.position[clear],
                                  self.robot.geometry)
             plat[clear] = pm >= lim.margin
-            margin_all = np.full(n * k, -np.inf)
             margin_all[clear] = np.minimum(pm, legm_margin[clear])
-        else:
-            margin_all = np.full(n * k, -np.inf)
         margin_all = np.where(plat, margin_all, -np.inf).reshape(n, k)
         stage = (stage + clear + plat).reshape(n, k)
         # torque, lazily: best candidate first, then the next best where it fails
@@ -252,23 +244,6 @@ class _Checker:
         reached = np.maximum(stage.max(axis=1), dead)
         binding = np.where(ok, 0, reached + 1).astype(np.int8)  # 1 = reach .. 7 = torque
         return ok, psi, binding
-
-
-def _rows(cfg, mask: np.ndarray):
-    """The rows ``mask`` of a RobotConfig as a new RobotConfig (for costly checks)."""
-    from dataclasses import fields, replace
-
-    from sixplus3.kinematics.robot import RobotMargins
-
-    def cut(obj):
-        return replace(obj, **{f.name: getattr(obj, f.name)[mask] for f in fields(obj)
-                               if isinstance(getattr(obj, f.name), np.ndarray)
-                               and getattr(obj, f.name).shape[:1] == mask.shape})
-
-    mg = cfg.margins
-    return replace(cut(cfg), legs=tuple(cut(s) for s in cfg.legs),
-                   margins=RobotMargins(mg.leg_type1[mask], mg.leg_type2[mask],
-                                        mg.platform[mask]))
 
 
 def largest_tilts(robot: Robot, positions: np.ndarray, azimuths_deg: ArrayLike,

@@ -15,6 +15,22 @@ import numpy as np
 from sixplus3.kinematics.robot import RobotConfig, leg_clearance, spherical_tilts
 from sixplus3.robot_description.limits import Limits
 
+#: The crank (redundant joint) range the planner and the static analyses search [rad].
+PSI_MIN, PSI_MAX = math.radians(45.0), math.radians(135.0)
+
+
+def pose_masks(cfg: RobotConfig, limits: Limits) -> tuple[np.ndarray, np.ndarray]:
+    """(theta_ok, spherical_ok) of batched configurations: solved with every actuated
+    angle in the actuated range, and additionally every spherical joint within range
+    (evaluated on the rows in range only)."""
+    theta_ok = cfg.ok & np.all((cfg.theta >= limits.theta_min)
+                               & (cfg.theta <= limits.theta_max), axis=1)
+    sph_ok = theta_ok.copy()
+    if theta_ok.any():
+        sph_ok[theta_ok] = np.all(spherical_tilts(cfg.take(theta_ok)) <= limits.spherical,
+                                  axis=(1, 2))
+    return theta_ok, sph_ok
+
 
 @dataclass(frozen=True)
 class LimitMeasures:

@@ -78,6 +78,21 @@ class RobotConfig:
     def ok(self) -> np.ndarray:
         return self.status == 0
 
+    def take(self, mask: np.ndarray) -> RobotConfig:
+        """The rows ``mask`` ((n,) bool) as a new RobotConfig (for costly checks that
+        only the surviving rows need)."""
+        from dataclasses import fields, replace
+
+        def cut(obj):
+            return replace(obj, **{f.name: getattr(obj, f.name)[mask] for f in fields(obj)
+                                   if isinstance(getattr(obj, f.name), np.ndarray)
+                                   and getattr(obj, f.name).shape[:1] == mask.shape})
+
+        mg = self.margins
+        return replace(cut(self), legs=tuple(cut(s) for s in self.legs),
+                       margins=RobotMargins(mg.leg_type1[mask], mg.leg_type2[mask],
+                                            mg.platform[mask]))
+
 
 # --------------------------------------------------------------------- q layout
 def _layout(robot: Robot) -> dict[str, int]:

@@ -44,13 +44,12 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from sixplus3.errors import InfeasibleTaskError
-from sixplus3.kinematics.checks import measure_limits
-from sixplus3.kinematics.robot import RobotConfig, leg_clearance, robot_ik, spherical_tilts
+from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN, measure_limits, pose_masks
+from sixplus3.kinematics.robot import leg_clearance, robot_ik
 from sixplus3.planner.task import Task, Waypoint, rotvec
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
-PSI_MIN, PSI_MAX = math.radians(45.0), math.radians(135.0)
 #: Built NLPs by structure (see Problem._template); one per process.
 _TEMPLATES: dict[tuple, dict] = {}
 
@@ -133,15 +132,6 @@ class DenseCheck:
 
 
 # --------------------------------------------------------------------- static choices
-def pose_masks(cfg: RobotConfig, limits: Limits) -> tuple[np.ndarray, np.ndarray]:
-    """(theta_ok, spherical_ok) of batched configurations: solved with every actuated
-    angle in the actuated range, and additionally every spherical joint within range."""
-    theta_ok = cfg.ok & np.all((cfg.theta >= limits.theta_min)
-                               & (cfg.theta <= limits.theta_max), axis=1)
-    sph_ok = theta_ok & np.all(spherical_tilts(cfg) <= limits.spherical, axis=(1, 2))
-    return theta_ok, sph_ok
-
-
 def static_checks(robot: Robot, limits: Limits, position, rotation, psis: np.ndarray):
     """One pose with candidate crank angles (k, 3), checked in order (batched):
     (cfg, theta_ok, spherical_ok, clearance_ok, margin), each mask implying the previous

@@ -468,10 +468,11 @@ def atlas(out_dir: str, step: float, azimuth_step: float, torsions: tuple[float,
     xs, ys, zs = at.position_grid(robot, st.step)
     if z_range is not None:
         lo, hi = z_range
-        zs = zs[(zs >= lo - 1e-9) & (zs <= hi + 1e-9)]
-        if not len(zs):
+        inside = (zs >= lo - 1e-9) & (zs <= hi + 1e-9)
+        if not inside.any():
             _fail(f"--z [{lo}, {hi}] m holds no grid height (the grid has "
-                  f"{at.position_grid(robot, st.step)[2][[0, -1]].round(3).tolist()} m)")
+                  f"{zs[[0, -1]].round(3).tolist()} m)")
+        zs = zs[inside]
     npos = len(xs) * len(ys) * len(zs)
     where = f"LocalCluster of {workers} workers" if scheduler is None else scheduler
     click.echo(f"atlas of {robot.name}: {npos} positions ({len(xs)} x {len(ys)} x {len(zs)},"
