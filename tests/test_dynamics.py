@@ -110,3 +110,29 @@ def test_singular_configuration_raises(dyn) -> None:
         dyn.inverse_dynamics(q[:-1], z, z)
     with pytest.raises(InputError):
         dyn.simulate(q, z, duration=1.0, dt=-1e-3)
+
+
+def test_batched_holding_torques_match_the_static_inverse_dynamics() -> None:
+    """holding_torques_batch (one solve per state, the atlas's) against gravity_torques
+    (the full constrained inverse dynamics at v = a = 0), with a payload and ceiling."""
+    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+    from sixplus3.kinematics.robot import robot_ik
+    from sixplus3.kinematics.rotations import matrix_from_rotvec
+    from sixplus3.robot_description.physical import Payload
+    from sixplus3.robot_description.robot import Robot
+
+    for robot in (Robot.default(),
+                  Robot.default().replace(payload=Payload(mass=0.5, com=(0.0, 0.01, 0.03)),
+                                          gravity=(0.0, 0.0, 9.81))):
+        rng = np.random.default_rng(3)
+        n = 12
+        pos = np.c_[rng.uniform(-0.05, 0.05, (n, 2)), rng.uniform(0.28, 0.34, n)]
+        R = matrix_from_rotvec(np.c_[rng.normal(scale=0.2, size=(n, 2)), np.zeros(n)])
+        cfg = robot_ik(pos, R, np.tile(robot.home_psi, (n, 1)), robot)
+        q = cfg.q[cfg.ok]
+        assert len(q) >= 8
+        dyn = ClosedLoopDynamics(robot)
+        batch = dyn.holding_torques_batch(q)
+        one = np.array([dyn.gravity_torques(qk) for qk in q])
+        assert np.abs(one).max() > 0.1  # gravity loads the motors
+        np.testing.assert_allclose(batch, one, atol=1e-9, rtol=0)
