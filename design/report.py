@@ -21,8 +21,14 @@ def leg_report(robot: Robot | None = None, ws_step: float = 0.005) -> str:
                          value=ws_step, valid="[0.0005, 0.05] m")
     geometry, mode = robot.leg, robot.mode
     load = LegLoad(torque_limit=robot.limits.torque)
+    from sixplus3.design.cow import home_in_cow
+
     lines = [
         f"sixplus3 leg report: {robot.summary()}",
+        f"  design l2 = l3 = {geometry.l2:.3f}, l4 = l5 = {geometry.l4:.3f}, ex = fx = "
+        f"{geometry.ex:.3f}, ey = -fy = {geometry.ey:.3f} m (paper: 0.139, 0.350, 0.097, "
+        f"ey 'as small as possible'); assembly mode {mode.name}",
+        "  " + home_in_cow(robot, step=0.02).line() + " (grid 2 cm)",
         "  geometry [m]: " + ", ".join(f"{k}={v:g}" for k, v in geometry.as_dict().items()),
         f"  assembly mode {mode.name}; load {load.mass} kg at P, "
         f"{load.accel_g:g} g in any direction, limit {load.torque_limit:g} N m",

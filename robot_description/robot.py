@@ -236,6 +236,14 @@ class Robot:
         return cls()
 
     @classmethod
+    def named(cls, name: str) -> Robot:
+        """One of the named robots of :data:`NAMED_ROBOTS` (docs/robot.md, "Named robots")."""
+        key = str(name).strip().lower()
+        if key not in NAMED_ROBOTS:
+            raise GeometryError("robot name", name, f"one of {sorted(NAMED_ROBOTS)}")
+        return NAMED_ROBOTS[key][0]()
+
+    @classmethod
     def mounted(cls, mounting: str, **kw: Any) -> Robot:
         """The robot with a named mounting (``floor`` or ``ceiling``)."""
         if mounting not in MOUNTINGS:
@@ -367,6 +375,29 @@ class Robot:
                 f"ey = {leg.ey:.3f} m; assembly mode {self.mode.name}; {self.mounting} "
                 f"mounting; rotor {self.motors.armature:.4f} kg m^2 at the joint; payload "
                 f"{self.payload.mass:g} kg; hash {self.hash[:12]}")
+
+
+def _paper_assembly(mode: str, name: str) -> Robot:
+    """The paper's leg design in the assembly of its §V study: E = F (ey = 0, the paper's
+    simplifying assumption), cranks on the branch that reproduces its optimum.  Home is the
+    deepest point of its 2 g-capable, singularity-free COW on the central vertical
+    (``design.cow``; tests/test_named_robots.py recomputes it)."""
+    return Robot(geometry=RobotGeometry(leg=LegGeometry(ey=0.0, fy=0.0)), mode=mode,
+                 home_position=(0.0, 0.0, 0.54), name=name)
+
+
+#: Named robots: name -> (constructor, one-line description).  ``--robot NAME`` on the CLI.
+NAMED_ROBOTS: dict[str, tuple[Any, str]] = {
+    "default": (lambda: Robot.default(),
+                "the built robot: paper design, mode ++++ (cranks outward), ey = 0.02 m, "
+                "home z = 0.30 m"),
+    "paper": (lambda: _paper_assembly("++--", "paper"),
+              "the paper's §V assembly: mode ++-- (cranks inward), ey = 0, home z = 0.54 m; "
+              "adjacent legs' distal links intersect at the base corners"),
+    "paper-mirror": (lambda: _paper_assembly("-+++", "paper-mirror"),
+                     "its theta1 mirror: mode -+++ (elbows inward), ey = 0, home z = 0.54 m; "
+                     "the proximal links cross on the central axis"),
+}
 
 
 def _mapping(name: str, v: object) -> dict[str, Any]:

@@ -2,7 +2,8 @@
 
 Thin wiring only: every command imports the library (numpy, numba, pinocchio, ...) inside
 its body, so that ``sixplus3 --help`` answers without loading them.  Every command works
-on one robot: ``Robot.default()``, or the one in ``--robot FILE`` (YAML/JSON, see
+on one robot: ``Robot.default()``, a named robot (``--robot paper``, see
+``Robot.named``), or the one in ``--robot FILE`` (YAML/JSON, see
 ``sixplus3 robot show --json``).
 
 Exit codes: 0 ok; 1 a limit is violated (``validate``); 2 bad input, an unreachable pose,
@@ -81,9 +82,10 @@ class _Group(click.Group):
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="sixplus3")
-@click.option("--robot", "robot_file", default=None, type=click.Path(dir_okay=False),
-              help="Robot parameters (YAML/JSON, keys as in 'sixplus3 robot show --json'; "
-              "missing keys keep the defaults). Default: the paper's robot.")
+@click.option("--robot", "robot_file", default=None, metavar="NAME|FILE",
+              help="A named robot (default, paper, paper-mirror: 'sixplus3 robot list') or a "
+              "file of robot parameters (YAML/JSON, keys as in 'sixplus3 robot show --json'; "
+              "missing keys keep the defaults). Default: the built robot ('default').")
 @click.pass_context
 def main(ctx: click.Context, robot_file: str | None) -> None:
     """sixplus3: kinematics, dynamics, design and planning for the (6+3)-DoF robot."""
@@ -95,10 +97,18 @@ def _robot() -> Robot:
     ctx = click.get_current_context()
     obj = ctx.find_root().obj or {}
     if "robot" not in obj:
-        from sixplus3.robot_description.robot import Robot, load_robot
+        from sixplus3.robot_description.robot import NAMED_ROBOTS, Robot, load_robot
 
         path = obj.get("robot_file")
-        obj["robot"] = load_robot(path) if path else Robot.default()
+        if not path:
+            obj["robot"] = Robot.default()
+        elif path.strip().lower() in NAMED_ROBOTS and not os.path.exists(path):
+            obj["robot"] = Robot.named(path)
+        elif not os.path.exists(path):
+            _fail(f"--robot {path!r} is neither a named robot (one of "
+                  f"{', '.join(NAMED_ROBOTS)}) nor an existing robot file")
+        else:
+            obj["robot"] = load_robot(path)
     return obj["robot"]
 
 
@@ -178,6 +188,7 @@ def robot_check(as_json: bool) -> None:
     """Build the robot's URDF + closures model and check its home pose."""
     import numpy as np
 
+    from sixplus3.design.cow import home_in_cow
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.kinematics.robot import home, spherical_tilts
     from sixplus3.robot_description.urdf import check as urdf_stale
@@ -186,6 +197,7 @@ def robot_check(as_json: bool) -> None:
     dyn = ClosedLoopDynamics(robot)
     clm = dyn.clm
     h = home(robot)
+    where = home_in_cow(robot, step=0.02)
     q = h.q[0]
     residual = float(np.abs(clm.residual(q)).max())
     rank = int(np.linalg.matrix_rank(clm.constraint_jacobian(q), tol=1e-9))
@@ -201,6 +213,12 @@ def robot_check(as_json: bool) -> None:
         "margins": h.margins.as_dict(),
         "max_spherical_tilt_deg": float(np.degrees(spherical_tilts(h).max())),
         "tau_gravity_home": tau, "total_mass_kg": clm.total_mass(),
+        "design_m": {"l2": robot.leg.l2, "l4": robot.leg.l4, "ex": robot.leg.ex,
+                     "ey": robot.leg.ey},
+        "home_in_cow": {"inside": where.inside, "failing": where.failing,
+                        "depth_m": where.depth, "deepest_m": list(where.deepest),
+                        "z_range_m": list(where.z_range), "volume_l": where.volume_l,
+                        "grid_m": where.step},
     }
     if as_json:
         click.echo(json.dumps(out, default=_json_default))
@@ -211,9 +229,13 @@ def robot_check(as_json: bool) -> None:
     click.echo(f"tree DoF  nq = {out['nq']}, nv = {out['nv']}; {out['actuated']} actuated joints")
     click.echo(f"closures  {out['closures']} spherical, {out['constraint_rows']} rows, rank "
                f"{rank} at home -> mobility {out['mobility']}")
+    click.echo(f"design    l2 = l3 = {robot.leg.l2:.3f}, l4 = l5 = {robot.leg.l4:.3f}, ex = fx = "
+               f"{robot.leg.ex:.3f}, ey = -fy = {robot.leg.ey:.3f} m; assembly mode "
+               f"{robot.mode.name}")
     click.echo(f"home      platform at {list(robot.home_position)} m, psi = "
                f"{np.round(np.degrees(robot.home_psi), 2).tolist()} deg; closure residual "
                f"{residual:.2e} m")
+    click.echo(f"COW       {where.line()} (grid {where.step * 100:g} cm)")
     m = out["margins"]
     click.echo("margins   leg type I " + " ".join(f"{v:.3f}" for v in m["leg_type1"])
                + " | leg type II " + " ".join(f"{v:.3f}" for v in m["leg_type2"])
@@ -278,6 +300,15 @@ def robot_ik_cmd(x: float, y: float, z: float, roll: float, pitch: float, yaw: f
     click.echo(f"spherical joints: max tilt {out['max_spherical_tilt_deg']:.1f} deg "
                f"({'ok' if out['spherical_ok'] else 'OVER THE LIMIT'}); actuated range "
                f"{'ok' if out['actuated_range_ok'] else 'OUTSIDE THE RANGE'}")
+
+
+@robot.command("list")
+def robot_list() -> None:
+    """The named robots ('--robot NAME')."""
+    from sixplus3.robot_description.robot import NAMED_ROBOTS
+
+    for name, (_, text) in NAMED_ROBOTS.items():
+        click.echo(f"{name:13s} {text}")
 
 
 @robot.command("show")
