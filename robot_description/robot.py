@@ -382,7 +382,8 @@ def _paper_assembly(mode: str, name: str) -> Robot:
     simplifying assumption), cranks on the branch that reproduces its optimum.  Home is the
     deepest point of its 2 g-capable, singularity-free COW on the central vertical
     (``design.cow``; tests/test_named_robots.py recomputes it)."""
-    return Robot(geometry=RobotGeometry(leg=LegGeometry(ey=0.0, fy=0.0)), mode=mode,
+    return Robot(geometry=RobotGeometry(leg=LegGeometry(ey=0.0, fy=0.0)),
+                 mode=AssemblyMode.parse(mode),
                  home_position=(0.0, 0.0, 0.54), name=name)
 
 
