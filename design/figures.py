@@ -14,7 +14,7 @@ Returns a summary (numbers quoted in docs/design.md) next to the files.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -71,9 +71,12 @@ def make_figures(out_dir: str | Path, reading: Reading | None = None,
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.colors import SymLogNorm
+    from matplotlib.colors import SymLogNorm, TwoSlopeNorm
 
-    reading = reading or Reading()
+    if reading is None:
+        from sixplus3.design.readings import READINGS
+
+        reading = READINGS["paper-mirror"]
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     geometry = LegGeometry.symmetric(*design, ey=reading.ey, fy=-reading.ey)
@@ -105,9 +108,14 @@ def make_figures(out_dir: str | Path, reading: Reading | None = None,
 
     # --- tau_ext
     fig, ax = plt.subplots(figsize=(6.5, 5.5))
-    tau = np.ma.masked_where(~ok, np.minimum(s.tau_ext.reshape(X.shape), 11.0))
-    pc = ax.pcolormesh(X, Y, tau, cmap="viridis", shading="auto", vmin=0, vmax=11)
-    fig.colorbar(pc, ax=ax, label="tau_ext [N m], saturated at 11")
+    # Diverging, centred on the 10 N m limit: the structure inside the counted region
+    # (blue) and how far outside it is (red, saturated at 20 N m) both stay visible.
+    tau = np.ma.masked_where(~ok, np.minimum(s.tau_ext.reshape(X.shape), 20.0))
+    low = float(np.floor(tau.min())) if ok.any() else 0.0
+    pc = ax.pcolormesh(X, Y, tau, cmap="RdBu_r", shading="auto",
+                       norm=TwoSlopeNorm(vmin=min(low, 9.0), vcenter=10.0, vmax=20.0))
+    fig.colorbar(pc, ax=ax, label="tau_ext [N m] (centred on the 10 N m limit, saturated "
+                 "at 20)")
     ax.contour(X, Y, np.ma.masked_where(~ok, s.tau_ext.reshape(X.shape)), levels=[10.0],
                colors="k", linewidths=1.5)
     cnt = counted_reading(s, load, reading).reshape(X.shape) & inside
@@ -139,19 +147,30 @@ def make_figures(out_dir: str | Path, reading: Reading | None = None,
     fig.tight_layout()
     files.append(_save(fig, out / "resolution.png"))
 
-    # --- constant-orientation workspace of the whole robot
-    cow = compute_cow(Robot.default().replace(mode=reading.mode), step=cow_step,
-                      z_step=cow_z_step)
+    # --- constant-orientation workspace of the whole robot, in the same reading: its
+    # leg (design, ey), mode and theta rule (the paper's [0, 270] deg, counted its way)
+    cow = compute_cow(cow_robot(reading, design), step=cow_step, z_step=cow_z_step,
+                      reading=reading)
     ratios = {k: cow.ratio(k) for k in LIMIT_SETS}
-    files.append(_cow_figure(plt, cow, out / "cow.png", ratios))
+    files.append(_cow_figure(plt, cow, out / "cow.png", ratios, reading))
     return FigureSummary(files=files, design=design, reading=reading.name,
                          counted_area_m2=area, cow_ratios=ratios, paper_cow_ratio=PAPER_RATIO,
                          worst_resolution_m=worst)
 
 
-def _cow_figure(plt, cow, path: Path, ratios: dict[str, float]) -> str:
+def cow_robot(reading: Reading, design: tuple[float, float, float] = PAPER_DESIGN) -> Robot:
+    """The whole robot of a design reading: its leg (design, ey = -fy) in its mode."""
+    base = Robot.default()
+    leg = LegGeometry.symmetric(*design, ey=reading.ey, fy=-reading.ey)
+    return base.replace(geometry=replace(base.geometry, leg=leg), mode=reading.mode,
+                        name=f"reading {reading.name}")
 
-    fig = plt.figure(figsize=(12, 6))
+
+def _cow_figure(plt, cow, path: Path, ratios: dict[str, float], reading: Reading) -> str:
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    fig = plt.figure(figsize=(12, 6.6))
     pts = Robot.default().geometry.actuated_joint_positions()
     poly = np.vstack([cow.footprint, cow.footprint[:1]])
     for col, key in enumerate(("reach", "torque")):
@@ -172,12 +191,17 @@ def _cow_figure(plt, cow, path: Path, ratios: dict[str, float]) -> str:
                  "torque": "reach + theta in [0,270] + singularity-free + 2g within 10 N m"}
         ax.set_title(f"{label[key]}\nprojected area / footprint = {ratios[key]:.2f}"
                      f" (paper 5.03)", fontsize=9)
-    fig.suptitle(f"Constant-orientation workspace (mode {cow.mode}): platform horizontal, "
-                 "P_i on a 0.173 m "
-                 "triangle (psi = 90 deg),\n|a_j - a_i| = 0.143 m; layers every "
-                 f"{(cow.zs[1] - cow.zs[0]) * 100:.0f} cm, grid {cow.step * 100:.0f} cm; "
-                 "polygon: hull of the 9 actuated joints", fontsize=8)
-    fig.tight_layout()
+    norm = Normalize(vmin=0.0, vmax=float(cow.zs[-1]))
+    cax = fig.add_axes((0.92, 0.15, 0.014, 0.6))
+    fig.colorbar(ScalarMappable(norm=norm, cmap=plt.cm.viridis), cax=cax,
+                 label="layer height z [m]")
+    fig.suptitle(f"Constant-orientation workspace, reading '{reading.name}': mode {cow.mode}, "
+                 f"ey = {reading.ey:g} m, theta in [0, 270] deg counted the reading's way; "
+                 "platform horizontal, P_i on a 0.173 m triangle (psi = 90 deg),\n"
+                 f"|a_j - a_i| = 0.143 m; layers every {cow.z_step * 100:.0f} cm, grid "
+                 f"{cow.step * 100:.0f} cm; polygon: hull of the 9 actuated joints",
+                 fontsize=8)
+    fig.subplots_adjust(left=0.0, right=0.9, bottom=0.04, top=0.84, wspace=0.08)
     return _save(fig, path)
 
 

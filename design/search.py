@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -54,6 +54,48 @@ class Reading:
         return s[2] == s[3]
 
 
+#: Stage 2 refines every coarse design within this fraction of the best coarse area ...
+SEED_TOLERANCE = 0.03
+#: ... at most this many.
+MAX_SEEDS = 8
+#: Designs whose area is within this fraction of the best belong to the ridge.
+RIDGE_TOLERANCE = 0.01
+
+
+@dataclass(frozen=True)
+class Ridge:
+    """The near-optimal designs: every design of both stages with area >= (1 - tol) best.
+
+    The coarse stage covers the whole box at its step, the fine stage one coarse step
+    around the best coarse design; the ridge may extend beyond the fine box, where it is
+    resolved at the coarse step only.
+    """
+
+    tolerance: float
+    count: int
+    l2: tuple[float, float]  # (min, max) [m]
+    l4: tuple[float, float]
+    ex: tuple[float, float]
+    l2_over_ex: tuple[float, float]  # (min, max) of l2 / ex
+
+    def line(self) -> str:
+        return (f"{self.count} designs within {self.tolerance:.0%} of the best: l2 "
+                f"{self.l2[0]:.3f}..{self.l2[1]:.3f}, l4 {self.l4[0]:.3f}..{self.l4[1]:.3f}, "
+                f"ex {self.ex[0]:.3f}..{self.ex[1]:.3f} m, l2/ex {self.l2_over_ex[0]:.2f}.."
+                f"{self.l2_over_ex[1]:.2f}")
+
+
+def ridge(designs: np.ndarray, areas: np.ndarray, tol: float = RIDGE_TOLERANCE) -> Ridge | None:
+    """The designs within ``tol`` of the best area (None when nothing counts)."""
+    best = float(areas.max()) if len(areas) else 0.0
+    if best <= 0.0:
+        return None
+    d = designs[areas >= (1.0 - tol) * best]
+    span = lambda v: (float(v.min()), float(v.max()))  # noqa: E731
+    return Ridge(tol, len(d), span(d[:, 0]), span(d[:, 1]), span(d[:, 2]),
+                 span(d[:, 0] / d[:, 2]))
+
+
 @dataclass(frozen=True)
 class DesignResult:
     found: bool  # False when no feasible design has a counted point (l2, l4, ex are NaN)
@@ -68,6 +110,9 @@ class DesignResult:
     seconds: float
     ws_step: float
     reading: Reading
+    ridge: Ridge | None = None  # every evaluated design within RIDGE_TOLERANCE of the best
+    local_optima: list[tuple[float, float, float, float]] = field(default_factory=list)
+    # (l2, l4, ex, area) of the refined optimum around each coarse seed, best seed first
 
     def as_json(self) -> dict:
         out = asdict(self)
@@ -145,9 +190,23 @@ def _run(designs: np.ndarray, reading: Reading, grid: Grid, chunk: int,
 
 
 def optimize(coarse_step: float = 0.01, fine_step: float = 0.001, ws_step: float = 0.005,
-             reading: Reading | None = None, progress: bool | Callable = False) -> DesignResult:
-    """Two-stage grid search; ties go to the first design in (l2, l4, ex) order."""
+             reading: Reading | None = None, progress: bool | Callable = False,
+             seed_tolerance: float = SEED_TOLERANCE, max_seeds: int = MAX_SEEDS
+             ) -> DesignResult:
+    """Two-stage grid search; ties go to the first design in (l2, l4, ex) order.
+
+    Stage 2 refines around every coarse design within ``seed_tolerance`` of the best
+    coarse area (at most ``max_seeds``, best first), not only the best one: the objective
+    is a narrow ridge along l2 ~ 1.4 ex with near-equal coarse maxima far apart, and
+    which one wins the coarse stage depends on the workspace grid.  ``seed_tolerance=0``
+    is the paper's procedure (one seed).  :attr:`DesignResult.local_optima` lists the
+    refined optimum of each seed.
+    """
     reading = reading or Reading()
+    if not (math.isfinite(seed_tolerance) and 0.0 <= seed_tolerance < 1.0):
+        raise ValueError(f"seed_tolerance must be in [0, 1), got {seed_tolerance}")
+    if not (isinstance(max_seeds, int) and 1 <= max_seeds <= 100):
+        raise ValueError(f"max_seeds must be an integer in [1, 100], got {max_seeds}")
     for name, v, lo, hi in (("coarse_step", coarse_step, 1e-3, 0.1),
                             ("fine_step", fine_step, 1e-4, coarse_step),
                             ("ws_step", ws_step, 1e-4, 0.05)):
@@ -167,8 +226,14 @@ def optimize(coarse_step: float = 0.01, fine_step: float = 0.001, ws_step: float
         tick = progress or None
     a1, w1 = _run(coarse, reading, grid, 4096, tick)
     best = coarse[int(np.argmax(a1))]
-    fine = _cube(*(_axis(max(fine_step, c - coarse_step), min(MAX_LINK, c + coarse_step),
-                         fine_step) for c in best))
+    order = np.argsort(-a1, kind="stable")
+    n_seeds = 1
+    if a1.max() > 0.0:
+        n_seeds = int(min(max_seeds, max(1, (a1 >= (1.0 - seed_tolerance) * a1.max()).sum())))
+    seeds = coarse[order[:n_seeds]]
+    boxes = [_cube(*(_axis(max(fine_step, c - coarse_step), min(MAX_LINK, c + coarse_step),
+                           fine_step) for c in seed)) for seed in seeds]
+    fine = np.unique(np.vstack(boxes), axis=0)  # sorted: ties keep (l2, l4, ex) order
     if bar is not None:
         bar.close()
         from tqdm import tqdm
@@ -184,6 +249,12 @@ def optimize(coarse_step: float = 0.01, fine_step: float = 0.001, ws_step: float
     else:
         best_design, best_area = fine[k], float(a2[k])
     paper_area = float(evaluate(np.array([PAPER_DESIGN]), reading, grid)[0][0])
+    local = []
+    for box in boxes:
+        lo, hi = box.min(axis=0) - 1e-9, box.max(axis=0) + 1e-9
+        inside = np.all((fine >= lo) & (fine <= hi), axis=1)
+        j = int(np.flatnonzero(inside)[np.argmax(a2[inside])])
+        local.append((*map(float, fine[j]), float(a2[j])))
     found = best_area > 0.0
     if not found:
         best_design = np.full(3, np.nan)
@@ -193,4 +264,6 @@ def optimize(coarse_step: float = 0.01, fine_step: float = 0.001, ws_step: float
         area_m2=max(best_area, 0.0), paper_design_area_m2=paper_area,
         evaluations=len(coarse) + len(fine), point_evaluations=int(w1.sum() + w2.sum()),
         feasible_designs=int((a1 >= 0).sum() + (a2 >= 0).sum()),
-        seconds=time.perf_counter() - t0, ws_step=ws_step, reading=reading)
+        seconds=time.perf_counter() - t0, ws_step=ws_step, reading=reading,
+        ridge=ridge(np.vstack([coarse, fine]), np.concatenate([a1, a2])),
+        local_optima=local)

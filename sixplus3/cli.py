@@ -351,14 +351,14 @@ def design() -> None:
 
 
 def _reading_option(f):
-    return click.option("--reading", default="spec", show_default=True,
+    return click.option("--reading", default="paper-mirror", show_default=True,
                         help="Reading of the paper's conventions (see docs/design.md): "
                         "one of " + ", ".join(_reading_names()))(f)
 
 
 def _reading_names() -> list[str]:
     # Static so that --help does not import numba; tests check it equals READINGS.
-    return ["spec", "paper-match", "spec-no-theta-limit"]
+    return ["spec", "paper-match", "paper-mirror", "spec-no-theta-limit"]
 
 
 def _reading(name: str):
@@ -374,42 +374,58 @@ def _reading(name: str):
               help="Stage-1 grid of the design variables [m].")
 @click.option("--fine-step", default=0.001, show_default=True, type=float,
               help="Stage-2 grid around the best coarse design [m].")
-@click.option("--ws-step", default=0.005, show_default=True, type=float,
-              help="Workspace grid of the half-plane [m].")
+@click.option("--ws-step", "ws_steps", default=(0.01, 0.005, 0.0025), show_default=True,
+              type=float, multiple=True,
+              help="Workspace grid of the half-plane [m]; repeat to re-optimise on each.")
 @_reading_option
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-def design_optimize(coarse_step: float, fine_step: float, ws_step: float, reading: str,
-                    as_json: bool) -> None:
-    """Two-stage grid search of (l2 = l3, l4 = l5, ex = fx) maximising the usable area."""
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object per grid.")
+def design_optimize(coarse_step: float, fine_step: float, ws_steps: tuple[float, ...],
+                    reading: str, as_json: bool) -> None:
+    """Two-stage grid search of (l2 = l3, l4 = l5, ex = fx) maximising the usable area,
+    re-run on every workspace grid, with the ridge of near-optimal designs."""
     from sixplus3.design.search import PAPER_DESIGN, optimize
     from sixplus3.errors import InputError
 
     rd = _reading(reading)
-    try:
-        res = optimize(coarse_step, fine_step, ws_step, rd, progress=not as_json)
-    except ValueError as exc:
-        raise InputError(str(exc),
-                         value=(coarse_step, fine_step, ws_step),
-                         valid="positive grid steps [m]") from None
-    if as_json:
-        out = {"found": res.found, "l2": res.l2, "l4": res.l4, "ex": res.ex,
-               "area_m2": res.area_m2, "paper_design_area_m2": res.paper_design_area_m2,
-               "evaluations": res.evaluations, "point_evaluations": res.point_evaluations,
-               "seconds": res.seconds, "reading": rd.name, "ws_step": ws_step}
-        click.echo(json.dumps(out, default=lambda x: None))
-        return
-    click.echo(f"reading '{rd.name}': {rd.description}")
-    if res.found:
-        click.echo(f"optimum      l2 = {res.l2:.3f}  l4 = {res.l4:.3f}  ex = {res.ex:.3f} m   "
-                   f"area {res.area_m2:.4f} m^2")
-    else:
-        click.echo("optimum      none: no feasible design has a counted point")
-    click.echo(f"paper        l2 = {PAPER_DESIGN[0]:.3f}  l4 = {PAPER_DESIGN[1]:.3f}  "
-               f"ex = {PAPER_DESIGN[2]:.3f} m   area {res.paper_design_area_m2:.4f} m^2 "
-               "(under our model)")
-    click.echo(f"{res.evaluations} designs ({res.feasible_designs} feasible), "
-               f"{res.point_evaluations:,} point evaluations in {res.seconds:.1f} s "
-               f"({res.evaluations / res.seconds:,.0f} designs/s)")
+    if not as_json:
+        click.echo(f"reading '{rd.name}': {rd.description}")
+        click.echo(f"paper        l2 = {PAPER_DESIGN[0]:.3f}  l4 = {PAPER_DESIGN[1]:.3f}  "
+                   f"ex = {PAPER_DESIGN[2]:.3f} m")
+    for ws_step in ws_steps:
+        try:
+            res = optimize(coarse_step, fine_step, ws_step, rd, progress=not as_json)
+        except ValueError as exc:
+            raise InputError(str(exc), value=(coarse_step, fine_step, ws_step),
+                             valid="positive grid steps [m]") from None
+        rg = res.ridge
+        if as_json:
+            out = {"found": res.found, "l2": res.l2, "l4": res.l4, "ex": res.ex,
+                   "area_m2": res.area_m2, "paper_design_area_m2": res.paper_design_area_m2,
+                   "evaluations": res.evaluations, "point_evaluations": res.point_evaluations,
+                   "seconds": res.seconds, "reading": rd.name, "ws_step": ws_step,
+                   "ridge": None if rg is None else {
+                       "tolerance": rg.tolerance, "count": rg.count, "l2": rg.l2,
+                       "l4": rg.l4, "ex": rg.ex, "l2_over_ex": rg.l2_over_ex},
+                   "local_optima": [dict(zip(("l2", "l4", "ex", "area_m2"), v, strict=True))
+                                    for v in res.local_optima]}
+            click.echo(json.dumps(out, default=lambda x: None))
+            continue
+        click.echo(f"grid {ws_step * 1000:g} mm:")
+        if res.found:
+            click.echo(f"  optimum    l2 = {res.l2:.3f}  l4 = {res.l4:.3f}  ex = {res.ex:.3f} m"
+                       f"   area {res.area_m2:.5f} m^2")
+        else:
+            click.echo("  optimum    none: no feasible design has a counted point")
+        click.echo(f"  paper's design: area {res.paper_design_area_m2:.5f} m^2 (our model)")
+        for v in res.local_optima:
+            if (v[0], v[1], v[2]) == (res.l2, res.l4, res.ex):
+                continue
+            click.echo(f"  also       l2 = {v[0]:.3f}  l4 = {v[1]:.3f}  ex = {v[2]:.3f} m   "
+                       f"area {v[3]:.5f} m^2 (refined from another coarse seed)")
+        if rg is not None:
+            click.echo(f"  ridge      {rg.line()}")
+        click.echo(f"  {res.evaluations} designs ({res.feasible_designs} feasible), "
+                   f"{res.point_evaluations:,} point evaluations in {res.seconds:.1f} s")
 
 
 @design.command("figures")
