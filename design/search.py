@@ -249,12 +249,12 @@ def optimize(coarse_step: float = 0.01, fine_step: float = 0.001, ws_step: float
     else:
         best_design, best_area = fine[k], float(a2[k])
     paper_area = float(evaluate(np.array([PAPER_DESIGN]), reading, grid)[0][0])
-    local = []
+    local: list[tuple[float, float, float, float]] = []
     for box in boxes:
         lo, hi = box.min(axis=0) - 1e-9, box.max(axis=0) + 1e-9
         inside = np.all((fine >= lo) & (fine <= hi), axis=1)
         j = int(np.flatnonzero(inside)[np.argmax(a2[inside])])
-        local.append((*map(float, fine[j]), float(a2[j])))
+        local.append((float(fine[j, 0]), float(fine[j, 1]), float(fine[j, 2]), float(a2[j])))
     found = best_area > 0.0
     if not found:
         best_design = np.full(3, np.nan)
