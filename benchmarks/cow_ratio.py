@@ -12,6 +12,7 @@ the 0.173 m triangle.  Each row changes one thing.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -21,10 +22,10 @@ from sixplus3.design.cow import (
     compute_cow,
     encoder_resolution,
 )
-from sixplus3.design.figures import _grid_image, cow_robot
+from sixplus3.design.figures import cow_robot
 from sixplus3.design.readings import READINGS
 from sixplus3.design.search import PAPER_DESIGN
-from sixplus3.design.workspace import counted_reading
+from sixplus3.design.workspace import counted_reading, halfplane_grid
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 
@@ -66,14 +67,12 @@ def ratio_rows() -> None:
     row("projected area = convex hull of the projection", r0, base, how="hull")
     row("singularity-free at margin 0.05 (the robot's limit)", r0, base, margin=0.05)
     for deg in (60.0, 180.0):
-        r = r0.replace(geometry=r0.geometry.__class__(
-            **{**r0.geometry.__dict__, "platform_phase": r0.geometry.platform_phase
-               + math.radians(deg)}))
+        r = r0.replace(geometry=replace(r0.geometry, platform_phase=r0.geometry.platform_phase
+                                        + math.radians(deg)))
         where = "between two legs" if deg == 60.0 else "pointing away from its leg"
         row(f"platform triangle turned {deg:g} deg (P_i {where})", r, base)
     for ey in (0.005, 0.01, 0.02):
-        rd = READINGS["paper-mirror"].__class__(**{**base.__dict__, "ey": ey,
-                                                    "name": f"paper-mirror ey={ey:g}"})
+        rd = replace(base, ey=ey, name=f"paper-mirror ey={ey:g}")
         row(f"ey = {ey:g} m (built robot's E, F offset)", cow_robot(rd), rd)
     row("with leg clearance (no interference between legs)", r0, base, key="clear")
     spec = READINGS["spec"]
@@ -87,10 +86,9 @@ def resolution_rows() -> None:
     print("| --- | --- | ---: |")
     rd = READINGS["paper-mirror"]
     geometry = LegGeometry.symmetric(*PAPER_DESIGN, ey=rd.ey, fy=-rd.ey)
-    X, Y, pts, inside = _grid_image(geometry, 0.0025)
-    s = leg_ik(pts, geometry, rd.mode, LegLoad())
-    cnt = counted_reading(s, LegLoad(), rd) & inside.ravel() & (s.det_K != 0)
-    solved = s.ok & inside.ravel() & (s.det_K != 0)
+    s = leg_ik(halfplane_grid(geometry, 0.0025), geometry, rd.mode, LegLoad())
+    cnt = counted_reading(s, LegLoad(), rd) & (s.det_K != 0)
+    solved = s.ok & (s.det_K != 0)
     safe = solved & (s.margin_I >= 0.05) & (s.margin_II >= 0.05)
     dth = s.dtheta_dp()
     counts = 2**20

@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial import ConvexHull
 
+from sixplus3.design.workspace import theta_within
 from sixplus3.errors import InputError
 from sixplus3.kinematics.robot import leg_clearance, robot_ik
 from sixplus3.robot_description.robot import Robot, RobotGeometry
@@ -63,7 +64,6 @@ class COW:
     step: float
     mode: str = "++++"
     z_step: float = 0.025
-    description: str = ""  # the robot and reading it was computed for
 
     def projected_area(self, limits: str) -> float:
         return float(self.masks[limits].any(axis=0).sum()) * self.step**2
@@ -123,8 +123,6 @@ def compute_cow(robot: Robot | None = None, step: float = 0.01, z_step: float = 
         if reading is None:
             in_range = np.all((th >= lim.theta_min) & (th <= lim.theta_max), axis=1)
         else:
-            from sixplus3.design.workspace import theta_within
-
             in_range = theta_within(th, math.radians(270.0), reading.theta_zero,
                                     reading.theta_direction)
         theta_ok = reach & in_range
@@ -139,10 +137,7 @@ def compute_cow(robot: Robot | None = None, step: float = 0.01, z_step: float = 
         for key, m in zip(LIMIT_SETS, (reach, theta_ok, sing, torque, clear), strict=True):
             masks[key][iz] = m.reshape(X.shape)
     poly, area = footprint(geom)
-    how = f"reading '{reading.name}'" if reading is not None else "the robot's actuated range"
-    return COW(xs, xs, zs, masks, poly, area, step, mode, z_step,
-               f"{robot.name} (mode {mode}, ey = {robot.leg.ey:g} m), theta: {how}, "
-               f"margin > {margin:g}")
+    return COW(xs, xs, zs, masks, poly, area, step, mode, z_step)
 
 
 @dataclass(frozen=True)

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from sixplus3.design.cow import home_in_cow
 from sixplus3.design.workspace import THETA_MAX, usable_area
 from sixplus3.errors import InputError
 from sixplus3.kinematics.leg import leg_ik
@@ -21,8 +22,6 @@ def leg_report(robot: Robot | None = None, ws_step: float = 0.005) -> str:
                          value=ws_step, valid="[0.0005, 0.05] m")
     geometry, mode = robot.leg, robot.mode
     load = LegLoad(torque_limit=robot.limits.torque)
-    from sixplus3.design.cow import home_in_cow
-
     lines = [
         f"sixplus3 leg report: {robot.summary()}",
         f"  design l2 = l3 = {geometry.l2:.3f}, l4 = l5 = {geometry.l4:.3f}, ex = fx = "

@@ -67,8 +67,8 @@ class Ridge:
     """The near-optimal designs: every design of both stages with area >= (1 - tol) best.
 
     The coarse stage covers the whole box at its step, the fine stage one coarse step
-    around the best coarse design; the ridge may extend beyond the fine box, where it is
-    resolved at the coarse step only.
+    around each seed; the ridge may extend beyond the fine boxes, where it is resolved at
+    the coarse step only.
     """
 
     tolerance: float

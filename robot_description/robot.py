@@ -389,7 +389,7 @@ def _paper_assembly(mode: str, name: str) -> Robot:
 
 #: Named robots: name -> (constructor, one-line description).  ``--robot NAME`` on the CLI.
 NAMED_ROBOTS: dict[str, tuple[Any, str]] = {
-    "default": (lambda: Robot.default(),
+    "default": (Robot.default,
                 "the built robot: paper design, mode ++++ (cranks outward), ey = 0.02 m, "
                 "home z = 0.30 m"),
     "paper": (lambda: _paper_assembly("++--", "paper"),
