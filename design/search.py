@@ -189,6 +189,16 @@ def _run(designs: np.ndarray, reading: Reading, grid: Grid, chunk: int,
     return areas, work
 
 
+def check_steps(coarse_step: float, fine_step: float, *ws_steps: float) -> None:
+    """Raise ValueError naming the first grid step out of its range."""
+    checks = [("coarse_step", coarse_step, 1e-3, 0.1),
+              ("fine_step", fine_step, 1e-4, coarse_step)]
+    checks += [("ws_step", v, 1e-4, 0.05) for v in ws_steps]
+    for name, v, lo, hi in checks:
+        if not (math.isfinite(v) and lo <= v <= hi):
+            raise ValueError(f"{name} must be in [{lo:g}, {hi:g}] m, got {v}")
+
+
 def optimize(coarse_step: float = 0.01, fine_step: float = 0.001, ws_step: float = 0.005,
              reading: Reading | None = None, progress: bool | Callable = False,
              seed_tolerance: float = SEED_TOLERANCE, max_seeds: int = MAX_SEEDS
@@ -207,11 +217,7 @@ def optimize(coarse_step: float = 0.01, fine_step: float = 0.001, ws_step: float
         raise ValueError(f"seed_tolerance must be in [0, 1), got {seed_tolerance}")
     if not (isinstance(max_seeds, int) and 1 <= max_seeds <= 100):
         raise ValueError(f"max_seeds must be an integer in [1, 100], got {max_seeds}")
-    for name, v, lo, hi in (("coarse_step", coarse_step, 1e-3, 0.1),
-                            ("fine_step", fine_step, 1e-4, coarse_step),
-                            ("ws_step", ws_step, 1e-4, 0.05)):
-        if not (math.isfinite(v) and lo <= v <= hi):
-            raise ValueError(f"{name} must be in [{lo:g}, {hi:g}] m, got {v}")
+    check_steps(coarse_step, fine_step, ws_step)
     t0 = time.perf_counter()
     grid = design_grid(ws_step, reading)
     coarse_axis = _axis(coarse_step, MAX_LINK, coarse_step)

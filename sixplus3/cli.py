@@ -383,20 +383,21 @@ def design_optimize(coarse_step: float, fine_step: float, ws_steps: tuple[float,
                     reading: str, as_json: bool) -> None:
     """Two-stage grid search of (l2 = l3, l4 = l5, ex = fx) maximising the usable area,
     re-run on every workspace grid, with the ridge of near-optimal designs."""
-    from sixplus3.design.search import PAPER_DESIGN, optimize
+    from sixplus3.design.search import PAPER_DESIGN, check_steps, optimize
     from sixplus3.errors import InputError
 
     rd = _reading(reading)
+    try:  # every grid before the first search: no partial output for a bad one
+        check_steps(coarse_step, fine_step, *ws_steps)
+    except ValueError as exc:
+        raise InputError(str(exc), value=(coarse_step, fine_step, ws_steps),
+                         valid="positive grid steps [m]") from None
     if not as_json:
         click.echo(f"reading '{rd.name}': {rd.description}")
         click.echo(f"paper        l2 = {PAPER_DESIGN[0]:.3f}  l4 = {PAPER_DESIGN[1]:.3f}  "
                    f"ex = {PAPER_DESIGN[2]:.3f} m")
     for ws_step in ws_steps:
-        try:
-            res = optimize(coarse_step, fine_step, ws_step, rd, progress=not as_json)
-        except ValueError as exc:
-            raise InputError(str(exc), value=(coarse_step, fine_step, ws_step),
-                             valid="positive grid steps [m]") from None
+        res = optimize(coarse_step, fine_step, ws_step, rd, progress=not as_json)
         rg = res.ridge
         if as_json:
             out = {"found": res.found, "l2": res.l2, "l4": res.l4, "ex": res.ex,

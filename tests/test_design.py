@@ -173,3 +173,13 @@ def test_refining_every_near_best_seed_finds_the_ridge_and_the_papers_basin() ->
     rg = many.ridge
     assert rg is not None and rg.count >= 1
     assert rg.l2[0] <= many.l2 <= rg.l2[1] and 1.3 < rg.l2_over_ex[0] <= rg.l2_over_ex[1] < 1.5
+
+
+def test_design_optimize_checks_every_grid_before_searching() -> None:
+    from click.testing import CliRunner
+
+    from sixplus3.cli import main
+
+    res = CliRunner().invoke(main, ["design", "optimize", "--ws-step", "0.05",
+                                    "--ws-step", "nan"])
+    assert res.exit_code == 2 and "ws_step" in res.output and "grid 50 mm" not in res.output
