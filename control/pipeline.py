@@ -66,8 +66,13 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
     sol = plan(task, robot, options)
     secs["plan"] = time.perf_counter() - t0
     assert sol.check is not None  # plan() returns only checked plans
-    say(f"  planned: {sol.final_time:.4f} s motion, {sol.solves} NLP solve(s), IPOPT "
-        f"{sol.iterations} iterations in the last, {sol.solve_time:.2f} s; 10x re-check: "
+    how = ("the time-optimal NLP" if sol.source == "ocp" else
+           "the stop-at-waypoints baseline (the NLP failed or was slower)")
+    base = (f"baseline {sol.baseline_time:.4f} s" if sol.baseline_time is not None
+            else "no admissible baseline")
+    say(f"  planned: {sol.final_time:.4f} s motion from {how} ({base}), {sol.solves} NLP "
+        f"solve(s), IPOPT {sol.iterations} iterations in the last, {sol.solve_time:.2f} s "
+        f"solving, {sol.wall_time:.2f} s in all; dense re-check: "
         f"max|tau| {sol.check.max_torque_ratio:.3f} of the limit, min margin "
         f"{sol.check.min_margin:.3f}")
     t1 = time.perf_counter()

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import casadi as ca
@@ -94,22 +94,35 @@ class Solution:
     time_scale: float = 1.0
     #: the NLP's primal-dual point (x, lam_x, lam_g), to warm-start a re-solve
     nlp_point: tuple | None = field(default=None, repr=False)
+    #: "ocp" (the time-optimal NLP) or "baseline" (planner.baseline: stop at every
+    #: waypoint, straight lines, TOPP-RA per segment; returned when the NLP failed or
+    #: was slower)
+    source: str = "ocp"
+    #: duration [s] of the baseline plan of the same task (None: no admissible baseline)
+    baseline_time: float | None = None
+    #: wall clock [s] of the whole Problem.solve() (static choices, baseline, NLPs, checks)
+    wall_time: float = 0.0
 
     def sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(x, xd, xdd) at arbitrary times [s] from the exact piecewise-cubic motion."""
-        times = np.clip(np.asarray(times, dtype=float), 0.0, self.t[-1])
-        k = np.clip(np.searchsorted(self.t, times, side="right") - 1, 0, len(self.t) - 2)
-        h = (self.t[k + 1] - self.t[k])[:, None]
-        s = (times - self.t[k])[:, None]
-        u0, u1 = self.xdd[k], self.xdd[k + 1]
-        jerk = (u1 - u0) / h
-        x = self.x[k] + s * self.xd[k] + s**2 / 2 * u0 + s**3 / 6 * jerk
-        xd = self.xd[k] + s * u0 + s**2 / 2 * jerk
-        xdd = u0 + s * jerk
-        return x, xd, xdd
+        return sample_cubic(self.t, self.x, self.xd, self.xdd, times)
 
     def is_feasible(self) -> bool:
         return bool(self.found and self.check is not None and self.check.ok)
+
+
+def sample_cubic(t: np.ndarray, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray,
+                 times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x, xd, xdd) at ``times`` of the piecewise-cubic motion with node times ``t`` and
+    node values (x, xd, xdd), the acceleration linear between the nodes."""
+    times = np.clip(np.asarray(times, dtype=float), 0.0, t[-1])
+    k = np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(t) - 2)
+    h = (t[k + 1] - t[k])[:, None]
+    s = (times - t[k])[:, None]
+    u0, u1 = xdd[k], xdd[k + 1]
+    jerk = (u1 - u0) / h
+    return (x[k] + s * xd[k] + s**2 / 2 * u0 + s**3 / 6 * jerk,
+            xd[k] + s * u0 + s**2 / 2 * jerk, u0 + s * jerk)
 
 
 @dataclass(frozen=True)
@@ -242,21 +255,25 @@ class Problem:
         self.sr = self.robot.symbolic()
 
     # -- initial guess
-    def _guess(self, psi_wp: np.ndarray):
-        task = self.task
-        ns = task.nodes_per_segment
-        S = task.n_segments
+    def waypoint_states(self, psi_wp: np.ndarray) -> np.ndarray:
+        """(W, 9) minimal coordinates of the waypoints with the crank angles ``psi_wp``,
+        the rotation vectors kept continuous (|r| near pi has two forms)."""
         rv_prev = None
         rows = []
-        for k, wp in enumerate(task.waypoints):
+        for k, wp in enumerate(self.task.waypoints):
             rv = rotvec(wp.rotation)
             if rv_prev is not None and np.linalg.norm(rv - rv_prev) > math.pi:
-                # keep the rotation vector continuous (|r| near pi has two forms)
                 ang = np.linalg.norm(rv)
                 rv = rv - 2 * math.pi * rv / ang
             rv_prev = rv
             rows.append(np.r_[wp.position, rv, psi_wp[k]])
-        wp_x = np.array(rows)
+        return np.array(rows)
+
+    def _guess(self, psi_wp: np.ndarray):
+        task = self.task
+        ns = task.nodes_per_segment
+        S = task.n_segments
+        wp_x = self.waypoint_states(psi_wp)
         xs, seg_T = [], []
         for s in range(S):
             a, b = wp_x[s], wp_x[s + 1]
@@ -317,6 +334,7 @@ class Problem:
         return np.sqrt(np.maximum(a2, 1e-12))
 
     def solve(self) -> Solution:
+        t_wall = time.perf_counter()
         task, opt = self.task, self.options
         at_rest = {0, len(task.waypoints) - 1} | {w for w, wp in enumerate(task.waypoints)
                                                    if wp.stop}
@@ -333,19 +351,18 @@ class Problem:
         # between the legs' links (None: those rows unbounded, see _clearance_needed)
         reserve: dict[str, Any] = {"spherical": 0.0,
                    "clearance": 0.0 if self._clearance_needed(psi_wp) else None}
-        try:
-            sol = self._solve_once(psi_wp, proxy, safety, reserve=reserve)
-        except InfeasibleTaskError as first:
-            if first.limit is None or not first.limit.startswith("solver"):
-                raise
-            # IPOPT failed from the kinematic guess: once more from a guess twice as slow
-            # (a different starting point, still kinematically feasible); if that fails
-            # too the task is reported infeasible with the first diagnosis.
-            try:
-                sol = self._solve_once(psi_wp, proxy, safety, time_scale=2.0,
-                                       reserve=reserve)
-            except InfeasibleTaskError:
-                raise first from None
+        # The baseline (stop at every waypoint, straight lines, TOPP-RA per segment):
+        # feasible by construction when its lines are admissible, the NLP's first warm
+        # start, and the plan returned when the NLP fails or is slower.
+        from sixplus3.planner.baseline import baseline_plan
+
+        base, self.baseline_note = baseline_plan(self, psi_wp)
+        sol, first = self._first_solve(psi_wp, proxy, safety, reserve, base)
+        if sol is None:
+            if base is not None:
+                return self._finish(base, base, t_wall, psi_wp, proxy, safety, reserve)
+            assert first is not None
+            raise first
         total, solves = sol.solve_time, 1
         # The OCP constrains the nodes; the dense re-check sees between them.  Tighten what
         # the check found violated and re-solve from the previous solution (at most 5x).
@@ -381,12 +398,57 @@ class Problem:
                 fixable = fixable or reserve["clearance"] < 0.01
             if not fixable:
                 break
-            sol = self._solve_once(psi_wp, proxy, safety, warm=sol, reserve=reserve)
-            total += sol.solve_time
+            try:
+                nxt = self._solve_once(psi_wp, proxy, safety, warm=sol, reserve=reserve)
+            except InfeasibleTaskError as exc:
+                if exc.limit is None or not exc.limit.startswith("solver"):
+                    raise
+                break  # keep the last iterate; the baseline below may replace it
+            total += nxt.solve_time
             solves += 1
+            sol = nxt
         sol.solve_time, sol.solves = total, solves
         if sol.check is not None and sol.check.ok:
             sol = self._retime(sol, proxy)
+        return self._finish(sol, base, t_wall, psi_wp, proxy, safety, reserve)
+
+    def _first_solve(self, psi_wp, proxy, safety, reserve, base):
+        """(Solution or None, the first solver error): the NLP from the baseline, then
+        from the kinematic guess, then from a guess twice as slow, then (with no baseline)
+        through a homotopy in the margin: solved with 0.6 x the margin, re-solved from
+        there with the task's."""
+        starts: list[dict[str, Any]] = [{}, {"time_scale": 2.0}]
+        if base is not None:
+            starts.insert(0, {"warm": base})
+        first = None
+        for start in starts:
+            try:
+                return self._solve_once(psi_wp, proxy, safety, reserve=reserve, **start), None
+            except InfeasibleTaskError as exc:
+                if exc.limit is None or not exc.limit.startswith("solver"):
+                    raise
+                first = first or exc
+        if base is None:
+            try:
+                loose = self._solve_once(psi_wp, proxy, safety, reserve=reserve,
+                                         margin=0.6 * self.limits.margin)
+                return self._solve_once(psi_wp, proxy, safety, warm=loose,
+                                        reserve=reserve), None
+            except InfeasibleTaskError as exc:
+                if exc.limit is None or not exc.limit.startswith("solver"):
+                    raise
+        return None, first
+
+    def _finish(self, sol: Solution, base: Solution | None, t_wall: float, psi_wp,
+                proxy, safety, reserve) -> Solution:
+        """The returned plan: the NLP's, or the baseline when the NLP's failed its check
+        or is slower; then the task's duration or speed, if it asks for one."""
+        if base is not None and sol is not base and (
+                not (sol.check is not None and sol.check.ok)
+                or sol.final_time > base.final_time):
+            base.solve_time += sol.solve_time
+            base.solves = sol.solves
+            sol = base
         target = self._target_duration(sol)
         if target is not None:
             sol = self._fixed_duration(sol, target, psi_wp, proxy, safety, reserve)
@@ -395,8 +457,10 @@ class Problem:
                                 ("velocity", sol.check.max_velocity_ratio),
                                 ("acceleration", sol.check.max_acceleration_ratio)):
                 if ratio > 0.99 and not any(a.startswith(name) for a in sol.active_limits):
-                    sol.active_limits.append(f"{name} ({ratio:.3f} of the limit in the 10x "
+                    sol.active_limits.append(f"{name} ({ratio:.3f} of the limit in the "
                                              "dense check)")
+        sol.baseline_time = base.final_time if base is not None else None
+        sol.wall_time = time.perf_counter() - t_wall
         return sol
 
     def _target_duration(self, sol: Solution) -> float | None:
@@ -496,16 +560,21 @@ class Problem:
 
     def _solve_once(self, psi_wp: np.ndarray, platform_proxy: float, safety: dict,
                     warm: Solution | None = None, time_scale: float = 1.0,
-                    reserve: dict | None = None, duration: float | None = None) -> Solution:
+                    reserve: dict | None = None, duration: float | None = None,
+                    margin: float | None = None) -> Solution:
+        """One NLP solve from the kinematic guess (stretched by ``time_scale``) or from
+        ``warm`` (a plan of this task: its primal-dual point if it has one, else its
+        motion on this NLP's nodes); ``margin`` overrides the singularity margin of the
+        constraints (a homotopy step: the result is still checked against the task's)."""
         task, opt, sr = self.task, self.options, self.sr
-        lim = self.limits
+        lim = self.limits if margin is None else replace(self.limits, margin=margin)
         ns, S = task.nodes_per_segment, task.n_segments
         N = ns * S
         wp_x, x0, xd0, xdd0, T0 = self._guess(psi_wp)
         if time_scale != 1.0:
             T0, xd0, xdd0 = T0 * time_scale, xd0 / time_scale, xdd0 / time_scale**2
         if warm is not None:
-            x0, xd0, xdd0, T0 = warm.x, warm.xd, warm.xdd, warm.segment_times
+            x0, xd0, xdd0, T0 = self._on_nodes(warm)
         # Constraint signs from the guess (a margin keeps its sign inside a free region).
         m1, m2, _ = sr.margins.map(N + 1)(x0.T)
         sign1 = np.sign(np.median(np.array(m1), axis=1))
@@ -570,6 +639,20 @@ class Problem:
                                   np.array(res["lam_g"]).ravel(), D))
         sol.check = dense_check(sol, factor=10)
         return sol
+
+    def _on_nodes(self, sol: Solution):
+        """(x, xd, xdd, T) of a plan of this task on this NLP's node grid (its own arrays
+        if it has that grid; else sampled, ``nodes_per_segment`` uniform nodes per
+        segment)."""
+        ns, S = self.task.nodes_per_segment, self.task.n_segments
+        if len(sol.t) == ns * S + 1 and len(sol.segment_times) == S:
+            return sol.x, sol.xd, sol.xdd, sol.segment_times
+        T = np.asarray(sol.segment_times, dtype=float)
+        starts = np.r_[0.0, np.cumsum(T)]
+        times = np.r_[np.concatenate([starts[s] + T[s] * np.arange(ns) / ns
+                                      for s in range(S)]), starts[-1]]
+        x, xd, xdd = sol.sample(times)
+        return x, xd, xdd, T
 
     def _variable_scale(self, tmax: float) -> np.ndarray:
         """Scale of every decision variable: IPOPT works with w / D.

@@ -49,6 +49,14 @@ def toppra_time(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: int = 
                 samples: int = 400) -> ToppraResult:
     """Time-optimal parametrisation for ``robot`` of the path through the samples xs
     (m, 9), at rest at both ends, re-parametrised by arc length."""
+    traj = toppra_trajectory(robot, xs, limits, gridpoints)
+    t = np.linspace(0.0, traj.duration, samples)
+    return ToppraResult(float(traj.duration), gridpoints, t, traj(t))
+
+
+def toppra_trajectory(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: int = 400):
+    """TOPP-RA's trajectory object (``traj(t, order)``) for the path through the samples
+    xs (m, 9), at rest at both ends; raises RuntimeError if it finds none."""
     sr = robot.symbolic()
     ss, xs = arc_length_parameter(np.asarray(xs, dtype=float))
     # Path parameter in [0, PATH_SCALE] rather than [0, 1]: on a unit path the platform's
@@ -76,8 +84,7 @@ def toppra_time(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: int = 
     traj = inst.compute_trajectory(0.0, 0.0)
     if traj is None:
         raise RuntimeError("TOPP-RA found no feasible parametrisation of the path")
-    t = np.linspace(0.0, traj.duration, samples)
-    return ToppraResult(float(traj.duration), gridpoints, t, traj(t))
+    return traj
 
 
 def rest_splits(sol, rel: float = 1e-3) -> np.ndarray:

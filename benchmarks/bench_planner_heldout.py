@@ -1,0 +1,110 @@
+"""The planner on a held-out random set: wall time, success, duration against the baseline.
+
+    .venv/bin/python benchmarks/bench_planner_heldout.py [--n 30] [--seed 2026] [--out r.jsonl]
+
+The task generator is broader than bench_planner_random.py, as in the planner-speed issue:
+2-4 waypoints, all random (start and end away from home): positions x, y in +-0.06 m,
+z in 0.25-0.36 m, roll/pitch/yaw in +-45 deg, the task defaults otherwise (12 intervals per
+segment, 90 % torque fraction, cranks at home at the start and back at the end).  Tasks
+whose waypoints fail the static checks (reach, ranges, margins, holding torque) are
+refused before any optimisation, by design, and counted apart.
+
+Per task: the wall time of ``Problem(task).solve()`` (everything from the task to a
+dense-checked Solution; the one-time C compilation of the model is done before the clock
+starts), the NLP solve time, IPOPT iterations, the plan's duration, and the duration of
+the stop-at-waypoints baseline (straight lines, static crank angles, TOPP-RA per segment,
+made jerk- and torque-rate-limited: ``planner.baseline``) when the code has it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import statistics
+import time
+
+import numpy as np
+
+from sixplus3.planner.ocp import InfeasibleTaskError, Problem
+from sixplus3.planner.task import task_from_dict
+
+
+def heldout_task(rng: np.random.Generator, k: int) -> dict:
+    wps = []
+    for _ in range(int(rng.integers(2, 5))):
+        wps.append({"position": [float(rng.uniform(-0.06, 0.06)),
+                                 float(rng.uniform(-0.06, 0.06)),
+                                 float(rng.uniform(0.25, 0.36))],
+                    "rpy": [float(v) for v in rng.uniform(-45, 45, 3)]})
+    return {"name": f"heldout_{k}", "waypoints": wps}
+
+
+def pct(values: list[float], q: float) -> float:
+    return float(np.percentile(values, q)) if values else float("nan")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=30)
+    ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--out", default=None, help="write one JSON line per task")
+    args = ap.parse_args()
+    from sixplus3.planner.codegen import compiled_functions
+    from sixplus3.robot_description.robot import Robot
+
+    compiled_functions(Robot.default())  # the one-time compile, outside the clock
+    rng = np.random.default_rng(args.seed)
+    rows, outcome = [], collections.Counter()
+    out = open(args.out, "w") if args.out else None  # noqa: SIM115
+    for k in range(args.n):
+        doc = heldout_task(rng, k)
+        task = task_from_dict(doc)
+        row: dict = {"name": task.name, "waypoints": len(task.waypoints)}
+        t0 = time.perf_counter()
+        try:
+            sol = Problem(task).solve()
+            row["wall"] = time.perf_counter() - t0
+            row.update(ok=sol.is_feasible(), T=sol.final_time, solve=sol.solve_time,
+                       iterations=sol.iterations, solves=sol.solves, status=sol.status,
+                       baseline=getattr(sol, "baseline_time", None),
+                       source=getattr(sol, "source", "ocp"))
+            kind = "planned" if row["ok"] else "refused by the dense check"
+        except InfeasibleTaskError as exc:
+            row["wall"] = time.perf_counter() - t0
+            kind = ("reported infeasible after optimising"
+                    if exc.limit and (exc.limit.startswith("solver")
+                                      or exc.limit == "dense check")
+                    else f"waypoint refused ({exc.limit})")
+            row.update(ok=False, error=str(exc)[:160])
+        row["outcome"] = kind
+        outcome[kind.split(" (")[0]] += 1
+        rows.append(row)
+        if out:
+            out.write(json.dumps(row) + "\n")
+            out.flush()
+        print(json.dumps(row), flush=True)
+    planned = [r for r in rows if r.get("ok")]
+    tried = [r for r in rows if not r["outcome"].startswith("waypoint refused")]
+    print("\noutcomes:", dict(outcome))
+    if tried:
+        print(f"success on tasks passing the static checks: {len(planned)}/{len(tried)}")
+        walls = [r["wall"] for r in tried]
+        print(f"wall [s] over {len(tried)} tasks: median {statistics.median(walls):.2f}, "
+              f"p95 {pct(walls, 95):.2f}, max {max(walls):.2f}")
+    if planned:
+        solves = [r["solve"] for r in planned]
+        iters = [r["iterations"] for r in planned]
+        print(f"solve [s] over {len(planned)} plans: median {statistics.median(solves):.2f}, "
+              f"p95 {pct(solves, 95):.2f}, max {max(solves):.2f}; iterations median "
+              f"{statistics.median(iters):g}, range {min(iters)}-{max(iters)}")
+        ratio = [r["T"] / r["baseline"] for r in planned if r.get("baseline")]
+        if ratio:
+            print(f"duration / baseline over {len(ratio)}: median "
+                  f"{statistics.median(ratio):.3f}, worst {max(ratio):.3f}")
+        src = collections.Counter(r.get("source", "ocp") for r in planned)
+        print("plans from:", dict(src))
+
+
+if __name__ == "__main__":
+    main()

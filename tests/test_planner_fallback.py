@@ -1,0 +1,133 @@
+"""The planner's baseline, fallbacks and guarantees (planner speed and robustness issue):
+never slower than the stop-at-waypoints TOPP-RA baseline, never a false "infeasible"."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sixplus3.control.pipeline import run_plan
+from sixplus3.control.validation import validate_file
+from sixplus3.planner.baseline import baseline_plan, line_check
+from sixplus3.planner.ocp import (
+    InfeasibleTaskError,
+    PlannerOptions,
+    Problem,
+    choose_static_psi,
+    plan,
+)
+from sixplus3.planner.task import task_from_dict
+
+THREE = {"name": "three", "nodes_per_segment": 6,
+         "waypoints": [{"position": [0.02, -0.03, 0.29], "rpy": [10, -5, 20]},
+                       {"position": [-0.04, 0.02, 0.32], "rpy": [-15, 10, -10]},
+                       {"position": [0.01, 0.04, 0.27], "rpy": [5, 20, 0]}]}
+
+#: a pick-and-place of five poses, planned at the default margin 0.05
+PICK_AND_PLACE = {
+    "name": "pick_and_place", "limits": {"margin": 0.05},
+    "waypoints": [
+        {"position": [-0.05, -0.03, 0.33], "rpy": [0, 0, -30]},
+        {"position": [-0.05, -0.03, 0.26], "rpy": [15, 0, -30], "stop": True},
+        {"position": [-0.05, -0.03, 0.33], "rpy": [0, 0, -30]},
+        {"position": [0.05, 0.04, 0.33], "rpy": [0, 0, 40]},
+        {"position": [0.05, 0.04, 0.26], "rpy": [0, -15, 40]}]}
+
+
+def _baseline(doc):
+    problem = Problem(task_from_dict(doc))
+    at_rest = {0, len(problem.task.waypoints) - 1}
+    psi = choose_static_psi(problem.task, problem.robot, problem.limits, False, at_rest)
+    return problem, psi, *baseline_plan(problem, psi)
+
+
+def test_baseline_is_a_checked_stop_at_waypoint_plan_on_straight_lines() -> None:
+    problem, psi, base, why = _baseline(THREE)
+    assert base is not None, why
+    assert base.source == "baseline" and base.check.ok
+    wp = problem.waypoint_states(psi)
+    ends = np.r_[0.0, np.cumsum(base.segment_times)]
+    x, xd, xdd = base.sample(ends)
+    np.testing.assert_allclose(x, wp, atol=1e-9)  # through the waypoints ...
+    assert np.abs(xd).max() < 1e-9 and np.abs(xdd).max() < 1e-9  # ... at rest there
+    for k in range(2):  # on the straight line between them, in all 9 coordinates
+        t = np.linspace(ends[k], ends[k + 1], 50)
+        xs, _, _ = base.sample(t)
+        d = wp[k + 1] - wp[k]
+        s = (xs - wp[k]) @ d / (d @ d)
+        np.testing.assert_allclose(xs, wp[k] + s[:, None] * d, atol=1e-9)
+        assert np.all(np.diff(s) >= -1e-12)
+    # jerk and torque rate within the robot's limits on a fine grid (the planner's
+    # smoothness limits, which TOPP-RA alone does not know)
+    sr = base.robot.symbolic()
+    t = np.linspace(0.0, base.final_time, 8001)
+    x, xd, xdd = base.sample(t)
+    thdd = np.array(sr.theta_ddot.map(len(t))(x.T, xd.T, xdd.T)).T
+    tau = np.array(sr.tau.map(len(t))(x.T, xd.T, xdd.T)).T
+    dt = t[1] - t[0]
+    assert np.abs(np.diff(thdd, axis=0)).max() / dt <= base.limits.jerk
+    assert np.abs(np.diff(tau, axis=0)).max() / dt <= base.limits.torque_rate
+    # time-optimal on its lines up to the smoothing: a torque or acceleration binds
+    assert max(base.check.max_torque_ratio, base.check.max_acceleration_ratio) > 0.95
+
+
+def test_a_line_leaving_the_workspace_has_no_baseline() -> None:
+    problem = Problem(task_from_dict(THREE))
+    a = problem.waypoint_states(np.full((3, 3), np.pi / 2))[0]
+    b = a.copy()
+    b[2] = 1.2  # far above the workspace
+    assert "leaves the workspace" in line_check(problem.robot, problem.limits, a, b)
+    assert line_check(problem.robot, problem.limits, a, a) is None
+
+
+def test_the_plan_is_never_slower_than_the_baseline() -> None:
+    sol = plan(task_from_dict(THREE))
+    assert sol.is_feasible() and sol.baseline_time is not None
+    assert sol.final_time <= sol.baseline_time
+    assert sol.source == "ocp" and sol.wall_time >= sol.solve_time > 0.0
+
+
+def test_a_failed_nlp_falls_back_to_the_baseline(tmp_path) -> None:
+    """IPOPT stopped after 2 iterations fails from every start; the planner returns the
+    baseline (checked), not "infeasible", and it passes the gate as a trajectory file."""
+    opts = PlannerOptions(max_iter=2)
+    task = task_from_dict(THREE)
+    out = run_plan(task, tmp_path, options=opts, html=False, plots=False)
+    sol = out.solution
+    assert sol.source == "baseline" and sol.is_feasible()
+    assert sol.final_time == pytest.approx(sol.baseline_time)
+    assert out.report.ok and validate_file(out.csv).ok
+
+
+def test_without_a_baseline_the_margin_homotopy_is_tried(monkeypatch) -> None:
+    """No admissible baseline and an NLP that fails from every start at the task's margin:
+    the planner solves with 0.6 x the margin and re-solves from there before it would
+    report the task infeasible."""
+    from sixplus3.planner import baseline
+
+    monkeypatch.setattr(baseline, "baseline_plan", lambda problem, psi: (None, "forced"))
+    problem = Problem(task_from_dict({**THREE, "waypoints": THREE["waypoints"][:2]}))
+    real = problem._solve_once
+    calls = []
+
+    def fail_unless_homotopy(psi_wp, proxy, safety, warm=None, **kw):
+        calls.append((kw.get("margin"), None if warm is None else warm.source))
+        if kw.get("margin") is None and warm is None:
+            raise InfeasibleTaskError("forced", None, "solver: Infeasible_Problem_Detected")
+        return real(psi_wp, proxy, safety, warm=warm, **kw)
+
+    monkeypatch.setattr(problem, "_solve_once", fail_unless_homotopy)
+    sol = problem.solve()
+    assert sol.is_feasible() and sol.baseline_time is None
+    lim = problem.limits.margin
+    assert calls[:4] == [(None, None), (None, None), (pytest.approx(0.6 * lim), None),
+                         (None, "ocp")]
+    assert sol.check.min_margin >= lim
+
+
+def test_pick_and_place_plans_at_margin_005() -> None:
+    """Regression: a 5-pose pick-and-place at the margin 0.05 plans (the held-out check
+    once reported such a task infeasible at 0.05 that planned at 0.03)."""
+    sol = plan(task_from_dict(PICK_AND_PLACE))
+    assert sol.is_feasible() and sol.check.min_margin >= 0.05
+    assert sol.baseline_time is not None and sol.final_time <= sol.baseline_time
