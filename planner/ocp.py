@@ -59,7 +59,8 @@ class PlannerOptions:
     lock_redundancy: bool = False  # psi fixed at 90 deg (or the waypoints' psi) throughout
     torque_safety: float = 0.98  # initial node bound = safety * limit (then tightened only
     #                              where the dense re-check finds an overshoot between nodes)
-    max_iter: int = 600
+    max_iter: int = 250  # successful solves took 15-170 iterations (BENCHMARKS.md); a start
+    #                      that has not converged by then falls back (Problem.solve)
     tol: float = 1e-6
     regularisation: float = 1e-4
     verbose: bool = False
@@ -360,6 +361,7 @@ class Problem:
         sol, first = self._first_solve(psi_wp, proxy, safety, reserve, base)
         if sol is None:
             if base is not None:
+                base.solve_time += self.failed_solve_time
                 return self._finish(base, base, t_wall, psi_wp, proxy, safety, reserve)
             assert first is not None
             raise first
@@ -399,7 +401,8 @@ class Problem:
             if not fixable:
                 break
             try:
-                nxt = self._solve_once(psi_wp, proxy, safety, warm=sol, reserve=reserve)
+                nxt = self._solve_once(psi_wp, proxy, safety, warm=sol, reserve=reserve,
+                                       margin=self.margin_rows)
             except InfeasibleTaskError as exc:
                 if exc.limit is None or not exc.limit.startswith("solver"):
                     raise
@@ -413,32 +416,44 @@ class Problem:
         return self._finish(sol, base, t_wall, psi_wp, proxy, safety, reserve)
 
     def _first_solve(self, psi_wp, proxy, safety, reserve, base):
-        """(Solution or None, the first solver error): the NLP from the baseline, then
-        from the kinematic guess, then from a guess twice as slow, then (with no baseline)
-        through a homotopy in the margin: solved with 0.6 x the margin, re-solved from
-        there with the task's."""
-        starts: list[dict[str, Any]] = [{}, {"time_scale": 2.0}]
+        """(Solution or None, the first solver error), trying in turn: the NLP from the
+        baseline; a homotopy step in the margin (the constraints at 0.6 x the margin,
+        from the baseline; its plan is kept if the dense check, against the task's own
+        margin, passes: the OCP's margin rows are conservative proxies, det J-hat >= 3 m
+        and the platform's line determinant >= max(0.5, 6 m), so a plan can meet the
+        official margin although the NLP at the full margin was declared infeasible;
+        otherwise it is re-solved from there at the task's margin); the kinematic guess;
+        with no baseline, a guess twice as slow.  Failed starts count in the solve time.
+        """
+        margin = self.limits.margin
+        self.margin_rows: float | None = None  # the margin of the NLP's rows (None: the task's)
+        starts: list[dict[str, Any]] = []
         if base is not None:
-            starts.insert(0, {"warm": base})
+            starts.append({"warm": base})
+        starts += [{"warm": base, "margin": 0.6 * margin}, {}]
+        if base is None:
+            starts.append({"time_scale": 2.0})
         first = None
+        failed = 0.0
         for start in starts:
+            t0 = time.perf_counter()
             try:
-                return self._solve_once(psi_wp, proxy, safety, reserve=reserve, **start), None
+                sol = self._solve_once(psi_wp, proxy, safety, reserve=reserve, **start)
+                if "margin" in start and any("margin" in v for v in sol.check.violations):
+                    sol = self._solve_once(psi_wp, proxy, safety, reserve=reserve, warm=sol)
+                elif "margin" in start:
+                    # the homotopy's plan meets the task's margin: re-solves keep its rows
+                    self.margin_rows = start["margin"]
             except InfeasibleTaskError as exc:
                 if exc.limit is None or not exc.limit.startswith("solver"):
                     raise
                 first = first or exc
-        if base is None:
-            try:
-                loose = self._solve_once(psi_wp, proxy, safety, reserve=reserve,
-                                         margin=0.6 * self.limits.margin)
-                return self._solve_once(psi_wp, proxy, safety, warm=loose,
-                                        reserve=reserve), None
-            except InfeasibleTaskError as exc:
-                if exc.limit is None or not exc.limit.startswith("solver"):
-                    raise
+                failed += time.perf_counter() - t0
+                continue
+            sol.solve_time += failed
+            return sol, None
+        self.failed_solve_time = failed
         return None, first
-
     def _finish(self, sol: Solution, base: Solution | None, t_wall: float, psi_wp,
                 proxy, safety, reserve) -> Solution:
         """The returned plan: the NLP's, or the baseline when the NLP's failed its check
