@@ -1,6 +1,7 @@
 """The planner on a held-out random set: wall time, success, duration against the baseline.
 
     .venv/bin/python benchmarks/bench_planner_heldout.py [--n 30] [--seed 2026] [--out r.jsonl]
+    .venv/bin/python benchmarks/bench_planner_heldout.py --examples   # the example suite
 
 The task generator is broader than bench_planner_random.py, as in the planner-speed issue:
 2-4 waypoints, all random (start and end away from home): positions x, y in +-0.06 m,
@@ -49,6 +50,8 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=30)
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--out", default=None, help="write one JSON line per task")
+    ap.add_argument("--examples", action="store_true",
+                    help="the example suite (examples/*.yaml) instead of random tasks")
     args = ap.parse_args()
     from sixplus3.planner.codegen import compiled_functions
     from sixplus3.robot_description.robot import Robot
@@ -57,9 +60,16 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)
     rows, outcome = [], collections.Counter()
     out = open(args.out, "w") if args.out else None  # noqa: SIM115
-    for k in range(args.n):
-        doc = heldout_task(rng, k)
-        task = task_from_dict(doc)
+    if args.examples:
+        from pathlib import Path
+
+        from sixplus3.planner.task import load_task
+
+        tasks = [load_task(p) for p in sorted(
+            (Path(__file__).parents[1] / "examples").glob("*.yaml"))]
+    else:
+        tasks = [task_from_dict(heldout_task(rng, k)) for k in range(args.n)]
+    for task in tasks:
         row: dict = {"name": task.name, "waypoints": len(task.waypoints)}
         t0 = time.perf_counter()
         try:
