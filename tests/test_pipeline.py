@@ -158,4 +158,6 @@ def test_playback_page_renders_the_robot(planned, tmp_path) -> None:
     dark = (r_ < 70) & (g_ < 70) & (b_ < 70)  # carbon links, motors
     magenta = (r_ > 150) & (g_ < 90) & (b_ > 150)  # the platform path trace
     assert orange.sum() > 50 and dark.sum() > 200, (orange.sum(), dark.sum())
-    assert magenta.sum() > 20, magenta.sum()
+    # the trace of a 3 cm move, partly behind the robot at the screenshot's frame: 17-20
+    # pixels with the 10-interval plan (measured), 0 when no trace is drawn
+    assert magenta.sum() > 10, magenta.sum()
