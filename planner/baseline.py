@@ -103,31 +103,20 @@ def _smoothed_profile(traj, d: np.ndarray, duration: float, width: float, step: 
 def _stretch_needed(sr, limits, xa, d, t, s, v, u, target: float) -> float:
     """Smallest uniform time stretch a bringing the segment within ``target`` of the
     velocity, acceleration, torque, jerk and torque-rate limits (4x grid)."""
-    from sixplus3.planner.ocp import sample_cubic
+    from sixplus3.planner.ocp import actuated_profile, sample_cubic, stretch_factors
 
     tt = np.linspace(0.0, t[-1], 4 * (len(t) - 1) + 1)
     ss, vv, uu = sample_cubic(t, s[:, None], v[:, None], u[:, None], tt)
-    x, xd, xdd = xa + ss * d, vv * d, uu * d
-    m = len(tt)
-    thd = np.abs(np.array(sr.theta_dot.map(m)(x.T, xd.T)))
-    thdd_s = np.array(sr.theta_ddot.map(m)(x.T, xd.T, xdd.T))
-    tau = np.array(sr.tau.map(m)(x.T, xd.T, xdd.T))
-    grav = np.array(sr.tau.map(m)(x.T, 0 * xd.T, 0 * xdd.T))
-    dyn = tau - grav
-    room_hi = target * limits.torque - grav
-    room_lo = target * limits.torque + grav
-    if (room_hi <= 0).any() or (room_lo <= 0).any():
+    thd, thdd, tau, grav = actuated_profile(sr, xa + ss * d, vv * d, uu * d)
+    if (np.abs(grav) >= target * limits.torque).any():
         return math.inf  # gravity alone exceeds the limit somewhere on the line
-    need = np.where(dyn > 0, dyn / room_hi, -dyn / room_lo)
     dt = tt[1] - tt[0]
-    jerk = np.abs(np.diff(thdd_s, axis=1)).max() / dt
-    a2 = max(float(((thd / (target * limits.velocity)) ** 2).max()),
-             float(np.abs(thdd_s).max() / (target * limits.acceleration)),
-             float(need.max()))
-    a = max(math.sqrt(a2), (jerk / (target * limits.jerk)) ** (1.0 / 3.0))
+    jerk = np.abs(np.diff(thdd, axis=1)).max() / dt
+    a = max(float(stretch_factors(thd, thdd, tau, grav, limits, target).max()),
+            (jerk / (target * limits.jerk)) ** (1.0 / 3.0))
     # torque rate: the gravity part scales 1/a, the rest 1/a^3; solve by bisection
     rg = np.abs(np.diff(grav, axis=1)) / dt
-    ri = np.abs(np.diff(dyn, axis=1)) / dt
+    ri = np.abs(np.diff(tau - grav, axis=1)) / dt
 
     def rate_ok(a: float) -> bool:
         return bool((rg / a + ri / a**3).max() <= target * limits.torque_rate)

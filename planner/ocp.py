@@ -126,6 +126,33 @@ def sample_cubic(t: np.ndarray, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray,
             xd[k] + s * u0 + s**2 / 2 * jerk, u0 + s * jerk)
 
 
+def actuated_profile(sr, x: np.ndarray, xd: np.ndarray,
+                     xdd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(theta_dot, theta_ddot, tau, tau_gravity), each (9, n), of the samples (n, 9) of a
+    motion, with the CasADi model ``sr``."""
+    n = len(x)
+    return (np.array(sr.theta_dot.map(n)(x.T, xd.T)),
+            np.array(sr.theta_ddot.map(n)(x.T, xd.T, xdd.T)),
+            np.array(sr.tau.map(n)(x.T, xd.T, xdd.T)),
+            np.array(sr.tau.map(n)(x.T, 0 * xd.T, 0 * xdd.T)))
+
+
+def stretch_factors(thd, thdd, tau, grav, lim: Limits, fraction: float) -> np.ndarray:
+    """(n,) smallest uniform time stretch a > 0 per sample bringing the
+    :func:`actuated_profile` within ``fraction`` of the velocity, acceleration and torque
+    limits (theta_dot scales 1/a, theta_ddot and tau - tau_gravity 1/a^2).  Where gravity
+    alone exceeds the fraction the headroom is floored at 1e-3 of the limit."""
+    dyn = tau - grav
+    room_hi = fraction * lim.torque - grav  # d / a^2 <= room_hi
+    room_lo = fraction * lim.torque + grav  # -d / a^2 <= room_lo
+    need = np.where(dyn > 0, dyn / np.maximum(room_hi, 1e-3 * lim.torque),
+                    -dyn / np.maximum(room_lo, 1e-3 * lim.torque))
+    a2 = np.maximum.reduce([
+        (np.abs(thd) / (fraction * lim.velocity)) ** 2,
+        np.abs(thdd) / (fraction * lim.acceleration), need]).max(axis=0)
+    return np.sqrt(np.maximum(a2, 1e-12))
+
+
 @dataclass(frozen=True)
 class DenseCheck:
     """Independent re-check of a plan with the numeric model at a given density."""
@@ -318,21 +345,7 @@ class Problem:
         torque alone exceeds the fraction get the largest stretch the formula allows
         (1e3-fold headroom floor), i.e. they are reported as needing a very slow motion.
         """
-        sr, lim = self.sr, self.limits
-        n = len(x)
-        thd = np.abs(np.array(sr.theta_dot.map(n)(x.T, xd.T)))
-        thdd = np.abs(np.array(sr.theta_ddot.map(n)(x.T, xd.T, xdd.T)))
-        tau = np.array(sr.tau.map(n)(x.T, xd.T, xdd.T))
-        grav = np.array(sr.tau.map(n)(x.T, 0 * xd.T, 0 * xdd.T))
-        dyn = tau - grav
-        room_hi = fraction * lim.torque - grav  # d / a^2 <= room_hi
-        room_lo = fraction * lim.torque + grav  # -d / a^2 <= room_lo
-        need = np.where(dyn > 0, dyn / np.maximum(room_hi, 1e-3 * lim.torque),
-                        -dyn / np.maximum(room_lo, 1e-3 * lim.torque))
-        a2 = np.maximum.reduce([
-            (thd / (fraction * lim.velocity)) ** 2, thdd / (fraction * lim.acceleration),
-            need]).max(axis=0)
-        return np.sqrt(np.maximum(a2, 1e-12))
+        return stretch_factors(*actuated_profile(self.sr, x, xd, xdd), self.limits, fraction)
 
     def solve(self) -> Solution:
         t_wall = time.perf_counter()
@@ -358,10 +371,10 @@ class Problem:
         from sixplus3.planner.baseline import baseline_plan
 
         base, self.baseline_note = baseline_plan(self, psi_wp)
-        sol, first = self._first_solve(psi_wp, proxy, safety, reserve, base)
+        sol, first, failed = self._first_solve(psi_wp, proxy, safety, reserve, base)
         if sol is None:
             if base is not None:
-                base.solve_time += self.failed_solve_time
+                base.solve_time += failed
                 return self._finish(base, base, t_wall, psi_wp, proxy, safety, reserve)
             assert first is not None
             raise first
@@ -416,7 +429,8 @@ class Problem:
         return self._finish(sol, base, t_wall, psi_wp, proxy, safety, reserve)
 
     def _first_solve(self, psi_wp, proxy, safety, reserve, base):
-        """(Solution or None, the first solver error), trying in turn: the NLP from the
+        """(Solution or None, the first solver error, seconds spent in failed starts),
+        trying in turn: the NLP from the
         baseline; a homotopy step in the margin (the constraints at 0.6 x the margin,
         from the baseline; its plan is kept if the dense check, against the task's own
         margin, passes: the OCP's margin rows are conservative proxies, det J-hat >= 3 m
@@ -452,9 +466,9 @@ class Problem:
                 failed += time.perf_counter() - t0
                 continue
             sol.solve_time += failed
-            return sol, None
-        self.failed_solve_time = failed
-        return None, first
+            return sol, None, failed
+        return None, first, failed
+
     def _finish(self, sol: Solution, base: Solution | None, t_wall: float, psi_wp,
                 proxy, safety, reserve) -> Solution:
         """The returned plan: the NLP's, or the baseline when the NLP's failed its check
@@ -661,7 +675,7 @@ class Problem:
         if it has that grid; else sampled, ``nodes_per_segment`` uniform nodes per
         segment)."""
         ns, S = self.task.nodes_per_segment, self.task.n_segments
-        if len(sol.t) == ns * S + 1 and len(sol.segment_times) == S:
+        if sol.source == "ocp" and len(sol.t) == ns * S + 1:
             return sol.x, sol.xd, sol.xdd, sol.segment_times
         T = np.asarray(sol.segment_times, dtype=float)
         starts = np.r_[0.0, np.cumsum(T)]
