@@ -213,18 +213,17 @@ class ClosedLoopDynamics:
                                                                          np.ndarray]:
         """:meth:`actuated_inverse_dynamics` of n states at once: (tau (n, 9), rcond (n,)).
 
-        Two passes over the states with Pinocchio (constraint Jacobians; then drift and
-        RNEA) and the 27x27 linear algebra batched in between.  ``rcond`` is the exact
-        1-norm reciprocal condition number of J_pas; states at or below
-        :data:`SINGULAR_RCOND` get NaN torques.
+        Three passes over the states with Pinocchio (the joints' world Jacobians and the
+        closure points; the Jacobians' time variation for the drift; RNEA), everything
+        else batched in numpy (:meth:`ClosedLoopModel.constraint_jacobian_batch`).
+        ``rcond`` is the exact 1-norm reciprocal condition number of J_pas; states at or
+        below :data:`SINGULAR_RCOND` get NaN torques.
         """
         m, d = self.model, self.data
+        q = np.asarray(q, dtype=float)
         n = len(q)
         theta_dot = np.asarray(theta_dot, dtype=float)
-        Jc = np.empty((n, self.clm.n_constraints, m.nv))
-        jac = self.clm.constraint_jacobian
-        for k in range(n):
-            Jc[k] = jac(q[k])  # world-aligned, like the drift below
+        Jc, kin = self.clm.constraint_jacobian_batch(q)  # world-aligned, like the drift
         Jp = Jc[:, :, self._pas]
         with np.errstate(all="ignore"):
             try:
@@ -238,17 +237,19 @@ class ClosedLoopDynamics:
         v = np.zeros((n, m.nv))
         v[:, self._act] = theta_dot
         v[:, self._pas] = -np.einsum("nij,nj->ni", X, theta_dot)
-        a = np.zeros((n, m.nv))
-        a[:, self._act] = theta_ddot
-        a_pas = -np.einsum("nij,nj->ni", X, theta_ddot)
-        H = np.empty((n, m.nv))
-        drift, rnea, pas = self.clm.drift, pin.rnea, self._pas
         moving = np.any(theta_dot != 0.0, axis=1)  # at rest the drift is exactly 0
+        with np.errstate(all="ignore"):  # singular states: NaN, masked below
+            gamma = self.clm.drift_batch(q, v, kin, rows=moving)
+            a = np.zeros((n, m.nv))
+            a[:, self._act] = theta_ddot
+            a[:, self._pas] = -np.einsum("nij,nj->ni", X, theta_ddot) \
+                - np.einsum("nij,nj->ni", inv, gamma)
+        H = np.empty((n, m.nv))
+        rnea = pin.rnea
+        ok: list[bool] = np.isfinite(np.c_[a, v]).all(axis=1).tolist()  # type: ignore[union-attr]
         for k in range(n):
-            ak = a[k]
-            ak[pas] = a_pas[k] - inv[k] @ drift(q[k], v[k]) if moving[k] else a_pas[k]
-            H[k] = rnea(m, d, q[k], v[k], ak)
-        tau = H[:, self._act] - np.einsum("nij,ni->nj", X, H[:, pas])
+            H[k] = rnea(m, d, q[k], v[k], a[k]) if ok[k] else np.nan
+        tau = H[:, self._act] - np.einsum("nij,ni->nj", X, H[:, self._pas])
         tau += self._friction(theta_dot)
         tau[rcond <= SINGULAR_RCOND] = np.nan
         return tau, rcond
@@ -260,11 +261,10 @@ class ClosedLoopDynamics:
         inverse).  Singular states give NaN or inf; callers compare with a limit."""
         m, d = self.model, self.data
         n = len(q)
-        Jc = np.empty((n, self.clm.n_constraints, m.nv))
+        Jc, _ = self.clm.constraint_jacobian_batch(q)
         g = np.empty((n, m.nv))
-        jac, grav = self.clm.constraint_jacobian, pin.computeGeneralizedGravity
+        grav = pin.computeGeneralizedGravity
         for k in range(n):
-            Jc[k] = jac(q[k])
             g[k] = grav(m, d, q[k])
         Jp = Jc[:, :, self._pas]
         with np.errstate(all="ignore"):

@@ -57,6 +57,15 @@ def parse_closures(path: Path) -> tuple[list[tuple[str, str]], list[str], list[s
     return [tuple(p) for p in pairs], list(types), [str(n) for n in doc["name_mot"]]
 
 
+@dataclass(frozen=True)
+class ClosureKinematics:
+    """What :meth:`ClosedLoopModel.constraint_jacobian_batch` computed for n
+    configurations and :meth:`ClosedLoopModel.drift_batch` reuses."""
+
+    J: np.ndarray  # (n, 6, nv) joint Jacobians in the world frame, [v_o; w] per column
+    points: np.ndarray  # (n, 9, 3) world position of each closed pair's frame A [m]
+
+
 @dataclass
 class ClosedLoopModel:
     """A Pinocchio model of the spanning tree plus its 3D loop-closure constraints."""
@@ -109,6 +118,8 @@ class ClosedLoopModel:
         self._calcs = [(cm.calc, cd) for cm, cd in zip(self._cm_lwa, self._cd_lwa,
                                                          strict=True)]
         self._zero_v = np.zeros(m.nv)
+        self._supports: np.ndarray | None = None  # see _closure_supports
+        self._frames_a = [ia for ia, _ in self.frame_pairs]
         q_idx, v_idx = [], []
         for name in self.actuated_names:
             if not m.existJointName(name):
@@ -165,6 +176,82 @@ class ClosedLoopModel:
         # the Motion difference in C++, one array per closure (the validator's hot loop)
         return np.array([(acc(m, d, a, LWA) - acc(m, d, b, LWA)).linear
                          for a, b in self.frame_pairs]).ravel()
+
+    def constraint_jacobian_batch(self, q: np.ndarray) -> tuple[np.ndarray, ClosureKinematics]:
+        """:meth:`constraint_jacobian` of n configurations q (n, nq) at once: (Jc (n, 27,
+        nv), the joint Jacobians and closure points that :meth:`drift_batch` reuses).
+
+        One Pinocchio pass per configuration: the closure Jacobian (:meth:`constraint_jacobian`),
+        and for the drift the joints' world-frame Jacobians J = [v_o; w] (spatial
+        velocity at the world origin per column) and frame A's world position per pair.
+        """
+        m, d = self.model, self.data
+        q = np.asarray(q, dtype=float)
+        n = len(q)
+        Jc = np.empty((n, self.n_constraints, m.nv))
+        J = np.empty((n, 6, m.nv))
+        P = np.empty((n, len(self.frame_pairs), 3))
+        jac, frame, fa = self.constraint_jacobian, pin.updateFramePlacement, self._frames_a
+        for k in range(n):
+            Jc[k] = jac(q[k])
+            J[k] = d.J
+            P[k] = [frame(m, d, i).translation for i in fa]
+        kin = ClosureKinematics(J=J, points=P)
+        return Jc, kin
+
+    def _closure_supports(self) -> np.ndarray:
+        """(9, 2, nv) bool: the velocity coordinates moving each pair's frame A, frame B
+        (from the tree's supports; made on first use, not per model copy)."""
+        if self._supports is None:
+            m = self.model
+            sup = np.zeros((len(self.frame_pairs), 2, m.nv), dtype=bool)
+            for k, pair in enumerate(self.frame_pairs):
+                for side, fid in enumerate(pair):
+                    for j in m.supports[m.frames[fid].parentJoint]:
+                        if j > 0:
+                            jm = m.joints[j]
+                            sup[k, side, jm.idx_v:jm.idx_v + jm.nv] = True
+            self._supports = sup
+        return self._supports
+
+    def drift_batch(self, q: np.ndarray, v: np.ndarray, kin: ClosureKinematics,
+                    rows: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`drift` of n states (q, v (n, nv)) at once: (n, 27) [m/s^2].
+
+        ``kin`` from :meth:`constraint_jacobian_batch` of the same q.  One Pinocchio call
+        per state gives the time variation dJ of the world-frame Jacobian.  Over the
+        joints supporting a body, its spatial velocity is V = J v = [v_o; w] and its
+        spatial acceleration at a = 0 is A = dJ v; a point p of it moves at
+        v_p = v_o + w x p with the classical acceleration a_p = A_lin + A_ang x p + w x v_p.
+        gamma is a_p of frame A's body minus that of frame B's, at frame A's point.
+        Tested against :meth:`drift` per state.  ``rows``
+        (n,) bool: compute only these states (the others, e.g. at rest, get 0).
+        """
+        m, d = self.model, self.data
+        q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
+        n = len(q)
+        idx = np.arange(n) if rows is None else np.flatnonzero(rows)
+        gamma = np.zeros((n, self.n_constraints))
+        if len(idx) == 0:
+            return gamma
+        dJ = np.empty((len(idx), 6, m.nv))
+        variation = pin.computeJointJacobiansTimeVariation
+        for i, k in enumerate(idx):
+            variation(m, d, q[k], v[k])
+            dJ[i] = d.dJ
+        J, P, vv = kin.J[idx], kin.points[idx], v[idx]
+        supports = self._closure_supports()
+        for c in range(len(self.frame_pairs)):
+            p = P[:, c]
+            acc = []
+            for mask in supports[c]:  # frame A's body, then frame B's
+                vel = np.einsum("nij,nj->ni", J[:, :, mask], vv[:, mask])
+                spat = np.einsum("nij,nj->ni", dJ[:, :, mask], vv[:, mask])
+                w = vel[:, 3:]
+                vp = vel[:, :3] + np.cross(w, p)
+                acc.append(spat[:, :3] + np.cross(spat[:, 3:], p) + np.cross(w, vp))
+            gamma[idx, 3 * c:3 * c + 3] = acc[0] - acc[1]
+        return gamma
 
     def frame_position(self, name: str) -> np.ndarray:
         """World position of a frame after the last kinematics update [m]."""

@@ -136,3 +136,45 @@ def test_batched_holding_torques_match_the_static_inverse_dynamics() -> None:
         one = np.array([dyn.gravity_torques(qk) for qk in q])
         assert np.abs(one).max() > 0.1  # gravity loads the motors
         np.testing.assert_allclose(batch, one, atol=1e-9, rtol=0)
+
+
+def test_batched_closure_jacobian_and_drift_match_pinocchio_per_state(dyn) -> None:
+    """constraint_jacobian_batch / drift_batch (world-frame Jacobians and their time
+    variation, the closure rows formed in numpy) against Pinocchio's per-state constraint
+    Jacobian and frame classical accelerations, at consistent and arbitrary velocities."""
+    clm = dyn.clm
+    q = np.array(sample_configs())
+    Jc, kin = clm.constraint_jacobian_batch(q)
+    for k, qk in enumerate(q):
+        np.testing.assert_allclose(Jc[k], clm.constraint_jacobian(qk), atol=1e-13, rtol=0)
+    rng = np.random.default_rng(5)
+    v = rng.normal(scale=2.0, size=(len(q), dyn.model.nv))
+    v[0] = dyn.consistent_state(q[0], rng.normal(size=9), np.zeros(9))[0]
+    gamma = clm.drift_batch(q, v, kin)
+    ref = np.array([clm.drift(qk, vk) for qk, vk in zip(q, v, strict=True)])
+    assert np.abs(ref).max() > 1.0  # the quadratic velocity terms are exercised
+    np.testing.assert_allclose(gamma, ref, atol=1e-12, rtol=0)
+    rows = np.array([True, False, True])
+    part = clm.drift_batch(q, v, kin, rows=rows)
+    np.testing.assert_array_equal(part[rows], gamma[rows])
+    assert not part[~rows].any()
+
+
+def test_batched_inverse_dynamics_matches_the_per_state_one() -> None:
+    """actuated_inverse_dynamics_batch (the validator's) against actuated_inverse_dynamics,
+    state by state, moving and at rest, with a payload and the motor model."""
+    from sixplus3.robot_description.physical import Payload
+
+    robot = Robot.default().replace(payload=Payload(mass=0.4, com=(0.01, 0.0, 0.02)))
+    dyn = ClosedLoopDynamics(robot)
+    rng = np.random.default_rng(11)
+    q = np.array(sample_configs() * 2)
+    th_d = rng.normal(scale=2.0, size=(len(q), 9))
+    th_dd = rng.normal(scale=20.0, size=(len(q), 9))
+    th_d[1] = 0.0  # at rest: no drift is computed for this row
+    tau, rcond = dyn.actuated_inverse_dynamics_batch(q, th_d, th_dd)
+    for k in range(len(q)):
+        one, rc = dyn.actuated_inverse_dynamics(q[k], th_d[k], th_dd[k])
+        np.testing.assert_allclose(tau[k], one, atol=1e-10, rtol=0)
+        assert rcond[k] > 0 and rc > 0
+    assert np.abs(tau).max() > 0.5
