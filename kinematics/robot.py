@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError
+from sixplus3.kinematics import _geometry_kernel
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.leg import LegState, failing_chain, leg_ik, status_reason
 from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, _cached
@@ -417,10 +418,14 @@ def robot_fk(theta, robot: Robot | None = None, q_hint=None, tol: float = 1e-12,
 #: Radius of the capsule around every leg link used by the interference check [m]
 #: (the visual rods are 8 mm; 15 mm leaves room for joints and housings).
 LINK_RADIUS = 0.015
+#: The links :func:`leg_clearance` compares, indices into :func:`leg_segments`: AD, DP,
+#: GE, HF.
+UPPER_LINKS = np.array([0, 1, 3, 5], dtype=np.int64)
 
 
 def _segment_distance(p1, q1, p2, q2):
-    """(n,) distance between segments [p1, q1] and [p2, q2] (batched, (n, 3) each)."""
+    """(n,) distance between segments [p1, q1] and [p2, q2] (batched, (n, 3) each): the
+    numpy reference of the compiled kernel ``_geometry_kernel.segment_distance``."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
     a = np.sum(d1 * d1, axis=1)
     e = np.sum(d2 * d2, axis=1)
@@ -468,15 +473,7 @@ def leg_clearance(cfg: RobotConfig, rows: np.ndarray | None = None) -> np.ndarra
     """
     sel = cfg.ok if rows is None else cfg.ok & np.asarray(rows, dtype=bool)
     seg = leg_segments(cfg)[sel]
-    best = np.full(len(seg), np.inf)
-    upper = (0, 1, 3, 5)
-    for i in range(NUM_LEGS):
-        for j in range(i + 1, NUM_LEGS):
-            for a in upper:
-                for b in upper:
-                    d = _segment_distance(seg[:, i, a, 0], seg[:, i, a, 1],
-                                          seg[:, j, b, 0], seg[:, j, b, 1])
-                    best = np.minimum(best, d)
+    best = _geometry_kernel.min_link_distance(np.ascontiguousarray(seg), UPPER_LINKS)
     out = np.full(len(cfg), -np.inf)
     out[sel] = best - 2 * LINK_RADIUS
     return out

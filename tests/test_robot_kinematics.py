@@ -113,3 +113,37 @@ def test_home_and_spherical_joint_tilts() -> None:
     np.testing.assert_allclose(spherical_tilts(h), 0.0, atol=1e-7)
     cfg = robot_ik_pose((0, 0, 0.3), (0.5, 0.0, 0.0))
     assert 0.05 < spherical_tilts(cfg).max() < math.radians(150)
+
+
+def test_compiled_segment_distance_matches_the_numpy_reference() -> None:
+    """kinematics._geometry_kernel.segment_distance (leg_clearance's) against the numpy
+    _segment_distance, on random segments and the degenerate ones: parallel, crossing,
+    collinear, zero length, end to end."""
+    from sixplus3.kinematics._geometry_kernel import min_link_distance, segment_distance
+    from sixplus3.kinematics.robot import _segment_distance
+
+    rng = np.random.default_rng(2)
+    n = 400
+    p1, q1, p2, q2 = (rng.normal(size=(n, 3)) for _ in range(4))
+    q2[:40] = p2[:40] + (q1[:40] - p1[:40]) * rng.uniform(0.2, 3.0, (40, 1))  # parallel
+    q1[40:60] = p1[40:60]  # a point
+    q2[50:70] = p2[50:70]  # a point (50..59: two points)
+    p2[70:90] = p1[70:90] + 0.3 * (q1[70:90] - p1[70:90])  # crossing p1 q1
+    q2[90:100] = p1[90:100] + 2.0 * (q1[90:100] - p1[90:100])  # collinear, overlapping
+    p2[90:100] = q1[90:100]
+    p2[100:110] = q1[100:110]  # end to end
+    ref = _segment_distance(p1, q1, p2, q2)
+    got = np.array([segment_distance(*rows) for rows in zip(p1, q1, p2, q2, strict=True)])
+    np.testing.assert_allclose(got, ref, atol=1e-14, rtol=1e-12)
+    assert ref[70:100].max() < 1e-12 and ref.max() > 0.5
+    # the batched minimum over leg pairs and links
+    seg = rng.normal(size=(5, 3, 6, 2, 3))
+    links = np.array([0, 1, 3, 5])
+    want = np.full(5, np.inf)
+    for i in range(3):
+        for j in range(i + 1, 3):
+            for a in links:
+                for b in links:
+                    want = np.minimum(want, _segment_distance(seg[:, i, a, 0], seg[:, i, a, 1],
+                                                              seg[:, j, b, 0], seg[:, j, b, 1]))
+    np.testing.assert_allclose(min_link_distance(seg, links), want, atol=1e-14, rtol=1e-12)
