@@ -7,12 +7,15 @@ its velocity and acceleration limits tightened until the motion lasts about 5 s,
 the trajectory file at 1 kHz, then times the command a user runs, ``sixplus3 validate
 FILE``, as a subprocess (wall time, including the interpreter start-up and imports), and
 the library call ``validate_file`` inside one process.  Every check runs, midpoints
-included.
+included.  The command is timed twice: as shipped (a forked worker shares the dynamics,
+control/validation.py ``_Offload``) and in one process (``SIXPLUS3_NO_FORK=1``); the
+in-process library call runs in one process too (numba's threads are started there).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import subprocess
 import sys
@@ -43,21 +46,25 @@ def main() -> None:
         n = res.report.samples
         print(f"file: {n} samples, {res.smoothed.duration:.3f} s at 1 kHz, "
               f"{path.stat().st_size / 1e6:.1f} MB")
-        walls = []
+        walls: dict[str, list[float]] = {"worker": [], "one process": []}
         for _ in range(args.repeat):
-            t0 = time.perf_counter()
-            r = subprocess.run([sys.executable, "-m", "sixplus3.cli", "validate", str(path)],
-                               capture_output=True, text=True)
-            walls.append(time.perf_counter() - t0)
-            assert r.returncode == 0, r.stdout + r.stderr
+            for label, env in (("worker", {}), ("one process", {"SIXPLUS3_NO_FORK": "1"})):
+                t0 = time.perf_counter()
+                r = subprocess.run([sys.executable, "-m", "sixplus3.cli", "validate",
+                                    str(path)], capture_output=True, text=True,
+                                   env={**os.environ, **env})
+                walls[label].append(time.perf_counter() - t0)
+                assert r.returncode == 0, r.stdout + r.stderr
         libs = []
         for _ in range(args.repeat):
             t0 = time.perf_counter()
             rep = validate_file(path, robot)
             libs.append(time.perf_counter() - t0)
             assert rep.ok
-        print(f"sixplus3 validate (subprocess wall time): median {statistics.median(walls):.2f} s "
-              f"(min {min(walls):.2f}, max {max(walls):.2f}) over {args.repeat} runs")
+        for label, w in walls.items():
+            print(f"sixplus3 validate (subprocess wall time, {label}): median "
+                  f"{statistics.median(w):.2f} s (min {min(w):.2f}, max {max(w):.2f}) over "
+                  f"{args.repeat} runs")
         print(f"validate_file in-process: median {statistics.median(libs):.2f} s for "
               f"{rep.checked_points} points with the full dynamics "
               f"({1e6 * statistics.median(libs) / rep.checked_points:.0f} us per point)")

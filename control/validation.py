@@ -24,7 +24,11 @@ first and of the worst violation.
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
+import mmap
+import os
+import struct
+import sys
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,6 +52,16 @@ from sixplus3.robot_description.robot import Robot
 #: Controller rates accepted [Hz]: below 100 Hz the samples cannot resolve a motion of
 #: this robot (its fastest moves last ~40 ms), above 10 kHz no drive listens.
 RATE_RANGE = (100.0, 10000.0)
+#: Motions of fewer points (samples + midpoints) are checked in one process: forking a
+#: worker costs more than it saves below this.
+OFFLOAD_MIN_POINTS = 2000
+#: ... and above this (the shared states take 0.5 kB per point) in one process.
+OFFLOAD_MAX_POINTS = 1_000_000
+#: The worker's share of the points' dynamics: this process meanwhile computes the
+#: midpoints' forward kinematics, checks the branch (a second forward kinematics), the
+#: spherical joints and the clearance (measured balance on 2 cores:
+#: benchmarks/bench_validate.py).
+OFFLOAD_SHARE = 0.72
 #: Longest motion accepted [s].
 MAX_DURATION = 3600.0
 #: |t_k - k / rate| allowed [s] (17 significant digits are written).
@@ -313,104 +327,257 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
             findings.append(f)
     jerk = np.abs(d_a) / dt
     # ------------------------------------------------------------ forward kinematics
-    x_guess = np.asarray(x_guess, dtype=float)
-    fk = robot_fk_batch(th, x_guess, robot)
-    if not fk.converged.all():
-        f = _finding("forward kinematics (no pose reproduces the joints)", "defect", "rad",
-                     1e-10, fk.residual - 1e-10, fk.residual, t, ["platform"])
-        if f:
-            findings.append(f)
-        return _failed(n, robot, findings, tol_d)
-    # a second seed, each sample from the previous sample's solution: the two agree
-    # unless the motion switches assembly branch (or the guesses were on another branch)
-    fk2 = robot_fk_batch(th, np.r_[fk.x[:1], fk.x[:-1]], robot, margins=False)
-    branch = np.abs(fk2.x - fk.x).max(axis=1)
-    branch = np.where(fk2.converged, branch, np.inf)
-    f = _finding("forward-kinematics branch continuity", "defect", "", BRANCH_TOL,
-                 branch - BRANCH_TOL, branch, t, ["platform"])
-    if f:
-        findings.append(f)
-    cfg = fk.cfg
-    quat = rot.quat_from_matrix(fk.rotation)
-    if platform is not None:
-        platform = np.asarray(platform, dtype=float)
-        dq = np.abs(np.einsum("ni,ni->n", platform[:, 3:7], quat))
-        ang = 2 * np.arccos(np.clip(dq, -1.0, 1.0))
-        errs = np.c_[np.abs(platform[:, 0:3] - cfg.position).max(axis=1), ang,
-                     np.abs(platform[:, 7:10] - cfg.psi).max(axis=1),
-                     np.abs(np.linalg.norm(platform[:, 3:7], axis=1) - 1.0)]
-        f = _finding("platform columns vs forward kinematics", "defect", "m or rad",
-                     POSE_TOL, errs - POSE_TOL, errs, t,
-                     ["position", "orientation", "psi", "quaternion norm"])
-        if f:
-            findings.append(f)
-    # ------------------------------------------------------------ between the samples
-    fkm = None
-    if midpoints:
-        pm, vm, am = hermite_midpoints(dt, th, v, a)
-        tm = t[:-1] + dt / 2
-        # seed: halfway between the neighbouring samples' poses (small steps)
-        fkm = robot_fk_batch(pm, 0.5 * (fk.x[:-1] + fk.x[1:]), robot)
-        if not fkm.converged.all():
-            f = _finding("forward kinematics between samples", "limit", "rad", 1e-10,
-                         fkm.residual - 1e-10, fkm.residual, tm, ["platform"])
+    # a worker for the dynamics, forked now if this process may fork (see _Offload)
+    offload = _Offload(robot, n + (n - 1 if midpoints else 0))
+    try:
+        x_guess = np.asarray(x_guess, dtype=float)
+        fk = robot_fk_batch(th, x_guess, robot)
+        if not fk.converged.all():
+            f = _finding("forward kinematics (no pose reproduces the joints)", "defect", "rad",
+                         1e-10, fk.residual - 1e-10, fk.residual, t, ["platform"])
             if f:
                 findings.append(f)
-            fkm = None
-    # ------------------------------------------------------------ dynamics (Pinocchio)
-    # samples and midpoints on two threads, each with its own model and data (numpy's
-    # linear algebra releases the GIL: 1.3x measured on 2 cores)
-    jobs = [(cfg.q, v, a)] + ([(fkm.cfg.q, vm, am)] if fkm is not None else [])
-    with ThreadPoolExecutor(max_workers=len(jobs)) as pool:
-        results = list(pool.map(
-            lambda job: ClosedLoopDynamics(robot).actuated_inverse_dynamics_batch(*job), jobs))
-    tau, rcond = results[0]
-    if tau_file is not None:
-        ff = np.abs(np.asarray(tau_file, dtype=float) - tau)
-        ff_err = float(np.nan_to_num(ff, nan=np.inf).max())
-        f = _finding("feed-forward torque vs Pinocchio", "defect", "N m", FEEDFORWARD_TOL,
-                     ff - FEEDFORWARD_TOL, ff, t, JOINTS)
+            return _failed(n, robot, findings, tol_d)
+        cfg = fk.cfg
+        offload.q[:n], offload.v[:n], offload.a[:n] = cfg.q, v, a
+        offload.submit(0, n)  # the samples' dynamics: in the worker if there is one
+        # ------------------------------------------------------------ between the samples
+        fkm = None
+        mid_finding = None
+        if midpoints:
+            pm, vm, am = hermite_midpoints(dt, th, v, a)
+            tm = t[:-1] + dt / 2
+            # seed: halfway between the neighbouring samples' poses (small steps)
+            fkm = robot_fk_batch(pm, 0.5 * (fk.x[:-1] + fk.x[1:]), robot)
+            if not fkm.converged.all():
+                mid_finding = _finding("forward kinematics between samples", "limit", "rad",
+                                       1e-10, fkm.residual - 1e-10, fkm.residual, tm,
+                                       ["platform"])
+                fkm = None
+        cfg_points = [cfg] + ([fkm.cfg] if fkm is not None else [])
+        n_all = n + (len(tm) if fkm is not None else 0)
+        v_all, a_all, t_all = v, a, t
+        if fkm is not None:
+            v_all, a_all, t_all = np.r_[v, vm], np.r_[a, am], np.r_[t, tm]
+            offload.q[n:n_all] = fkm.cfg.q
+        offload.v[n:n_all], offload.a[n:n_all] = v_all[n:], a_all[n:]
+        # every point's dynamics: the samples' (sent after the first forward kinematics,
+        # above) and the next midpoints up to OFFLOAD_SHARE of all points in the worker,
+        # the rest here after the branch check, the spherical joints and the clearance
+        split = max(n, int(round(OFFLOAD_SHARE * n_all))) if offload.pid else n
+        offload.submit(n, split)
+        # a second seed, each sample from the previous sample's solution: the two agree
+        # unless the motion switches assembly branch (or the guesses were on another branch)
+        fk2 = robot_fk_batch(th, np.r_[fk.x[:1], fk.x[:-1]], robot, margins=False)
+        branch = np.abs(fk2.x - fk.x).max(axis=1)
+        branch = np.where(fk2.converged, branch, np.inf)
+        f = _finding("forward-kinematics branch continuity", "defect", "", BRANCH_TOL,
+                     branch - BRANCH_TOL, branch, t, ["platform"])
         if f:
             findings.append(f)
-    else:
-        ff_err = None
-    # ------------------------------------------------------------ limits everywhere
-    tau_all, v_all, a_all, t_all = tau, v, a, t
-    cfg_points = [cfg]
-    rcond_all = rcond
-    checked = n
-    if fkm is not None:
-        taum, rcm = results[1]
-        tau_all = np.r_[tau, taum]
-        v_all, a_all, t_all = np.r_[v, vm], np.r_[a, am], np.r_[t, tm]
-        rcond_all = np.r_[rcond, rcm]
-        cfg_points.append(fkm.cfg)
-        checked += len(tm)
-    sph = np.vstack([spherical_tilts(c).reshape(len(c), 9) for c in cfg_points])
-    clear = np.concatenate([leg_clearance(c) for c in cfg_points])
-    findings += _limit_findings(lim, cfg_points, tau_all, v_all, a_all, t_all, rcond_all,
-                                jerk, t_int, sph, clear)
-    tilt = float(sph.max())
-    clearance = float(clear.min())
-    th_all = np.vstack([c.theta for c in cfg_points])
-    theta_ok = bool(np.all((th_all >= lim.theta_min - 1e-9) & (th_all <= lim.theta_max + 1e-9)))
-    m1 = min(float(c.margins.leg_type1.min()) for c in cfg_points)
-    m2 = min(float(c.margins.leg_type2.min()) for c in cfg_points)
-    mp = min(float(c.margins.platform.min()) for c in cfg_points)
-    rep = ValidationReport(
-        ok=not findings, samples=n, robot_hash=robot.hash,
-        max_torque_ratio=float(np.nan_to_num(np.abs(tau_all), nan=np.inf).max() / lim.torque),
-        max_velocity_ratio=float(np.abs(v_all).max() / lim.velocity),
-        max_acceleration_ratio=float(np.abs(a_all).max() / lim.acceleration),
-        max_jerk_ratio=float(jerk.max() / lim.jerk),
-        min_margin_leg_type1=m1, min_margin_leg_type2=m2, min_margin_platform=mp,
-        min_leg_clearance=clearance, max_spherical_tilt_deg=math.degrees(tilt),
-        theta_range_ok=theta_ok, findings=findings, tolerances=tol_d, checked_points=checked,
-        tau=tau, position=cfg.position.copy(), quaternion=quat, psi=cfg.psi.copy(),
-        feedforward_error=ff_err, duration=float(t[-1]),
-        max_torque_rate=(float(np.nan_to_num(np.abs(np.diff(tau, axis=0)), nan=np.inf).max()
-                               / np.diff(t).min()) if n > 1 else 0.0))
-    return rep
+        quat = rot.quat_from_matrix(fk.rotation)
+        if platform is not None:
+            platform = np.asarray(platform, dtype=float)
+            dq = np.abs(np.einsum("ni,ni->n", platform[:, 3:7], quat))
+            ang = 2 * np.arccos(np.clip(dq, -1.0, 1.0))
+            errs = np.c_[np.abs(platform[:, 0:3] - cfg.position).max(axis=1), ang,
+                         np.abs(platform[:, 7:10] - cfg.psi).max(axis=1),
+                         np.abs(np.linalg.norm(platform[:, 3:7], axis=1) - 1.0)]
+            f = _finding("platform columns vs forward kinematics", "defect", "m or rad",
+                         POSE_TOL, errs - POSE_TOL, errs, t,
+                         ["position", "orientation", "psi", "quaternion norm"])
+            if f:
+                findings.append(f)
+        if mid_finding is not None:
+            findings.append(mid_finding)
+        sph = np.vstack([spherical_tilts(c).reshape(len(c), 9) for c in cfg_points])
+        clear = np.concatenate([leg_clearance(c) for c in cfg_points])
+        # ------------------------------------------------------------ dynamics (Pinocchio)
+        offload.compute_here(split, n_all)
+        offload.wait()
+        tau_all, rcond_all = offload.tau[:n_all].copy(), offload.rcond[:n_all].copy()
+        tau = tau_all[:n]
+        checked = n_all
+        if tau_file is not None:
+            ff = np.abs(np.asarray(tau_file, dtype=float) - tau)
+            ff_err = float(np.nan_to_num(ff, nan=np.inf).max())
+            f = _finding("feed-forward torque vs Pinocchio", "defect", "N m", FEEDFORWARD_TOL,
+                         ff - FEEDFORWARD_TOL, ff, t, JOINTS)
+            if f:
+                findings.append(f)
+        else:
+            ff_err = None
+        # ------------------------------------------------------------ limits everywhere
+        findings += _limit_findings(lim, cfg_points, tau_all, v_all, a_all, t_all, rcond_all,
+                                    jerk, t_int, sph, clear)
+        tilt = float(sph.max())
+        clearance = float(clear.min())
+        th_all = np.vstack([c.theta for c in cfg_points])
+        theta_ok = bool(np.all((th_all >= lim.theta_min - 1e-9) & (th_all <= lim.theta_max + 1e-9)))
+        m1 = min(float(c.margins.leg_type1.min()) for c in cfg_points)
+        m2 = min(float(c.margins.leg_type2.min()) for c in cfg_points)
+        mp = min(float(c.margins.platform.min()) for c in cfg_points)
+        rep = ValidationReport(
+            ok=not findings, samples=n, robot_hash=robot.hash,
+            max_torque_ratio=float(np.nan_to_num(np.abs(tau_all), nan=np.inf).max() / lim.torque),
+            max_velocity_ratio=float(np.abs(v_all).max() / lim.velocity),
+            max_acceleration_ratio=float(np.abs(a_all).max() / lim.acceleration),
+            max_jerk_ratio=float(jerk.max() / lim.jerk),
+            min_margin_leg_type1=m1, min_margin_leg_type2=m2, min_margin_platform=mp,
+            min_leg_clearance=clearance, max_spherical_tilt_deg=math.degrees(tilt),
+            theta_range_ok=theta_ok, findings=findings, tolerances=tol_d, checked_points=checked,
+            tau=tau, position=cfg.position.copy(), quaternion=quat, psi=cfg.psi.copy(),
+            feedforward_error=ff_err, duration=float(t[-1]),
+            max_torque_rate=(float(np.nan_to_num(np.abs(np.diff(tau, axis=0)), nan=np.inf).max()
+                                   / np.diff(t).min()) if n > 1 else 0.0))
+        return rep
+    finally:
+        offload.close()
+
+
+class _Offload:
+    """The constrained inverse dynamics of a motion's points (samples, then midpoints),
+    range by range, shared between this process and a forked worker process.
+
+    Why a process: the per-state Pinocchio calls hold the GIL, so a thread does not run
+    them in parallel.  Why a fork, made early: the child starts with the modules and the
+    robot's model already loaded (an interpreter started afresh spends ~0.5 s
+    importing), and it must be made before numba starts its thread pool here (GNU
+    OpenMP aborts a child forked after that).  So a worker is forked only on Linux, when
+    this process runs no other thread and numba's threading layer is not started, for
+    :data:`OFFLOAD_MIN_POINTS` to :data:`OFFLOAD_MAX_POINTS` points.
+
+    The states (q, theta_dot, theta_ddot) and the results (tau, rcond) live in one
+    anonymous shared mapping; the pipes carry only (start, stop) ranges and their
+    acknowledgements.  The worker computes with numpy and Pinocchio only, and leaves with
+    ``os._exit`` when the job pipe closes.  A range it did not acknowledge is computed
+    here: the results never depend on whether a worker ran.
+    """
+
+    def __init__(self, robot: Robot, points: int) -> None:
+        self.dyn = ClosedLoopDynamics(robot)
+        nq = self.dyn.model.nq
+        self.pid = 0
+        self.to_child = self.from_child = -1
+        self.pending: list[tuple[int, int]] = []
+        widths = (nq, 9, 9, 9, 1)
+        fork = OFFLOAD_MIN_POINTS <= points <= OFFLOAD_MAX_POINTS and _may_fork()
+        if fork:
+            self.mem: mmap.mmap | None = mmap.mmap(-1, max(1, points * sum(widths) * 8))
+            flat = np.frombuffer(self.mem, dtype=np.float64)
+        else:
+            self.mem = None
+            flat = np.empty(points * sum(widths))
+        cols = np.cumsum((0,) + widths) * points
+        self.q, self.v, self.a, self.tau, rcond = (
+            flat[cols[k]:cols[k + 1]].reshape(points, w) for k, w in enumerate(widths))
+        self.rcond = rcond[:, 0]
+        if fork:
+            self._fork()
+
+    def _fork(self) -> None:
+        try:
+            r_job, w_job = os.pipe()
+            r_ack, w_ack = os.pipe()
+        except OSError:
+            return
+        try:
+            pid = os.fork()
+        except OSError:
+            for fd in (r_job, w_job, r_ack, w_ack):
+                os.close(fd)
+            return
+        if pid == 0:  # the worker
+            code = 0
+            try:
+                os.close(w_job)
+                os.close(r_ack)
+                while True:
+                    msg = _read_exactly(r_job, 16)
+                    if len(msg) < 16:
+                        break
+                    start, stop = struct.unpack("<qq", msg)
+                    self._compute(start, stop)
+                    os.write(w_ack, msg)
+            except BaseException:  # noqa: BLE001 - the parent computes what is missing
+                code = 1
+            os._exit(code)
+        os.close(r_job)
+        os.close(w_ack)
+        self.pid, self.to_child, self.from_child = pid, w_job, r_ack
+
+    def _compute(self, start: int, stop: int) -> None:
+        sl = slice(start, stop)
+        self.tau[sl], self.rcond[sl] = self.dyn.actuated_inverse_dynamics_batch(
+            self.q[sl], self.v[sl], self.a[sl])
+
+    def submit(self, start: int, stop: int) -> None:
+        """Points [start, stop) to the worker if there is one (else computed now)."""
+        if stop <= start:
+            return
+        if self.pid and self.to_child >= 0:
+            try:
+                os.write(self.to_child, struct.pack("<qq", start, stop))
+                self.pending.append((start, stop))
+                return
+            except OSError:
+                pass
+        self._compute(start, stop)
+
+    def compute_here(self, start: int, stop: int) -> None:
+        if stop > start:
+            self._compute(start, stop)
+
+    def wait(self) -> None:
+        """Every submitted range done: acknowledged by the worker, or computed here."""
+        if self.to_child >= 0:
+            os.close(self.to_child)
+            self.to_child = -1
+        done = set()
+        for _ in self.pending:
+            msg = _read_exactly(self.from_child, 16) if self.from_child >= 0 else b""
+            if len(msg) < 16:
+                break
+            done.add(struct.unpack("<qq", msg))
+        for rng in self.pending:
+            if rng not in done:
+                self._compute(*rng)
+        self.pending = []
+        self.close()
+
+    def close(self) -> None:
+        for fd in (self.to_child, self.from_child):
+            if fd >= 0:
+                os.close(fd)
+        self.to_child = self.from_child = -1
+        if self.pid:
+            os.waitpid(self.pid, 0)
+            self.pid = 0
+
+
+def _read_exactly(fd: int, size: int) -> bytes:
+    out = b""
+    while len(out) < size:
+        chunk = os.read(fd, size - len(out))
+        if not chunk:
+            break
+        out += chunk
+    return out
+
+
+def _may_fork() -> bool:
+    """Linux, no other thread in this process, numba's thread pool not started, and
+    not switched off (environment variable ``SIXPLUS3_NO_FORK=1``)."""
+    if (sys.platform != "linux" or threading.active_count() != 1
+            or os.environ.get("SIXPLUS3_NO_FORK", "") not in ("", "0")):
+        return False
+    import numba
+
+    try:
+        numba.threading_layer()
+    except ValueError:  # no threading layer started yet
+        return True
+    return False
 
 
 def _limit_findings(lim: Limits, cfgs: list, tau: np.ndarray, v: np.ndarray, a: np.ndarray,

@@ -71,6 +71,55 @@ def cli_validate(path: Path):
 
 
 # ------------------------------------------------------------------ the valid file
+_WORKER_SCRIPT = """
+import json, os, sys
+import sixplus3.control.validation as V
+from sixplus3.robot_description.robot import Robot
+
+V.OFFLOAD_MIN_POINTS = 10  # this short motion gets a worker too
+parent, forks = os.getpid(), []
+fork, compute = V._Offload._fork, V._Offload._compute
+
+
+def record(self):
+    fork(self)
+    forks.append(self.pid)
+
+
+def dying(self, start, stop):
+    if os.getpid() != parent:  # the worker dies at its first range
+        os._exit(7)
+    compute(self, start, stop)
+
+
+V._Offload._fork = record
+if sys.argv[2] == "die":
+    V._Offload._compute = dying
+rep = V.validate_file(sys.argv[1], Robot.default())
+print(json.dumps({"forks": forks, "tau": rep.tau.tolist(), "summary": rep.summary()}))
+"""
+
+
+def test_the_dynamics_worker_changes_nothing(valid, monkeypatch) -> None:
+    """The validator shares the dynamics with a forked worker process when it may
+    (control/validation.py, _Offload): in a fresh process, where numba has not started
+    its threads.  The report is the one computed in a single process, exactly, and
+    when the worker dies the parent computes its ranges itself."""
+    import sixplus3.control.validation as V
+
+    path = valid[0]
+    monkeypatch.setattr(V, "OFFLOAD_MIN_POINTS", 10**9)  # here: one process
+    one = validate_file(path, ROBOT)
+    for mode in ("work", "die"):
+        out = subprocess.run([sys.executable, "-c", _WORKER_SCRIPT, str(path), mode],
+                             capture_output=True, text=True, timeout=300)
+        assert out.returncode == 0, out.stderr[-2000:]
+        got = json.loads(out.stdout)
+        assert len(got["forks"]) == 1 and got["forks"][0] > 0, "no worker was forked"
+        np.testing.assert_array_equal(np.array(got["tau"]), one.tau)
+        assert got["summary"] == json.loads(json.dumps(one.summary())), mode
+
+
 def test_the_valid_file_passes_and_the_command_agrees(valid, tmp_path) -> None:
     path, raw, _, data = valid
     rep = validate_bytes(raw, ROBOT)
