@@ -682,6 +682,11 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
     corrupted, made for another robot, or not a consistent motion (time grid, rest at
     the ends, jumps, platform columns, feed-forward torques).
     """
+    global _FAST_EXIT
+    # numba's OpenMP threads sleep between the forward kinematics' parallel loops instead
+    # of spinning on the core the dynamics worker needs (0.95 -> 0.86 s, BENCHMARKS.md).
+    # Read once, when numba first starts its threads: that is later, in validate_file.
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     from sixplus3.control.validation import validate_file
 
     robot = _task_robot(task_file)
@@ -718,6 +723,7 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
                        f"{sm.peak_total_torque:.3f} N m")
             for msg in eng.messages:
                 click.echo(f"  MuJoCo: {msg}")
+    _FAST_EXIT = True
     sys.exit(code)
 
 
@@ -842,5 +848,29 @@ def play(csv_file: str, html_out: str | None, no_wait: bool) -> None:
             pass
 
 
+#: Set by a command whose process may end without the interpreter's teardown.
+_FAST_EXIT = False
+
+
+def run() -> None:
+    """The ``sixplus3`` program (console entry point and ``python -m sixplus3.cli``).
+
+    ``main`` with one difference: after a command that sets ``_FAST_EXIT`` (``validate``:
+    it writes nothing and leaves no child or thread behind), the output is flushed and the
+    process ends with ``os._exit``.  The interpreter's teardown of numba and LLVM would
+    otherwise add ~0.08 s to every validation (measured in BENCHMARKS.md, "The gate").
+    Tests that drive ``main`` in-process (click's CliRunner) never get here.
+    """
+    try:
+        main()
+    except SystemExit as exc:
+        if not _FAST_EXIT:
+            raise
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    main()
+    run()
