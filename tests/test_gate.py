@@ -248,6 +248,14 @@ def test_the_limit_exit_code_is_1_for_a_clean_violation(valid, tmp_path) -> None
     r = cli_validate(path)
     assert r.exit_code == 1, r.output
     assert "violation: " in r.output and "first at t =" in r.output and "worst at" in r.output
+    # the program itself (its entry point ends validate with os._exit after flushing):
+    # the same exit codes and the whole report through a pipe
+    for file, code, words in ((path, 1, ("LIMIT VIOLATED", "violation: ", "worst at")),
+                              (valid[0], 0, ("OK",))):
+        out = subprocess.run([sys.executable, "-m", "sixplus3.cli", "validate", str(file)],
+                             capture_output=True, text=True, timeout=300)
+        assert out.returncode == code, out.stdout + out.stderr
+        assert all(w in out.stdout for w in words) and "Traceback" not in out.stderr
 
 
 @pytest.mark.parametrize("what", ["platform", "feedforward", "quaternion"])
