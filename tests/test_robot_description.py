@@ -32,6 +32,28 @@ def test_urdf_validates_in_yourdfpy() -> None:
             assert (lim.lower, lim.upper, lim.effort) == (0.0, 1.5 * math.pi, 10.0)
 
 
+def test_pybullet_and_mujoco_importers_get_the_robots_mass() -> None:
+    """Other tools' URDF importers weigh the robot as Pinocchio does (1.89 kg with the
+    default masses): every massless link states a zero <inertial>, so PyBullet does not
+    give it its default 1 kg (the 22 frame links once made it 23.9 kg there)."""
+    import mujoco
+    import pybullet
+
+    want = Robot.default().closed_loop_model().total_mass()
+    assert want == pytest.approx(1.89, abs=1e-9)
+    cid = pybullet.connect(pybullet.DIRECT)
+    try:
+        body = pybullet.loadURDF(str(gen.URDF_PATH), useFixedBase=True, physicsClientId=cid)
+        links = range(-1, pybullet.getNumJoints(body, physicsClientId=cid))
+        masses = [pybullet.getDynamicsInfo(body, j, physicsClientId=cid)[0] for j in links]
+    finally:
+        pybullet.disconnect(cid)
+    assert len(masses) == 54 and 1.0 not in masses
+    assert sum(masses) == pytest.approx(want, abs=1e-9)
+    model = mujoco.MjModel.from_xml_path(str(gen.URDF_PATH))
+    assert model.body_mass.sum() == pytest.approx(want, abs=1e-9)
+
+
 def test_pinocchio_model_dimensions_and_closures() -> None:
     clm = Robot.default().closed_loop_model()
     m = clm.model
