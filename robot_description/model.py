@@ -253,12 +253,58 @@ class ClosedLoopModel:
             gamma[idx, 3 * c:3 * c + 3] = acc[0] - acc[1]
         return gamma
 
+    def urdf_configuration(self, q: np.ndarray) -> tuple[dict[str, np.ndarray],
+                                                          dict[str, float]]:
+        """q (nq,) as URDF tools want it: ({floating joint: 4x4 motion of its child
+        relative to the joint's origin frame}, {1-DoF joint: angle [rad]}).
+
+        yourdfpy's ``update_cfg`` ignores a floating joint's value (its forward kinematics
+        uses only the joint origin), so :func:`pose_yourdfpy` puts the pose there."""
+        m = self.model
+        q = np.asarray(q, dtype=float)
+        if q.shape != (m.nq,) or not np.isfinite(q).all():
+            raise InputError(f"q must be {m.nq} finite numbers, got shape {q.shape}",
+                             value=q.shape, valid=f"({m.nq},) finite")
+        floating: dict[str, np.ndarray] = {}
+        angles: dict[str, float] = {}
+        for jid in range(1, m.njoints):
+            j, name = m.joints[jid], m.names[jid]
+            if j.nq == 7:  # the free-flyer: xyz, quaternion (x, y, z, w)
+                floating[name] = pin.XYZQUATToSE3(q[j.idx_q:j.idx_q + 7]).homogeneous
+            elif j.nq == 1:
+                angles[name] = float(q[j.idx_q])
+            else:
+                raise InputError(f"joint {name!r} has {j.nq} coordinates; URDF tools know "
+                                 "1-DoF and floating joints", value=j.nq, valid="1 or 7")
+        return floating, angles
+
     def frame_position(self, name: str) -> np.ndarray:
         """World position of a frame after the last kinematics update [m]."""
         return self.data.oMf[self.model.getFrameId(name)].translation.copy()
 
     def total_mass(self) -> float:
         return float(sum(inertia.mass for inertia in self.model.inertias))
+
+
+def pose_yourdfpy(urdf, clm: ClosedLoopModel, q: np.ndarray) -> None:
+    """Pose a ``yourdfpy.URDF`` of this robot at Pinocchio's q (nq,): the platform's
+    floating joint through its origin (``update_cfg`` ignores floating values), every
+    revolute joint through ``update_cfg``.  Tested: the closure frame pairs coincide and
+    every frame is where Pinocchio puts it."""
+    floating, angles = clm.urdf_configuration(q)
+    for name, T in floating.items():
+        joint = urdf.joint_map[name]
+        base = getattr(joint, "_sixplus3_origin", None)
+        if base is None:  # the origin the file gave, kept for the next pose
+            base = np.eye(4) if joint.origin is None else np.array(joint.origin)
+            joint._sixplus3_origin = base
+        joint.origin = base @ T
+    # a floating joint named in the configuration has its scene edge redone from the
+    # origin; its value is not used (its current one is passed, whatever its size)
+    names = list(urdf.actuated_joint_names)
+    same = {name: np.array(urdf.cfg[urdf.actuated_dof_indices[names.index(name)]])
+            for name in floating}
+    urdf.update_cfg({**angles, **same})
 
 
 def _check_sizes(pairs: list, act: list, where: str) -> None:

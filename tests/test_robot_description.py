@@ -173,3 +173,31 @@ def test_base_plate_is_where_the_cranks_may_not_go_and_links_collide() -> None:
     radii = sorted({float(c.find("geometry/cylinder").get("radius")) for c in cyl})
     assert len(cyl) == 3 * 4  # per leg AD, DP, GE, HF
     assert LINK_RADIUS in radii
+
+
+def test_yourdfpy_posed_at_a_closed_configuration_closes_the_loops() -> None:
+    """pose_yourdfpy (the platform's floating joint through its origin, which
+    yourdfpy's update_cfg ignores): at an IK configuration, every closure frame pair
+    coincides in yourdfpy's own forward kinematics, and every frame is where Pinocchio
+    puts it."""
+    import pinocchio as pin
+
+    from sixplus3.kinematics.robot import robot_ik_pose
+    from sixplus3.robot_description.model import pose_yourdfpy
+
+    robot = Robot.default()
+    clm = robot.closed_loop_model()
+    model = yourdfpy.URDF.load(str(gen.URDF_PATH))
+    for pose in (((0.03, -0.02, 0.31), (0.3, -0.2, 0.5)), ((-0.04, 0.02, 0.28), (-0.4, 0.1, 1.0))):
+        q = robot_ik_pose(*pose, robot=robot).q[0]
+        pose_yourdfpy(model, clm, q)
+        pin.framesForwardKinematics(clm.model, clm.data, q)
+        for a, b in gen.closure_pairs():
+            pa, pb = model.get_transform(a)[:3, 3], model.get_transform(b)[:3, 3]
+            assert np.abs(pa - pb).max() < 1e-9, (a, b)
+        for name in ("platform", "tcp", "leg1_P", "closedloop4_B"):
+            np.testing.assert_allclose(model.get_transform(name),
+                                       clm.data.oMf[clm.model.getFrameId(name)].homogeneous,
+                                       atol=1e-9)
+        # the platform really moved: not the file's identity origin
+        assert np.abs(model.get_transform("platform")[:3, 3]).max() > 0.2
