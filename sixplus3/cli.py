@@ -706,8 +706,9 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
         click.echo(json.dumps(out, default=_json_default))
     else:
         verdict = {0: "OK", 1: "LIMIT VIOLATED", 2: "NOT A VALID MOTION"}[rep.exit_code]
-        click.echo(f"{csv_file}: {rep.samples} samples + {rep.checked_points - rep.samples} "
-                   f"midpoints, {rep.duration or 0.0:.4f} s; max |tau| "
+        click.echo(f"{csv_file}: {rep.samples} samples + "
+                   f"{max(0, rep.checked_points - rep.samples)} midpoints checked, "
+                   f"{rep.duration or 0.0:.4f} s; max |tau| "
                    f"{rep.max_torque_ratio * limits.torque:.3f} N m (limit "
                    f"{limits.torque:g}); margins {rep.min_margin_leg_type1:.3f} / "
                    f"{rep.min_margin_leg_type2:.3f} / {rep.min_margin_platform:.3f} "
