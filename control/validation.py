@@ -393,7 +393,7 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
         sph = np.vstack([spherical_tilts(c).reshape(len(c), 9) for c in cfg_points])
         clear = np.concatenate([leg_clearance(c) for c in cfg_points])
         # ------------------------------------------------------------ dynamics (Pinocchio)
-        offload.compute_here(split, n_all)
+        offload.compute(split, n_all)
         offload.wait()
         tau_all, rcond_all = offload.tau[:n_all].copy(), offload.rcond[:n_all].copy()
         tau = tau_all[:n]
@@ -413,7 +413,8 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
         tilt = float(sph.max())
         clearance = float(clear.min())
         th_all = np.vstack([c.theta for c in cfg_points])
-        theta_ok = bool(np.all((th_all >= lim.theta_min - 1e-9) & (th_all <= lim.theta_max + 1e-9)))
+        theta_ok = bool(np.all((th_all >= lim.theta_min - 1e-9)
+                               & (th_all <= lim.theta_max + 1e-9)))
         m1 = min(float(c.margins.leg_type1.min()) for c in cfg_points)
         m2 = min(float(c.margins.leg_type2.min()) for c in cfg_points)
         mp = min(float(c.margins.platform.min()) for c in cfg_points)
@@ -462,12 +463,10 @@ class _Offload:
         self.pending: list[tuple[int, int]] = []
         widths = (nq, 9, 9, 9, 1)
         fork = OFFLOAD_MIN_POINTS <= points <= OFFLOAD_MAX_POINTS and _may_fork()
-        if fork:
-            self.mem: mmap.mmap | None = mmap.mmap(-1, max(1, points * sum(widths) * 8))
-            flat = np.frombuffer(self.mem, dtype=np.float64)
-        else:
-            self.mem = None
-            flat = np.empty(points * sum(widths))
+        size = max(1, points * sum(widths))
+        # shared with the worker (the array keeps the mapping alive), else private
+        flat = (np.frombuffer(mmap.mmap(-1, 8 * size), dtype=np.float64) if fork
+                else np.empty(size))
         cols = np.cumsum((0,) + widths) * points
         self.q, self.v, self.a, self.tau, rcond = (
             flat[cols[k]:cols[k + 1]].reshape(points, w) for k, w in enumerate(widths))
@@ -496,8 +495,7 @@ class _Offload:
                     msg = _read_exactly(r_job, 16)
                     if len(msg) < 16:
                         break
-                    start, stop = struct.unpack("<qq", msg)
-                    self._compute(start, stop)
+                    self.compute(*struct.unpack("<qq", msg))
                     os.write(w_ack, msg)
             except BaseException:  # noqa: BLE001 - the parent computes what is missing
                 code = 1
@@ -506,27 +504,23 @@ class _Offload:
         os.close(w_ack)
         self.pid, self.to_child, self.from_child = pid, w_job, r_ack
 
-    def _compute(self, start: int, stop: int) -> None:
-        sl = slice(start, stop)
-        self.tau[sl], self.rcond[sl] = self.dyn.actuated_inverse_dynamics_batch(
-            self.q[sl], self.v[sl], self.a[sl])
+    def compute(self, start: int, stop: int) -> None:
+        """Points [start, stop) in this process."""
+        if stop > start:
+            sl = slice(start, stop)
+            self.tau[sl], self.rcond[sl] = self.dyn.actuated_inverse_dynamics_batch(
+                self.q[sl], self.v[sl], self.a[sl])
 
     def submit(self, start: int, stop: int) -> None:
         """Points [start, stop) to the worker if there is one (else computed now)."""
-        if stop <= start:
-            return
-        if self.pid and self.to_child >= 0:
+        if stop > start and self.pid and self.to_child >= 0:
             try:
                 os.write(self.to_child, struct.pack("<qq", start, stop))
                 self.pending.append((start, stop))
                 return
             except OSError:
                 pass
-        self._compute(start, stop)
-
-    def compute_here(self, start: int, stop: int) -> None:
-        if stop > start:
-            self._compute(start, stop)
+        self.compute(start, stop)
 
     def wait(self) -> None:
         """Every submitted range done: acknowledged by the worker, or computed here."""
@@ -541,7 +535,7 @@ class _Offload:
             done.add(struct.unpack("<qq", msg))
         for rng in self.pending:
             if rng not in done:
-                self._compute(*rng)
+                self.compute(*rng)
         self.pending = []
         self.close()
 

@@ -240,23 +240,25 @@ class ClosedLoopModel:
             variation(m, d, q[k], v[k])
             dJ[i] = d.dJ
         J, P, vv = kin.J[idx], kin.points[idx], v[idx]
-        supports = self._closure_supports()
-        for c in range(len(self.frame_pairs)):
-            p = P[:, c]
-            acc = []
-            for mask in supports[c]:  # frame A's body, then frame B's
-                vel = np.einsum("nij,nj->ni", J[:, :, mask], vv[:, mask])
-                spat = np.einsum("nij,nj->ni", dJ[:, :, mask], vv[:, mask])
-                w = vel[:, 3:]
-                vp = vel[:, :3] + np.cross(w, p)
-                acc.append(spat[:, :3] + np.cross(spat[:, 3:], p) + np.cross(w, vp))
-            gamma[idx, 3 * c:3 * c + 3] = acc[0] - acc[1]
+        # the bodies of every pair's frames A and B (columns 2c, 2c + 1): their spatial
+        # velocity V = [v_o; w] and acceleration at a = 0, A = dJ v, over their supports
+        # (einsum, not a BLAS product: BLAS threads would contend with the validator's
+        # worker process for the two cores)
+        S = self._closure_supports().reshape(-1, m.nv).astype(float)  # (18, nv)
+        nk = len(idx)
+        vel = np.einsum("nij,sj->nsi", J * vv[:, None, :], S)  # (n, 18, 6)
+        spat = np.einsum("nij,sj->nsi", dJ * vv[:, None, :], S)
+        p = np.repeat(P, 2, axis=1)  # frame A's point for both bodies of a pair
+        w = vel[..., 3:]
+        vp = vel[..., :3] + np.cross(w, p)
+        acc = spat[..., :3] + np.cross(spat[..., 3:], p) + np.cross(w, vp)
+        gamma[idx] = (acc[:, 0::2] - acc[:, 1::2]).reshape(nk, self.n_constraints)
         return gamma
 
     def urdf_configuration(self, q: np.ndarray) -> tuple[dict[str, np.ndarray],
                                                           dict[str, float]]:
-        """q (nq,) as URDF tools want it: ({floating joint: 4x4 motion of its child
-        relative to the joint's origin frame}, {1-DoF joint: angle [rad]}).
+        """q (nq,) as URDF tools want it: ({floating joint: 4x4 pose of its child in its
+        parent link's frame, the URDF origin included}, {1-DoF joint: angle [rad]}).
 
         yourdfpy's ``update_cfg`` ignores a floating joint's value (its forward kinematics
         uses only the joint origin), so :func:`pose_yourdfpy` puts the pose there."""
@@ -270,7 +272,8 @@ class ClosedLoopModel:
         for jid in range(1, m.njoints):
             j, name = m.joints[jid], m.names[jid]
             if j.nq == 7:  # the free-flyer: xyz, quaternion (x, y, z, w)
-                floating[name] = pin.XYZQUATToSE3(q[j.idx_q:j.idx_q + 7]).homogeneous
+                motion = pin.XYZQUATToSE3(q[j.idx_q:j.idx_q + 7])
+                floating[name] = (m.jointPlacements[jid] * motion).homogeneous
             elif j.nq == 1:
                 angles[name] = float(q[j.idx_q])
             else:
@@ -293,12 +296,7 @@ def pose_yourdfpy(urdf, clm: ClosedLoopModel, q: np.ndarray) -> None:
     every frame is where Pinocchio puts it."""
     floating, angles = clm.urdf_configuration(q)
     for name, T in floating.items():
-        joint = urdf.joint_map[name]
-        base = getattr(joint, "_sixplus3_origin", None)
-        if base is None:  # the origin the file gave, kept for the next pose
-            base = np.eye(4) if joint.origin is None else np.array(joint.origin)
-            joint._sixplus3_origin = base
-        joint.origin = base @ T
+        urdf.joint_map[name].origin = T
     # a floating joint named in the configuration has its scene edge redone from the
     # origin; its value is not used (its current one is passed, whatever its size)
     names = list(urdf.actuated_joint_names)

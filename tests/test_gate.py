@@ -78,7 +78,7 @@ from sixplus3.robot_description.robot import Robot
 
 V.OFFLOAD_MIN_POINTS = 10  # this short motion gets a worker too
 parent, forks = os.getpid(), []
-fork, compute = V._Offload._fork, V._Offload._compute
+fork, compute = V._Offload._fork, V._Offload.compute
 
 
 def record(self):
@@ -94,7 +94,7 @@ def dying(self, start, stop):
 
 V._Offload._fork = record
 if sys.argv[2] == "die":
-    V._Offload._compute = dying
+    V._Offload.compute = dying
 rep = V.validate_file(sys.argv[1], Robot.default())
 print(json.dumps({"forks": forks, "tau": rep.tau.tolist(), "summary": rep.summary()}))
 """
