@@ -213,9 +213,10 @@ class ClosedLoopDynamics:
                                                                          np.ndarray]:
         """:meth:`actuated_inverse_dynamics` of n states at once: (tau (n, 9), rcond (n,)).
 
-        Three passes over the states with Pinocchio (the joints' world Jacobians and the
-        closure points; the Jacobians' time variation for the drift; RNEA), everything
-        else batched in numpy (:meth:`ClosedLoopModel.constraint_jacobian_batch`).
+        Three passes over the states with Pinocchio (the closure Jacobian, the joints'
+        world Jacobians and the closure points; their time variation for the drift;
+        RNEA), everything else batched in numpy
+        (:meth:`ClosedLoopModel.constraint_jacobian_batch`, :meth:`~ClosedLoopModel.drift_batch`).
         ``rcond`` is the exact 1-norm reciprocal condition number of J_pas; states at or
         below :data:`SINGULAR_RCOND` get NaN torques.
         """
@@ -261,7 +262,7 @@ class ClosedLoopDynamics:
         inverse).  Singular states give NaN or inf; callers compare with a limit."""
         m, d = self.model, self.data
         n = len(q)
-        Jc, _ = self.clm.constraint_jacobian_batch(q)
+        Jc, _ = self.clm.constraint_jacobian_batch(q, drift=False)
         g = np.empty((n, m.nv))
         grav = pin.computeGeneralizedGravity
         for k in range(n):

@@ -177,27 +177,29 @@ class ClosedLoopModel:
         return np.array([(acc(m, d, a, LWA) - acc(m, d, b, LWA)).linear
                          for a, b in self.frame_pairs]).ravel()
 
-    def constraint_jacobian_batch(self, q: np.ndarray) -> tuple[np.ndarray, ClosureKinematics]:
+    def constraint_jacobian_batch(self, q: np.ndarray, drift: bool = True
+                                  ) -> tuple[np.ndarray, ClosureKinematics]:
         """:meth:`constraint_jacobian` of n configurations q (n, nq) at once: (Jc (n, 27,
         nv), the joint Jacobians and closure points that :meth:`drift_batch` reuses).
 
-        One Pinocchio pass per configuration: the closure Jacobian (:meth:`constraint_jacobian`),
-        and for the drift the joints' world-frame Jacobians J = [v_o; w] (spatial
-        velocity at the world origin per column) and frame A's world position per pair.
+        One Pinocchio pass per configuration: the closure Jacobian, and with ``drift``
+        the joints' world-frame Jacobians J = [v_o; w] (spatial velocity at the world
+        origin per column) and frame A's world position per pair (without it, these are
+        left empty: a static caller needs no drift).
         """
         m, d = self.model, self.data
         q = np.asarray(q, dtype=float)
         n = len(q)
         Jc = np.empty((n, self.n_constraints, m.nv))
-        J = np.empty((n, 6, m.nv))
-        P = np.empty((n, len(self.frame_pairs), 3))
+        J = np.empty((n if drift else 0, 6, m.nv))
+        P = np.empty((n if drift else 0, len(self.frame_pairs), 3))
         jac, frame, fa = self.constraint_jacobian, pin.updateFramePlacement, self._frames_a
         for k in range(n):
             Jc[k] = jac(q[k])
-            J[k] = d.J
-            P[k] = [frame(m, d, i).translation for i in fa]
-        kin = ClosureKinematics(J=J, points=P)
-        return Jc, kin
+            if drift:
+                J[k] = d.J
+                P[k] = [frame(m, d, i).translation for i in fa]
+        return Jc, ClosureKinematics(J=J, points=P)
 
     def _closure_supports(self) -> np.ndarray:
         """(9, 2, nv) bool: the velocity coordinates moving each pair's frame A, frame B
@@ -230,6 +232,10 @@ class ClosedLoopModel:
         m, d = self.model, self.data
         q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
         n = len(q)
+        if len(kin.J) != n:
+            raise InputError(f"drift_batch: kinematics of {len(kin.J)} states for {n} (made "
+                             "by constraint_jacobian_batch with drift=True of the same q?)",
+                             value=len(kin.J), valid=n)
         idx = np.arange(n) if rows is None else np.flatnonzero(rows)
         gamma = np.zeros((n, self.n_constraints))
         if len(idx) == 0:
