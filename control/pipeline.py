@@ -15,6 +15,7 @@ from sixplus3.control.validation import ValidationReport, validate_joint_traject
 from sixplus3.errors import TrajectoryFileError
 from sixplus3.planner.ocp import PlannerOptions, Solution, plan
 from sixplus3.planner.task import Task
+from sixplus3.progress import PlanProgress
 from sixplus3.robot_description.robot import Robot
 
 
@@ -42,19 +43,31 @@ class PlanOutputs:
     seconds: dict[str, float]
 
 
+def _silent(text: str) -> None:
+    pass
+
+
 def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
              rate: float = 1000.0, html: bool = True, plots: bool = True,
              options: PlannerOptions | None = None,
-             progress: Callable[[str], None] | None = None) -> PlanOutputs:
+             progress: Callable[[str], None] | PlanProgress | None = None) -> PlanOutputs:
     """Plan ``task`` for ``robot`` (default ``Robot.default()``) and write the validated
     trajectory file ``out_dir/<name>.csv`` (and the page and plots beside it).
+
+    ``progress``: a :class:`sixplus3.progress.PlanProgress` (every stage, the planner's
+    too, and each IPOPT iteration), or a callable given this function's own stage lines.
 
     The output name and the rate are checked before anything is solved.  Raises
     :class:`InfeasibleTaskError` for an infeasible task and :class:`TrajectoryFileError`
     if the smoothed trajectory fails its validation; in both cases nothing is written.
     """
     robot = task.robot_for(robot or Robot.default())  # with the task's payload/tool/mounting
-    say = progress or (lambda s: None)
+    listener: PlanProgress | None = None
+    say: Callable[[str], None] = _silent
+    if isinstance(progress, PlanProgress):
+        listener, say = progress, progress.stage
+    elif progress is not None:
+        say = progress
     out = Path(out_dir)
     csv_path = output_path(out, task.name)  # a safe name, inside out_dir: before the solve
     check_rate(rate)
@@ -63,7 +76,7 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
     t0 = time.perf_counter()
     say(f"planning '{task.name}' ({len(task.waypoints)} waypoints, "
         f"{task.n_segments * task.nodes_per_segment} intervals) ...")
-    sol = plan(task, robot, options)
+    sol = plan(task, robot, options, progress=listener)
     secs["plan"] = time.perf_counter() - t0
     assert sol.check is not None  # plan() returns only checked plans
     how = ("the time-optimal NLP" if sol.source == "ocp" else

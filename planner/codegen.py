@@ -83,7 +83,9 @@ def _build(sources: dict[str, str], directory: Path) -> dict[str, Path]:
         jobs.append((name, lib, c_path, tmp_lib, subprocess.Popen(
             [cc, *CFLAGS, c_path, "-o", tmp_lib], stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT)))
-    if jobs:
+    from sixplus3 import progress
+
+    if jobs and progress.level() != progress.QUIET:  # quiet: communicate() below waits
         print("sixplus3: compiling the planner's constraint functions (once per machine "
               f"and robot structure, ~1-3 min) into {directory}", file=sys.stderr,
               flush=True)

@@ -54,6 +54,51 @@ from sixplus3.robot_description.robot import Robot
 _TEMPLATES: dict[tuple, dict] = {}
 
 
+class _IterationRelay(ca.Callback):
+    """IPOPT's per-iteration hook (CasADi's ``iteration_callback``): passes the iterate's
+    scaled variables and constraint values to ``listener`` (set per solve, None: off).
+
+    Only x, f and g are taken (the multipliers are declared empty, so CasADi does not
+    copy them); a failing listener is switched off rather than stopping the solve.
+    """
+
+    def __init__(self, nx: int, ng: int) -> None:
+        ca.Callback.__init__(self)
+        self.nx, self.ng = nx, ng
+        self.listener: Any = None
+        self.construct("iteration_relay", {})
+
+    def get_n_in(self) -> int:
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self) -> int:
+        return 1
+
+    def get_name_in(self, i: int) -> str:
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i: int) -> str:
+        return "ret"
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:
+        name = ca.nlpsol_out(i)
+        if name == "f":
+            return ca.Sparsity.scalar()
+        if name == "x":
+            return ca.Sparsity.dense(self.nx)
+        if name == "g":
+            return ca.Sparsity.dense(self.ng)
+        return ca.Sparsity(0, 0)
+
+    def eval(self, arg):
+        if self.listener is not None:
+            try:
+                self.listener(np.array(arg[0]).ravel(), np.array(arg[2]).ravel())
+            except Exception:  # a reporter's bug must not change the plan
+                self.listener = None
+        return [0]
+
+
 @dataclass(frozen=True)
 class PlannerOptions:
     lock_redundancy: bool = False  # psi fixed at 90 deg (or the waypoints' psi) throughout
@@ -273,7 +318,7 @@ class Problem:
     """
 
     def __init__(self, task: Task, robot: Robot | None = None,
-                 options: PlannerOptions | None = None) -> None:
+                 options: PlannerOptions | None = None, progress: Any = None) -> None:
         # the task's setup (payload, tool, mounting) on the robot; TCP waypoints become
         # platform poses through that robot's tool
         self.robot = task.robot_for(robot or Robot.default())
@@ -281,6 +326,12 @@ class Problem:
         self.limits = task.limits_for(self.robot)
         self.options = options or PlannerOptions()
         self.sr = self.robot.symbolic()
+        #: a :class:`sixplus3.progress.PlanProgress` (stages and IPOPT iterations) or None
+        self.progress = progress
+
+    def _stage(self, text: str) -> None:
+        if self.progress is not None:
+            self.progress.stage("  " + text)  # a sub-step of the caller's "planning ..."
 
     # -- initial guess
     def waypoint_states(self, psi_wp: np.ndarray) -> np.ndarray:
@@ -370,7 +421,11 @@ class Problem:
         # start, and the plan returned when the NLP fails or is slower.
         from sixplus3.planner.baseline import baseline_plan
 
+        self._stage("crank angles at the waypoints chosen; building the stop-at-waypoints "
+                    "baseline (TOPP-RA per segment)")
         base, self.baseline_note = baseline_plan(self, psi_wp)
+        self._stage(f"baseline: {base.final_time:.4f} s" if base is not None else
+                    f"no admissible baseline ({self.baseline_note})")
         sol, first, failed = self._first_solve(psi_wp, proxy, safety, reserve, base)
         if sol is None:
             if base is not None:
@@ -413,6 +468,8 @@ class Problem:
                 fixable = fixable or reserve["clearance"] < 0.01
             if not fixable:
                 break
+            self._stage(f"re-solve {solves}: the dense check found {'; '.join(bad)}; "
+                        "tightening those limits")
             try:
                 nxt = self._solve_once(psi_wp, proxy, safety, warm=sol, reserve=reserve,
                                        margin=self.margin_rows)
@@ -425,6 +482,7 @@ class Problem:
             sol = nxt
         sol.solve_time, sol.solves = total, solves
         if sol.check is not None and sol.check.ok:
+            self._stage("re-timing the checked plan up to 99.5% of its binding limit")
             sol = self._retime(sol, proxy)
         return self._finish(sol, base, t_wall, psi_wp, proxy, safety, reserve)
 
@@ -452,6 +510,10 @@ class Problem:
         failed = 0.0
         for start in starts:
             t0 = time.perf_counter()
+            self._stage("NLP " + ("from the baseline" if start.get("warm") is not None
+                                  else "from the kinematic guess")
+                        + (" at 0.6 x the margin (homotopy)" if "margin" in start else "")
+                        + (", twice as slow" if "time_scale" in start else ""))
             try:
                 sol = self._solve_once(psi_wp, proxy, safety, reserve=reserve, **start)
                 if "margin" in start and any("margin" in v for v in sol.check.violations):
@@ -464,6 +526,7 @@ class Problem:
                     raise
                 first = first or exc
                 failed += time.perf_counter() - t0
+                self._stage(f"  failed ({exc.value}) after {time.perf_counter() - t0:.1f} s")
                 continue
             sol.solve_time += failed
             return sol, None, failed
@@ -479,8 +542,12 @@ class Problem:
             base.solve_time += sol.solve_time
             base.solves = sol.solves
             sol = base
+            self._stage("returning the baseline (the NLP's plan failed its check or is "
+                        "slower)")
         target = self._target_duration(sol)
         if target is not None:
+            self._stage(f"stretching to the task's duration, {target:.4f} s (minimum "
+                        "effort at that duration)")
             sol = self._fixed_duration(sol, target, psi_wp, proxy, safety, reserve)
         if sol.check is not None:  # limits that bind between the nodes
             for name, ratio in (("torque", sol.check.max_torque_ratio),
@@ -627,18 +694,23 @@ class Problem:
         if warm is not None and warm.nlp_point is not None:
             # a re-solve with tightened bounds: start IPOPT from the previous primal-dual
             # point (same variable scaling) with a small barrier parameter
-            solver = self._template(warm_start=True)["solver"]
+            tmpl = self._template(warm_start=True)
             ws, lam_x, lam_g, D = warm.nlp_point
             args = {"x0": ws, "lam_x0": lam_x, "lam_g0": lam_g}
         else:
-            solver = tmpl["solver"]
             D = self._variable_scale(tmax)
             args = {"x0": w0 / D}
+        solver, relay = tmpl["solver"], tmpl["relay"]
         weights = (1.0, 0.0) if duration is None else (0.0, 1.0)
         args.update(p=np.r_[D, lim.jerk, lim.torque_rate, weights], lbx=lbx / D,
                     ubx=ubx / D, lbg=lbg, ubg=ubg)
+        if self.progress is not None:
+            relay.listener = self._iteration_listener(D[-S:], lbg, ubg)
         t_start = time.perf_counter()
-        res = solver(**args)
+        try:
+            res = solver(**args)
+        finally:
+            relay.listener = None
         solve_time = time.perf_counter() - t_start
         stats = solver.stats()
         status = str(stats.get("return_status", "unknown"))
@@ -668,7 +740,25 @@ class Problem:
                        nlp_point=(w / D, np.array(res["lam_x"]).ravel(),
                                   np.array(res["lam_g"]).ravel(), D))
         sol.check = dense_check(sol, factor=10)
+        self._stage(f"  {status}: {sol.iterations} iterations, {solve_time:.2f} s; motion "
+                    f"{sol.final_time:.4f} s; dense re-check "
+                    + ("ok" if sol.check.ok else "; ".join(sol.check.violations)))
         return sol
+
+    def _iteration_listener(self, d_time: np.ndarray, lbg: np.ndarray, ubg: np.ndarray):
+        """The relay's listener for one solve: the iterate's duration (its last S scaled
+        variables times their scale) and constraint violation, to ``self.progress``."""
+        count = [-1]  # IPOPT's iteration 0 is the starting point
+        progress = self.progress
+        assert progress is not None
+
+        def listener(ws: np.ndarray, g: np.ndarray) -> None:
+            count[0] += 1
+            duration = float(ws[-len(d_time):] @ d_time)
+            violation = float(max(0.0, np.max(lbg - g), np.max(g - ubg)))
+            progress.iteration(count[0], duration, violation)
+
+        return listener
 
     def _on_nodes(self, sol: Solution):
         """(x, xd, xdd, T) of a plan of this task on this NLP's node grid (its own arrays
@@ -813,10 +903,11 @@ class Problem:
             ipopt.update({"warm_start_init_point": "yes", "mu_init": 1e-5,
                           "warm_start_bound_push": 1e-7, "warm_start_slack_bound_push": 1e-7,
                           "warm_start_mult_bound_push": 1e-7})
+        relay = _IterationRelay(nw, g.numel())
         solver_opts: dict[str, Any] = {"expand": not compiled, "print_time": False,
-                                       "ipopt": ipopt}
+                                       "ipopt": ipopt, "iteration_callback": relay}
         solver = ca.nlpsol("planner", "ipopt", nlp, solver_opts)
-        tmpl = {"solver": solver}
+        tmpl = {"solver": solver, "relay": relay}  # the relay must outlive the solver
         _TEMPLATES[key] = tmpl
         return tmpl
 
@@ -899,10 +990,11 @@ class Problem:
 
 
 def plan(task: Task, robot: Robot | None = None,
-         options: PlannerOptions | None = None) -> Solution:
+         options: PlannerOptions | None = None, progress: Any = None) -> Solution:
     """Plan a task for ``robot`` (default ``Robot.default()``); raises
-    :class:`InfeasibleTaskError` (never returns an unsafe plan)."""
-    sol = Problem(task, robot, options).solve()
+    :class:`InfeasibleTaskError` (never returns an unsafe plan).  ``progress``: a
+    :class:`sixplus3.progress.PlanProgress` told each stage and IPOPT iteration."""
+    sol = Problem(task, robot, options, progress).solve()
     if not sol.is_feasible():
         raise InfeasibleTaskError(
             "the solved plan fails its dense re-check: "

@@ -89,7 +89,41 @@ class _Group(click.Group):
 @click.pass_context
 def main(ctx: click.Context, robot_file: str | None) -> None:
     """sixplus3: kinematics, dynamics, design and planning for the (6+3)-DoF robot."""
+    from sixplus3 import progress
+
+    progress.set_level(progress.NORMAL)  # before a subcommand's --quiet / --verbose
     ctx.obj = {"robot_file": robot_file}
+
+
+def _bars() -> bool:
+    """Progress bars unless ``--quiet``."""
+    from sixplus3 import progress
+
+    return progress.level() != progress.QUIET
+
+
+def _set_level(ctx: click.Context, param: click.Parameter, value: bool) -> bool:
+    from sixplus3 import progress
+
+    if not value:
+        return value
+    want = progress.QUIET if param.name == "quiet" else progress.VERBOSE
+    seen = ctx.meta.setdefault("sixplus3_level", want)
+    if seen != want:
+        raise click.UsageError("--quiet and --verbose exclude each other")
+    progress.set_level(want)
+    return value
+
+
+def _verbosity(f):
+    """``--quiet`` / ``--verbose`` (:mod:`sixplus3.progress`) on a long-running command."""
+    f = click.option("-v", "--verbose", is_flag=True, expose_value=False, is_eager=True,
+                     callback=_set_level,
+                     help="Also one line per IPOPT iteration (duration, violation).")(f)
+    return click.option("-q", "--quiet", is_flag=True, expose_value=False, is_eager=True,
+                        callback=_set_level,
+                        help="No progress: no compile notice, stages or bars; only results "
+                             "and errors.")(f)
 
 
 def _robot() -> Robot:
@@ -379,6 +413,7 @@ def _reading(name: str):
               help="Workspace grid of the half-plane [m]; repeat to re-optimise on each.")
 @_reading_option
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object per grid.")
+@_verbosity
 def design_optimize(coarse_step: float, fine_step: float, ws_steps: tuple[float, ...],
                     reading: str, as_json: bool) -> None:
     """Two-stage grid search of (l2 = l3, l4 = l5, ex = fx) maximising the usable area,
@@ -397,7 +432,7 @@ def design_optimize(coarse_step: float, fine_step: float, ws_steps: tuple[float,
         click.echo(f"paper        l2 = {PAPER_DESIGN[0]:.3f}  l4 = {PAPER_DESIGN[1]:.3f}  "
                    f"ex = {PAPER_DESIGN[2]:.3f} m")
     for ws_step in ws_steps:
-        res = optimize(coarse_step, fine_step, ws_step, rd, progress=not as_json)
+        res = optimize(coarse_step, fine_step, ws_step, rd, progress=_bars() and not as_json)
         rg = res.ridge
         if as_json:
             out = {"found": res.found, "l2": res.l2, "l4": res.l4, "ex": res.ex,
@@ -484,6 +519,7 @@ def report(ws_step: float) -> None:
 @click.option("--chunk", default=48, show_default=True, type=int,
               help="Positions per Dask task.")
 @click.option("--no-figures", is_flag=True, help="Write only the data file.")
+@_verbosity
 def atlas(out_dir: str, step: float, azimuth_step: float, torsions: tuple[float, ...],
           max_tilt: float, resolution: float, z_range: tuple[float, float] | None,
           workers: int, scheduler: str | None, chunk: int, no_figures: bool) -> None:
@@ -528,7 +564,7 @@ def atlas(out_dir: str, step: float, azimuth_step: float, torsions: tuple[float,
                f"{len(st.torsions_deg)} torsion(s), cranks free and locked; {where}")
     t0 = time.perf_counter()
     ds = at.compute_atlas(robot, st, scheduler=scheduler, workers=workers, chunk=chunk,
-                          grid=(xs, ys, zs), progress=True)
+                          grid=(xs, ys, zs), progress=_bars())
     path = at.save(ds, out / "atlas.nc")
     click.echo(f"wrote {path} ({time.perf_counter() - t0:.1f} s)")
     if not no_figures:
@@ -574,9 +610,14 @@ def _load_task_or_example(task_file: str):
 def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None:
     from sixplus3.control.pipeline import run_plan
     from sixplus3.planner.ocp import PlannerOptions
+    from sixplus3.progress import ConsoleProgress
 
-    res = run_plan(task, out_dir, _robot(), rate=rate, html=html,
-                   options=PlannerOptions(lock_redundancy=locked), progress=click.echo)
+    reporter = ConsoleProgress()
+    try:
+        res = run_plan(task, out_dir, _robot(), rate=rate, html=html,
+                       options=PlannerOptions(lock_redundancy=locked), progress=reporter)
+    finally:
+        reporter.close()
     click.echo(f"done in {res.seconds['total']:.1f} s: {res.csv}")
 
 
@@ -587,6 +628,7 @@ def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None
 @click.option("--rate", default=1000.0, show_default=True, help="Controller rate [Hz].")
 @click.option("--no-html", is_flag=True, help="Skip the MeshCat page.")
 @click.option("--locked", is_flag=True, help="Lock the crank angles at their home angles.")
+@_verbosity
 def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool) -> None:
     """Plan TASK_FILE (YAML, or the name of an installed example such as tilt60_x):
     plan -> smooth -> validate -> the trajectory file, its MeshCat page and plots."""
@@ -604,6 +646,7 @@ def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool)
 @click.option("-o", "--out", "out_dir", default="out", show_default=True,
               help="Output directory.")
 @click.option("--rate", default=1000.0, show_default=True, help="Controller rate [Hz].")
+@_verbosity
 def move_to_start_cmd(task_file: str, theta: tuple[float, ...], out_dir: str,
                       rate: float) -> None:
     """Plan from the robot's current state to a task's start state (at rest)."""
@@ -621,6 +664,7 @@ def move_to_start_cmd(task_file: str, theta: tuple[float, ...], out_dir: str,
 @main.command()
 @click.option("-o", "--out", "out_dir", default="out", show_default=True,
               type=click.Path(file_okay=False), help="Output directory.")
+@_verbosity
 def demo(out_dir: str) -> None:
     """Main job on built-in defaults: plan, smooth, validate and show a 30 deg tilt."""
     from sixplus3.control.pipeline import demo_task
