@@ -4,8 +4,10 @@
 
 Times the planner's per-point constraint function ``node`` and its Jacobian, mapped
 over 41 points (a 20-interval task: nodes and midpoints) as the NLP evaluates them,
-single-threaded, both from the same SX graph.  Also reports the size of the graphs and
-the time to compile from scratch into a temporary cache (skip with --no-compile).
+single-threaded, from the same SX graph: interpreted, the quick build (gcc -O0, what a
+first run plans with) and the optimised build (gcc -O1, built in the background for the
+next run).  Also reports the size of the graphs and each build's generate + compile time
+(from scratch, into a temporary directory).
 """
 
 from __future__ import annotations
@@ -14,7 +16,9 @@ import argparse
 import os
 import tempfile
 import time
+from pathlib import Path
 
+import casadi as ca
 import numpy as np
 
 from sixplus3.planner import codegen
@@ -29,41 +33,52 @@ def per_call(f, args, repeat: int) -> float:
     return (time.perf_counter() - t0) / repeat
 
 
+def compile_into(directory, robot, flags) -> tuple[str, float]:
+    """Generate and compile the planner's node library with ``flags``: (path, seconds)."""
+    t0 = time.perf_counter()
+    src = codegen._source(robot.symbolic().node_p)
+    lib = codegen._lib_path(directory, "node", src, flags)
+    _, lib, c_path, tmp, proc = codegen._start_foreground(codegen._compiler(), "node", src,
+                                                          lib, flags)
+    out, _ = proc.communicate()
+    if proc.returncode:
+        raise SystemExit(out.decode())
+    os.unlink(c_path)
+    os.replace(tmp, lib)
+    return str(lib), time.perf_counter() - t0
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--no-compile", action="store_true",
-                    help="use the cached library instead of timing a fresh compilation")
-    args = ap.parse_args()
+    ap.parse_args()
     robot = Robot.default()
     sr = robot.symbolic()
-    if not args.no_compile:
-        with tempfile.TemporaryDirectory() as tmp:
-            os.environ["SIXPLUS3_CACHE"] = tmp
-            t0 = time.perf_counter()
-            codegen._compiled(robot)  # uncached: generate and compile into tmp
-            print(f"generate + compile (gcc {' '.join(codegen.CFLAGS)}): "
-                  f"{time.perf_counter() - t0:.1f} s")
-        del os.environ["SIXPLUS3_CACHE"]
-    node_c = codegen.compiled_functions(robot)["node"]
     n = 41
     rng = np.random.default_rng(0)
     x = np.tile(np.r_[0.0, 0.0, 0.30, 0.1, -0.1, 0.05, 1.5, 1.6, 1.4][:, None], (1, n))
     ins = [x + 0.01 * rng.normal(size=(9, n)), rng.normal(size=(9, n)),
            10 * rng.normal(size=(9, n)), rng.normal(size=(9, n))]
     out = np.array(sr.node.map(n)(*ins))
-    jac_sx, jac_c = sr.node.jacobian(), node_c.jacobian()
     print(f"node: {sr.node.n_instructions()} SX instructions; "
-          f"its Jacobian: {jac_sx.n_instructions()}")
-    rows = []
-    for name, f in (("node", sr.node), ("node compiled", node_c),
-                    ("Jacobian", jac_sx), ("Jacobian compiled", jac_c)):
-        fm = f.map(n)
-        a = ins + ([out] if name.startswith("Jacobian") else [])
-        rows.append((name, per_call(fm, a, 20)))
-    for name, t in rows:
-        print(f"  {name:18s} x{n}: {t * 1e3:7.2f} ms  ({t / n * 1e6:6.1f} us per point)")
-    print(f"speed-up of the Jacobian: {rows[2][1] / rows[3][1]:.1f}x, "
-          f"of the function: {rows[0][1] / rows[1][1]:.1f}x")
+          f"its Jacobian: {sr.node.jacobian().n_instructions()}")
+    funcs = [("interpreted", sr.node)]
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, flags in (("quick", codegen.QUICK_CFLAGS), ("optimised", codegen.CFLAGS)):
+            lib, secs = compile_into(Path(tmp), robot, flags)
+            print(f"{label:9s} build (gcc {' '.join(flags)}): generate + compile {secs:.1f} s")
+            ext = ca.external("node_p", lib)
+            funcs.append((label, codegen._with_setup(robot, {"node": ext})["node"]))
+        rows = []
+        for label, f in funcs:
+            t_f = per_call(f.map(n), ins, 20)
+            t_j = per_call(f.jacobian().map(n), ins + [out], 20)
+            rows.append((label, t_f, t_j))
+        for label, t_f, t_j in rows:
+            print(f"  {label:11s} x{n}: node {t_f * 1e3:7.2f} ms ({t_f / n * 1e6:6.1f} us per "
+                  f"point), Jacobian {t_j * 1e3:7.2f} ms ({t_j / n * 1e6:6.1f} us per point)")
+        base = rows[0][2]
+        print("speed-up of the Jacobian over the interpreted one: "
+              + ", ".join(f"{label} {base / t_j:.1f}x" for label, _, t_j in rows[1:]))
 
 
 if __name__ == "__main__":

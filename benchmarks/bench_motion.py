@@ -25,6 +25,7 @@ from sixplus3.control.trajectory_file import columns, read_trajectory
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.rotations import matrix_from_quat
+from sixplus3.planner.codegen import ensure_optimised
 from sixplus3.planner.task import load_task
 from sixplus3.robot_description.robot import Robot
 
@@ -35,6 +36,8 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--tasks", nargs="*", default=None)
     args = ap.parse_args()
+    # time the planner as it runs after its first use: with the optimised build
+    ensure_optimised(Robot.default())
     tasks = [Path(t) for t in args.tasks] if args.tasks else sorted(
         (ROOT / "examples").glob("*.yaml"))
     out = Path(tempfile.mkdtemp(prefix="sixplus3-motion-"))

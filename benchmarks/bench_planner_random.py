@@ -18,8 +18,10 @@ import time
 
 import numpy as np
 
+from sixplus3.planner.codegen import ensure_optimised
 from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
 from sixplus3.planner.task import task_from_dict
+from sixplus3.robot_description.robot import Robot
 
 
 def random_task(rng: np.random.Generator, k: int) -> dict:
@@ -39,6 +41,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--locked", action="store_true")
     args = ap.parse_args()
+    # time the planner as it runs after its first use: with the optimised build
+    ensure_optimised(Robot.default())
     rng = np.random.default_rng(args.seed)
     solves, outcome = [], collections.Counter()
     for k in range(args.n):

@@ -13,6 +13,7 @@ from sixplus3.control.smoothing import Smoothed, check_rate, smooth
 from sixplus3.control.trajectory_file import output_path, write_trajectory
 from sixplus3.control.validation import ValidationReport, validate_joint_trajectory
 from sixplus3.errors import TrajectoryFileError
+from sixplus3.planner.codegen import build_kind
 from sixplus3.planner.ocp import PlannerOptions, Solution, plan
 from sixplus3.planner.task import Task
 from sixplus3.progress import PlanProgress
@@ -119,6 +120,7 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
         "rate_hz": rate,
         "task": task.source,
         "planner": {"status": sol.status, "source": sol.source,
+                    "compiled": build_kind(robot),
                     "baseline_time_s": sol.baseline_time, "wall_time_s": sol.wall_time,
                     "final_time_s": sol.final_time,
                     "solve_time_s": sol.solve_time, "iterations": sol.iterations,

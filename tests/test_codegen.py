@@ -1,0 +1,81 @@
+"""The planner's compiled functions: a quick build for the first run, the optimised one
+built in the background for the next (issue: the lab's ecosystem, first run)."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from sixplus3.planner import codegen
+from sixplus3.robot_description.robot import Robot
+
+pytestmark = pytest.mark.skipif(not codegen.codegen_enabled(), reason="no C compiler")
+
+
+@pytest.fixture(scope="module")
+def source() -> str:
+    # a small function of the real model (the margins, with its Jacobian): fast to compile
+    return codegen._source(Robot.default().symbolic().margins)
+
+
+def _build_with(flags, source: str, directory) -> str:
+    lib = codegen._lib_path(directory, "margins", source, flags)
+    name, lib, c_path, tmp, proc = codegen._start_foreground(
+        codegen._compiler(), "margins", source, lib, flags)
+    out, _ = proc.communicate()
+    assert proc.returncode == 0, out
+    os.unlink(c_path)
+    os.replace(tmp, lib)
+    return str(lib)
+
+
+def test_quick_and_optimised_builds_agree_bit_for_bit(source, tmp_path) -> None:
+    quick = ca.external("margins", _build_with(codegen.QUICK_CFLAGS, source, tmp_path))
+    full = ca.external("margins", _build_with(codegen.CFLAGS, source, tmp_path))
+    fq, ff = quick.jacobian(), full.jacobian()
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        x = np.r_[rng.uniform(-0.1, 0.1, 2), rng.uniform(0.25, 0.4), rng.uniform(-1, 1, 3),
+                  rng.uniform(0.8, 2.3, 3)]
+        outs_q, outs_f = quick(x), full(x)
+        for a, b in zip(outs_q, outs_f, strict=True):
+            np.testing.assert_array_equal(np.array(a), np.array(b))
+        for a, b in zip(fq(x, *outs_q), ff(x, *outs_f), strict=True):
+            np.testing.assert_array_equal(np.array(a), np.array(b))
+
+
+def test_first_build_is_quick_and_the_optimised_one_follows(source, tmp_path) -> None:
+    quick = codegen._lib_path(tmp_path, "margins", source, codegen.QUICK_CFLAGS)
+    full = codegen._lib_path(tmp_path, "margins", source, codegen.CFLAGS)
+    libs = codegen._build({"margins": source}, tmp_path)
+    assert libs == {"margins": quick}  # returned at once: the quick build
+    deadline = time.monotonic() + 300
+    while (not full.exists() or codegen._building(full)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert full.exists(), "the background build never finished"
+    # the background build cleaned up: no marker, source, partial or quick library left
+    assert sorted(p.name for p in tmp_path.iterdir()) == [full.name]
+    # the next process gets the optimised library, with nothing to compile
+    assert codegen._build({"margins": source}, tmp_path) == {"margins": full}
+
+
+def test_optimised_on_demand_and_stale_markers(source, tmp_path) -> None:
+    full = codegen._lib_path(tmp_path, "margins", source, codegen.CFLAGS)
+    mark = full.with_suffix(".building")
+    mark.write_text("started long ago\n")
+    assert codegen._building(full)
+    old = time.time() - codegen.BACKGROUND_STALE_S - 10
+    os.utime(mark, (old, old))
+    assert not codegen._building(full)  # a dead build's marker does not block
+    # optimised=True: compiled here (the stale marker is ignored), nothing quick
+    assert codegen._build({"margins": source}, tmp_path, optimised=True) == {"margins": full}
+    assert full.exists()
+    assert not any(p.name.endswith((".c", ".part")) for p in tmp_path.iterdir())
+
+
+def test_the_loaded_build_is_reported() -> None:
+    assert codegen.build_kind(Robot.default()) in ("optimised", "quick")
