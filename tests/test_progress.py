@@ -136,3 +136,23 @@ def test_plan_quiet_and_verbose(tmp_path) -> None:
     both = run.invoke(main, ["plan", str(task), "--quiet", "--verbose"])
     assert both.exit_code == 2 and "exclude each other" in both.output
     assert "Traceback" not in both.output
+
+
+def test_a_starts_iteration_cap_stops_ipopt_there() -> None:
+    """The cap of a start that a fallback follows (PlannerOptions.start_max_iter) is
+    enforced through the same callback: IPOPT stops after it, reported as exceeded."""
+    from sixplus3.errors import InfeasibleTaskError
+    from sixplus3.planner.ocp import Problem, choose_static_psi
+
+    rec = Recorder()
+    problem = Problem(task_from_dict(TASK), progress=rec)
+    psi = choose_static_psi(problem.task, problem.robot, problem.limits, False, {0, 1})
+    safety = {"torque": 0.98, "velocity": 0.98, "acceleration": 0.98}
+    with pytest.raises(InfeasibleTaskError) as err:
+        problem._solve_once(psi, 0.5, safety, max_iter=3)
+    assert err.value.value == "Maximum_Iterations_Exceeded"
+    assert [k for k, _, _ in rec.iterations] == [0, 1, 2, 3]
+    # the cap is per solve: the next solve of the same NLP runs to convergence
+    rec.iterations.clear()
+    sol = problem._solve_once(psi, 0.5, safety)
+    assert sol.found and len(rec.iterations) - 1 == sol.iterations > 3
