@@ -13,7 +13,6 @@ next run).  Also reports the size of the graphs and each build's generate + comp
 from __future__ import annotations
 
 import argparse
-import os
 import tempfile
 import time
 from pathlib import Path
@@ -36,15 +35,8 @@ def per_call(f, args, repeat: int) -> float:
 def compile_into(directory, robot, flags) -> tuple[str, float]:
     """Generate and compile the planner's node library with ``flags``: (path, seconds)."""
     t0 = time.perf_counter()
-    src = codegen._source(robot.symbolic().node_p)
-    lib = codegen._lib_path(directory, "node", src, flags)
-    _, lib, c_path, tmp, proc = codegen._start_foreground(codegen._compiler(), "node", src,
-                                                          lib, flags)
-    out, _ = proc.communicate()
-    if proc.returncode:
-        raise SystemExit(out.decode())
-    os.unlink(c_path)
-    os.replace(tmp, lib)
+    lib = codegen.compile_library(directory, "node", codegen._source(robot.symbolic().node_p),
+                                  flags)
     return str(lib), time.perf_counter() - t0
 
 

@@ -132,7 +132,7 @@ def _build(sources: dict[str, str], directory: Path, optimised: bool = False
     cc = _compiler()
     if cc is None:
         raise RuntimeError("no C compiler (set CC or install gcc)")
-    waiting = []
+    waiting: list[str] = []  # names whose optimised library a background build makes
     for name, src in sources.items():
         full = _lib_path(directory, name, src, CFLAGS)
         libs[name] = full
@@ -140,7 +140,7 @@ def _build(sources: dict[str, str], directory: Path, optimised: bool = False
             continue
         if optimised:
             if _building(full):
-                waiting.append(full)
+                waiting.append(name)
             else:
                 jobs.append(_start_foreground(cc, name, src, full, CFLAGS))
             continue
@@ -156,29 +156,20 @@ def _build(sources: dict[str, str], directory: Path, optimised: bool = False
         print(f"sixplus3: compiling {what} build of the planner's constraint functions "
               f"(once per machine and robot structure, ~{'75' if optimised else '15'} s) "
               f"into {directory}", file=sys.stderr, flush=True)
-        _wait_with_progress([job[4] for job in jobs], waiting)
-    for lib in waiting:  # a background build: wait for it, or build here if it failed
-        while not lib.exists() and _building(lib):
+        _wait_with_progress([job[4] for job in jobs], [libs[n] for n in waiting])
+    for name in waiting:  # a background build: wait for it, or build here if it failed
+        while not libs[name].exists() and _building(libs[name]):
             time.sleep(0.5)
-        if not lib.exists():
-            name = next(n for n, p in libs.items() if p == lib)
-            jobs.append(_start_foreground(cc, name, sources[name], lib, CFLAGS))
-    errors = []
-    for name, lib, c_path, tmp_lib, proc in jobs:
-        out, _ = proc.communicate()
-        os.unlink(c_path)
-        if proc.returncode != 0:
-            errors.append(f"{name}: {out.decode(errors='replace')[-2000:]}")
-            if os.path.exists(tmp_lib):
-                os.unlink(tmp_lib)
-            continue
-        os.replace(tmp_lib, lib)  # atomic: a library is either whole or absent
+        if not libs[name].exists():
+            jobs.append(_start_foreground(cc, name, sources[name], libs[name], CFLAGS))
+    errors = [err for err in map(_finish, jobs) if err]
     if errors:
         raise RuntimeError("compiling the planner functions failed:\n" + "\n".join(errors))
     return libs
 
 
 def _start_foreground(cc: str, name: str, src: str, lib: Path, flags: tuple[str, ...]):
+    """Start compiling ``src`` into ``lib`` (a job for :func:`_finish`)."""
     fd, c_path = tempfile.mkstemp(suffix=".c", prefix=f"{name}_", dir=lib.parent)
     with os.fdopen(fd, "w") as fh:
         fh.write(src)
@@ -186,6 +177,35 @@ def _start_foreground(cc: str, name: str, src: str, lib: Path, flags: tuple[str,
     return (name, lib, c_path, tmp_lib, subprocess.Popen(
         [cc, *flags, c_path, "-o", tmp_lib], stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT))
+
+
+def _finish(job) -> str | None:
+    """Wait for a compile job; rename its library into place (atomic: a library is
+    either whole or absent) and remove its temporary files.  Returns the compiler's
+    error text, or None."""
+    name, lib, c_path, tmp_lib, proc = job
+    out, _ = proc.communicate()
+    os.unlink(c_path)
+    if proc.returncode != 0:
+        if os.path.exists(tmp_lib):
+            os.unlink(tmp_lib)
+        return f"{name}: {out.decode(errors='replace')[-2000:]}"
+    os.replace(tmp_lib, lib)
+    return None
+
+
+def compile_library(directory: Path, name: str, src: str, flags: tuple[str, ...]) -> Path:
+    """Compile ``src`` with ``flags`` into ``directory`` now (its cache name); raises
+    RuntimeError with the compiler's output if it fails.  For benchmarks and tests that
+    compare builds; the planner goes through :func:`compiled_functions`."""
+    cc = _compiler()
+    if cc is None:
+        raise RuntimeError("no C compiler (set CC or install gcc)")
+    lib = _lib_path(directory, name, src, flags)
+    err = _finish(_start_foreground(cc, name, src, lib, flags))
+    if err:
+        raise RuntimeError(err)
+    return lib
 
 
 def _wait_with_progress(procs: list[subprocess.Popen], libs: list[Path]) -> None:

@@ -55,8 +55,9 @@ _TEMPLATES: dict[tuple, dict] = {}
 
 
 class _IterationRelay(ca.Callback):
-    """IPOPT's per-iteration hook (CasADi's ``iteration_callback``): passes the iterate's
-    scaled variables and constraint values to ``listener`` (set per solve, None: off).
+    """IPOPT's per-iteration hook (CasADi's ``iteration_callback``): passes the iteration
+    number and the iterate's scaled variables and constraint values to ``listener`` (set
+    per solve, None: off), and stops the solve after ``limit`` iterations.
 
     Only x, f and g are taken (the multipliers are declared empty, so CasADi does not
     copy them); a failing listener is switched off rather than stopping the solve.
@@ -94,13 +95,14 @@ class _IterationRelay(ca.Callback):
         return ca.Sparsity(0, 0)
 
     def eval(self, arg):
+        k = self.count  # the first call is IPOPT's iteration 0 (the starting point)
+        self.count += 1
         if self.listener is not None:
             try:
-                self.listener(np.array(arg[0]).ravel(), np.array(arg[2]).ravel())
+                self.listener(k, np.array(arg[0]).ravel(), np.array(arg[2]).ravel())
             except Exception:  # a reporter's bug must not change the plan
                 self.listener = None
-        self.count += 1  # the first call is IPOPT's iteration 0 (the starting point)
-        return [1 if self.limit is not None and self.count > self.limit else 0]
+        return [1 if self.limit is not None and k >= self.limit else 0]
 
 
 @dataclass(frozen=True)
@@ -534,8 +536,9 @@ class Problem:
                 if exc.limit is None or not exc.limit.startswith("solver"):
                     raise
                 first = first or exc
-                failed += time.perf_counter() - t0
-                self._stage(f"  failed ({exc.value}) after {time.perf_counter() - t0:.1f} s")
+                spent = time.perf_counter() - t0
+                failed += spent
+                self._stage(f"  failed ({exc.value}) after {spent:.1f} s")
                 continue
             sol.solve_time += failed
             return sol, None, failed
@@ -761,15 +764,13 @@ class Problem:
     def _iteration_listener(self, d_time: np.ndarray, lbg: np.ndarray, ubg: np.ndarray):
         """The relay's listener for one solve: the iterate's duration (its last S scaled
         variables times their scale) and constraint violation, to ``self.progress``."""
-        count = [-1]  # IPOPT's iteration 0 is the starting point
         progress = self.progress
         assert progress is not None
 
-        def listener(ws: np.ndarray, g: np.ndarray) -> None:
-            count[0] += 1
+        def listener(k: int, ws: np.ndarray, g: np.ndarray) -> None:
             duration = float(ws[-len(d_time):] @ d_time)
             violation = float(max(0.0, np.max(lbg - g), np.max(g - ubg)))
-            progress.iteration(count[0], duration, violation)
+            progress.iteration(k, duration, violation)
 
         return listener
 

@@ -96,7 +96,7 @@ def main(ctx: click.Context, robot_file: str | None) -> None:
 
 
 def _bars() -> bool:
-    """Progress bars unless ``--quiet``."""
+    """Progress (bars, stages) unless ``--quiet``."""
     from sixplus3 import progress
 
     return progress.level() != progress.QUIET
@@ -612,12 +612,14 @@ def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None
     from sixplus3.planner.ocp import PlannerOptions
     from sixplus3.progress import ConsoleProgress
 
-    reporter = ConsoleProgress()
+    # quiet: no reporter at all, so the planner computes nothing for one
+    reporter = ConsoleProgress() if _bars() else None
     try:
         res = run_plan(task, out_dir, _robot(), rate=rate, html=html,
                        options=PlannerOptions(lock_redundancy=locked), progress=reporter)
     finally:
-        reporter.close()
+        if reporter is not None:
+            reporter.close()
     click.echo(f"done in {res.seconds['total']:.1f} s: {res.csv}")
 
 

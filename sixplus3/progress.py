@@ -1,6 +1,7 @@
 """What the long-running parts report while they work, and how much.
 
-Three levels, set once per command (``sixplus3 --quiet`` / ``--verbose``):
+Three levels, set once per command (``sixplus3 plan TASK --quiet`` / ``--verbose``, on
+the commands that plan or search):
 
 ``QUIET``
     Nothing but results and errors: no compile notice, no planning stages, no bars.
@@ -53,9 +54,8 @@ class PlanProgress(Protocol):
 
 class ConsoleProgress:
     """The command line's :class:`PlanProgress`: stage lines on ``stream`` (default
-    standard output), and the
-    iterations as a live tqdm status line on a terminal (NORMAL) or one line each
-    (VERBOSE).  Nothing at all when the level is QUIET."""
+    standard output), and the iterations as a live tqdm status line on a terminal
+    (NORMAL) or one line each (VERBOSE).  Nothing at all when the level is QUIET."""
 
     def __init__(self, stream: TextIO | None = None) -> None:
         self.stream = stream or sys.stdout
@@ -73,10 +73,13 @@ class ConsoleProgress:
         print(text, file=self.stream, flush=True)
 
     def iteration(self, k: int, duration: float, violation: float) -> None:
+        verbose = _level == VERBOSE
+        if not (verbose or (_level == NORMAL and self.stream.isatty())):
+            return
         line = f"IPOPT iteration {k:4d}: duration {duration:8.4f} s, violation {violation:.1e}"
-        if _level == VERBOSE:
+        if verbose:
             print(f"    {line}", file=self.stream, flush=True)
-        elif _level == NORMAL and self.stream.isatty():
+        else:
             if self._bar is None:
                 import shutil
 

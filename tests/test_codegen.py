@@ -23,14 +23,7 @@ def source() -> str:
 
 
 def _build_with(flags, source: str, directory) -> str:
-    lib = codegen._lib_path(directory, "margins", source, flags)
-    name, lib, c_path, tmp, proc = codegen._start_foreground(
-        codegen._compiler(), "margins", source, lib, flags)
-    out, _ = proc.communicate()
-    assert proc.returncode == 0, out
-    os.unlink(c_path)
-    os.replace(tmp, lib)
-    return str(lib)
+    return str(codegen.compile_library(directory, "margins", source, flags))
 
 
 def test_quick_and_optimised_builds_agree_bit_for_bit(source, tmp_path) -> None:
