@@ -83,12 +83,24 @@ def _lib_path(directory: Path, name: str, src: str, flags: tuple[str, ...]) -> P
 
 
 def _building(lib: Path) -> bool:
-    """Whether a background build of ``lib`` is running (its marker is fresh)."""
+    """Whether a background build of ``lib`` is running: its marker is fresh and the
+    builder whose pid it holds is alive (no pid yet: just started)."""
     mark = lib.with_suffix(".building")
     try:
-        return time.time() - mark.stat().st_mtime < BACKGROUND_STALE_S
+        age = time.time() - mark.stat().st_mtime
+        pid = mark.read_text().strip()
     except OSError:
         return False
+    if age >= BACKGROUND_STALE_S:
+        return False
+    if pid.isdigit():
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            return False  # the builder died (killed, machine restarted)
+        except PermissionError:
+            pass  # alive, another user's
+    return True
 
 
 def _start_background(cc: str, src: str, lib: Path, quick: Path) -> None:
@@ -99,20 +111,26 @@ def _start_background(cc: str, src: str, lib: Path, quick: Path) -> None:
     library is already running."""
     if _building(lib):
         return
+    for left in lib.parent.glob(f"{lib.stem}_bg_*"):  # a dead build's source and output
+        left.unlink(missing_ok=True)
     mark = lib.with_suffix(".building")
-    mark.write_text(f"started {time.time():.0f}\n")
+    mark.write_text("")  # no pid yet: "just started"
     fd, c_path = tempfile.mkstemp(suffix=".c", prefix=f"{lib.stem}_bg_", dir=lib.parent)
     with os.fdopen(fd, "w") as fh:
         fh.write(src)
     tmp = c_path[:-2] + ".so.part"
-    # the quick library is then removed (a process that loaded it keeps its mapping)
-    script = ('( nice -n 10 "$@" >/dev/null 2>&1 && mv -f "$TMP" "$LIB" && rm -f "$QUICK"; '
-              'rm -f "$C" "$TMP" "$MARK" ) >/dev/null 2>&1 </dev/null &')
-    # the shell forks the build into the background and exits at once: the build is
-    # re-parented to init, so it survives this process (and its Ctrl-C: new session)
-    subprocess.run(["sh", "-c", script, "sh", cc, *CFLAGS, c_path, "-o", tmp],
-                   env={**os.environ, "TMP": tmp, "LIB": str(lib), "C": c_path,
-                        "MARK": str(mark), "QUICK": str(quick)},
+    # the builder writes its pid into the marker (so a killed build is seen as dead),
+    # compiles, renames the finished library into place, removes the quick library (a
+    # process that loaded it keeps its mapping), then its temporary files and the marker
+    builder = ('echo $$ > "$MARK"; nice -n 10 "$@" >/dev/null 2>&1 && mv -f "$TMP" "$LIB" '
+               '&& rm -f "$QUICK"; rm -f "$C" "$TMP" "$MARK"')
+    # the outer shell starts the builder in the background and exits at once: the
+    # builder is re-parented to init, so it outlives this process (and its Ctrl-C: a
+    # new session)
+    subprocess.run(["sh", "-c", 'sh -c "$BUILDER" sh "$@" >/dev/null 2>&1 </dev/null &',
+                    "sh", cc, *CFLAGS, c_path, "-o", tmp],
+                   env={**os.environ, "BUILDER": builder, "TMP": tmp, "LIB": str(lib),
+                        "C": c_path, "MARK": str(mark), "QUICK": str(quick)},
                    start_new_session=True, check=False)
 
 
@@ -133,6 +151,7 @@ def _build(sources: dict[str, str], directory: Path, optimised: bool = False
     if cc is None:
         raise RuntimeError("no C compiler (set CC or install gcc)")
     waiting: list[str] = []  # names whose optimised library a background build makes
+    background: list[tuple[str, Path, Path]] = []  # (source, optimised, quick) to start
     for name, src in sources.items():
         full = _lib_path(directory, name, src, CFLAGS)
         libs[name] = full
@@ -145,7 +164,7 @@ def _build(sources: dict[str, str], directory: Path, optimised: bool = False
                 jobs.append(_start_foreground(cc, name, src, full, CFLAGS))
             continue
         quick = _lib_path(directory, name, src, QUICK_CFLAGS)
-        _start_background(cc, src, full, quick)
+        background.append((src, full, quick))
         libs[name] = quick
         if not quick.exists():
             jobs.append(_start_foreground(cc, name, src, quick, QUICK_CFLAGS))
@@ -165,6 +184,9 @@ def _build(sources: dict[str, str], directory: Path, optimised: bool = False
     errors = [err for err in map(_finish, jobs) if err]
     if errors:
         raise RuntimeError("compiling the planner functions failed:\n" + "\n".join(errors))
+    # only now, with the quick library in place (the builder removes it when done)
+    for src, full, quick in background:
+        _start_background(cc, src, full, quick)
     return libs
 
 

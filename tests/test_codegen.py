@@ -72,3 +72,28 @@ def test_optimised_on_demand_and_stale_markers(source, tmp_path) -> None:
 
 def test_the_loaded_build_is_reported() -> None:
     assert codegen.build_kind(Robot.default()) in ("optimised", "quick")
+
+
+def test_a_killed_background_build_is_seen_as_dead_and_cleaned_up(source, tmp_path) -> None:
+    """An interrupted background build (its builder killed) blocks nothing: its marker
+    names a dead process, and the next build removes what it left and starts again."""
+    import subprocess
+
+    full = codegen._lib_path(tmp_path, "margins", source, codegen.CFLAGS)
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    full.with_suffix(".building").write_text(f"{dead.pid}\n")
+    left = tmp_path / f"{full.stem}_bg_abc.c"
+    left.write_text("half a source")
+    assert not codegen._building(full)
+    quick = codegen._lib_path(tmp_path, "margins", source, codegen.QUICK_CFLAGS)
+    assert codegen._build({"margins": source}, tmp_path) == {"margins": quick}
+    assert not left.exists()
+    deadline = time.monotonic() + 300
+    while not full.exists() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert full.exists()
+    deadline = time.monotonic() + 30
+    while len(list(tmp_path.iterdir())) > 1 and time.monotonic() < deadline:
+        time.sleep(0.1)  # the builder's last clean-up after the rename
+    assert sorted(p.name for p in tmp_path.iterdir()) == [full.name]
