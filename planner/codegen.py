@@ -3,7 +3,7 @@
 The planner's NLP evaluates, at every IPOPT iteration, the Jacobian of the path
 constraints (:attr:`planner.model.SymbolicRobot.node`, with the symbolic dynamics) at
 every node and every interval midpoint.  In CasADi's SX virtual machine that Jacobian
-costs ~2 ms per point; compiled with gcc -O1 it is ~18x faster
+costs ~1.2 ms per point; compiled with gcc -O1 it is ~6x faster, with -O0 ~3x
 (benchmarks/bench_codegen.py, BENCHMARKS.md).
 
 The C source is generated from the very same SX functions, so compiled and interpreted
@@ -14,7 +14,7 @@ changed model never loads a stale library.
 
 Two builds of the same C code: gcc -O1 (the optimised build, ~75 s here: the Jacobian is
 one 11 MB function and gcc's register allocation dominates) and gcc -O0 (the quick
-build, ~13 s, the same results bit for bit, its Jacobian ~3x slower).  A process that
+build, ~15 s, the same results bit for bit, its Jacobian ~2x slower).  A process that
 finds no optimised library compiles the quick one, plans with it, and starts the
 optimised build in a detached, niced background process that outlives it; the next
 process loads the optimised library.  :func:`ensure_optimised` waits for it instead
@@ -140,8 +140,8 @@ def _build(sources: dict[str, str], directory: Path, optimised: bool = False
 
     The optimised library (``CFLAGS``, gcc -O1, ~75 s on this machine) is used when it
     exists.  Otherwise, unless ``optimised``, the quick build (``QUICK_CFLAGS``, -O0,
-    ~13 s; the same C code, the same results bit for bit, its Jacobian ~3x slower) is
-    compiled in the foreground and used, and the optimised one is built in the
+    ~15 s; the same C code, the same results bit for bit, its Jacobian ~2x slower) is
+    compiled in the foreground and used, and then the optimised one is built in the
     background for the next process.  With ``optimised`` the optimised library is
     waited for (a running background build) or compiled in the foreground.
     """
