@@ -39,7 +39,9 @@ Candidates:
 Work is split into chunks of positions, each a Dask task (``dask.distributed``: a
 ``LocalCluster`` by default, a scheduler address for a real cluster, or
 ``scheduler="synchronous"`` to run in this process).  Every chunk is vectorised over its
-(position, direction, torsion) pairs: one batched IK call per bisection step.
+(position, direction, torsion) pairs: checks 1-6 of all its poses at one scan or
+bisection step are one call of the compiled kernel :mod:`design._atlas_kernel` (each
+check only where the ones before it passed), and check 7 one batched Pinocchio call.
 """
 
 from __future__ import annotations
@@ -54,9 +56,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from sixplus3.design import _atlas_kernel as _kernel
 from sixplus3.errors import InputError
-from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN, pose_masks
-from sixplus3.kinematics.robot import leg_clearance, platform_margin, robot_ik, spherical_tilts
+from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
+from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.rotations import matrix_from_rotvec
 from sixplus3.robot_description.robot import Robot
 
@@ -132,58 +135,28 @@ class _Checker:
         lo, hi = PSI_RANGE_DEG
         self.psi_grid = np.radians(np.arange(lo, hi + 1e-9, psi_step_deg))
         self.home = np.asarray(robot.home_psi, dtype=float)
+        self.packed = _kernel.pack(robot)
         self.evaluations = 0  # poses judged (one per admissible() row)
 
     def _leg_scores(self, pos: np.ndarray, R: np.ndarray):
-        """Per-leg checks 1-4 on the crank grid: (stage reached (n, G, 3), score)."""
-        n, G = len(pos), len(self.psi_grid)
-        psi = np.broadcast_to(self.psi_grid[None, :, None], (n, G, 3)).reshape(-1, 3)
-        cfg = robot_ik(np.repeat(pos, G, axis=0), np.repeat(R, G, axis=0), psi, self.robot,
-                       platform_margins=False)
-        lim = self.lim
-        reach = cfg.leg_status == 0  # (nG, 3)
-        th = cfg.theta.reshape(-1, 3, 3)
-        theta = reach & np.all((th >= lim.theta_min) & (th <= lim.theta_max), axis=2)
-        sph = theta & np.all(spherical_tilts(cfg) <= lim.spherical, axis=2)
-        m = np.minimum(cfg.margins.leg_type1, cfg.margins.leg_type2)
-        margin = sph & (m >= lim.margin)
-        stage = reach.astype(np.int8) + theta + sph + margin  # 0..4 checks passed
-        score = np.where(margin, m, -np.inf)
-        return stage.reshape(n, G, 3), score.reshape(n, G, 3)
+        """Per-leg checks 1-4 on the crank grid: (stage reached (n, G, 3), score: the
+        leg's smallest margin where all four pass, else -inf) -- compiled."""
+        return _kernel.leg_grid(np.ascontiguousarray(pos), np.ascontiguousarray(R),
+                                self.psi_grid, *self.packed)
 
-    def _full(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray,
-              legs_ok: np.ndarray | None = None):
+    def _full(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray):
         """Checks of (n, k) candidate crank choices psi (n, k, 3): (stage (n, k) = number
         of checks 1-7 passed, margin (n, k): the smallest margin where all pass, else
-        -inf).  ``legs_ok`` (n, k): checks 1-4 already known to pass (the free search's
-        leg-wise results), so only 5-7 are computed.
+        -inf).
 
-        Costs go to the rows still alive: clearance after the leg checks, the platform
-        SVD after clearance, and the Pinocchio holding torque only for the best-margin
-        candidate of each pose, then the next best where it fails.
+        Checks 1-6 are compiled (:mod:`design._atlas_kernel`, each check only where the
+        ones before it passed); the Pinocchio holding torque is computed only for the
+        best-margin candidate of each pose, then the next best where it fails.
         """
         n, k = psi.shape[:2]
-        lim = self.lim
-        cfg = robot_ik(np.repeat(pos, k, axis=0), np.repeat(R, k, axis=0),
-                       psi.reshape(-1, 3), self.robot, platform_margins=False)
-        legm_margin = np.minimum(cfg.margins.leg_type1, cfg.margins.leg_type2).min(axis=1)
-        if legs_ok is None:
-            theta, sph = pose_masks(cfg, lim)
-            legm = sph & (legm_margin >= lim.margin)
-            stage = cfg.ok.astype(np.int8) + theta + sph + legm
-        else:
-            legm = legs_ok.reshape(-1) & cfg.ok
-            stage = np.where(legm, 4, 3).astype(np.int8)
-        clear = legm & (leg_clearance(cfg, legm) >= 0.0)
-        plat = clear.copy()
-        margin_all = np.full(n * k, -np.inf)
-        if clear.any():
-            pm = platform_margin(cfg.rotation[clear], cfg.P[clear], cfg.position[clear],
-                                 self.robot.geometry)
-            plat[clear] = pm >= lim.margin
-            margin_all[clear] = np.minimum(pm, legm_margin[clear])
-        margin_all = np.where(plat, margin_all, -np.inf).reshape(n, k)
-        stage = (stage + clear + plat).reshape(n, k)
+        stage, margin_all = _kernel.pose_checks(
+            np.ascontiguousarray(pos), np.ascontiguousarray(R), np.ascontiguousarray(psi),
+            *self.packed)
         # torque, lazily: best candidate first, then the next best where it fails
         torque = np.zeros((n, k), dtype=bool)
         order = np.argsort(-margin_all, axis=1)
@@ -194,9 +167,10 @@ class _Checker:
             if not cand.any():
                 break
             rows = np.flatnonzero(cand)
-            flat = rows * k + j[rows]
-            tau = self.dyn.holding_torques_batch(cfg.q[flat])
-            good = np.all(np.abs(tau) <= lim.torque, axis=1)  # NaN (singular): False
+            cfg = robot_ik(pos[rows], R[rows], psi[rows, j[rows]], self.robot,
+                           platform_margins=False)
+            tau = self.dyn.holding_torques_batch(cfg.q)
+            good = np.all(np.abs(tau) <= self.lim.torque, axis=1)  # NaN (singular): False
             torque[rows[good], j[rows[good]]] = True
             undecided[rows[good]] = False
         stage = stage + torque
@@ -224,8 +198,7 @@ class _Checker:
         stage = np.zeros((n, 5), dtype=np.int8)
         margin = np.full((n, 5), -np.inf)
         if live.any():
-            s, m = self._full(pos[live], R[live], cand[live, :4],
-                              legs_ok=np.ones((int(live.sum()), 4), dtype=bool))
+            s, m = self._full(pos[live], R[live], cand[live, :4])
             stage[live, :4], margin[live, :4] = s, m
         # the home candidate wherever no searched one passed: free >= locked by construction
         rest = ~np.any(margin[:, :4] > -np.inf, axis=1)

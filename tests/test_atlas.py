@@ -144,3 +144,65 @@ def test_rotation_convention() -> None:
     assert Rx[2, 1] == pytest.approx(math.sin(math.radians(30)))
     Ry = at.rotations(90.0, 30.0, 0.0)[0]
     assert Ry[0, 2] == pytest.approx(math.sin(math.radians(30)))
+
+
+def _random_poses(n: int, seed: int):
+    rng = np.random.default_rng(seed)
+    pos = np.asarray(ROBOT.home_position) + rng.uniform(-0.25, 0.25, (n, 3))
+    R = at.rotations(rng.uniform(0, 360, n), rng.uniform(0, 120, n), rng.uniform(-60, 60, n))
+    return pos, R, rng
+
+
+def test_compiled_checks_agree_with_the_numpy_robot_functions() -> None:
+    """design._atlas_kernel against the public numpy path (robot_ik, spherical_tilts,
+    leg_clearance, platform_margin): the same stage for every pose, every stage seen,
+    and the same margin where all six checks pass."""
+    from sixplus3.design import _atlas_kernel as kern
+    from sixplus3.kinematics.robot import platform_margin
+
+    pos, R, rng = _random_poses(3000, 1)
+    psi = np.radians(rng.uniform(30, 150, (len(pos), 1, 3)))
+    stage, margin = kern.pose_checks(pos, R, psi, *kern.pack(ROBOT))
+    lim = ROBOT.limits
+    cfg = robot_ik(pos, R, psi[:, 0], ROBOT, platform_margins=False)
+    th_ok = cfg.ok & np.all((cfg.theta >= lim.theta_min) & (cfg.theta <= lim.theta_max), 1)
+    sph_ok = th_ok & np.all(spherical_tilts(cfg) <= lim.spherical, axis=(1, 2))
+    legm = np.minimum(cfg.margins.leg_type1, cfg.margins.leg_type2).min(axis=1)
+    leg_ok = sph_ok & (legm >= lim.margin)
+    clear_ok = leg_ok & (leg_clearance(cfg) >= 0.0)
+    pm = platform_margin(cfg.rotation, cfg.P, cfg.position, ROBOT.geometry)
+    plat_ok = clear_ok & (pm >= lim.margin)
+    ref = (cfg.ok.astype(int) + th_ok + sph_ok + leg_ok + clear_ok + plat_ok)
+    np.testing.assert_array_equal(stage[:, 0], ref)
+    assert set(np.unique(ref)) == set(range(7))  # every check binds somewhere
+    np.testing.assert_allclose(margin[plat_ok, 0], np.minimum(pm, legm)[plat_ok],
+                               rtol=1e-9, atol=1e-12)
+    assert np.all(margin[~plat_ok, 0] == -np.inf)
+
+
+def test_compiled_leg_grid_agrees_leg_by_leg() -> None:
+    """The free search's per-leg checks 1-4 (design._atlas_kernel.leg_grid) against
+    robot_ik with every leg at each grid value, on the rows where all three legs solve
+    (spherical_tilts needs the whole robot), and the reach check everywhere."""
+    from sixplus3.design import _atlas_kernel as kern
+
+    pos, R, _ = _random_poses(400, 2)
+    grid = np.radians(np.arange(45.0, 135.1, 15.0))
+    stage, score = kern.leg_grid(pos, R, grid, *kern.pack(ROBOT))
+    lim = ROBOT.limits
+    seen = set()
+    for g, v in enumerate(grid):
+        cfg = robot_ik(pos, R, np.full((len(pos), 3), v), ROBOT, platform_margins=False)
+        reach = cfg.leg_status == 0
+        np.testing.assert_array_equal(stage[:, g] > 0, reach)
+        th = cfg.theta.reshape(-1, 3, 3)
+        th_ok = reach & np.all((th >= lim.theta_min) & (th <= lim.theta_max), axis=2)
+        sph_ok = th_ok & np.all(spherical_tilts(cfg) <= lim.spherical, axis=2)
+        m = np.minimum(cfg.margins.leg_type1, cfg.margins.leg_type2)
+        ok = sph_ok & (m >= lim.margin)
+        ref = reach.astype(int) + th_ok + sph_ok + ok
+        rows = cfg.ok
+        np.testing.assert_array_equal(stage[rows, g], ref[rows])
+        np.testing.assert_allclose(score[rows, g][ok[rows]], m[rows][ok[rows]], rtol=1e-9)
+        seen |= set(np.unique(ref[rows])) | set(np.unique(ref[~reach.all(axis=1)]))
+    assert seen == set(range(5))  # every check binds somewhere

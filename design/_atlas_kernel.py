@@ -1,0 +1,284 @@
+"""Compiled admissibility checks of the orientation atlas (:mod:`design.atlas`).
+
+Scalar code compiled with numba, the same arithmetic as the numpy path it replaces
+(:func:`kinematics.robot.robot_ik`, :func:`~kinematics.robot.spherical_tilts`,
+:func:`~kinematics.robot.leg_clearance`, :func:`~kinematics.robot.platform_margin`;
+``tests/test_atlas.py`` checks that they agree).  One pose's legs go through the leg
+kernel of :mod:`kinematics._leg_kernel` one at a time, and each check runs only where
+the checks before it passed.
+
+Stages (the number of checks passed, in the atlas's order): 0 none, 1 reach,
+2 actuated range, 3 spherical joints, 4 leg margins; for a whole pose also 5 clearance
+and 6 platform margin.  The holding torque (check 7) stays with Pinocchio.
+
+Packed inputs (:func:`pack`):
+
+- ``legc`` (3, 16): per leg, R_base_leg row-major (9), A_i (3), R_i in the platform
+  frame (3), beta_i (1);
+- ``par`` (7,): platform crank c, L = hypot(platform radius, c), theta_min,
+  theta_max, spherical limit, margin limit, clearance (2 link radii).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from sixplus3.kinematics._geometry_kernel import segment_distance
+from sixplus3.kinematics._leg_kernel import (
+    MARGIN_I,
+    MARGIN_II,
+    NF,
+    PD,
+    PE,
+    PF,
+    PG,
+    PH,
+    PP,
+    QM,
+    STATUS_OK,
+    TH,
+    ik_point,
+    jacobian_point,
+)
+
+NL = 3  # legs
+_P_C, _P_L, _P_TMIN, _P_TMAX, _P_SPH, _P_MARGIN, _P_CLEAR = 0, 1, 2, 3, 4, 5, 6
+# upper links compared by the clearance check: AD, DP, GE, HF (kinematics.robot)
+_NSEG = 4
+
+
+def pack(robot) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(legc, par, geo, mode, ref) of a :class:`~robot_description.robot.Robot`."""
+    from sixplus3.kinematics.robot import LINK_RADIUS, spherical_reference
+
+    g, lim = robot.geometry, robot.limits
+    legc = np.zeros((NL, 16))
+    for i in range(NL):
+        legc[i, 0:9] = g.leg_rotation(i).ravel()
+        legc[i, 9:12] = g.leg_origin(i)
+        legc[i, 12:15] = g.crank_axis_position(i)
+        legc[i, 15] = g.crank_axis_angle(i)
+    par = np.array([g.platform_crank, math.hypot(g.platform_radius, g.platform_crank),
+                    lim.theta_min, lim.theta_max, lim.spherical, lim.margin,
+                    2.0 * LINK_RADIUS])
+    return (legc, par, g.leg.packed(), robot.mode.array(),
+            np.ascontiguousarray(spherical_reference(robot)))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _tilt(ax, ay, az, bx, by, bz):
+    d = ax * bx + ay * by + az * bz
+    return math.acos(min(max(d, -1.0), 1.0))
+
+
+@njit(cache=True, error_model="numpy")
+def _distal(row, j, link, u_out):
+    """Frame (row-major 3x3, leg frame) of the distal link of crank ``j`` (1: B, 2: C):
+    R_x(theta + a) R_z(b) with the U-joint angles of kinematics.robot._u_joint_angles."""
+    t = row[TH + j]
+    tip, end = (PG, PE) if j == 1 else (PH, PF)
+    lx = (row[end] - row[tip]) / link
+    ly = (row[end + 1] - row[tip + 1]) / link
+    lz = (row[end + 2] - row[tip + 2]) / link
+    c, s = math.cos(t), math.sin(t)
+    uy = c * ly + s * lz
+    uz = -s * ly + c * lz
+    a = math.atan2(uz, uy)
+    b = math.atan2(-lx, math.hypot(uy, uz))
+    cf, sf = math.cos(t + a), math.sin(t + a)
+    cb, sb = math.cos(b), math.sin(b)
+    u_out[0], u_out[1], u_out[2] = cb, -sb, 0.0
+    u_out[3], u_out[4], u_out[5] = cf * sb, cf * cb, -sf
+    u_out[6], u_out[7], u_out[8] = sf * sb, sf * cb, cf
+
+
+@njit(cache=True, error_model="numpy")
+def leg_check(pos, R, psi, i, legc, par, geo, mode, ref, row, scratch):
+    """Checks 1-4 of leg ``i`` at platform pose (pos, R) with crank angle psi [rad].
+
+    Returns (stage 0..4, min(type I, type II margin) where the IK solved, else 0).
+    Leaves the leg's IK (leg frame) in ``row``; ``scratch`` (12,) is work space.
+    """
+    c = par[_P_C]
+    b = legc[i, 15] + psi
+    lx = legc[i, 12] + c * math.cos(b)
+    ly = legc[i, 13] + c * math.sin(b)
+    lz = legc[i, 14]
+    # P_i in the robot frame, then in the leg frame: Rl^T (P - A)
+    px = pos[0] + R[0, 0] * lx + R[0, 1] * ly + R[0, 2] * lz - legc[i, 9]
+    py = pos[1] + R[1, 0] * lx + R[1, 1] * ly + R[1, 2] * lz - legc[i, 10]
+    pz = pos[2] + R[2, 0] * lx + R[2, 1] * ly + R[2, 2] * lz - legc[i, 11]
+    x = legc[i, 0] * px + legc[i, 3] * py + legc[i, 6] * pz
+    y = legc[i, 1] * px + legc[i, 4] * py + legc[i, 7] * pz
+    z = legc[i, 2] * px + legc[i, 5] * py + legc[i, 8] * pz
+    if ik_point(x, y, z, geo, mode, row, True) != STATUS_OK:
+        return 0, 0.0
+    for j in range(3):
+        t = row[TH + j]
+        if t < par[_P_TMIN] or t > par[_P_TMAX]:
+            return 1, 0.0
+    # spherical joints E, F (body vs distal link) and P (body vs platform crank)
+    lim = par[_P_SPH]
+    for j in range(2):
+        _distal(row, j + 1, geo[3 + j], scratch)
+        a = ref[i, j, 0]
+        bb = ref[i, j, 1]
+        ax = row[QM] * a[0] + row[QM + 1] * a[1] + row[QM + 2] * a[2]
+        ay = row[QM + 3] * a[0] + row[QM + 4] * a[1] + row[QM + 5] * a[2]
+        az = row[QM + 6] * a[0] + row[QM + 7] * a[1] + row[QM + 8] * a[2]
+        bx = scratch[0] * bb[0] + scratch[1] * bb[1] + scratch[2] * bb[2]
+        by = scratch[3] * bb[0] + scratch[4] * bb[1] + scratch[5] * bb[2]
+        bz = scratch[6] * bb[0] + scratch[7] * bb[1] + scratch[8] * bb[2]
+        if _tilt(ax, ay, az, bx, by, bz) > lim:
+            return 2, 0.0
+    a = ref[i, 2, 0]
+    bb = ref[i, 2, 1]
+    # body axis in the robot frame: Rl Q a
+    qx = row[QM] * a[0] + row[QM + 1] * a[1] + row[QM + 2] * a[2]
+    qy = row[QM + 3] * a[0] + row[QM + 4] * a[1] + row[QM + 5] * a[2]
+    qz = row[QM + 6] * a[0] + row[QM + 7] * a[1] + row[QM + 8] * a[2]
+    ax = legc[i, 0] * qx + legc[i, 1] * qy + legc[i, 2] * qz
+    ay = legc[i, 3] * qx + legc[i, 4] * qy + legc[i, 5] * qz
+    az = legc[i, 6] * qx + legc[i, 7] * qy + legc[i, 8] * qz
+    # crank axis in the robot frame: R Rz(beta_i + psi) b
+    cb, sb = math.cos(b), math.sin(b)
+    wx = cb * bb[0] - sb * bb[1]
+    wy = sb * bb[0] + cb * bb[1]
+    wz = bb[2]
+    bx = R[0, 0] * wx + R[0, 1] * wy + R[0, 2] * wz
+    by = R[1, 0] * wx + R[1, 1] * wy + R[1, 2] * wz
+    bz = R[2, 0] * wx + R[2, 1] * wy + R[2, 2] * wz
+    if _tilt(ax, ay, az, bx, by, bz) > lim:
+        return 2, 0.0
+    jacobian_point(geo, 0.0, 0.0, row, True)
+    m = min(row[MARGIN_I], row[MARGIN_II])
+    if m < par[_P_MARGIN]:
+        return 3, m
+    return 4, m
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def leg_grid(pos, R, grid, legc, par, geo, mode, ref):
+    """Checks 1-4 of every leg on a grid of crank angles: pos (n, 3), R (n, 3, 3),
+    grid (G,) [rad].  Returns (stage (n, G, 3) int8, score (n, G, 3): the leg's smallest
+    margin where all four checks pass, else -inf)."""
+    n, G = pos.shape[0], grid.shape[0]
+    stage = np.zeros((n, G, NL), dtype=np.int8)
+    score = np.full((n, G, NL), -np.inf)
+    for k in prange(n):
+        row = np.zeros(NF)
+        scratch = np.zeros(12)
+        for g in range(G):
+            for i in range(NL):
+                s, m = leg_check(pos[k], R[k], grid[g], i, legc, par, geo, mode, ref, row,
+                                 scratch)
+                stage[k, g, i] = s
+                if s == 4:
+                    score[k, g, i] = m
+    return stage, score
+
+
+@njit(cache=True, error_model="numpy")
+def _segments(row, i, legc, par, out):
+    """The upper links AD, DP, GE, HF of leg i in the robot frame: out (4, 2, 3)."""
+    pts = np.empty((7, 3))
+    # A, D, P, G, E, H, F in the leg frame
+    pts[0, 0], pts[0, 1], pts[0, 2] = 0.0, 0.0, 0.0
+    for k, f in enumerate((PD, PP, PG, PE, PH, PF)):
+        pts[k + 1, 0], pts[k + 1, 1], pts[k + 1, 2] = row[f], row[f + 1], row[f + 2]
+    w = np.empty((7, 3))
+    for k in range(7):
+        for r in range(3):
+            w[k, r] = (legc[i, 3 * r] * pts[k, 0] + legc[i, 3 * r + 1] * pts[k, 1]
+                       + legc[i, 3 * r + 2] * pts[k, 2] + legc[i, 9 + r])
+    for r in range(3):
+        out[0, 0, r], out[0, 1, r] = w[0, r], w[1, r]  # AD
+        out[1, 0, r], out[1, 1, r] = w[1, r], w[2, r]  # DP
+        out[2, 0, r], out[2, 1, r] = w[3, r], w[4, r]  # GE
+        out[3, 0, r], out[3, 1, r] = w[5, r], w[6, r]  # HF
+
+
+@njit(cache=True, error_model="numpy")
+def _platform_margin(pos, R, psi, legc, par):
+    """sigma_min / sigma_max of the column-scaled 9x9 platform Jacobian
+    (kinematics.robot.platform_margin), from the eigenvalues of J^T J."""
+    c, L = par[_P_C], par[_P_L]
+    J = np.zeros((9, 9))
+    for i in range(NL):
+        b = legc[i, 15] + psi[i]
+        lx, ly, lz = legc[i, 12], legc[i, 13], legc[i, 14]
+        tx, ty = lx + c * math.cos(b), ly + c * math.sin(b)
+        # r = P - O = R tip, s = P - R_i = R (tip - R_i local)
+        rx = R[0, 0] * tx + R[0, 1] * ty + R[0, 2] * lz
+        ry = R[1, 0] * tx + R[1, 1] * ty + R[1, 2] * lz
+        rz = R[2, 0] * tx + R[2, 1] * ty + R[2, 2] * lz
+        dx, dy = tx - lx, ty - ly
+        sx = R[0, 0] * dx + R[0, 1] * dy
+        sy = R[1, 0] * dx + R[1, 1] * dy
+        sz = R[2, 0] * dx + R[2, 1] * dy
+        zx, zy, zz = R[0, 2], R[1, 2], R[2, 2]
+        o = 3 * i
+        J[o, 0] = J[o + 1, 1] = J[o + 2, 2] = 1.0
+        # -[r]x / L
+        J[o, 4], J[o, 5] = rz / L, -ry / L
+        J[o + 1, 3], J[o + 1, 5] = -rz / L, rx / L
+        J[o + 2, 3], J[o + 2, 4] = ry / L, -rx / L
+        J[o, 6 + i] = (zy * sz - zz * sy) / c
+        J[o + 1, 6 + i] = (zz * sx - zx * sz) / c
+        J[o + 2, 6 + i] = (zx * sy - zy * sx) / c
+    ev = np.linalg.eigvalsh(J.T @ J)  # ascending
+    if ev[8] <= 0.0:
+        return 0.0
+    return math.sqrt(max(ev[0], 0.0) / ev[8])
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def pose_checks(pos, R, psi, legc, par, geo, mode, ref):
+    """Checks 1-6 of candidate crank choices: pos (n, 3), R (n, 3, 3), psi (n, k, 3)
+    [rad].  Returns (stage (n, k) int8: checks passed, 0..6; margin (n, k): the smallest
+    leg and platform margin where all six pass, else -inf)."""
+    n, K = psi.shape[0], psi.shape[1]
+    stage = np.zeros((n, K), dtype=np.int8)
+    margin = np.full((n, K), -np.inf)
+    for k in prange(n):
+        row = np.zeros(NF)
+        scratch = np.zeros(12)
+        seg = np.empty((NL, _NSEG, 2, 3))
+        for c in range(K):
+            s_min = 4
+            m_min = np.inf
+            for i in range(NL):
+                s, m = leg_check(pos[k], R[k], psi[k, c, i], i, legc, par, geo, mode, ref,
+                                 row, scratch)
+                if s < s_min:
+                    s_min = s
+                if s == 0:
+                    break
+                if s == 4:
+                    m_min = min(m_min, m)
+                    _segments(row, i, legc, par, seg[i])
+            stage[k, c] = s_min
+            if s_min < 4:
+                continue
+            best = np.inf
+            for i in range(NL):
+                for j in range(i + 1, NL):
+                    for a in range(_NSEG):
+                        for b in range(_NSEG):
+                            d = segment_distance(seg[i, a, 0], seg[i, a, 1],
+                                                 seg[j, b, 0], seg[j, b, 1])
+                            if d < best:
+                                best = d
+            if best - par[_P_CLEAR] < 0.0:
+                continue
+            stage[k, c] = 5
+            pm = _platform_margin(pos[k], R[k], psi[k, c], legc, par)
+            if pm < par[_P_MARGIN]:
+                continue
+            stage[k, c] = 6
+            margin[k, c] = min(pm, m_min)
+    return stage, margin
+
