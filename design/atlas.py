@@ -22,7 +22,7 @@ first check no candidate passes is the pose's ``binding`` code):
                   ``limits.margin``;
 5. ``clearance``  no interference between the links of different legs;
 6. ``platform``   the platform's singularity margin >= ``limits.margin``;
-7. ``torque``     the static holding torque (Pinocchio, closed loop, with the robot's
+7. ``torque``     the static holding torque (closed loop, with the robot's
                   payload and mounting) within ``limits.torque`` on all nine motors.
 
 Candidates:
@@ -41,7 +41,8 @@ Work is split into chunks of positions, each a Dask task (``dask.distributed``: 
 ``scheduler="synchronous"`` to run in this process).  Every chunk is vectorised over its
 (position, direction, torsion) pairs: checks 1-6 of all its poses at one scan or
 bisection step are one call of the compiled kernel :mod:`design._atlas_kernel` (each
-check only where the ones before it passed), and check 7 one batched Pinocchio call.
+check only where the ones before it passed), and check 7 one call of the compiled
+symbolic statics (:func:`planner.model.holding_function`, checked against Pinocchio).
 """
 
 from __future__ import annotations
@@ -53,14 +54,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
 from sixplus3.design import _atlas_kernel as _kernel
 from sixplus3.errors import InputError
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
-from sixplus3.kinematics.robot import robot_ik
-from sixplus3.kinematics.rotations import matrix_from_rotvec
+from sixplus3.kinematics.rotations import matrix_from_rotvec, rotvec_from_matrix
 from sixplus3.robot_description.robot import Robot
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -127,11 +128,13 @@ class _Checker:
     """Admissibility of batches of poses for one robot (module doc)."""
 
     def __init__(self, robot: Robot, psi_step_deg: float):
-        from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+        from sixplus3.planner import codegen
+        from sixplus3.planner.model import holding_function, setup_parameters
 
         self.robot = robot
         self.lim = robot.limits
-        self.dyn = ClosedLoopDynamics(robot)
+        self.hold = codegen.compiled_small(holding_function(robot))
+        self.setup = ca.DM(setup_parameters(robot))
         lo, hi = PSI_RANGE_DEG
         self.psi_grid = np.radians(np.arange(lo, hi + 1e-9, psi_step_deg))
         self.home = np.asarray(robot.home_psi, dtype=float)
@@ -150,7 +153,7 @@ class _Checker:
         -inf).
 
         Checks 1-6 are compiled (:mod:`design._atlas_kernel`, each check only where the
-        ones before it passed); the Pinocchio holding torque is computed only for the
+        ones before it passed); the holding torque is computed only for the
         best-margin candidate of each pose, then the next best where it fails.
         """
         n, k = psi.shape[:2]
@@ -167,14 +170,19 @@ class _Checker:
             if not cand.any():
                 break
             rows = np.flatnonzero(cand)
-            cfg = robot_ik(pos[rows], R[rows], psi[rows, j[rows]], self.robot,
-                           platform_margins=False)
-            tau = self.dyn.holding_torques_batch(cfg.q)
+            tau = self.holding_torques(pos[rows], R[rows], psi[rows, j[rows]])
             good = np.all(np.abs(tau) <= self.lim.torque, axis=1)  # NaN (singular): False
             torque[rows[good], j[rows[good]]] = True
             undecided[rows[good]] = False
         stage = stage + torque
         return stage, np.where(torque, margin_all, -np.inf)
+
+    def holding_torques(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray) -> np.ndarray:
+        """(n, 9) static holding torques [N m] of poses whose IK solves (check 7): the
+        compiled symbolic statics (:func:`planner.model.holding_function`, with the
+        robot's payload and mounting), equal to Pinocchio's to rounding (tested)."""
+        x = np.c_[pos, rotvec_from_matrix(R), psi].T
+        return np.asarray(self.hold.map(x.shape[1])(x, self.setup)).T
 
     def admissible(self, pos: np.ndarray, R: np.ndarray, free: bool):
         """(ok (n,), psi (n, 3) [rad] of the chosen candidate, binding code (n,))."""

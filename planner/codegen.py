@@ -230,6 +230,31 @@ def compile_library(directory: Path, name: str, src: str, flags: tuple[str, ...]
     return lib
 
 
+def compiled_small(f: ca.Function) -> ca.Function:
+    """A small function (thousands of instructions, not the planner's 11 MB Jacobian)
+    compiled with ``CFLAGS`` in the foreground (about a second), cached on disk like the
+    planner's libraries and per process by the source's hash.  Returns ``f`` itself
+    (interpreted, the same results) when code generation is off or fails."""
+    if not codegen_enabled():
+        return f
+    cg = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False})
+    cg.add(f)
+    src = cg.dump()
+
+    def build() -> ca.Function:
+        lib = _lib_path(cache_dir(), f.name(), src, CFLAGS)
+        try:
+            if not lib.exists():
+                lib.parent.mkdir(parents=True, exist_ok=True)
+                compile_library(lib.parent, f.name(), src, CFLAGS)
+            return ca.external(f.name(), str(lib))
+        except (OSError, RuntimeError) as exc:
+            log.warning("compiling %s failed (%s); interpreted", f.name(), exc)
+            return f
+
+    return _cached(("compiled-small", hashlib.sha256(src.encode()).hexdigest()), build)
+
+
 def _wait_with_progress(procs: list[subprocess.Popen], libs: list[Path]) -> None:
     """Wait for the compilers (and background builds of ``libs``), showing the elapsed
     time (a tqdm line on a terminal, a line every 30 s otherwise) so a first run never
@@ -334,4 +359,4 @@ def build_kind(robot: Robot) -> str:
 
 
 __all__ = ["build_kind", "cache_dir", "codegen_enabled", "compiled_functions",
-           "ensure_optimised"]
+           "compiled_small", "ensure_optimised"]

@@ -268,6 +268,16 @@ def symbolic_robot(robot: Robot | None = None) -> SymbolicRobot:
     return _cached(("symbolic", robot.hash), lambda: _specialise(robot))
 
 
+def holding_function(robot: Robot) -> ca.Function:
+    """(x (9,), p (N_SETUP,)) -> the static holding torques (9,) [N m] of the robot's
+    structure at rest in minimal coordinates x: tau = (d theta / d x)^-T Q(x) with only
+    gravity in Q (the symbolic model above at xd = xdd = 0; the setup p from
+    :func:`setup_parameters` carries gravity, payload and mounting).  The atlas's torque
+    check; tests/test_atlas.py checks it against Pinocchio's closed-loop statics."""
+    return _cached(("symbolic-core", structure(robot).hash),
+                   lambda: _build(structure(robot))).hold_p
+
+
 def _specialise(robot: Robot) -> SymbolicRobot:
     core = _cached(("symbolic-core", structure(robot).hash),
                    lambda: _build(structure(robot)))
@@ -295,6 +305,7 @@ class _Core:
     margins: ca.Function
     spherical_cos: ca.Function
     node_p: ca.Function  # (x, xd, u, tau, p)
+    hold_p: ca.Function  # (x, p) -> the static holding torques (9) [N m]
 
 
 def _build(robot: Robot) -> _Core:
@@ -457,16 +468,20 @@ def _build(robot: Robot) -> _Core:
         "node_p", [x, xd, xdd, tau_sym, setup],
         [ca.vertcat(Jth.T @ (tau_sym - motor) - Q, th_dot, th_ddot, theta, ca.vertcat(*reach),
                     ca.vertcat(*sph), *margins_out, clear)], opts)
+    tau_f = ca.Function("tau", [x, xd, xdd, setup], [tau], opts)
+    zero9 = ca.SX.zeros(NX, 1)
     return _Core(
         theta=ca.Function("theta", [x], [theta], opts),
         theta_dot=ca.Function("theta_dot", [x, xd], [th_dot], opts),
         theta_ddot=ca.Function("theta_ddot", [x, xd, xdd], [th_ddot], opts),
-        tau=ca.Function("tau", [x, xd, xdd, setup], [tau], opts),
+        tau=tau_f,
         q=ca.Function("q", [x], [ca.vertcat(*qvec)], opts),
         reach=ca.Function("reach", [x], [ca.vertcat(*reach)], opts),
         margins=ca.Function("margins", [x], margins_out, opts),
         spherical_cos=ca.Function("spherical_cos", [x], [ca.vertcat(*sph)], opts),
         node_p=node_p,
+        # at rest (xd = xdd = 0: the motor terms vanish, tanh(0) = 0)
+        hold_p=ca.Function("hold_p", [x, setup], [tau_f(x, zero9, zero9, setup)], opts),
     )
 
 

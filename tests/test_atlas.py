@@ -206,3 +206,31 @@ def test_compiled_leg_grid_agrees_leg_by_leg() -> None:
         np.testing.assert_allclose(score[rows, g][ok[rows]], m[rows][ok[rows]], rtol=1e-9)
         seen |= set(np.unique(ref[rows])) | set(np.unique(ref[~reach.all(axis=1)]))
     assert seen == set(range(5))  # every check binds somewhere
+
+
+@pytest.mark.parametrize("payload,gravity", [
+    ((0.0, (0.0, 0.0, 0.0)), (0.0, 0.0, -9.81)),
+    ((1.5, (0.02, -0.01, 0.06)), (3.0, -2.0, 9.0)),  # a payload, an odd mounting
+])
+def test_atlas_holding_torque_is_pinocchios(payload, gravity) -> None:
+    """Check 7: the compiled symbolic statics (planner.model.holding_function, CasADi)
+    against Pinocchio's closed-loop statics (dynamics.closed_loop, an independent
+    derivation), with the robot's payload and mounting."""
+    from sixplus3.robot_description.physical import Payload
+
+    robot = Robot(payload=Payload(mass=payload[0], com=payload[1],
+                                  inertia=(0.01, 0.02, 0.015, 0.0, 0.001, 0.0)),
+                  gravity=gravity)
+    rng = np.random.default_rng(3)
+    n = 300
+    pos = np.asarray(robot.home_position) + rng.uniform(-0.06, 0.06, (n, 3))
+    R = at.rotations(rng.uniform(0, 360, n), rng.uniform(0, 170, n), rng.uniform(-90, 90, n))
+    psi = np.radians(rng.uniform(45, 135, (n, 3)))
+    cfg = robot_ik(pos, R, psi, robot)
+    ok = cfg.ok & (cfg.margins.minimum > 0.02)  # away from singular states
+    assert ok.sum() > 30
+    chk = at._Checker(robot, 7.5)
+    tau = chk.holding_torques(pos[ok], R[ok], psi[ok])
+    ref = ClosedLoopDynamics(robot).holding_torques_batch(cfg.q[ok])
+    assert np.abs(ref).max() > 0.3  # torques worth comparing
+    np.testing.assert_allclose(tau, ref, rtol=0, atol=1e-9)
