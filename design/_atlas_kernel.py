@@ -16,7 +16,7 @@ Packed inputs (:func:`pack`):
 - ``legc`` (3, 16): per leg, R_base_leg row-major (9), A_i (3), R_i in the platform
   frame (3), beta_i (1);
 - ``par`` (7,): platform crank c, L = hypot(platform radius, c), theta_min,
-  theta_max, spherical limit, margin limit, clearance (2 link radii).
+  theta_max, cos(spherical limit), margin limit, clearance (2 link radii).
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ from sixplus3.kinematics._leg_kernel import (
 )
 
 NL = 3  # legs
-_P_C, _P_L, _P_TMIN, _P_TMAX, _P_SPH, _P_MARGIN, _P_CLEAR = 0, 1, 2, 3, 4, 5, 6
+_P_C, _P_L, _P_TMIN, _P_TMAX, _P_COS_SPH, _P_MARGIN, _P_CLEAR = 0, 1, 2, 3, 4, 5, 6
 # upper links compared by the clearance check: AD, DP, GE, HF (kinematics.robot)
 _NSEG = 4
 
@@ -62,37 +62,31 @@ def pack(robot) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndar
         legc[i, 12:15] = g.crank_axis_position(i)
         legc[i, 15] = g.crank_axis_angle(i)
     par = np.array([g.platform_crank, math.hypot(g.platform_radius, g.platform_crank),
-                    lim.theta_min, lim.theta_max, lim.spherical, lim.margin,
+                    lim.theta_min, lim.theta_max, math.cos(lim.spherical), lim.margin,
                     2.0 * LINK_RADIUS])
     return (legc, par, g.leg.packed(), robot.mode.array(),
             np.ascontiguousarray(spherical_reference(robot)))
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def _tilt(ax, ay, az, bx, by, bz):
-    d = ax * bx + ay * by + az * bz
-    return math.acos(min(max(d, -1.0), 1.0))
-
-
 @njit(cache=True, error_model="numpy")
 def _distal(row, j, link, u_out):
-    """Frame (row-major 3x3, leg frame) of the distal link of crank ``j`` (1: B, 2: C):
-    R_x(theta + a) R_z(b) with the U-joint angles of kinematics.robot._u_joint_angles."""
-    t = row[TH + j]
+    """Frame (row-major 3x3, leg frame) of the distal link of crank ``j`` (1: B, 2: C).
+
+    kinematics.robot builds it as R_x(theta + a) R_z(b) with the U-joint angles of
+    ``_u_joint_angles`` (branch cos b > 0): its y axis is the link direction u, its z
+    axis (0, -u_z, u_y) / |(u_y, u_z)| and x = y cross z.  The same frame, without the
+    angles.
+    """
     tip, end = (PG, PE) if j == 1 else (PH, PF)
-    lx = (row[end] - row[tip]) / link
-    ly = (row[end + 1] - row[tip + 1]) / link
-    lz = (row[end + 2] - row[tip + 2]) / link
-    c, s = math.cos(t), math.sin(t)
-    uy = c * ly + s * lz
-    uz = -s * ly + c * lz
-    a = math.atan2(uz, uy)
-    b = math.atan2(-lx, math.hypot(uy, uz))
-    cf, sf = math.cos(t + a), math.sin(t + a)
-    cb, sb = math.cos(b), math.sin(b)
-    u_out[0], u_out[1], u_out[2] = cb, -sb, 0.0
-    u_out[3], u_out[4], u_out[5] = cf * sb, cf * cb, -sf
-    u_out[6], u_out[7], u_out[8] = sf * sb, sf * cb, cf
+    uy = (row[end + 1] - row[tip + 1]) / link
+    uz = (row[end + 2] - row[tip + 2]) / link
+    ux = (row[end] - row[tip]) / link
+    rho = math.hypot(uy, uz)
+    zy, zz = -uz / rho, uy / rho
+    # x = y cross z with y = u, z = (0, zy, zz)
+    u_out[0], u_out[3], u_out[6] = uy * zz - uz * zy, -ux * zz, ux * zy
+    u_out[1], u_out[4], u_out[7] = ux, uy, uz
+    u_out[2], u_out[5], u_out[8] = 0.0, zy, zz
 
 
 @njit(cache=True, error_model="numpy")
@@ -120,8 +114,9 @@ def leg_check(pos, R, psi, i, legc, par, geo, mode, ref, row, scratch):
         t = row[TH + j]
         if t < par[_P_TMIN] or t > par[_P_TMAX]:
             return 1, 0.0
-    # spherical joints E, F (body vs distal link) and P (body vs platform crank)
-    lim = par[_P_SPH]
+    # spherical joints E, F (body vs distal link) and P (body vs platform crank): the
+    # tilt acos(a . b) exceeds the limit exactly where a . b < cos(limit)
+    lim = par[_P_COS_SPH]
     for j in range(2):
         _distal(row, j + 1, geo[3 + j], scratch)
         a = ref[i, j, 0]
@@ -132,7 +127,7 @@ def leg_check(pos, R, psi, i, legc, par, geo, mode, ref, row, scratch):
         bx = scratch[0] * bb[0] + scratch[1] * bb[1] + scratch[2] * bb[2]
         by = scratch[3] * bb[0] + scratch[4] * bb[1] + scratch[5] * bb[2]
         bz = scratch[6] * bb[0] + scratch[7] * bb[1] + scratch[8] * bb[2]
-        if _tilt(ax, ay, az, bx, by, bz) > lim:
+        if ax * bx + ay * by + az * bz < lim:
             return 2, 0.0
     a = ref[i, 2, 0]
     bb = ref[i, 2, 1]
@@ -151,7 +146,7 @@ def leg_check(pos, R, psi, i, legc, par, geo, mode, ref, row, scratch):
     bx = R[0, 0] * wx + R[0, 1] * wy + R[0, 2] * wz
     by = R[1, 0] * wx + R[1, 1] * wy + R[1, 2] * wz
     bz = R[2, 0] * wx + R[2, 1] * wy + R[2, 2] * wz
-    if _tilt(ax, ay, az, bx, by, bz) > lim:
+    if ax * bx + ay * by + az * bz < lim:
         return 2, 0.0
     jacobian_point(geo, 0.0, 0.0, row, True)
     m = min(row[MARGIN_I], row[MARGIN_II])
@@ -202,6 +197,36 @@ def _segments(row, i, legc, par, out):
 
 
 @njit(cache=True, error_model="numpy")
+def _clear(seg, clear, mid, half):
+    """Whether every pair of upper links of different legs is at least ``clear`` apart
+    (kinematics.robot.leg_clearance >= 0).  A pair whose bounding spheres (centre the
+    segment's midpoint, radius half its length) are further apart than that, by 1e-9 m
+    for rounding, cannot interfere and is not measured."""
+    for i in range(NL):
+        for a in range(_NSEG):
+            h = 0.0
+            for r in range(3):
+                mid[i, a, r] = 0.5 * (seg[i, a, 0, r] + seg[i, a, 1, r])
+                h += (seg[i, a, 1, r] - seg[i, a, 0, r]) ** 2
+            half[i, a] = 0.5 * math.sqrt(h)
+    for i in range(NL):
+        for j in range(i + 1, NL):
+            for a in range(_NSEG):
+                for b in range(_NSEG):
+                    reach = clear + half[i, a] + half[j, b] + 1e-9
+                    d2 = 0.0
+                    for r in range(3):
+                        d2 += (mid[i, a, r] - mid[j, b, r]) ** 2
+                    if d2 >= reach * reach:
+                        continue
+                    d = segment_distance(seg[i, a, 0], seg[i, a, 1], seg[j, b, 0],
+                                         seg[j, b, 1])
+                    if d - clear < 0.0:
+                        return False
+    return True
+
+
+@njit(cache=True, error_model="numpy")
 def _platform_margin(pos, R, psi, legc, par):
     """sigma_min / sigma_max of the column-scaled 9x9 platform Jacobian
     (kinematics.robot.platform_margin), from the eigenvalues of J^T J."""
@@ -247,6 +272,8 @@ def pose_checks(pos, R, psi, legc, par, geo, mode, ref):
         row = np.zeros(NF)
         scratch = np.zeros(12)
         seg = np.empty((NL, _NSEG, 2, 3))
+        mid = np.empty((NL, _NSEG, 3))
+        half = np.empty((NL, _NSEG))
         for c in range(K):
             s_min = 4
             m_min = np.inf
@@ -263,16 +290,7 @@ def pose_checks(pos, R, psi, legc, par, geo, mode, ref):
             stage[k, c] = s_min
             if s_min < 4:
                 continue
-            best = np.inf
-            for i in range(NL):
-                for j in range(i + 1, NL):
-                    for a in range(_NSEG):
-                        for b in range(_NSEG):
-                            d = segment_distance(seg[i, a, 0], seg[i, a, 1],
-                                                 seg[j, b, 0], seg[j, b, 1])
-                            if d < best:
-                                best = d
-            if best - par[_P_CLEAR] < 0.0:
+            if not _clear(seg, par[_P_CLEAR], mid, half):
                 continue
             stage[k, c] = 5
             pm = _platform_margin(pos[k], R[k], psi[k, c], legc, par)
