@@ -226,25 +226,36 @@ def _clear(seg, clear, mid, half):
     return True
 
 
+@njit(cache=True, parallel=True, error_model="numpy")
+def platform_margins(psi, legc, par):
+    """(m,) sigma_min / sigma_max of the column-scaled 9x9 platform Jacobian
+    (kinematics.robot.platform_margin) for crank angles psi (m, 3) [rad].
+
+    It depends on the crank angles only: block row i of J is
+    [I, -[R t_i]x / L, (R z x R d_i) / c] = R [R^T, -[t_i]x R^T / L, (z x d_i) / c]
+    (t_i the crank tip, d_i the crank, z = (0, 0, 1), all in the platform frame), and
+    multiplying by the orthogonal diag(R, R, R) on the left and diag(R, R, I) on the
+    right keeps the singular values; so it is computed at R = I, from the eigenvalues of
+    J^T J.  The atlas tabulates it on its crank grid (tests check it against the numpy
+    function at rotated poses)."""
+    m = psi.shape[0]
+    out = np.empty(m)
+    for k in prange(m):
+        out[k] = _platform_margin(psi[k], legc, par)
+    return out
+
+
 @njit(cache=True, error_model="numpy")
-def _platform_margin(pos, R, psi, legc, par):
-    """sigma_min / sigma_max of the column-scaled 9x9 platform Jacobian
-    (kinematics.robot.platform_margin), from the eigenvalues of J^T J."""
+def _platform_margin(psi, legc, par):
     c, L = par[_P_C], par[_P_L]
     J = np.zeros((9, 9))
     for i in range(NL):
         b = legc[i, 15] + psi[i]
-        lx, ly, lz = legc[i, 12], legc[i, 13], legc[i, 14]
-        tx, ty = lx + c * math.cos(b), ly + c * math.sin(b)
-        # r = P - O = R tip, s = P - R_i = R (tip - R_i local)
-        rx = R[0, 0] * tx + R[0, 1] * ty + R[0, 2] * lz
-        ry = R[1, 0] * tx + R[1, 1] * ty + R[1, 2] * lz
-        rz = R[2, 0] * tx + R[2, 1] * ty + R[2, 2] * lz
-        dx, dy = tx - lx, ty - ly
-        sx = R[0, 0] * dx + R[0, 1] * dy
-        sy = R[1, 0] * dx + R[1, 1] * dy
-        sz = R[2, 0] * dx + R[2, 1] * dy
-        zx, zy, zz = R[0, 2], R[1, 2], R[2, 2]
+        lx, ly = legc[i, 12], legc[i, 13]
+        # r = P - O = tip, s = P - R_i: the crank, z = (0, 0, 1) (platform frame)
+        rx, ry, rz = lx + c * math.cos(b), ly + c * math.sin(b), legc[i, 14]
+        sx, sy, sz = rx - lx, ry - ly, 0.0
+        zx, zy, zz = 0.0, 0.0, 1.0
         o = 3 * i
         J[o, 0] = J[o + 1, 1] = J[o + 2, 2] = 1.0
         # -[r]x / L
@@ -261,9 +272,10 @@ def _platform_margin(pos, R, psi, legc, par):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def pose_checks(pos, R, psi, legc, par, geo, mode, ref):
+def pose_checks(pos, R, psi, platform, legc, par, geo, mode, ref):
     """Checks 1-6 of candidate crank choices: pos (n, 3), R (n, 3, 3), psi (n, k, 3)
-    [rad].  Returns (stage (n, k) int8: checks passed, 0..6; margin (n, k): the smallest
+    [rad], with their platform margins ``platform`` (n, k) (:func:`platform_margins`,
+    which depend on psi only).  Returns (stage (n, k) int8: checks passed, 0..6; margin (n, k): the smallest
     leg and platform margin where all six pass, else -inf)."""
     n, K = psi.shape[0], psi.shape[1]
     stage = np.zeros((n, K), dtype=np.int8)
@@ -293,7 +305,7 @@ def pose_checks(pos, R, psi, legc, par, geo, mode, ref):
             if not _clear(seg, par[_P_CLEAR], mid, half):
                 continue
             stage[k, c] = 5
-            pm = _platform_margin(pos[k], R[k], psi[k, c], legc, par)
+            pm = platform[k, c]
             if pm < par[_P_MARGIN]:
                 continue
             stage[k, c] = 6

@@ -68,7 +68,7 @@ from sixplus3.design import _atlas_kernel as _kernel
 from sixplus3.errors import InputError
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
 from sixplus3.kinematics.rotations import matrix_from_rotvec, rotvec_from_matrix
-from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot import Robot, _cached
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
@@ -145,7 +145,18 @@ class _Checker:
         self.psi_grid = np.radians(np.arange(lo, hi + 1e-9, psi_step_deg))
         self.home = np.asarray(robot.home_psi, dtype=float)
         self.packed = _kernel.pack(robot)
+        # the platform margin depends on the crank angles only: tabulated on the grid
+        self.platform_grid = _cached(("atlas-platform", f"{robot.hash}:{psi_step_deg}"),
+                                     lambda: self._platform_table())
+        self.platform_home = float(_kernel.platform_margins(self.home[None], *self.packed[:2])[0])
         self.evaluations = 0  # poses judged (one per admissible() row)
+
+    def _platform_table(self) -> np.ndarray:
+        """(G, G, G) platform margins of every crank-grid triple."""
+        G = len(self.psi_grid)
+        tri = np.stack(np.meshgrid(self.psi_grid, self.psi_grid, self.psi_grid,
+                                   indexing="ij"), axis=-1).reshape(-1, 3)
+        return _kernel.platform_margins(tri, *self.packed[:2]).reshape(G, G, G)
 
     def _leg_scores(self, pos: np.ndarray, R: np.ndarray):
         """Per-leg checks 1-4 on the crank grid: (stage reached (n, G, 3), score: the
@@ -153,10 +164,10 @@ class _Checker:
         return _kernel.leg_grid(np.ascontiguousarray(pos), np.ascontiguousarray(R),
                                 self.psi_grid, *self.packed)
 
-    def _full(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray):
-        """Checks of (n, k) candidate crank choices psi (n, k, 3): (stage (n, k) = number
-        of checks 1-7 passed, margin (n, k): the smallest margin where all pass, else
-        -inf).
+    def _full(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray, platform: np.ndarray):
+        """Checks of (n, k) candidate crank choices psi (n, k, 3) with platform margins
+        ``platform`` (n, k): (stage (n, k) = number of checks 1-7 passed, margin (n, k):
+        the smallest margin where all pass, else -inf).
 
         Checks 1-6 are compiled (:mod:`design._atlas_kernel`, each check only where the
         ones before it passed); the holding torque is computed only for the
@@ -165,7 +176,7 @@ class _Checker:
         n, k = psi.shape[:2]
         stage, margin_all = _kernel.pose_checks(
             np.ascontiguousarray(pos), np.ascontiguousarray(R), np.ascontiguousarray(psi),
-            *self.packed)
+            np.ascontiguousarray(platform, dtype=float), *self.packed)
         # torque, lazily: best candidate first, then the next best where it fails
         torque = np.zeros((n, k), dtype=bool)
         order = np.argsort(-margin_all, axis=1)
@@ -195,8 +206,9 @@ class _Checker:
         n = len(pos)
         self.evaluations += n
         home = np.broadcast_to(self.home, (n, 1, 3))
+        pm_home = np.full((n, 1), self.platform_home)
         if not free:
-            s_home, m_home = self._full(pos, R, home)
+            s_home, m_home = self._full(pos, R, home, pm_home)
             return self._pick(home, s_home, m_home, np.zeros(n, dtype=np.int8))
         stage_leg, score = self._leg_scores(pos, R)
         best = np.argmax(score, axis=1)  # (n, 3)
@@ -212,12 +224,14 @@ class _Checker:
         stage = np.zeros((n, 5), dtype=np.int8)
         margin = np.full((n, 5), -np.inf)
         if live.any():
-            s, m = self._full(pos[live], R[live], cand[live, :4])
+            il = idx[live]
+            pm = self.platform_grid[il[..., 0], il[..., 1], il[..., 2]]
+            s, m = self._full(pos[live], R[live], cand[live, :4], pm)
             stage[live, :4], margin[live, :4] = s, m
         # the home candidate wherever no searched one passed: free >= locked by construction
         rest = ~np.any(margin[:, :4] > -np.inf, axis=1)
         if rest.any():
-            s, m = self._full(pos[rest], R[rest], home[rest])
+            s, m = self._full(pos[rest], R[rest], home[rest], pm_home[rest])
             stage[rest, 4:], margin[rest, 4:] = s, m
         dead = np.where(live, 0, leg_best.min(axis=1)).astype(np.int8)
         return self._pick(cand, stage, margin, dead)

@@ -162,7 +162,9 @@ def test_compiled_checks_agree_with_the_numpy_robot_functions() -> None:
 
     pos, R, rng = _random_poses(3000, 1)
     psi = np.radians(rng.uniform(30, 150, (len(pos), 1, 3)))
-    stage, margin = kern.pose_checks(pos, R, psi, *kern.pack(ROBOT))
+    packed = kern.pack(ROBOT)
+    pm_psi = kern.platform_margins(psi[:, 0], *packed[:2])[:, None]  # psi only (R = I)
+    stage, margin = kern.pose_checks(pos, R, psi, pm_psi, *packed)
     lim = ROBOT.limits
     cfg = robot_ik(pos, R, psi[:, 0], ROBOT, platform_margins=False)
     th_ok = cfg.ok & np.all((cfg.theta >= lim.theta_min) & (cfg.theta <= lim.theta_max), 1)
@@ -175,6 +177,8 @@ def test_compiled_checks_agree_with_the_numpy_robot_functions() -> None:
     ref = (cfg.ok.astype(int) + th_ok + sph_ok + leg_ok + clear_ok + plat_ok)
     np.testing.assert_array_equal(stage[:, 0], ref)
     assert set(np.unique(ref)) == set(range(7))  # every check binds somewhere
+    # the platform margin at the rotated poses is the tabulated one at R = I
+    np.testing.assert_allclose(pm_psi[cfg.ok, 0], pm[cfg.ok], rtol=1e-9, atol=1e-13)
     np.testing.assert_allclose(margin[plat_ok, 0], np.minimum(pm, legm)[plat_ok],
                                rtol=1e-9, atol=1e-12)
     assert np.all(margin[~plat_ok, 0] == -np.inf)
