@@ -275,8 +275,9 @@ def _platform_margin(psi, legc, par):
 def pose_checks(pos, R, psi, platform, legc, par, geo, mode, ref):
     """Checks 1-6 of candidate crank choices: pos (n, 3), R (n, 3, 3), psi (n, k, 3)
     [rad], with their platform margins ``platform`` (n, k) (:func:`platform_margins`,
-    which depend on psi only).  Returns (stage (n, k) int8: checks passed, 0..6; margin (n, k): the smallest
-    leg and platform margin where all six pass, else -inf)."""
+    which depend on psi only).  Returns (stage (n, k) int8: checks passed, 0..6;
+    margin (n, k): the smallest leg and platform margin where all six pass, else
+    -inf)."""
     n, K = psi.shape[0], psi.shape[1]
     stage = np.zeros((n, K), dtype=np.int8)
     margin = np.full((n, K), -np.inf)
