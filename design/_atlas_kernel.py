@@ -108,7 +108,7 @@ def leg_check(pos, R, psi, i, legc, par, geo, mode, ref, row, scratch):
     x = legc[i, 0] * px + legc[i, 3] * py + legc[i, 6] * pz
     y = legc[i, 1] * px + legc[i, 4] * py + legc[i, 7] * pz
     z = legc[i, 2] * px + legc[i, 5] * py + legc[i, 8] * pz
-    if ik_point(x, y, z, geo, mode, row, True) != STATUS_OK:
+    if ik_point(x, y, z, geo, mode, row, False) != STATUS_OK:  # Q, no passive angles
         return 0, 0.0
     for j in range(3):
         t = row[TH + j]
