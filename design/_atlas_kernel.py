@@ -159,7 +159,8 @@ def leg_check(pos, R, psi, i, legc, par, geo, mode, ref, row, scratch):
 def leg_grid(pos, R, grid, legc, par, geo, mode, ref):
     """Checks 1-4 of every leg on a grid of crank angles: pos (n, 3), R (n, 3, 3),
     grid (G,) [rad].  Returns (stage (n, G, 3) int8, score (n, G, 3): the leg's smallest
-    margin where all four checks pass, else -inf)."""
+    margin where all four checks pass, else -inf).  The atlas's grid box uses it;
+    :func:`free_candidates` does the same per leg and keeps the IK of the best values."""
     n, G = pos.shape[0], grid.shape[0]
     stage = np.zeros((n, G, NL), dtype=np.int8)
     score = np.full((n, G, NL), -np.inf)
@@ -313,3 +314,78 @@ def pose_checks(pos, R, psi, platform, legc, par, geo, mode, ref):
             margin[k, c] = min(pm, m_min)
     return stage, margin
 
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def free_candidates(pos, R, grid, table, legc, par, geo, mode, ref):
+    """The free search's candidates and their checks 1-6, in one pass per pose.
+
+    Checks 1-4 of every leg on the crank grid (as :func:`leg_grid`); per leg the best
+    grid value by the leg's smallest margin (the first maximum) and the second best (the
+    best otherwise where no other value passes); the 4 candidates are the best values
+    and, each leg in turn, its second best; checks 5-6 reuse the legs' IK (a candidate's
+    legs passed 1-4 on the grid) and ``table`` (G, G, G), the platform margins of the
+    grid (:func:`platform_margins`).
+
+    Returns (idx (n, 4, 3) grid indices, stage (n, 4) int8 (checks passed, 0..6; 0 where
+    not all legs have a passing value), margin (n, 4) (-inf unless all six pass),
+    leg_best (n, 3) int8: the most checks any grid value of each leg passed).
+    """
+    n, G = pos.shape[0], grid.shape[0]
+    idx = np.zeros((n, 4, NL), dtype=np.int64)
+    stage = np.zeros((n, 4), dtype=np.int8)
+    margin = np.full((n, 4), -np.inf)
+    leg_best = np.zeros((n, NL), dtype=np.int8)
+    for k in prange(n):
+        row = np.zeros(NF)
+        scratch = np.zeros(12)
+        seg = np.empty((2, NL, _NSEG, 2, 3))  # the best and second values' links
+        cand = np.empty((NL, _NSEG, 2, 3))
+        mid = np.empty((NL, _NSEG, 3))
+        half = np.empty((NL, _NSEG))
+        score = np.full((2, NL), -np.inf)
+        pick = np.zeros((2, NL), dtype=np.int64)
+        live = True
+        for i in range(NL):
+            top = 0
+            for g in range(G):
+                s, m = leg_check(pos[k], R[k], grid[g], i, legc, par, geo, mode, ref, row,
+                                 scratch)
+                if s > top:
+                    top = s
+                if s < 4:
+                    continue
+                if m > score[0, i]:
+                    score[1, i], pick[1, i] = score[0, i], pick[0, i]
+                    seg[1, i] = seg[0, i]
+                    score[0, i], pick[0, i] = m, g
+                    _segments(row, i, legc, par, seg[0, i])
+                elif m > score[1, i]:
+                    score[1, i], pick[1, i] = m, g
+                    _segments(row, i, legc, par, seg[1, i])
+            leg_best[k, i] = top
+            if top < 4:
+                live = False
+            elif score[1, i] == -np.inf:  # one passing value: the second is the best
+                pick[1, i] = pick[0, i]
+                seg[1, i] = seg[0, i]
+                score[1, i] = score[0, i]
+        if not live:
+            continue
+        for c in range(4):
+            m_min = np.inf
+            for i in range(NL):
+                w = 1 if c == i + 1 else 0
+                idx[k, c, i] = pick[w, i]
+                cand[i] = seg[w, i]
+                m_min = min(m_min, score[w, i])
+            stage[k, c] = 4
+            if not _clear(cand, par[_P_CLEAR], mid, half):
+                continue
+            stage[k, c] = 5
+            pm = table[idx[k, c, 0], idx[k, c, 1], idx[k, c, 2]]
+            if pm < par[_P_MARGIN]:
+                continue
+            stage[k, c] = 6
+            margin[k, c] = min(pm, m_min)
+    return idx, stage, margin, leg_best

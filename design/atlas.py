@@ -158,12 +158,6 @@ class _Checker:
                                    indexing="ij"), axis=-1).reshape(-1, 3)
         return _kernel.platform_margins(tri, *self.packed[:2]).reshape(G, G, G)
 
-    def _leg_scores(self, pos: np.ndarray, R: np.ndarray):
-        """Per-leg checks 1-4 on the crank grid: (stage reached (n, G, 3), score: the
-        leg's smallest margin where all four pass, else -inf) -- compiled."""
-        return _kernel.leg_grid(np.ascontiguousarray(pos), np.ascontiguousarray(R),
-                                self.psi_grid, *self.packed)
-
     def _full(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray, platform: np.ndarray):
         """Checks of (n, k) candidate crank choices psi (n, k, 3) with platform margins
         ``platform`` (n, k): (stage (n, k) = number of checks 1-7 passed, margin (n, k):
@@ -173,10 +167,15 @@ class _Checker:
         ones before it passed); the holding torque is computed only for the
         best-margin candidate of each pose, then the next best where it fails.
         """
-        n, k = psi.shape[:2]
-        stage, margin_all = _kernel.pose_checks(
+        stage, margin = _kernel.pose_checks(
             np.ascontiguousarray(pos), np.ascontiguousarray(R), np.ascontiguousarray(psi),
             np.ascontiguousarray(platform, dtype=float), *self.packed)
+        return self._torque(pos, R, psi, stage, margin)
+
+    def _torque(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray, stage: np.ndarray,
+                margin_all: np.ndarray):
+        """Check 7 on candidates psi (n, k, 3) with the results (stage, margin) of 1-6."""
+        n, k = psi.shape[:2]
         # torque, lazily: best candidate first, then the next best where it fails
         torque = np.zeros((n, k), dtype=bool)
         order = np.argsort(-margin_all, axis=1)
@@ -210,24 +209,14 @@ class _Checker:
         if not free:
             s_home, m_home = self._full(pos, R, home, pm_home)
             return self._pick(home, s_home, m_home, np.zeros(n, dtype=np.int8))
-        stage_leg, score = self._leg_scores(pos, R)
-        best = np.argmax(score, axis=1)  # (n, 3)
-        second = np.argsort(-score, axis=1)[:, 1, :]
-        has2 = np.take_along_axis(score, second[:, None, :], axis=1)[:, 0] > -np.inf
-        second = np.where(has2, second, best)
-        # candidates: the best value per leg, and each leg in turn at its second best
-        idx = np.stack([best] + [np.where(np.arange(3) == i, second, best)
-                                 for i in range(3)], axis=1)  # (n, 4, 3)
+        idx, s4, m4, leg_best = _kernel.free_candidates(
+            np.ascontiguousarray(pos), np.ascontiguousarray(R), self.psi_grid,
+            self.platform_grid, *self.packed)
         cand = np.concatenate([self.psi_grid[idx], home], axis=1)  # + home: (n, 5, 3)
-        leg_best = stage_leg.max(axis=1)  # (n, 3) checks passed by each leg's best value
         live = np.all(leg_best >= 4, axis=1)
         stage = np.zeros((n, 5), dtype=np.int8)
         margin = np.full((n, 5), -np.inf)
-        if live.any():
-            il = idx[live]
-            pm = self.platform_grid[il[..., 0], il[..., 1], il[..., 2]]
-            s, m = self._full(pos[live], R[live], cand[live, :4], pm)
-            stage[live, :4], margin[live, :4] = s, m
+        stage[:, :4], margin[:, :4] = self._torque(pos, R, cand[:, :4], s4, m4)
         # the home candidate wherever no searched one passed: free >= locked by construction
         rest = ~np.any(margin[:, :4] > -np.inf, axis=1)
         if rest.any():
@@ -357,7 +346,8 @@ def position_grid(robot: Robot, step: float) -> tuple[np.ndarray, np.ndarray, np
     inside = []
     for z in zs:
         pos = np.c_[X.ravel(), Y.ravel(), np.full(X.size, z)]
-        stage, _ = chk._leg_scores(pos, np.broadcast_to(np.eye(3), (len(pos), 3, 3)))
+        stage, _ = _kernel.leg_grid(pos, np.broadcast_to(np.eye(3), (len(pos), 3, 3)).copy(),
+                                    chk.psi_grid, *chk.packed)
         ok = np.all(stage.max(axis=1) >= 1, axis=1)  # every leg reaches, some crank
         if ok.any():
             inside.append(pos[ok])

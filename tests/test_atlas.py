@@ -238,3 +238,33 @@ def test_atlas_holding_torque_is_pinocchios(payload, gravity) -> None:
     ref = ClosedLoopDynamics(robot).holding_torques_batch(cfg.q[ok])
     assert np.abs(ref).max() > 0.3  # torques worth comparing
     np.testing.assert_allclose(tau, ref, rtol=0, atol=1e-9)
+
+
+def test_free_candidates_are_the_leg_grid_then_pose_checks() -> None:
+    """design._atlas_kernel.free_candidates (one pass, legs' IK reused) against its
+    definition composed of the two tested kernels: leg_grid, the best and second best
+    value per leg, then pose_checks on the 4 combinations."""
+    from sixplus3.design import _atlas_kernel as kern
+
+    pos, R, _ = _random_poses(1500, 4)
+    chk = at._Checker(ROBOT, 7.5)
+    grid, packed = chk.psi_grid, chk.packed
+    idx, stage, margin, leg_best = kern.free_candidates(pos, R, grid, chk.platform_grid,
+                                                        *packed)
+    st, score = kern.leg_grid(pos, R, grid, *packed)
+    np.testing.assert_array_equal(leg_best, st.max(axis=1))
+    live = np.all(leg_best >= 4, axis=1)
+    assert 100 < live.sum() < len(pos)  # both kinds
+    best = np.argmax(score, axis=1)
+    masked = score.copy()
+    np.put_along_axis(masked, best[:, None], -np.inf, axis=1)
+    second = np.where(np.max(masked, axis=1) > -np.inf, np.argmax(masked, axis=1), best)
+    ref_idx = np.stack([best] + [np.where(np.arange(3) == i, second, best)
+                                 for i in range(3)], axis=1)
+    np.testing.assert_array_equal(idx[live], ref_idx[live])
+    pm = chk.platform_grid[ref_idx[..., 0], ref_idx[..., 1], ref_idx[..., 2]]
+    s_ref, m_ref = kern.pose_checks(pos, R, grid[ref_idx], pm, *packed)
+    np.testing.assert_array_equal(stage[live], s_ref[live])
+    np.testing.assert_array_equal(margin[live], m_ref[live])
+    assert {4, 6} <= set(np.unique(stage[live]).tolist())  # clearance fails and passes
+    assert np.all(stage[~live] == 0)
