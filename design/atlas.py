@@ -135,11 +135,13 @@ class _Checker:
 
     def __init__(self, robot: Robot, psi_step_deg: float):
         from sixplus3.planner import codegen
-        from sixplus3.planner.model import holding_function, setup_parameters
+        from sixplus3.planner.model import holding_function, setup_parameters, structure
 
         self.robot = robot
         self.lim = robot.limits
-        self.hold = codegen.compiled_small(holding_function(robot))
+        # one per process and structure (a chunk builds a checker; the source is 12 ms)
+        self.hold = _cached(("atlas-hold", structure(robot).hash),
+                            lambda: codegen.compiled_small(holding_function(robot)))
         self.setup = ca.DM(setup_parameters(robot))
         lo, hi = PSI_RANGE_DEG
         self.psi_grid = np.radians(np.arange(lo, hi + 1e-9, psi_step_deg))
