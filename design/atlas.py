@@ -23,7 +23,12 @@ first check no candidate passes is the pose's ``binding`` code):
 5. ``clearance``  no interference between the links of different legs;
 6. ``platform``   the platform's singularity margin >= ``limits.margin``;
 7. ``torque``     the static holding torque (closed loop, with the robot's
-                  payload and mounting) within ``limits.torque`` on all nine motors.
+                  payload and mounting) within ``limits.torque`` on all nine motors;
+                  with ``accel_g`` = a > 0 (optional), the torque to accelerate the
+                  platform from rest at a g in *every* direction, with no angular or
+                  crank acceleration: max over |acc| = a g of |tau_0 + A acc| =
+                  |tau_0| + a g |A_j| per motor j (tau_0 the holding torque, A = d tau /
+                  d acc, the motors' rotor inertia included).
 
 Candidates:
 
@@ -68,6 +73,7 @@ from sixplus3.design import _atlas_kernel as _kernel
 from sixplus3.errors import InputError
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
 from sixplus3.kinematics.rotations import matrix_from_rotvec, rotvec_from_matrix
+from sixplus3.robot_description.geometry import GRAVITY
 from sixplus3.robot_description.robot import Robot, _cached
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -94,6 +100,9 @@ class AtlasSettings:
     scan_deg: float = 15.0  # the scan step before bisection [deg]
     resolution_deg: float = 1.0  # bisection resolution [deg]
     psi_step_deg: float = 7.5  # per-leg crank grid of the free search [deg]
+    #: the optional dynamic criterion: 0 (off) or a, the platform must be able to
+    #: accelerate at a g in every direction from rest within the torque limit [g]
+    accel_g: float = 0.0
 
     def check(self) -> AtlasSettings:
         vals = {"step": (self.step, 0.002, 0.2), "azimuth_step_deg": (self.azimuth_step_deg,
@@ -101,7 +110,8 @@ class AtlasSettings:
                 "max_tilt_deg": (self.max_tilt_deg, 1.0, 180.0),
                 "scan_deg": (self.scan_deg, 0.5, 90.0),
                 "resolution_deg": (self.resolution_deg, 0.01, 10.0),
-                "psi_step_deg": (self.psi_step_deg, 1.0, 45.0)}
+                "psi_step_deg": (self.psi_step_deg, 1.0, 45.0),
+                "accel_g": (self.accel_g, 0.0, 5.0)}
         for name, (v, lo, hi) in vals.items():
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
                 raise InputError(f"atlas {name} must be in [{lo:g}, {hi:g}], got {v!r}",
@@ -133,15 +143,23 @@ def rotations(azimuth_deg: ArrayLike, tilt_deg: ArrayLike,
 class _Checker:
     """Admissibility of batches of poses for one robot (module doc)."""
 
-    def __init__(self, robot: Robot, psi_step_deg: float):
+    def __init__(self, robot: Robot, psi_step_deg: float, accel_g: float = 0.0):
         from sixplus3.planner import codegen
-        from sixplus3.planner.model import holding_function, setup_parameters, structure
+        from sixplus3.planner.model import (
+            acceleration_function,
+            holding_function,
+            setup_parameters,
+            structure,
+        )
 
         self.robot = robot
         self.lim = robot.limits
+        self.accel = float(accel_g) * GRAVITY  # [m/s^2]
         # one per process and structure (a chunk builds a checker; the source is 12 ms)
-        self.hold = _cached(("atlas-hold", structure(robot).hash),
-                            lambda: codegen.compiled_small(holding_function(robot)))
+        kind, make = (("atlas-accel", acceleration_function) if accel_g > 0
+                      else ("atlas-hold", holding_function))
+        self.hold = _cached((kind, structure(robot).hash),
+                            lambda: codegen.compiled_small(make(robot)))
         self.setup = ca.DM(setup_parameters(robot))
         lo, hi = PSI_RANGE_DEG
         self.psi_grid = np.radians(np.arange(lo, hi + 1e-9, psi_step_deg))
@@ -188,19 +206,31 @@ class _Checker:
             if not cand.any():
                 break
             rows = np.flatnonzero(cand)
-            tau = self.holding_torques(pos[rows], R[rows], psi[rows, j[rows]])
-            good = np.all(np.abs(tau) <= self.lim.torque, axis=1)  # NaN (singular): False
+            tau = self.required_torques(pos[rows], R[rows], psi[rows, j[rows]])
+            good = np.all(tau <= self.lim.torque, axis=1)  # NaN (singular): False
             torque[rows[good], j[rows[good]]] = True
             undecided[rows[good]] = False
         stage = stage + torque
         return stage, np.where(torque, margin_all, -np.inf)
 
-    def holding_torques(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray) -> np.ndarray:
-        """(n, 9) static holding torques [N m] of poses whose IK solves (check 7): the
-        compiled symbolic statics (:func:`planner.model.holding_function`, with the
-        robot's payload and mounting), equal to Pinocchio's to rounding (tested)."""
+    def required_torques(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray) -> np.ndarray:
+        """(n, 9) |torque| [N m] each motor needs at poses whose IK solves (check 7).
+
+        Without ``accel_g``: the static holding torque, from the compiled symbolic statics
+        (:func:`planner.model.holding_function`, with the robot's payload and mounting),
+        equal to Pinocchio's to rounding (tested).  With it: at rest the torques are
+        tau_0 + A a for a platform-centre acceleration a (no angular or crank
+        acceleration; :func:`planner.model.acceleration_function`), so the largest over
+        every direction of |a| = accel_g g is |tau_0| + accel_g g |A_j| per motor j.
+        """
         x = np.c_[pos, rotvec_from_matrix(R), psi].T
-        return np.asarray(self.hold.map(x.shape[1])(x, self.setup)).T
+        n = x.shape[1]
+        if self.accel <= 0.0:
+            return np.abs(np.asarray(self.hold.map(n)(x, self.setup)).T)
+        tau0, A = self.hold.map(n)(x, self.setup)
+        A = np.asarray(A).reshape(9, n, 3)  # the map puts the 9x3 blocks side by side
+        return (np.abs(np.asarray(tau0)).T
+                + self.accel * np.linalg.norm(A, axis=2).T)
 
     def admissible(self, pos: np.ndarray, R: np.ndarray, free: bool):
         """(ok (n,), psi (n, 3) [rad] of the chosen candidate, binding code (n,))."""
@@ -251,7 +281,7 @@ def largest_tilts(robot: Robot, positions: np.ndarray, azimuths_deg: ArrayLike,
     evaluation there, or the home cranks where the locked scan had already passed it).
     """
     st = (settings or AtlasSettings()).check()
-    chk = checker or _Checker(robot, st.psi_step_deg)
+    chk = checker or _Checker(robot, st.psi_step_deg, st.accel_g)
     pos = np.asarray(positions, dtype=float).reshape(-1, 3)
     az = np.asarray(azimuths_deg, dtype=float)
     tor = np.asarray(torsions_deg, dtype=float)
@@ -529,6 +559,11 @@ def _dataset(robot: Robot, st: AtlasSettings, xs, ys, zs, cat: dict, shape: tupl
                "step_m": st.step, "azimuth_step_deg": st.azimuth_step_deg,
                "max_tilt_deg": st.max_tilt_deg, "scan_deg": st.scan_deg,
                "resolution_deg": st.resolution_deg, "psi_step_deg": st.psi_step_deg,
+               "accel_g": st.accel_g,
+               "torque_check": (f"the platform accelerates at {st.accel_g:g} g in every "
+                                "direction from rest within limit_torque_Nm"
+                                if st.accel_g > 0 else "static holding torque within "
+                                "limit_torque_Nm"),
                "psi_range_deg": list(PSI_RANGE_DEG),
                "positions": npos, "wall_time_s": round(wall, 3),
                "workers": workers if workers is not None else "external scheduler",
@@ -618,6 +653,8 @@ def figures(ds: xr.Dataset, out_dir: str | Path, robot: Robot | None = None,
 
     out = Path(out_dir)
     paths = []
+    g = float(ds.attrs.get("accel_g", 0.0))
+    dyn = f", accelerating at {g:g} g" if g > 0 else ""  # the optional torque criterion
     alld = all_directions(ds).isel(torsion=0)
     zs = ds["z"].values
     filled = [k for k in range(len(zs)) if np.isfinite(alld.isel(z=k).values).any()]
@@ -640,7 +677,7 @@ def figures(ds: xr.Dataset, out_dir: str | Path, robot: Robot | None = None,
         if im is not None:
             fig.colorbar(im, ax=axes, shrink=0.6, label="tilt in every direction [deg]")
         fig.subplots_adjust(hspace=0.45, top=1 - 0.5 / (3.2 * len(pick)))
-        fig.suptitle("Largest tilt reached in every direction (min over azimuths)")
+        fig.suptitle(f"Largest tilt reached in every direction (min over azimuths){dyn}")
         paths.append(_save(fig, out / "atlas_layers.png", plt))
     # volume vs threshold
     th = np.arange(0.0, float(ds.attrs["max_tilt_deg"]) + 1e-9, 5.0)
@@ -651,6 +688,8 @@ def figures(ds: xr.Dataset, out_dir: str | Path, robot: Robot | None = None,
         ax.plot(th, [v[mode][t0][float(x)] for x in th], label=f"cranks {mode}")
     ax.set_xlabel("tilt reached in every direction [deg]")
     ax.set_ylabel("workspace volume [L]")
+    if dyn:
+        ax.set_title(dyn[2:].capitalize(), fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend()
     paths.append(_save(fig, out / "atlas_volumes.png", plt))
@@ -660,7 +699,7 @@ def figures(ds: xr.Dataset, out_dir: str | Path, robot: Robot | None = None,
         a = np.radians(np.r_[polar["azimuth"], polar["azimuth"][:1]])
         for mode in CRANKS:
             ax.plot(a, np.r_[polar[mode], polar[mode][:1]], label=f"cranks {mode}")
-        ax.set_title("Largest tilt [deg] per tilt-axis azimuth at home", fontsize=10)
+        ax.set_title(f"Largest tilt [deg] per tilt-axis azimuth at home{dyn}", fontsize=10)
         ax.legend(loc="lower left", bbox_to_anchor=(0.8, -0.1))
         paths.append(_save(fig, out / "atlas_home_polar.png", plt))
     return paths

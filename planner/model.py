@@ -278,6 +278,16 @@ def holding_function(robot: Robot) -> ca.Function:
                    lambda: _build(structure(robot))).hold_p
 
 
+def acceleration_function(robot: Robot) -> ca.Function:
+    """(x (9,), p (N_SETUP,)) -> (tau_0 (9,), A (9, 3)): at rest in minimal coordinates
+    x, the actuator torques [N m] are tau_0 + A a for a platform-centre acceleration a
+    [m/s^2] (no angular or crank acceleration); tau_0 is :func:`holding_function`'s and
+    A includes the motors' reflected rotor inertia.  The atlas's optional dynamic
+    criterion; tests/test_atlas.py checks it against Pinocchio."""
+    return _cached(("symbolic-core", structure(robot).hash),
+                   lambda: _build(structure(robot))).accel_p
+
+
 def _specialise(robot: Robot) -> SymbolicRobot:
     core = _cached(("symbolic-core", structure(robot).hash),
                    lambda: _build(structure(robot)))
@@ -306,6 +316,8 @@ class _Core:
     spherical_cos: ca.Function
     node_p: ca.Function  # (x, xd, u, tau, p)
     hold_p: ca.Function  # (x, p) -> the static holding torques (9) [N m]
+    #: (x, p) -> (static torques (9), d tau / d (platform acceleration) (9, 3)) at rest
+    accel_p: ca.Function
 
 
 def _build(robot: Robot) -> _Core:
@@ -482,7 +494,18 @@ def _build(robot: Robot) -> _Core:
         node_p=node_p,
         # at rest (xd = xdd = 0: the motor terms vanish, tanh(0) = 0)
         hold_p=ca.Function("hold_p", [x, setup], [tau_f(x, zero9, zero9, setup)], opts),
+        accel_p=_accel_function(x, xdd, setup, tau_f, zero9, opts),
     )
+
+
+def _accel_function(x, xdd, setup, tau_f, zero9, opts) -> ca.Function:
+    """At rest (xd = 0) the torques are affine in the acceleration: tau = tau_0 + A a
+    for a platform-centre acceleration a [m/s^2] with no angular or crank acceleration
+    (no velocity terms at rest, so the Jacobian A is exact)."""
+    a = ca.SX.sym("a", 3)
+    tau_a = tau_f(x, zero9, ca.vertcat(a, ca.SX.zeros(6, 1)), setup)
+    A = ca.substitute(ca.jacobian(tau_a, a), a, ca.SX.zeros(3, 1))
+    return ca.Function("accel_p", [x, setup], [tau_f(x, zero9, zero9, setup), A], opts)
 
 
 def home_x(robot: Robot | None = None) -> np.ndarray:

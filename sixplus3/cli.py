@@ -518,11 +518,15 @@ def report(ws_step: float) -> None:
               "'synchronous' runs in this process.")
 @click.option("--chunk", default=48, show_default=True, type=int,
               help="Positions per Dask task.")
+@click.option("--accel-g", default=0.0, show_default=True, type=float,
+              help="Dynamic criterion: the platform must also accelerate at this many g "
+              "in every direction from rest within the torque limit (0: static only).")
 @click.option("--no-figures", is_flag=True, help="Write only the data file.")
 @_verbosity
 def atlas(out_dir: str, step: float, azimuth_step: float, torsions: tuple[float, ...],
           max_tilt: float, resolution: float, z_range: tuple[float, float] | None,
-          workers: int, scheduler: str | None, chunk: int, no_figures: bool) -> None:
+          workers: int, scheduler: str | None, chunk: int, accel_g: float,
+          no_figures: bool) -> None:
     """The orientation-workspace atlas: the largest tilt in every direction at every
     position, cranks free vs locked (NetCDF + maps; docs/atlas.md)."""
     import time
@@ -541,7 +545,7 @@ def atlas(out_dir: str, step: float, azimuth_step: float, torsions: tuple[float,
               "pip install 'sixplus3[atlas]' (make install includes it)")
     st = at.AtlasSettings(step=step, azimuth_step_deg=azimuth_step,
                           torsions_deg=tuple(torsions) or (0.0,), max_tilt_deg=max_tilt,
-                          resolution_deg=resolution).check()
+                          resolution_deg=resolution, accel_g=accel_g).check()
     at.check_run(workers, chunk)
     if z_range is not None and not (all(math.isfinite(v) for v in z_range)
                                     and 0 < z_range[0] <= z_range[1] <= 3):

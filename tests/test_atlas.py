@@ -15,6 +15,7 @@ from sixplus3.cli import main  # noqa: E402
 from sixplus3.design import atlas as at  # noqa: E402
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics  # noqa: E402
 from sixplus3.kinematics.robot import leg_clearance, robot_ik, spherical_tilts  # noqa: E402
+from sixplus3.kinematics.rotations import rotvec_from_matrix  # noqa: E402
 from sixplus3.planner.analysis import largest_tilt, static_feasible  # noqa: E402
 from sixplus3.robot_description.robot import Robot  # noqa: E402
 
@@ -131,7 +132,8 @@ def test_cli_atlas_and_bad_input(tmp_path) -> None:
     assert (tmp_path / "atlas.nc").stat().st_size > 0
     assert (tmp_path / "atlas_home_polar.png").exists()
     for args in (["--step", "0"], ["--step", "nan"], ["--azimuth-step", "-5"],
-                 ["--z", "0.9", "0.1"], ["--workers", "0"], ["--torsion", "inf"]):
+                 ["--z", "0.9", "0.1"], ["--workers", "0"], ["--torsion", "inf"],
+                 ["--accel-g", "nan"], ["--accel-g", "-1"], ["--accel-g", "50"]):
         r = CliRunner().invoke(main, ["atlas", "-o", str(tmp_path), *args,
                                       "--scheduler", "synchronous"])
         assert r.exit_code == 2, (args, r.output)
@@ -234,10 +236,49 @@ def test_atlas_holding_torque_is_pinocchios(payload, gravity) -> None:
     ok = cfg.ok & (cfg.margins.minimum > 0.02)  # away from singular states
     assert ok.sum() > 30
     chk = at._Checker(robot, 7.5)
-    tau = chk.holding_torques(pos[ok], R[ok], psi[ok])
+    x = np.c_[pos, rotvec_from_matrix(R), psi][ok].T
+    tau = np.asarray(chk.hold.map(x.shape[1])(x, chk.setup)).T  # signed
     ref = ClosedLoopDynamics(robot).holding_torques_batch(cfg.q[ok])
     assert np.abs(ref).max() > 0.3  # torques worth comparing
     np.testing.assert_allclose(tau, ref, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(chk.required_torques(pos[ok], R[ok], psi[ok]),
+                                  np.abs(tau))
+
+
+def test_acceleration_criterion_is_pinocchios_inverse_dynamics() -> None:
+    """The optional dynamic check: at rest, tau_0 + A a (planner.model.
+    acceleration_function, CasADi) against Pinocchio's closed-loop inverse dynamics with
+    the actuated accelerations of that platform acceleration (ik_jacobian), motors'
+    rotor inertia included; and the worst direction |tau_0| + |a| |A_j| reached."""
+    from sixplus3.kinematics.robot import ik_jacobian
+    from sixplus3.robot_description.physical import Payload
+
+    robot = Robot(payload=Payload(mass=0.8, com=(0.0, 0.01, 0.04)))
+    rng = np.random.default_rng(6)
+    n = 200
+    pos = np.asarray(robot.home_position) + rng.uniform(-0.06, 0.06, (n, 3))
+    R = at.rotations(rng.uniform(0, 360, n), rng.uniform(0, 60, n), 0.0)
+    psi = np.radians(rng.uniform(60, 120, (n, 3)))
+    cfg = robot_ik(pos, R, psi, robot)
+    ok = cfg.ok & (cfg.margins.minimum > 0.05)
+    assert ok.sum() > 30
+    chk = at._Checker(robot, 7.5, accel_g=1.0)
+    x = np.c_[pos, rotvec_from_matrix(R), psi][ok].T
+    tau0, A = chk.hold.map(x.shape[1])(x, chk.setup)
+    tau0 = np.asarray(tau0).T
+    A = np.asarray(A).reshape(9, -1, 3).transpose(1, 0, 2)  # (m, 9, 3)
+    a = rng.normal(size=(int(ok.sum()), 3)) * 9.81
+    th_ddot = np.einsum("nij,nj->ni", ik_jacobian(cfg.take(ok))[:, :, 0:3], a)
+    ref, _ = ClosedLoopDynamics(robot).actuated_inverse_dynamics_batch(
+        cfg.q[ok], np.zeros_like(th_ddot), th_ddot)
+    assert np.abs(ref - tau0).max() > 0.1  # the acceleration matters
+    np.testing.assert_allclose(tau0 + np.einsum("nij,nj->ni", A, a), ref, rtol=0, atol=1e-8)
+    # the worst direction: |tau_0| + g |A_j|, attained at a = g sign(tau_0) A_j / |A_j|
+    need = chk.required_torques(pos[ok], R[ok], psi[ok])
+    j = 4
+    u = np.sign(tau0[:, j])[:, None] * A[:, j] / np.linalg.norm(A[:, j], axis=1)[:, None]
+    worst = np.abs(tau0[:, j] + 9.81 * np.einsum("ni,ni->n", A[:, j], u))
+    np.testing.assert_allclose(need[:, j], worst, rtol=1e-12)
 
 
 def test_free_candidates_are_the_leg_grid_then_pose_checks() -> None:
@@ -268,3 +309,20 @@ def test_free_candidates_are_the_leg_grid_then_pose_checks() -> None:
     np.testing.assert_array_equal(margin[live], m_ref[live])
     assert {4, 6} <= set(np.unique(stage[live]).tolist())  # clearance fails and passes
     assert np.all(stage[~live] == 0)
+
+
+def test_acceleration_criterion_only_shrinks_the_atlas() -> None:
+    """A stricter torque check (accelerate at 2 g in every direction) never gives a
+    larger tilt, free or locked, and binds somewhere (code 7)."""
+    xs, ys, zs = at.position_grid(ROBOT, COARSE.step)
+    grid = (xs[::2], ys[::2], zs[(zs > 0.2) & (zs < 0.5)][:2])
+    base = at.compute_atlas(ROBOT, COARSE, scheduler="synchronous", grid=grid)
+    st = at.AtlasSettings(**{**COARSE.__dict__, "accel_g": 2.0})
+    dyn = at.compute_atlas(ROBOT, st, scheduler="synchronous", grid=grid)
+    a = np.nan_to_num(base["max_tilt"].values, nan=-1.0)
+    b = np.nan_to_num(dyn["max_tilt"].values, nan=-1.0)
+    assert np.all(b <= a)
+    assert np.any(b < a)
+    assert (dyn["binding"].values == at.BINDING.index("torque")).sum() > (
+        base["binding"].values == at.BINDING.index("torque")).sum()
+    assert dyn.attrs["accel_g"] == 2.0 and "2 g" in dyn.attrs["torque_check"]
