@@ -9,7 +9,8 @@ the checks before it passed.
 
 Stages (the number of checks passed, in the atlas's order): 0 none, 1 reach,
 2 actuated range, 3 spherical joints, 4 leg margins; for a whole pose also 5 clearance
-and 6 platform margin.  The holding torque (check 7) stays with Pinocchio.
+and 6 platform margin.  The holding torque (check 7) is the compiled CasADi statics
+(:func:`planner.model.holding_function`), called by :mod:`design.atlas`.
 
 Packed inputs (:func:`pack`):
 
@@ -177,24 +178,22 @@ def leg_grid(pos, R, grid, legc, par, geo, mode, ref):
     return stage, score
 
 
-@njit(cache=True, error_model="numpy")
-def _segments(row, i, legc, par, out):
-    """The upper links AD, DP, GE, HF of leg i in the robot frame: out (4, 2, 3)."""
-    pts = np.empty((7, 3))
-    # A, D, P, G, E, H, F in the leg frame
-    pts[0, 0], pts[0, 1], pts[0, 2] = 0.0, 0.0, 0.0
-    for k, f in enumerate((PD, PP, PG, PE, PH, PF)):
-        pts[k + 1, 0], pts[k + 1, 1], pts[k + 1, 2] = row[f], row[f + 1], row[f + 2]
-    w = np.empty((7, 3))
-    for k in range(7):
-        for r in range(3):
-            w[k, r] = (legc[i, 3 * r] * pts[k, 0] + legc[i, 3 * r + 1] * pts[k, 1]
-                       + legc[i, 3 * r + 2] * pts[k, 2] + legc[i, 9 + r])
+@njit(cache=True, inline="always", error_model="numpy")
+def _world(legc, i, row, f, out):
+    """Point ``row[f:f+3]`` of leg i (leg frame; f < 0: the origin A) into ``out`` (3,),
+    robot frame."""
+    x, y, z = (0.0, 0.0, 0.0) if f < 0 else (row[f], row[f + 1], row[f + 2])
     for r in range(3):
-        out[0, 0, r], out[0, 1, r] = w[0, r], w[1, r]  # AD
-        out[1, 0, r], out[1, 1, r] = w[1, r], w[2, r]  # DP
-        out[2, 0, r], out[2, 1, r] = w[3, r], w[4, r]  # GE
-        out[3, 0, r], out[3, 1, r] = w[5, r], w[6, r]  # HF
+        out[r] = (legc[i, 3 * r] * x + legc[i, 3 * r + 1] * y + legc[i, 3 * r + 2] * z
+                  + legc[i, 9 + r])
+
+
+@njit(cache=True, error_model="numpy")
+def _segments(row, i, legc, out):
+    """The upper links AD, DP, GE, HF of leg i in the robot frame: out (4, 2, 3)."""
+    for k, (f0, f1) in enumerate(((-1, PD), (PD, PP), (PG, PE), (PH, PF))):
+        _world(legc, i, row, f0, out[k, 0])
+        _world(legc, i, row, f1, out[k, 1])
 
 
 @njit(cache=True, error_model="numpy")
@@ -227,6 +226,18 @@ def _clear(seg, clear, mid, half):
     return True
 
 
+@njit(cache=True, error_model="numpy")
+def _finish(seg, pm, m_legs, par, mid, half):
+    """Checks 5-6 of a candidate whose legs all passed 1-4 (their links ``seg``, their
+    smallest margin ``m_legs``; its platform margin ``pm``): (stage 4..6, margin, -inf
+    unless both pass)."""
+    if not _clear(seg, par[_P_CLEAR], mid, half):
+        return 4, -np.inf
+    if pm < par[_P_MARGIN]:
+        return 5, -np.inf
+    return 6, min(pm, m_legs)
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def platform_margins(psi, legc, par):
     """(m,) sigma_min / sigma_max of the column-scaled 9x9 platform Jacobian
@@ -253,19 +264,17 @@ def _platform_margin(psi, legc, par):
     for i in range(NL):
         b = legc[i, 15] + psi[i]
         lx, ly = legc[i, 12], legc[i, 13]
-        # r = P - O = tip, s = P - R_i: the crank, z = (0, 0, 1) (platform frame)
-        rx, ry, rz = lx + c * math.cos(b), ly + c * math.sin(b), legc[i, 14]
-        sx, sy, sz = rx - lx, ry - ly, 0.0
-        zx, zy, zz = 0.0, 0.0, 1.0
+        # r = P - O = the crank tip, s = P - R_i = the crank (platform frame)
+        sx, sy = c * math.cos(b), c * math.sin(b)
+        rx, ry, rz = lx + sx, ly + sy, legc[i, 14]
         o = 3 * i
         J[o, 0] = J[o + 1, 1] = J[o + 2, 2] = 1.0
         # -[r]x / L
         J[o, 4], J[o, 5] = rz / L, -ry / L
         J[o + 1, 3], J[o + 1, 5] = -rz / L, rx / L
         J[o + 2, 3], J[o + 2, 4] = ry / L, -rx / L
-        J[o, 6 + i] = (zy * sz - zz * sy) / c
-        J[o + 1, 6 + i] = (zz * sx - zx * sz) / c
-        J[o + 2, 6 + i] = (zx * sy - zy * sx) / c
+        # z x s / c with z = (0, 0, 1)
+        J[o, 6 + i], J[o + 1, 6 + i] = -sy / c, sx / c
     ev = np.linalg.eigvalsh(J.T @ J)  # ascending
     if ev[8] <= 0.0:
         return 0.0
@@ -300,20 +309,12 @@ def pose_checks(pos, R, psi, platform, legc, par, geo, mode, ref):
                     break
                 if s == 4:
                     m_min = min(m_min, m)
-                    _segments(row, i, legc, par, seg[i])
+                    _segments(row, i, legc, seg[i])
             stage[k, c] = s_min
-            if s_min < 4:
-                continue
-            if not _clear(seg, par[_P_CLEAR], mid, half):
-                continue
-            stage[k, c] = 5
-            pm = platform[k, c]
-            if pm < par[_P_MARGIN]:
-                continue
-            stage[k, c] = 6
-            margin[k, c] = min(pm, m_min)
+            if s_min == 4:
+                stage[k, c], margin[k, c] = _finish(seg, platform[k, c], m_min, par, mid,
+                                                    half)
     return stage, margin
-
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -359,10 +360,10 @@ def free_candidates(pos, R, grid, table, legc, par, geo, mode, ref):
                     score[1, i], pick[1, i] = score[0, i], pick[0, i]
                     seg[1, i] = seg[0, i]
                     score[0, i], pick[0, i] = m, g
-                    _segments(row, i, legc, par, seg[0, i])
+                    _segments(row, i, legc, seg[0, i])
                 elif m > score[1, i]:
                     score[1, i], pick[1, i] = m, g
-                    _segments(row, i, legc, par, seg[1, i])
+                    _segments(row, i, legc, seg[1, i])
             leg_best[k, i] = top
             if top < 4:
                 live = False
@@ -379,13 +380,6 @@ def free_candidates(pos, R, grid, table, legc, par, geo, mode, ref):
                 idx[k, c, i] = pick[w, i]
                 cand[i] = seg[w, i]
                 m_min = min(m_min, score[w, i])
-            stage[k, c] = 4
-            if not _clear(cand, par[_P_CLEAR], mid, half):
-                continue
-            stage[k, c] = 5
             pm = table[idx[k, c, 0], idx[k, c, 1], idx[k, c, 2]]
-            if pm < par[_P_MARGIN]:
-                continue
-            stage[k, c] = 6
-            margin[k, c] = min(pm, m_min)
+            stage[k, c], margin[k, c] = _finish(cand, pm, m_min, par, mid, half)
     return idx, stage, margin, leg_best

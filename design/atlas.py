@@ -155,11 +155,8 @@ class _Checker:
         self.robot = robot
         self.lim = robot.limits
         self.accel = float(accel_g) * GRAVITY  # [m/s^2]
-        # one per process and structure (a chunk builds a checker; the source is 12 ms)
-        kind, make = (("atlas-accel", acceleration_function) if accel_g > 0
-                      else ("atlas-hold", holding_function))
-        self.hold = _cached((kind, structure(robot).hash),
-                            lambda: codegen.compiled_small(make(robot)))
+        make = acceleration_function if accel_g > 0 else holding_function
+        self.hold = codegen.compiled_small(make(robot), structure(robot).hash)
         self.setup = ca.DM(setup_parameters(robot))
         lo, hi = PSI_RANGE_DEG
         self.psi_grid = np.radians(np.arange(lo, hi + 1e-9, psi_step_deg))
@@ -374,12 +371,13 @@ def position_grid(robot: Robot, step: float) -> tuple[np.ndarray, np.ndarray, np
     axis = np.arange(-extent, extent + 1e-9, coarse)
     zs = np.arange(coarse, extent + 1e-9, coarse)
     X, Y = np.meshgrid(axis, axis, indexing="ij")
-    chk = _Checker(robot, 15.0)
+    packed = _kernel.pack(robot)
+    grid = np.radians(np.arange(PSI_RANGE_DEG[0], PSI_RANGE_DEG[1] + 1e-9, 15.0))
+    level = np.broadcast_to(np.eye(3), (X.size, 3, 3)).copy()
     inside = []
     for z in zs:
         pos = np.c_[X.ravel(), Y.ravel(), np.full(X.size, z)]
-        stage, _ = _kernel.leg_grid(pos, np.broadcast_to(np.eye(3), (len(pos), 3, 3)).copy(),
-                                    chk.psi_grid, *chk.packed)
+        stage, _ = _kernel.leg_grid(pos, level, grid, *packed)
         ok = np.all(stage.max(axis=1) >= 1, axis=1)  # every leg reaches, some crank
         if ok.any():
             inside.append(pos[ok])

@@ -230,18 +230,20 @@ def compile_library(directory: Path, name: str, src: str, flags: tuple[str, ...]
     return lib
 
 
-def compiled_small(f: ca.Function) -> ca.Function:
+def compiled_small(f: ca.Function, key: str) -> ca.Function:
     """A small function (thousands of instructions, not the planner's 11 MB Jacobian)
-    compiled with ``CFLAGS`` in the foreground (about a second), cached on disk like the
-    planner's libraries and per process by the source's hash.  Returns ``f`` itself
-    (interpreted, the same results) when code generation is off or fails."""
+    compiled with ``CFLAGS`` in the foreground (about a second).  Cached per process by
+    ``f``'s name and ``key`` (what ``f`` depends on, e.g. the robot structure's hash: the
+    C source is not generated again), and on disk, like the planner's libraries, by the
+    source's hash.  Returns ``f`` itself (interpreted, the same results) when code
+    generation is off or fails."""
     if not codegen_enabled():
         return f
-    cg = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False})
-    cg.add(f)
-    src = cg.dump()
 
     def build() -> ca.Function:
+        cg = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False})
+        cg.add(f)
+        src = cg.dump()
         lib = _lib_path(cache_dir(), f.name(), src, CFLAGS)
         try:
             if not lib.exists():
@@ -252,7 +254,7 @@ def compiled_small(f: ca.Function) -> ca.Function:
             log.warning("compiling %s failed (%s); interpreted", f.name(), exc)
             return f
 
-    return _cached(("compiled-small", hashlib.sha256(src.encode()).hexdigest()), build)
+    return _cached(("compiled-small", f"{f.name()}:{key}"), build)
 
 
 def _wait_with_progress(procs: list[subprocess.Popen], libs: list[Path]) -> None:

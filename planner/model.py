@@ -268,29 +268,47 @@ def symbolic_robot(robot: Robot | None = None) -> SymbolicRobot:
     return _cached(("symbolic", robot.hash), lambda: _specialise(robot))
 
 
+def _core(robot: Robot) -> _Core:
+    """The structure's symbolic model, built once per process."""
+    return _cached(("symbolic-core", structure(robot).hash), lambda: _build(structure(robot)))
+
+
 def holding_function(robot: Robot) -> ca.Function:
     """(x (9,), p (N_SETUP,)) -> the static holding torques (9,) [N m] of the robot's
     structure at rest in minimal coordinates x: tau = (d theta / d x)^-T Q(x) with only
-    gravity in Q (the symbolic model above at xd = xdd = 0; the setup p from
-    :func:`setup_parameters` carries gravity, payload and mounting).  The atlas's torque
-    check; tests/test_atlas.py checks it against Pinocchio's closed-loop statics."""
-    return _cached(("symbolic-core", structure(robot).hash),
-                   lambda: _build(structure(robot))).hold_p
+    gravity in Q (the symbolic model above at xd = xdd = 0, where the motor terms vanish;
+    the setup p from :func:`setup_parameters` carries gravity, payload and mounting).
+    The atlas's torque check; tests/test_atlas.py checks it against Pinocchio's
+    closed-loop statics."""
+    def make() -> ca.Function:
+        x, p, zero = ca.SX.sym("x", NX), ca.SX.sym("p", N_SETUP), ca.SX.zeros(NX, 1)
+        return ca.Function("hold_p", [x, p], [_core(robot).tau(x, zero, zero, p)],
+                           {"cse": True})
+
+    return _cached(("symbolic-hold", structure(robot).hash), make)
 
 
 def acceleration_function(robot: Robot) -> ca.Function:
     """(x (9,), p (N_SETUP,)) -> (tau_0 (9,), A (9, 3)): at rest in minimal coordinates
     x, the actuator torques [N m] are tau_0 + A a for a platform-centre acceleration a
-    [m/s^2] (no angular or crank acceleration); tau_0 is :func:`holding_function`'s and
-    A includes the motors' reflected rotor inertia.  The atlas's optional dynamic
-    criterion; tests/test_atlas.py checks it against Pinocchio."""
-    return _cached(("symbolic-core", structure(robot).hash),
-                   lambda: _build(structure(robot))).accel_p
+    [m/s^2] (no angular or crank acceleration; with no velocity terms at rest the
+    Jacobian A is exact); tau_0 is :func:`holding_function`'s and A includes the motors'
+    reflected rotor inertia.  The atlas's optional dynamic criterion;
+    tests/test_atlas.py checks it against Pinocchio."""
+    def make() -> ca.Function:
+        x, p, a = ca.SX.sym("x", NX), ca.SX.sym("p", N_SETUP), ca.SX.sym("a", 3)
+        zero = ca.SX.zeros(NX, 1)
+        tau = _core(robot).tau
+        A = ca.jacobian(tau(x, zero, ca.vertcat(a, ca.SX.zeros(6, 1)), p), a)
+        return ca.Function("accel_p", [x, p],
+                           [tau(x, zero, zero, p), ca.substitute(A, a, ca.SX.zeros(3, 1))],
+                           {"cse": True})
+
+    return _cached(("symbolic-accel", structure(robot).hash), make)
 
 
 def _specialise(robot: Robot) -> SymbolicRobot:
-    core = _cached(("symbolic-core", structure(robot).hash),
-                   lambda: _build(structure(robot)))
+    core = _core(robot)
     p = setup_parameters(robot)
     opts = {"cse": True}
     x, xd, xdd = ca.SX.sym("x", NX), ca.SX.sym("xd", NX), ca.SX.sym("xdd", NX)
@@ -315,9 +333,6 @@ class _Core:
     margins: ca.Function
     spherical_cos: ca.Function
     node_p: ca.Function  # (x, xd, u, tau, p)
-    hold_p: ca.Function  # (x, p) -> the static holding torques (9) [N m]
-    #: (x, p) -> (static torques (9), d tau / d (platform acceleration) (9, 3)) at rest
-    accel_p: ca.Function
 
 
 def _build(robot: Robot) -> _Core:
@@ -480,32 +495,17 @@ def _build(robot: Robot) -> _Core:
         "node_p", [x, xd, xdd, tau_sym, setup],
         [ca.vertcat(Jth.T @ (tau_sym - motor) - Q, th_dot, th_ddot, theta, ca.vertcat(*reach),
                     ca.vertcat(*sph), *margins_out, clear)], opts)
-    tau_f = ca.Function("tau", [x, xd, xdd, setup], [tau], opts)
-    zero9 = ca.SX.zeros(NX, 1)
     return _Core(
         theta=ca.Function("theta", [x], [theta], opts),
         theta_dot=ca.Function("theta_dot", [x, xd], [th_dot], opts),
         theta_ddot=ca.Function("theta_ddot", [x, xd, xdd], [th_ddot], opts),
-        tau=tau_f,
+        tau=ca.Function("tau", [x, xd, xdd, setup], [tau], opts),
         q=ca.Function("q", [x], [ca.vertcat(*qvec)], opts),
         reach=ca.Function("reach", [x], [ca.vertcat(*reach)], opts),
         margins=ca.Function("margins", [x], margins_out, opts),
         spherical_cos=ca.Function("spherical_cos", [x], [ca.vertcat(*sph)], opts),
         node_p=node_p,
-        # at rest (xd = xdd = 0: the motor terms vanish, tanh(0) = 0)
-        hold_p=ca.Function("hold_p", [x, setup], [tau_f(x, zero9, zero9, setup)], opts),
-        accel_p=_accel_function(x, xdd, setup, tau_f, zero9, opts),
     )
-
-
-def _accel_function(x, xdd, setup, tau_f, zero9, opts) -> ca.Function:
-    """At rest (xd = 0) the torques are affine in the acceleration: tau = tau_0 + A a
-    for a platform-centre acceleration a [m/s^2] with no angular or crank acceleration
-    (no velocity terms at rest, so the Jacobian A is exact)."""
-    a = ca.SX.sym("a", 3)
-    tau_a = tau_f(x, zero9, ca.vertcat(a, ca.SX.zeros(6, 1)), setup)
-    A = ca.substitute(ca.jacobian(tau_a, a), a, ca.SX.zeros(3, 1))
-    return ca.Function("accel_p", [x, setup], [tau_f(x, zero9, zero9, setup), A], opts)
 
 
 def home_x(robot: Robot | None = None) -> np.ndarray:

@@ -113,8 +113,9 @@ def test_singular_configuration_raises(dyn) -> None:
 
 
 def test_batched_holding_torques_match_the_static_inverse_dynamics() -> None:
-    """holding_torques_batch (one solve per state, the atlas's) against gravity_torques
-    (the full constrained inverse dynamics at v = a = 0), with a payload and ceiling."""
+    """holding_torques_batch (one solve per state; the Pinocchio reference of the atlas's
+    compiled statics) against gravity_torques (the full constrained inverse dynamics at
+    v = a = 0), with a payload and ceiling."""
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.kinematics.robot import robot_ik
     from sixplus3.kinematics.rotations import matrix_from_rotvec
