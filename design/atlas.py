@@ -459,6 +459,23 @@ def compute_atlas(robot: Robot | None = None, settings: AtlasSettings | None = N
     return ds
 
 
+def _local_cluster(LocalCluster: Any, workers: int) -> Any:
+    """A LocalCluster of single-threaded worker processes that ignore SIGINT (they are
+    started with it ignored, which a child keeps): Ctrl-C reaches only this process,
+    which closes the cluster, instead of every worker printing its own traceback."""
+    import signal
+    import threading
+
+    main = threading.current_thread() is threading.main_thread()
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+    try:
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                            dashboard_address=None, silence_logs=40)
+    finally:
+        if main:
+            signal.signal(signal.SIGINT, old)
+
+
 def _run_chunks(robot: Robot, chunks: list, st: AtlasSettings, scheduler: str | None,
                 workers: int, progress) -> list[dict]:
     bar = None
@@ -485,8 +502,7 @@ def _run_chunks(robot: Robot, chunks: list, st: AtlasSettings, scheduler: str | 
 
         cluster = None
         if scheduler is None:
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=40)
+            cluster = _local_cluster(LocalCluster, workers)
             client = Client(cluster)
         else:
             client = Client(scheduler, timeout=30)

@@ -326,3 +326,22 @@ def test_acceleration_criterion_only_shrinks_the_atlas() -> None:
     assert (dyn["binding"].values == at.BINDING.index("torque")).sum() > (
         base["binding"].values == at.BINDING.index("torque")).sum()
     assert dyn.attrs["accel_g"] == 2.0 and "2 g" in dyn.attrs["torque_check"]
+
+
+def test_local_cluster_workers_leave_ctrl_c_to_the_command() -> None:
+    """Ctrl-C (SIGINT to the terminal's whole process group) must reach only the
+    command, which closes the cluster and prints one line: the LocalCluster's workers
+    ignore SIGINT, and this process's own handler is back afterwards."""
+    import signal
+
+    from dask.distributed import Client, LocalCluster
+
+    before = signal.getsignal(signal.SIGINT)
+    cluster = at._local_cluster(LocalCluster, 1)
+    try:
+        assert signal.getsignal(signal.SIGINT) is before
+        with Client(cluster) as client:
+            seen = client.run(lambda: int(signal.getsignal(signal.SIGINT)))
+        assert list(seen.values()) == [int(signal.SIG_IGN)]
+    finally:
+        cluster.close()
