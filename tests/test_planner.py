@@ -373,6 +373,43 @@ def test_a_violation_between_nodes_tightens_and_re_solves(monkeypatch) -> None:
     assert second["velocity"] == first["velocity"]  # only the violated limit tightens
 
 
+def test_an_overshoot_a_time_stretch_fixes_is_stretched_not_re_solved(
+        small_solution, monkeypatch) -> None:
+    """A plan whose only violations are torque, velocity or acceleration (limits that a
+    uniform time stretch lowers) is slowed down to 99.5% of them instead of re-solved:
+    the path is kept, the check passes, and no second NLP solve happens.  A stretch of
+    more than 5% is not taken (the plan is re-solved as before)."""
+    problem = Problem(small_solution.task)
+    fast = problem._stretched(small_solution, 0.97)  # 3% faster: over the limits
+    assert not fast.check.ok
+    assert all(v.startswith(("torque", "velocity", "acceleration"))
+               for v in fast.check.violations)
+    fixed = problem._retime(fast, platform_proxy=0.5, max_stretch=1.05)
+    assert fixed is not fast and fixed.check.ok
+    np.testing.assert_array_equal(fixed.x, fast.x)
+    worst = max(fixed.check.max_torque_ratio, fixed.check.max_velocity_ratio,
+                fixed.check.max_acceleration_ratio)
+    assert 0.99 <= worst <= 0.995 + 1e-9
+    assert fixed.final_time == pytest.approx(small_solution.final_time, rel=2e-3)
+    # beyond the allowed stretch: unchanged
+    too_fast = problem._stretched(small_solution, 0.9)
+    assert problem._retime(too_fast, platform_proxy=0.5, max_stretch=1.05) is too_fast
+
+    # inside solve(): the first NLP plan overshoots (made 3% faster); one solve only
+    calls = []
+    solve_once = problem._solve_once
+
+    def overshooting(*args, **kw):
+        sol = solve_once(*args, **kw)
+        calls.append(sol)
+        return problem._stretched(sol, 0.97) if len(calls) == 1 else sol
+
+    monkeypatch.setattr(problem, "_solve_once", overshooting)
+    sol = problem.solve()
+    assert len(calls) == 1 and sol.solves == 1 and sol.is_feasible()
+    assert sol.source == "ocp" and sol.time_scale > 0.97
+
+
 def test_symbolic_leg_clearance_is_a_tight_lower_bound_of_the_numeric_one() -> None:
     """The OCP's clearance rows (a soft minimum over link pairs, CasADi) never exceed the
     numeric capsule clearance of kinematics.robot and are within ln(16)/k of it, at
