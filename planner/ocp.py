@@ -115,7 +115,8 @@ class PlannerOptions:
     max_iter: int = 600  # the held-out set was measured at 250 (BENCHMARKS.md); the fixed-
     #                      duration effort solve needs more (tests/test_motion.py)
     start_max_iter: int = 250  # the cap of an NLP start that a fallback follows
-    tol: float = 1e-6
+    tol: float = 1e-4  # IPOPT's tol (acceptable: 10x for 5 iterations); 1e-6 gave the
+    #                    same durations to 4 digits in 10-35% more iterations (BENCHMARKS.md)
     regularisation: float = 1e-4
     verbose: bool = False
 
@@ -296,7 +297,13 @@ def choose_static_psi(task: Task, robot: Robot, lim: Limits, locked: bool,
             raise InfeasibleTaskError(
                 f"{where}: links of different legs interfere for every crank choice",
                 k, "leg interference", value=wp.position.tolist(), valid="clearance >= 0 m")
-        order = np.argsort(-margin)
+        # crank angles inside the NLP's range [PSI_MIN, PSI_MAX] first (its platform
+        # margin rows hold there only): a waypoint at 145 deg made the NLP's start
+        # clip to 135 deg and fail (BENCHMARKS.md); outside it only when nothing inside
+        # passes (then the baseline can still plan it)
+        inside = np.all((psis >= PSI_MIN - 1e-12) & (psis <= PSI_MAX + 1e-12), axis=1)
+        order = np.argsort(-np.where(inside & (margin >= lim.margin), margin + 10.0, margin),
+                           kind="stable")
         if margin[order[0]] < lim.margin:
             raise InfeasibleTaskError(
                 f"{where}: no crank choice keeps every singularity margin >= {lim.margin:g} "
@@ -979,7 +986,8 @@ class Problem:
              + opt.regularisation * ca.sumsqr(U / 100.0) / (N + 1) * ca.sum1(T)
              + w_effort * effort)
         nlp: dict[str, Any] = {"x": Ws, "p": P, "f": f, "g": g}
-        ipopt: dict[str, Any] = {"max_iter": opt.max_iter, "tol": opt.tol, "acceptable_tol": 1e-4,
+        ipopt: dict[str, Any] = {"max_iter": opt.max_iter, "tol": opt.tol,
+                 "acceptable_tol": 10 * opt.tol, "acceptable_iter": 5,
                  "hessian_approximation": "limited-memory",
                  # 3 pairs instead of IPOPT's 6: fewer back-solves per iteration, and a
                  # lower median solve time on the suite and on random tasks (BENCHMARKS.md)
