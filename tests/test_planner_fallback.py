@@ -148,3 +148,27 @@ def test_a_task_once_reported_infeasible_plans() -> None:
     sol = plan(task_from_dict(HELDOUT_8))
     assert sol.is_feasible() and sol.check.min_margin >= 0.05
     assert sol.baseline_time is not None and sol.final_time <= sol.baseline_time
+
+
+def test_static_crank_choice_stays_in_the_nlps_crank_range() -> None:
+    """The static choice prefers crank angles inside the NLP's range [45, 135] deg: this
+    pose's best margin is at 145 deg, outside it (the NLP's start was then clipped to
+    135 deg and failed, held-out task 20).  Inside the range a choice still meets the
+    margin; with the range's candidates removed, the wider grid's best is outside."""
+    from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
+    from sixplus3.planner import ocp
+
+    doc = {"name": "crank_range", "waypoints": [
+        {"position": [0.0, 0.0, 0.30]},
+        {"position": [0.0227, -0.0127, 0.2528], "rpy": [23.5002, 5.6536, -37.5938]},
+        {"position": [0.0, 0.0, 0.30]}]}
+    problem = Problem(task_from_dict(doc))
+    wp = problem.task.waypoints[1]
+    psis, _cfg, _t, _s, _c, margin = ocp._static_candidates(
+        problem.robot, problem.limits, wp, False)
+    inside = np.all((psis >= PSI_MIN - 1e-12) & (psis <= PSI_MAX + 1e-12), axis=1)
+    assert not inside[np.argmax(margin)]  # the unrestricted best is outside the range
+    psi = choose_static_psi(problem.task, problem.robot, problem.limits, False, {0, 2})
+    assert np.all((psi >= PSI_MIN - 1e-12) & (psi <= PSI_MAX + 1e-12))
+    chosen = np.flatnonzero(np.all(np.isclose(psis, psi[1]), axis=1))[0]
+    assert margin[chosen] >= problem.limits.margin
