@@ -181,16 +181,6 @@ def sample_cubic(t: np.ndarray, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray,
             xd[k] + s * u0 + s**2 / 2 * jerk, u0 + s * jerk)
 
 
-def midpoint_states(x: np.ndarray, xd: np.ndarray, u: np.ndarray,
-                    h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(x, xd, xdd) at the midpoints of the N intervals of lengths ``h`` (N,) of the
-    piecewise-cubic motion with node values (N+1, 9): the OCP's midpoint states."""
-    half = (np.asarray(h, dtype=float) / 2)[:, None]
-    jerk = (u[1:] - u[:-1]) / (2 * half)
-    return (x[:-1] + half * xd[:-1] + half**2 / 2 * u[:-1] + half**3 / 6 * jerk,
-            xd[:-1] + half * u[:-1] + half**2 / 2 * jerk, (u[:-1] + u[1:]) / 2)
-
-
 def actuated_profile(sr, x: np.ndarray, xd: np.ndarray,
                      xdd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(theta_dot, theta_ddot, tau, tau_gravity), each (9, n), of the samples (n, 9) of a
@@ -685,7 +675,8 @@ class Problem:
         times = np.linspace(0.0, sol.t[-1], (len(sol.t) - 1) * 10 + 1)
         x, xd, xdd = sol.sample(times)
         a = float(self._time_stretch(x, xd, xdd, target).max())
-        if not (1.0 < a <= max_stretch if max_stretch > 1.0 else 0.5 < a < 1.0):
+        wanted = 1.0 < a <= max_stretch if max_stretch > 1.0 else 0.5 < a < 1.0
+        if not wanted:
             return sol
         new = self._stretched(sol, a)
         assert new.check is not None
@@ -726,18 +717,24 @@ class Problem:
             T0, xd0, xdd0 = T0 * time_scale, xd0 / time_scale, xdd0 / time_scale**2
         if warm is not None:
             x0, xd0, xdd0, T0 = self._on_nodes(warm)
-            if warm.nlp_point is None and duration is None:
-                # a plan at 99.5% of its limits (the baseline, a stretched plan) exceeds
-                # this NLP's bounds (safety x limit): slowed uniformly to just inside them,
-                # so the start is not clipped into violating the dynamics rows (the
-                # clipped baseline started IPOPT with theta_ddot and torque residuals of
-                # 3-13 units and sent some solves astray, BENCHMARKS.md)
-                xm, xdm, um = midpoint_states(x0, xd0, xdd0, np.repeat(T0 / ns, ns))
-                a = float(stretch_factors(
-                    *actuated_profile(sr, np.r_[x0, xm], np.r_[xd0, xdm], np.r_[xdd0, um]),
-                    self.limits, 0.99 * min(safety.values())).max())
-                if 1.0 < a < 2.0:
-                    T0, xd0, xdd0 = T0 * a, xd0 / a, xdd0 / a**2
+        # the start at the nodes and the midpoints (the NLP's points), with its theta_dot,
+        # theta_ddot, torques and gravity torques from the model
+        t0 = np.r_[0.0, np.cumsum(np.repeat(T0 / ns, ns))]
+        xm, xdm, um = sample_cubic(t0, x0, xd0, xdd0, (t0[:-1] + t0[1:]) / 2)
+        pts = (np.r_[x0, xm], np.r_[xd0, xdm], np.r_[xdd0, um])
+        profile = actuated_profile(sr, *pts)
+        if warm is not None and warm.nlp_point is None and duration is None:
+            # a plan at 99.5% of its limits (the baseline, a stretched plan) exceeds this
+            # NLP's bounds (safety x limit): slowed uniformly to just inside them, so the
+            # start is not clipped into violating the dynamics rows (the clipped baseline
+            # started IPOPT with theta_ddot and torque residuals of 3-13 units and sent
+            # some solves astray, BENCHMARKS.md)
+            a = float(stretch_factors(*profile, self.limits,
+                                      0.99 * min(safety.values())).max())
+            if 1.0 < a < 2.0:
+                T0, xd0, xdd0 = T0 * a, xd0 / a, xdd0 / a**2
+                pts = (pts[0], pts[1] / a, pts[2] / a**2)  # the same cubics, slower
+                profile = actuated_profile(sr, *pts)
         # Constraint signs from the guess (a margin keeps its sign inside a free region).
         m1, m2, _ = sr.margins.map(N + 1)(x0.T)
         sign1 = np.sign(np.median(np.array(m1), axis=1))
@@ -746,22 +743,17 @@ class Problem:
         tmpl = self._template()
         tmax = safety["torque"] * lim.torque
         lb, ub = self._node_bounds(lim, sign1, sign2, platform_proxy, safety, reserve)
-        lbx, ubx = self._variable_bounds(wp_x, tmax,
-                                         safety["acceleration"] * lim.acceleration)
         # smoothness rows (see _template): per limit, 2 x 9N rows "<= 0", then 2 x 9N ">= 0"
         smooth_lo = np.tile(np.r_[np.full(18 * N, -np.inf), np.zeros(18 * N)], 2)
         smooth_hi = np.tile(np.r_[np.zeros(18 * N), np.full(18 * N, np.inf)], 2)
         cap = self.duration_cap
         T_lo, T_hi = ((0.0, np.inf if cap is None else cap) if duration is None
                       else (duration, duration))
-        lbx[-S:], ubx[-S:] = np.minimum(lbx[-S:], T_hi), np.minimum(ubx[-S:], T_hi)
+        lbx, ubx = self._variable_bounds(wp_x, tmax, safety["acceleration"] * lim.acceleration,
+                                         T_hi)
         lbg = np.r_[np.zeros(18 * N), np.tile(lb, 2 * N + 1), smooth_lo, T_lo]
         ubg = np.r_[np.zeros(18 * N), np.tile(ub, 2 * N + 1), smooth_hi, T_hi]
-        # the start's torques and theta_ddot from the model, at the nodes and midpoints
-        xm, xdm, um = midpoint_states(x0, xd0, xdd0, np.repeat(T0 / ns, ns))
-        pts = (np.r_[x0, xm].T, np.r_[xd0, xdm].T, np.r_[xdd0, um].T)
-        tau0 = np.array(sr.tau.map(2 * N + 1)(*pts))
-        acc0 = np.array(sr.theta_ddot.map(2 * N + 1)(*pts))
+        _, acc0, tau0, _ = profile  # (9, 2N+1): the nodes, then the midpoints
         z0 = np.vstack([x0.T, xd0.T, xdd0.T, tau0[:, :N + 1]])
         w0 = np.clip(np.r_[z0.ravel(order="F"), tau0[:, N + 1:].ravel(order="F"),
                            acc0.ravel(order="F"), T0], lbx, ubx)
@@ -873,9 +865,11 @@ class Problem:
         return np.r_[np.tile(node, N + 1), np.full(9 * N, tmax), np.full(9 * (2 * N + 1), 100.0),
                      np.ones(S)]
 
-    def _variable_bounds(self, wp_x: np.ndarray, tmax: float, amax: float):
+    def _variable_bounds(self, wp_x: np.ndarray, tmax: float, amax: float,
+                         total: float = np.inf):
         """Bounds of the decision vector (:meth:`_layout`): ``tmax`` [N m] on the
-        torques, ``amax`` [rad/s^2] on theta_ddot.
+        torques, ``amax`` [rad/s^2] on theta_ddot, and each segment's duration within
+        [0.02, 60] s and at most ``total`` [s] (the bound of the total duration).
 
         Waypoints, the rest conditions and locked or given crank angles are equal bounds
         (IPOPT removes such fixed variables from the problem).
@@ -902,8 +896,9 @@ class Problem:
         lo[0, 9:27] = hi[0, 9:27] = 0.0
         lo[N, 9:27] = hi[N, 9:27] = 0.0
         n_acc = 9 * (2 * N + 1)
-        return (np.r_[lo.ravel(), np.full(9 * N, -tmax), np.full(n_acc, -amax), np.full(S, 0.02)],
-                np.r_[hi.ravel(), np.full(9 * N, tmax), np.full(n_acc, amax), np.full(S, 60.0)])
+        t_lo, t_hi = min(0.02, total), min(60.0, total)
+        return (np.r_[lo.ravel(), np.full(9 * N, -tmax), np.full(n_acc, -amax), np.full(S, t_lo)],
+                np.r_[hi.ravel(), np.full(9 * N, tmax), np.full(n_acc, amax), np.full(S, t_hi)])
 
     def _template(self, warm_start: bool = False) -> dict:
         """The NLP of this task's size, built once per process and reused.
