@@ -115,8 +115,8 @@ class PlannerOptions:
     max_iter: int = 600  # the held-out set was measured at 250 (BENCHMARKS.md); the fixed-
     #                      duration effort solve needs more (tests/test_motion.py)
     start_max_iter: int = 250  # the cap of an NLP start that a fallback follows
-    tol: float = 1e-4  # IPOPT's tol (acceptable: 10x for 5 iterations); 1e-6 gave the
-    #                    same durations to 4 digits in 10-35% more iterations (BENCHMARKS.md)
+    tol: float = 1e-4  # IPOPT's tol (acceptable: 10x for 5 iterations); 4-35% fewer
+    #                    iterations than 1e-6, the same durations to 4 digits (BENCHMARKS.md)
     regularisation: float = 1e-4
     verbose: bool = False
 
