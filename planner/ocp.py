@@ -36,7 +36,10 @@ limit and re-solves from the previous primal-dual point (at most 5 times).
 
 from __future__ import annotations
 
+import contextlib
 import math
+import signal
+import threading
 import time
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -105,6 +108,35 @@ class _IterationRelay(ca.Callback):
             except Exception:  # a reporter's bug must not change the plan
                 self.listener = None
         return [1 if self.limit is not None and k >= self.limit else 0]
+
+
+@contextlib.contextmanager
+def _keyboard_interrupts():
+    """Let a Ctrl-C during an IPOPT solve stop the planner.
+
+    CasADi turns a KeyboardInterrupt raised inside IPOPT into a failed solve
+    (``NonIpopt_Exception_Thrown``); the planner's fallbacks would take that for a failed
+    start and go on to plan and write files.  The interrupt is noted here and raised once
+    the solver has returned.  Only where Python's default SIGINT handler is in place (the
+    main thread; not where SIGINT is ignored, e.g. a Dask worker).
+    """
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield
+        return
+    seen: list[int] = []
+
+    def note(signum, frame):
+        seen.append(signum)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, note)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if seen:
+        raise KeyboardInterrupt
 
 
 @dataclass(frozen=True)
@@ -775,7 +807,8 @@ class Problem:
         relay.count, relay.limit = 0, max_iter
         t_start = time.perf_counter()
         try:
-            res = solver(**args)
+            with _keyboard_interrupts():
+                res = solver(**args)
         finally:
             relay.listener, relay.limit = None, None
         solve_time = time.perf_counter() - t_start

@@ -172,3 +172,25 @@ def test_static_crank_choice_stays_in_the_nlps_crank_range() -> None:
     assert np.all((psi >= PSI_MIN - 1e-12) & (psi <= PSI_MAX + 1e-12))
     chosen = np.flatnonzero(np.all(np.isclose(psis, psi[1]), axis=1))[0]
     assert margin[chosen] >= problem.limits.margin
+
+
+def test_ctrl_c_inside_ipopt_stops_the_planner() -> None:
+    """A Ctrl-C during an IPOPT solve raises KeyboardInterrupt from solve(): CasADi turns
+    it into a failed solve, which the fallbacks would otherwise take for a failed start
+    and go on to plan.  The SIGINT handler is Python's default again afterwards."""
+    import os
+    import signal
+
+    class InterruptAtIteration3:
+        def stage(self, text: str) -> None:
+            pass
+
+        def iteration(self, k: int, duration: float, violation: float) -> None:
+            if k == 3:
+                os.kill(os.getpid(), signal.SIGINT)
+
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    problem = Problem(task_from_dict(THREE), progress=InterruptAtIteration3())
+    with pytest.raises(KeyboardInterrupt):
+        problem.solve()
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
