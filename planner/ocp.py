@@ -1023,6 +1023,10 @@ class Problem:
                  # MUMPS's own row/column scaling cost ~25% of each iteration and did not
                  # reduce the iteration count on the task suite
                  "mumps_permuting_scaling": 0, "mumps_scaling": 0,
+                 # MUMPS's approximate minimum fill ordering: its factorisations and
+                 # back-solves took 38% less time than with its automatic choice, same
+                 # iterates (BENCHMARKS.md; AMD, PORD, METIS and QAMD were slower)
+                 "mumps_pivot_order": 2,
                  "print_level": 5 if opt.verbose else 0, "sb": "yes"}
         if warm_start:
             ipopt.update({"warm_start_init_point": "yes", "mu_init": 1e-5,
