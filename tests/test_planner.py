@@ -433,3 +433,45 @@ def test_symbolic_leg_clearance_is_a_tight_lower_bound_of_the_numeric_one() -> N
     # sqrt(d^2 + 1e-12) keeps the distance differentiable at contact: <= 1e-6 m above
     assert np.all(smooth <= exact + 1e-6)
     assert np.all(exact - smooth <= math.log(16) / CLEARANCE_SHARPNESS + 1e-12)
+
+
+def test_grid_toppra_constraint_equals_toppras_per_point_one(small_solution) -> None:
+    """The baseline's TOPP-RA constraint evaluates the inverse dynamics over the whole
+    grid at once; its parameters (a, b, c, F, g after the interpolation discretisation)
+    equal those of TOPP-RA's own SecondOrderConstraint, which calls inv_dyn per point."""
+    import toppra as ta
+    import toppra.constraint as constraint
+
+    from sixplus3.planner import toppra_baseline as tb
+
+    sr = symbolic_robot()
+    x, _, _ = small_solution.sample(np.linspace(0.0, small_solution.final_time, 40))
+    ss, xs = tb.arc_length_parameter(x)
+    path = ta.SplineInterpolator(ss * tb.PATH_SCALE, xs)
+    grid = np.linspace(0.0, tb.PATH_SCALE, 31)
+
+    def per_point(q, qd, qdd):
+        return np.r_[np.array(sr.tau(q, qd, qdd)).ravel(),
+                     np.array(sr.theta_ddot(q, qd, qdd)).ravel(),
+                     np.array(sr.theta_dot(q, qd)).ravel() ** 2]
+
+    def on_grid(q, qd, qdd):
+        return np.array([per_point(*row) for row in zip(q, qd, qdd, strict=True)])
+
+    rng = np.random.default_rng(3)
+    F, g = rng.normal(size=(45, 27)), rng.uniform(1.0, 2.0, 45)
+    stock = constraint.SecondOrderConstraint(
+        per_point, lambda q: F, lambda q: g, dof=9,
+        discretization_scheme=constraint.DiscretizationType.Interpolation)
+    ours = tb._GridSecondOrderConstraint(tb.grid_inv_dyn(sr), F, g, dof=9)
+    mine = ours.compute_constraint_params(path, grid)
+    theirs = stock.compute_constraint_params(path, grid)
+    assert len(mine) == len(theirs) == 7
+    for a, b in zip(mine, theirs, strict=True):
+        if b is None:
+            assert a is None
+        else:
+            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-9)
+    # and the grid function itself is the per-point one
+    np.testing.assert_allclose(on_grid(x, 0 * x, x), tb.grid_inv_dyn(sr)(x, 0 * x, x),
+                               rtol=1e-12, atol=1e-9)
