@@ -175,9 +175,13 @@ def test_small_task_solves_and_passes_a_10x_pinocchio_check(small_solution) -> N
     sol = small_solution
     assert sol.found and sol.is_feasible()
     assert 0.0 < sol.final_time < 2.0 and sol.iterations > 0 and sol.solve_time > 0
-    # the NLP residuals are IPOPT's stopping tolerance (tol 1e-6 on the scaled problem), in
-    # N m for the torque rows: 1e-6 of the 10 N m limit; the dense check below is the test
-    assert sol.residuals["dynamics"] < 1e-6 * 10.0 and sol.residuals["waypoints"] < 1e-9
+    # the NLP's residuals are within IPOPT's constraint-violation tolerance (for a regular
+    # and for an acceptable stop), in N m for the torque rows: 1e-5 of the 10 N m limit;
+    # the dense check below (Pinocchio) is the physical test
+    tol = sol.options.constr_viol_tol
+    assert tol <= 1e-4
+    assert sol.residuals["dynamics"] <= tol and sol.residuals["integration"] <= tol
+    assert sol.residuals["waypoints"] < 1e-9
     chk = dense_check(sol, factor=10)  # independent: Pinocchio ID + numeric margins
     assert chk.samples == 10 * (len(sol.t) - 1) + 1
     assert chk.ok and chk.max_torque_ratio <= 1.0 and chk.min_margin >= 0.05
