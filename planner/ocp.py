@@ -1164,11 +1164,13 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
         violations.append(f"unreachable at {int((~cfg.ok).sum())} samples")
     thd = np.array(sr.theta_dot.map(n)(x.T, xd.T)).T
     thdd = np.array(sr.theta_ddot.map(n)(x.T, xd.T, xdd.T)).T
-    dyn = ClosedLoopDynamics(sol.robot)
-    tau = np.zeros((n, 9))
-    for k in range(n):
-        v, a = dyn.consistent_state(cfg.q[k], thd[k], thdd[k])
-        tau[k] = dyn.inverse_dynamics(cfg.q[k], v, a)
+    # Pinocchio's constrained inverse dynamics of all samples at once (the validator's,
+    # tests/test_dynamics.py checks it against the per-state one); NaN at a parallel
+    # singularity, where no torque is defined
+    tau, _ = ClosedLoopDynamics(sol.robot).actuated_inverse_dynamics_batch(cfg.q, thd, thdd)
+    if not np.isfinite(tau).all():
+        violations.append(f"no torque defined (singular) at "
+                          f"{int((~np.isfinite(tau).all(axis=1)).sum())} samples")
     lm = measure_limits(cfg, tau, cfg.theta, thd, thdd, sol.limits)
     violations += lm.violations
     return DenseCheck(ok=not violations, samples=n, max_torque_ratio=lm.max_torque_ratio,

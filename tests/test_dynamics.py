@@ -162,7 +162,8 @@ def test_batched_closure_jacobian_and_drift_match_pinocchio_per_state(dyn) -> No
 
 
 def test_batched_inverse_dynamics_matches_the_per_state_one() -> None:
-    """actuated_inverse_dynamics_batch (the validator's) against actuated_inverse_dynamics,
+    """actuated_inverse_dynamics_batch (the validator's and the dense check's) against
+    actuated_inverse_dynamics and consistent_state + inverse_dynamics,
     state by state, moving and at rest, with a payload and the motor model."""
     from sixplus3.robot_description.physical import Payload
 
@@ -177,5 +178,9 @@ def test_batched_inverse_dynamics_matches_the_per_state_one() -> None:
     for k in range(len(q)):
         one, rc = dyn.actuated_inverse_dynamics(q[k], th_d[k], th_dd[k])
         np.testing.assert_allclose(tau[k], one, atol=1e-10, rtol=0)
+        # and the tree's consistent state, then RNEA through G (the other route)
+        v, a = dyn.consistent_state(q[k], th_d[k], th_dd[k])
+        np.testing.assert_allclose(tau[k], dyn.inverse_dynamics(q[k], v, a), atol=1e-10,
+                                   rtol=0)
         assert rcond[k] > 0 and rc > 0
     assert np.abs(tau).max() > 0.5
