@@ -100,14 +100,14 @@ def _smoothed_profile(traj, d: np.ndarray, duration: float, width: float, step: 
     return t, s / s[-1], v / s[-1], u / s[-1]
 
 
-def _stretch_needed(sr, limits, xa, d, t, s, v, u, target: float) -> float:
+def _stretch_needed(robot, limits, xa, d, t, s, v, u, target: float) -> float:
     """Smallest uniform time stretch a bringing the segment within ``target`` of the
     velocity, acceleration, torque, jerk and torque-rate limits (4x grid)."""
     from sixplus3.planner.ocp import actuated_profile, sample_cubic, stretch_factors
 
     tt = np.linspace(0.0, t[-1], 4 * (len(t) - 1) + 1)
     ss, vv, uu = sample_cubic(t, s[:, None], v[:, None], u[:, None], tt)
-    thd, thdd, tau, grav = actuated_profile(sr, xa + ss * d, vv * d, uu * d)
+    thd, thdd, tau, grav = actuated_profile(robot, xa + ss * d, vv * d, uu * d)
     if (np.abs(grav) >= target * limits.torque).any():
         return math.inf  # gravity alone exceeds the limit somewhere on the line
     dt = tt[1] - tt[0]
@@ -165,7 +165,7 @@ def baseline_plan(problem, psi_wp: np.ndarray, step: float = NODE_STEP,
             except RuntimeError as exc:
                 return None, f"segment {k}: {exc}"
             t, s, v, u = _smoothed_profile(traj, d, float(traj.duration), width, step)
-            a = _stretch_needed(sr, lim, xa, d, t, s, v, u, target)
+            a = _stretch_needed(robot, lim, xa, d, t, s, v, u, target)
             if not math.isfinite(a):
                 return None, f"segment {k}: no time scaling meets the limits on the line"
             a = max(a, 0.5)

@@ -22,6 +22,11 @@ process loads the optimised library.  :func:`ensure_optimised` waits for it inst
 interrupted build leaves nothing half-written.  Without a C compiler (or with
 ``SIXPLUS3_NO_CODEGEN=1``) the planner falls back to the interpreted functions: same
 results, slower.
+
+Small functions (thousands of instructions: the planner's profile function, the atlas's
+holding torques) are compiled with ``CFLAGS`` in the foreground by :func:`compiled_small`
+(a few seconds, once per machine and structure; :func:`ensure_optimised` builds the
+profile function too).
 """
 
 from __future__ import annotations
@@ -257,6 +262,18 @@ def compiled_small(f: ca.Function, key: str) -> ca.Function:
     return _cached(("compiled-small", f"{f.name()}:{key}"), build)
 
 
+def compiled_profile(robot: Robot) -> tuple[ca.Function, ca.DM]:
+    """(f, p): :func:`planner.model.profile_function` compiled (:func:`compiled_small`),
+    and ``robot``'s setup parameters to pass as its last input.  Cached per process."""
+    from sixplus3.planner.model import profile_function, setup_parameters, structure
+
+    def make() -> tuple[ca.Function, ca.DM]:
+        return (compiled_small(profile_function(robot), structure(robot).hash),
+                ca.DM(setup_parameters(robot)))
+
+    return _cached(("compiled-profile", robot.hash), make)
+
+
 def _wait_with_progress(procs: list[subprocess.Popen], libs: list[Path]) -> None:
     """Wait for the compilers (and background builds of ``libs``), showing the elapsed
     time (a tqdm line on a terminal, a line every 30 s otherwise) so a first run never
@@ -347,6 +364,7 @@ def ensure_optimised(robot: Robot) -> bool:
     from sixplus3.planner.model import structure
 
     _cached(("compiled", structure(robot).hash), lambda: _compiled(robot, True))
+    compiled_profile(robot)  # the small profile function too (a few seconds, once)
     return build_kind(robot) == "optimised"
 
 
@@ -361,4 +379,4 @@ def build_kind(robot: Robot) -> str:
 
 
 __all__ = ["build_kind", "cache_dir", "codegen_enabled", "compiled_functions",
-           "compiled_small", "ensure_optimised"]
+           "compiled_profile", "compiled_small", "ensure_optimised"]

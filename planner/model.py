@@ -307,6 +307,25 @@ def acceleration_function(robot: Robot) -> ca.Function:
     return _cached(("symbolic-accel", structure(robot).hash), make)
 
 
+def profile_function(robot: Robot) -> ca.Function:
+    """(x, xd, xdd, p) -> (theta_dot, theta_ddot, tau, tau_gravity), each (9,): the
+    actuated rates [rad/s], accelerations [rad/s^2], torques and gravity torques [N m] of
+    a state in minimal coordinates, with the setup p (:func:`setup_parameters`).  One
+    function for the planner's profiles (time stretches, warm starts, the baseline's
+    TOPP-RA), compiled by :func:`planner.codegen.compiled_small`; the same expressions as
+    :class:`SymbolicRobot`'s (tests/test_planner.py)."""
+    def make() -> ca.Function:
+        core = _core(robot)
+        x, xd, xdd = ca.SX.sym("x", NX), ca.SX.sym("xd", NX), ca.SX.sym("xdd", NX)
+        p, zero = ca.SX.sym("p", N_SETUP), ca.SX.zeros(NX, 1)
+        return ca.Function("profile_p", [x, xd, xdd, p],
+                           [core.theta_dot(x, xd), core.theta_ddot(x, xd, xdd),
+                            core.tau(x, xd, xdd, p), core.tau(x, zero, zero, p)],
+                           {"cse": True})
+
+    return _cached(("symbolic-profile", structure(robot).hash), make)
+
+
 def _specialise(robot: Robot) -> SymbolicRobot:
     core = _core(robot)
     p = setup_parameters(robot)

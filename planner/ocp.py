@@ -218,15 +218,17 @@ def sample_cubic(t: np.ndarray, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray,
             xd[k] + s * u0 + s**2 / 2 * jerk, u0 + s * jerk)
 
 
-def actuated_profile(sr, x: np.ndarray, xd: np.ndarray,
+def actuated_profile(robot: Robot, x: np.ndarray, xd: np.ndarray,
                      xdd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(theta_dot, theta_ddot, tau, tau_gravity), each (9, n), of the samples (n, 9) of a
-    motion, with the CasADi model ``sr``."""
-    n = len(x)
-    return (np.array(sr.theta_dot.map(n)(x.T, xd.T)),
-            np.array(sr.theta_ddot.map(n)(x.T, xd.T, xdd.T)),
-            np.array(sr.tau.map(n)(x.T, xd.T, xdd.T)),
-            np.array(sr.tau.map(n)(x.T, 0 * xd.T, 0 * xdd.T)))
+    motion, with ``robot``'s CasADi model (:func:`planner.model.profile_function`,
+    compiled: ~20x faster than the interpreted functions on 400 samples, the same
+    numbers, BENCHMARKS.md)."""
+    from sixplus3.planner.codegen import compiled_profile
+
+    f, p = compiled_profile(robot)
+    out = f.map(len(x))(x.T, xd.T, xdd.T, p)
+    return tuple(np.array(v) for v in out)  # type: ignore[return-value]
 
 
 def stretch_factors(thd, thdd, tau, grav, lim: Limits, fraction: float) -> np.ndarray:
@@ -451,7 +453,8 @@ class Problem:
         torque alone exceeds the fraction get the largest stretch the formula allows
         (1e3-fold headroom floor), i.e. they are reported as needing a very slow motion.
         """
-        return stretch_factors(*actuated_profile(self.sr, x, xd, xdd), self.limits, fraction)
+        return stretch_factors(*actuated_profile(self.robot, x, xd, xdd), self.limits,
+                               fraction)
 
     def solve(self) -> Solution:
         t_wall = time.perf_counter()
@@ -759,7 +762,7 @@ class Problem:
         t0 = np.r_[0.0, np.cumsum(np.repeat(T0 / ns, ns))]
         xm, xdm, um = sample_cubic(t0, x0, xd0, xdd0, (t0[:-1] + t0[1:]) / 2)
         pts = (np.r_[x0, xm], np.r_[xd0, xdm], np.r_[xdd0, um])
-        profile = actuated_profile(sr, *pts)
+        profile = actuated_profile(self.robot, *pts)
         if warm is not None and warm.nlp_point is None and duration is None:
             # a plan at 99.5% of its limits (the baseline, a stretched plan) exceeds this
             # NLP's bounds (safety x limit): slowed uniformly to just inside them, so the
@@ -771,7 +774,7 @@ class Problem:
             if 1.0 < a < 2.0:
                 T0, xd0, xdd0 = T0 * a, xd0 / a, xdd0 / a**2
                 pts = (pts[0], pts[1] / a, pts[2] / a**2)  # the same cubics, slower
-                profile = actuated_profile(sr, *pts)
+                profile = actuated_profile(self.robot, *pts)
         # Constraint signs from the guess (a margin keeps its sign inside a free region).
         m1, m2, _ = sr.margins.map(N + 1)(x0.T)
         sign1 = np.sign(np.median(np.array(m1), axis=1))
@@ -1153,7 +1156,6 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
     """
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 
-    sr = sol.robot.symbolic()
     n = (len(sol.t) - 1) * factor + 1
     times = np.linspace(0.0, sol.t[-1], n)
     x, xd, xdd = sol.sample(times)
@@ -1162,8 +1164,7 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
     violations = []
     if not cfg.ok.all():
         violations.append(f"unreachable at {int((~cfg.ok).sum())} samples")
-    thd = np.array(sr.theta_dot.map(n)(x.T, xd.T)).T
-    thdd = np.array(sr.theta_ddot.map(n)(x.T, xd.T, xdd.T)).T
+    thd, thdd, _, _ = (v.T for v in actuated_profile(sol.robot, x, xd, xdd))
     # Pinocchio's constrained inverse dynamics of all samples at once (the validator's,
     # tests/test_dynamics.py checks it against the per-state one); NaN at a parallel
     # singularity, where no torque is defined

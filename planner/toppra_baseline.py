@@ -58,7 +58,6 @@ def toppra_time(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: int = 
 def toppra_trajectory(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: int = 400):
     """TOPP-RA's trajectory object (``traj(t, order)``) for the path through the samples
     xs (m, 9), at rest at both ends; raises RuntimeError if it finds none."""
-    sr = robot.symbolic()
     ss, xs = arc_length_parameter(np.asarray(xs, dtype=float))
     # Path parameter in [0, PATH_SCALE] rather than [0, 1]: on a unit path the platform's
     # tiny inertia makes the admissible path accelerations ~1e4 and TOPP-RA's Seidel LP
@@ -72,7 +71,7 @@ def toppra_trajectory(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: 
                   [zero, -eye, zero], [zero, zero, eye]])
     g = np.r_[np.full(18, limits.torque), np.full(18, limits.acceleration),
               np.full(9, limits.velocity**2)]
-    pc = _GridSecondOrderConstraint(grid_inv_dyn(sr), F, g, dof=9)
+    pc = _GridSecondOrderConstraint(grid_inv_dyn(robot), F, g, dof=9)
     grid = np.linspace(ss[0], ss[-1], gridpoints)
     inst = algo.TOPPRA([pc], path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
     traj = inst.compute_trajectory(0.0, 0.0)
@@ -81,16 +80,15 @@ def toppra_trajectory(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: 
     return traj
 
 
-def grid_inv_dyn(sr):
+def grid_inv_dyn(robot: Robot):
     """TOPP-RA's inverse dynamics over a grid: (q, qd, qdd), (m, 9) each, to the (m, 27)
-    rows [tau; theta_ddot; theta_dot^2], one mapped CasADi call per part of the model."""
+    rows [tau; theta_ddot; theta_dot^2], in one mapped call of the planner's compiled
+    profile function (:func:`planner.ocp.actuated_profile`)."""
+    from sixplus3.planner.ocp import actuated_profile
 
     def inv_dyn(q, qd, qdd):
-        m = len(q)
-        tau = np.array(sr.tau.map(m)(q.T, qd.T, qdd.T)).T
-        thdd = np.array(sr.theta_ddot.map(m)(q.T, qd.T, qdd.T)).T
-        thd = np.array(sr.theta_dot.map(m)(q.T, qd.T)).T
-        return np.hstack([tau, thdd, thd**2])
+        thd, thdd, tau, _ = actuated_profile(robot, q, qd, qdd)
+        return np.vstack([tau, thdd, thd**2]).T
 
     return inv_dyn
 

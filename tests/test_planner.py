@@ -448,7 +448,7 @@ def test_grid_toppra_constraint_equals_toppras_per_point_one(small_solution) -> 
 
     from sixplus3.planner import toppra_baseline as tb
 
-    sr = symbolic_robot()
+    sr = small_solution.robot.symbolic()
     x, _, _ = small_solution.sample(np.linspace(0.0, small_solution.final_time, 40))
     ss, xs = tb.arc_length_parameter(x)
     path = ta.SplineInterpolator(ss * tb.PATH_SCALE, xs)
@@ -467,7 +467,8 @@ def test_grid_toppra_constraint_equals_toppras_per_point_one(small_solution) -> 
     stock = constraint.SecondOrderConstraint(
         per_point, lambda q: F, lambda q: g, dof=9,
         discretization_scheme=constraint.DiscretizationType.Interpolation)
-    ours = tb._GridSecondOrderConstraint(tb.grid_inv_dyn(sr), F, g, dof=9)
+    sr_robot = small_solution.robot
+    ours = tb._GridSecondOrderConstraint(tb.grid_inv_dyn(sr_robot), F, g, dof=9)
     mine = ours.compute_constraint_params(path, grid)
     theirs = stock.compute_constraint_params(path, grid)
     assert len(mine) == len(theirs) == 7
@@ -476,6 +477,13 @@ def test_grid_toppra_constraint_equals_toppras_per_point_one(small_solution) -> 
             assert a is None
         else:
             np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-9)
-    # and the grid function itself is the per-point one
-    np.testing.assert_allclose(on_grid(x, 0 * x, x), tb.grid_inv_dyn(sr)(x, 0 * x, x),
+    # and the grid function (the compiled profile function) is the per-point one, whose
+    # gravity torques are the model's torques at rest
+    from sixplus3.planner.ocp import actuated_profile
+
+    xd = np.gradient(x, axis=0)
+    np.testing.assert_allclose(on_grid(x, xd, x), tb.grid_inv_dyn(sr_robot)(x, xd, x),
                                rtol=1e-12, atol=1e-9)
+    grav = actuated_profile(sr_robot, x, xd, x)[3].T
+    np.testing.assert_allclose(grav, [np.array(sr.tau(q, 0 * q, 0 * q)).ravel() for q in x],
+                               rtol=1e-12, atol=1e-12)
