@@ -126,6 +126,33 @@ def test_without_a_baseline_the_margin_homotopy_is_tried(monkeypatch) -> None:
     assert sol.check.min_margin >= lim
 
 
+def test_with_a_baseline_the_homotopy_comes_first_then_the_full_margin(monkeypatch) -> None:
+    """With a baseline, the first NLP is the margin homotopy (0.6 x the margin's rows)
+    from the baseline; when it fails, the NLP at the task's margin from the baseline
+    plans; either way the plan meets the task's margin in the dense check."""
+    lim = Problem(task_from_dict(THREE)).limits.margin
+    for fail_homotopy in (False, True):
+        problem = Problem(task_from_dict(THREE))
+        real = problem._solve_once
+        calls = []
+
+        def record(psi_wp, proxy, safety, warm=None, _fail=fail_homotopy, _calls=calls,
+                   _real=real, **kw):
+            _calls.append((kw.get("margin"), None if warm is None else warm.source))
+            if _fail and kw.get("margin") is not None:
+                raise InfeasibleTaskError("forced", None, "solver: Infeasible_Problem_Detected")
+            return _real(psi_wp, proxy, safety, warm=warm, **kw)
+
+        monkeypatch.setattr(problem, "_solve_once", record)
+        sol = problem.solve()
+        assert sol.is_feasible() and sol.source == "ocp" and sol.check.min_margin >= lim
+        assert calls[0] == (pytest.approx(0.6 * lim), "baseline")
+        if fail_homotopy:
+            assert calls[1] == (None, "baseline") and problem.margin_rows is None
+        else:
+            assert problem.margin_rows == pytest.approx(0.6 * lim)
+
+
 def test_pick_and_place_plans_at_margin_005() -> None:
     """Regression: a 5-pose pick-and-place at the margin 0.05 plans (the held-out check
     once reported such a task infeasible at 0.05 that planned at 0.03)."""
