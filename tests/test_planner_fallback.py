@@ -221,3 +221,26 @@ def test_ctrl_c_inside_ipopt_stops_the_planner() -> None:
     with pytest.raises(KeyboardInterrupt):
         problem.solve()
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_explicit_cranks_outside_the_search_range_widen_the_nlps_bounds() -> None:
+    """A waypoint that gives its crank angles outside [45, 135] deg (150 deg here, valid
+    for a task) widens the NLP's crank bounds to them: the NLP plans (before, every start
+    ran to its iteration cap and the baseline came back after 40 s), and the plan passes
+    through the given crank angles."""
+    import math
+
+    task = task_from_dict({"name": "p150", "waypoints": [
+        {"position": [0, 0, 0.30], "rpy": [0, 0, 0]},
+        {"position": [0.03, 0.0, 0.30], "rpy": [10, 0, 0], "psi": [150, 90, 90]},
+        {"position": [0, 0.02, 0.31], "rpy": [0, 10, 0]}]})
+    problem = Problem(task)
+    lo, hi = problem.crank_range()
+    np.testing.assert_allclose(np.degrees(lo), [45, 45, 45])
+    np.testing.assert_allclose(np.degrees(hi), [150, 135, 135])
+    sol = problem.solve()
+    assert sol.is_feasible() and sol.source == "ocp" and sol.solves == 1
+    assert sol.final_time < sol.baseline_time
+    k = task.nodes_per_segment  # the second waypoint's node
+    np.testing.assert_allclose(sol.x[k, 6:9], np.radians([150, 90, 90]), atol=1e-9)
+    assert sol.x[:, 6].max() <= math.radians(150) + 1e-6  # IPOPT relaxes bounds by ~1e-8
