@@ -461,6 +461,7 @@ class Problem:
         task, opt = self.task, self.options
         at_rest = {0, len(task.waypoints) - 1} | {w for w, wp in enumerate(task.waypoints)
                                                    if wp.stop}
+        self._check_crank_sides()
         psi_wp = choose_static_psi(task, self.robot, self.limits, opt.lock_redundancy,
                                    at_rest)
         if opt.lock_redundancy:
@@ -883,6 +884,33 @@ class Problem:
                                       for s in range(S)]), starts[-1]]
         x, xd, xdd = sol.sample(times)
         return x, xd, xdd, T
+
+    def _check_crank_sides(self) -> None:
+        """Raise InfeasibleTaskError when one crank has to pass 0 deg between waypoints.
+
+        A crank angle of 0 (or 180) deg is radial: the platform is singular there
+        (docs/planner.md), so no motion joins a waypoint whose crank is negative to one
+        where it is positive (given, or free: the static choice takes 35-145 deg).
+        Without this check the solver failed from every start and the error named a
+        binding torque limit instead.
+        """
+        wps = self.task.waypoints
+        if self.options.lock_redundancy:
+            return
+        for i in range(3):
+            side = [None if wp.psi is None else float(wp.psi[i]) for wp in wps]
+            neg = [w for w, v in enumerate(side) if v is not None and v < 0.0]
+            pos = [w for w, v in enumerate(side) if v is None or v > 0.0]
+            if neg and pos:
+                a, b = sorted((neg[0], pos[0]))
+                say = [f"waypoint {w} free (35-145 deg)" if (v := side[w]) is None else
+                       f"waypoint {w} at {math.degrees(v):.1f} deg" for w in (a, b)]
+                raise InfeasibleTaskError(
+                    f"crank {i} would have to pass the singular 0 deg between {say[0]} "
+                    f"and {say[1]}: give that crank angles of one sign at every waypoint",
+                    b, "crank angle sign", value=[None if v is None else
+                                                  round(math.degrees(v), 3) for v in side],
+                    valid="one sign per crank: all in (0, 180) deg or all in (-180, 0) deg")
 
     def crank_range(self) -> tuple[np.ndarray, np.ndarray]:
         """(lo, hi), (3,) [rad]: the NLP's bounds on the crank angles.

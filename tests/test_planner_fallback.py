@@ -244,3 +244,28 @@ def test_explicit_cranks_outside_the_search_range_widen_the_nlps_bounds() -> Non
     k = task.nodes_per_segment  # the second waypoint's node
     np.testing.assert_allclose(sol.x[k, 6:9], np.radians([150, 90, 90]), atol=1e-9)
     assert sol.x[:, 6].max() <= math.radians(150) + 1e-6  # IPOPT relaxes bounds by ~1e-8
+
+
+def test_a_crank_that_would_pass_zero_is_refused_before_any_solve(monkeypatch) -> None:
+    """A crank at -90 deg at one waypoint and at home (+90 deg) at another would have to
+    pass the radial (singular) 0 deg: refused with a message that names the crank and
+    the waypoints, before the baseline or the NLP (which failed from every start and
+    blamed the torque limit)."""
+    task = task_from_dict({"name": "neg", "waypoints": [
+        {"position": [0, 0, 0.30], "rpy": [0, 0, 0]},
+        {"position": [0.03, 0.0, 0.30], "rpy": [10, 0, 0], "psi": [-90, 90, 90]}]})
+    problem = Problem(task)
+
+    def no_solve(*a, **k):
+        raise AssertionError("solved")
+
+    monkeypatch.setattr(problem, "_solve_once", no_solve)
+    with pytest.raises(InfeasibleTaskError, match="crank 0 would have to pass the singular "
+                       "0 deg between waypoint 0 at 90.0 deg and waypoint 1 at -90.0 deg") as e:
+        problem.solve()
+    assert e.value.limit == "crank angle sign" and e.value.waypoint == 1
+    # one sign per crank is not refused by this check
+    ok = task_from_dict({"name": "pos", "waypoints": [
+        {"position": [0, 0, 0.30], "rpy": [0, 0, 0]},
+        {"position": [0.03, 0.0, 0.30], "rpy": [10, 0, 0], "psi": [60, 90, 120]}]})
+    Problem(ok)._check_crank_sides()
