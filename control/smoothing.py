@@ -38,7 +38,7 @@ from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from sixplus3.control.validation import RATE_RANGE
 from sixplus3.errors import SmoothingError
-from sixplus3.planner.ocp import Solution
+from sixplus3.planner.ocp import Solution, actuated_profile
 
 
 @dataclass(frozen=True)
@@ -80,8 +80,7 @@ def _joint_samples(sol: Solution, times: np.ndarray, a: float, t0: float = 0.0):
     xd, xdd = xd / a, xdd / a**2
     n = len(times)
     th = np.array(sr.theta.map(n)(x.T)).T
-    thd = np.array(sr.theta_dot.map(n)(x.T, xd.T)).T
-    thdd = np.array(sr.theta_ddot.map(n)(x.T, xd.T, xdd.T)).T
+    thd, thdd, _, _ = (v.T for v in actuated_profile(sol.robot, x, xd, xdd))
     return th, thd, thdd, x
 
 

@@ -138,7 +138,7 @@ def baseline_plan(problem, psi_wp: np.ndarray, step: float = NODE_STEP,
                   target: float = TARGET):
     """(Solution or None, reason): the baseline plan of ``problem`` (a
     :class:`planner.ocp.Problem`) with the crank angles ``psi_wp`` at its waypoints."""
-    from sixplus3.planner.ocp import Solution, dense_check
+    from sixplus3.planner.ocp import Solution, actuated_profile, dense_check
     from sixplus3.planner.toppra_baseline import toppra_trajectory
 
     t_start = time.perf_counter()
@@ -178,7 +178,7 @@ def baseline_plan(problem, psi_wp: np.ndarray, step: float = NODE_STEP,
         t0 += float(t[-1])
     t, x, xd, xdd = np.concatenate(ts), np.vstack(xs), np.vstack(xds), np.vstack(xdds)
     n = len(t)
-    tau = np.array(sr.tau.map(n)(x.T, xd.T, xdd.T)).T
+    tau = actuated_profile(robot, x, xd, xdd)[2].T
     theta = np.array(sr.theta.map(n)(x.T)).T
     sol = Solution(found=True, status="baseline (stop at every waypoint, TOPP-RA per segment)",
                    final_time=float(t[-1]), solve_time=0.0, iterations=0,

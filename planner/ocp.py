@@ -669,8 +669,7 @@ class Problem:
         """``sol`` with time scaled uniformly by ``a`` (slower for a > 1; the path kept,
         rates / a, accelerations / a^2, torques recomputed with the whole model),
         dense-checked."""
-        tau = np.array(self.sr.tau.map(len(sol.t))(sol.x.T, (sol.xd / a).T,
-                                                    (sol.xdd / a**2).T)).T
+        tau = actuated_profile(self.robot, sol.x, sol.xd / a, sol.xdd / a**2)[2].T
         new = Solution(
             found=True, status=sol.status, final_time=sol.final_time * a,
             solve_time=sol.solve_time, iterations=sol.iterations,
@@ -1128,8 +1127,7 @@ class Problem:
         amax = safety["acceleration"] * lim.acceleration
         names = []
         n = len(t)
-        thd = np.array(sr.theta_dot.map(n)(x.T, xd.T)).T
-        thdd = np.array(sr.theta_ddot.map(n)(x.T, xd.T, u.T)).T
+        thd, thdd, _, _ = (v.T for v in actuated_profile(self.robot, x, xd, u))
         m1, m2, mp = (np.array(a) for a in sr.margins.map(n)(x.T))
         crank_lo, crank_hi = self.crank_range()
         checks = [
@@ -1155,11 +1153,11 @@ class Problem:
         n = x.shape[0]
         ns = self.task.nodes_per_segment
         tmax = self.options.torque_safety * lim.torque
-        dyn_tau = np.array(sr.tau.map(n)(x.T, xd.T, u.T)).T
+        thd, _, dyn_tau, _ = actuated_profile(self.robot, x, xd, u)
         items = [
-            ("torque", np.abs(dyn_tau).max(axis=1) / tmax - 1.0, f"{lim.torque:g} N m"),
-            ("velocity", np.abs(np.array(sr.theta_dot.map(n)(x.T, xd.T))).max(axis=0)
-             / lim.velocity - 1.0, f"{lim.velocity:g} rad/s"),
+            ("torque", np.abs(dyn_tau).max(axis=0) / tmax - 1.0, f"{lim.torque:g} N m"),
+            ("velocity", np.abs(thd).max(axis=0) / lim.velocity - 1.0,
+             f"{lim.velocity:g} rad/s"),
         ]
         m1, m2, mp = (np.array(a) for a in sr.margins.map(n)(x.T))
         items.append(("singularity margin", lim.margin - np.minimum(np.abs(m1).min(axis=0),
