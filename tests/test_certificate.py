@@ -1,0 +1,103 @@
+"""The time-optimality certificate (planner.certificate): the exact path model, TOPP-RA
+with the third-order limits lifted, and Pinocchio on the re-timed motion."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.planner.certificate import certify, path_coefficients, plan_grid, retime_path
+from sixplus3.planner.model import home_x
+from sixplus3.planner.ocp import actuated_profile, plan
+from sixplus3.planner.task import task_from_dict
+from sixplus3.planner.toppra_baseline import toppra_time
+from sixplus3.robot_description.physical import MotorModel
+from sixplus3.robot_description.robot import Robot
+
+ROBOT = Robot.default()
+TASK = {"name": "cert", "nodes_per_segment": 10,
+        "waypoints": [{"position": [0, 0, 0.30]},
+                      {"position": [0.03, 0.0, 0.33], "rpy": [10, 0, 0]}]}
+
+
+@pytest.fixture(scope="module")
+def planned():
+    return plan(task_from_dict(TASK))
+
+
+def test_the_path_model_is_exact_in_v_and_a_with_friction(planned) -> None:
+    """tau(v, a) = A a + B v^2 + C + friction and theta_ddot(v, a) agree with the full
+    model evaluated at (x, x' v, x' a + x'' v^2), with the default motors and with strong
+    friction (which TOPP-RA's a s'' + b s'^2 + c form cannot carry)."""
+    rng = np.random.default_rng(4)
+    s = plan_grid(planned, 120)
+    x, xp, xpp = planned.sample(s)
+    strong = ROBOT.replace(motors=MotorModel(rotor_inertia=8e-3, viscous=0.3, coulomb=0.5))
+    for robot in (ROBOT, strong):
+        pc = path_coefficients(robot, x, xp, xpp)
+        v, a = rng.uniform(0.2, 3.0, len(s)), rng.normal(scale=30.0, size=len(s))
+        thd, thdd, tau, _ = (m.T for m in actuated_profile(
+            robot, x, xp * v[:, None], xp * a[:, None] + xpp * v[:, None] ** 2))
+        np.testing.assert_allclose(pc.torque(v, a), tau, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(pc.theta_ddot(v, a), thdd, rtol=0, atol=1e-8)
+        np.testing.assert_allclose(pc.theta_p * v[:, None], thd, rtol=0, atol=1e-10)
+
+
+def test_without_third_order_limits_it_agrees_with_toppra() -> None:
+    """Two independent solvers of the same problem: on a straight line at rest at both ends
+    (a regular path), torque, velocity and acceleration limits only, with the rotor
+    inertia but no friction (TOPP-RA's form), the re-timing and TOPP-RA agree to 0.5 %
+    (each is first-order accurate in its grid); with the jerk and torque-rate limits
+    the re-timing is slower."""
+    robot = ROBOT.replace(motors=MotorModel(rotor_inertia=5.1e-3, viscous=0.0, coulomb=0.0))
+    xa = home_x(robot)
+    xb = xa + np.r_[0.04, -0.02, 0.03, 0.3, -0.2, 0.1, 0.0, 0.0, 0.0]
+    s = np.linspace(0.0, 0.1, 601)  # time-like: the re-timing's v = ds/dt is O(1)
+    x = xa + s[:, None] / 0.1 * (xb - xa)
+    xp, xpp = np.tile((xb - xa) / 0.1, (len(s), 1)), np.zeros_like(x)
+    lim = robot.limits
+    free = retime_path(robot, lim, s, x, xp, xpp, jerk=False, at_rest=True)
+    topp = toppra_time(robot, x[::6], lim, gridpoints=1000).duration
+    assert free.success
+    assert abs(free.duration / topp - 1.0) < 5e-3
+    smooth = retime_path(robot, lim, s, x, xp, xpp, jerk=True, at_rest=True)
+    assert smooth.success and smooth.duration > 1.01 * free.duration
+
+
+def test_the_retimed_plan_is_feasible_in_pinocchio_and_independent_of_the_plans_timing(
+        planned) -> None:
+    """The certificate's re-timing of a plan: no slower than the plan (the plan is a
+    feasible point), within every limit with Pinocchio's torques at its grid points, and
+    the same optimum from the plan slowed down by 10 % (ratio 10 % larger)."""
+    sol = planned
+    cert = certify(sol)
+    assert cert.success and cert.jerk_limited
+    assert cert.duration <= sol.final_time * (1 + 1e-6)
+    x, xp, xpp = sol.sample(cert.s)
+    xd, xdd = cert.motion(xp, xpp)
+    thd, thdd, _, _ = (m.T for m in actuated_profile(sol.robot, x, xd, xdd))
+    cfg = robot_ik(x[:, 0:3], Rotation.from_rotvec(x[:, 3:6]).as_matrix(), x[:, 6:9],
+                   sol.robot)
+    assert cfg.ok.all()
+    tau, _ = ClosedLoopDynamics(sol.robot).actuated_inverse_dynamics_batch(cfg.q, thd, thdd)
+    lim, eps = sol.limits, 1e-6
+    assert np.abs(tau).max() <= lim.torque * (1 + eps)
+    assert np.abs(thdd).max() <= lim.acceleration * (1 + eps)
+    assert np.abs(thd).max() <= lim.velocity * (1 + eps)
+    dt = np.diff(cert.t)[:, None]
+    assert (np.abs(np.diff(thdd, axis=0)) / dt).max() <= lim.jerk * (1 + eps)
+    assert (np.abs(np.diff(tau, axis=0)) / dt).max() <= lim.torque_rate * (1 + eps)
+    np.testing.assert_allclose(cert.t[-1], cert.duration, rtol=1e-12)
+
+    a = 1.1
+    slow = dataclasses.replace(sol, t=sol.t * a, final_time=sol.final_time * a,
+                               xd=sol.xd / a, xdd=sol.xdd / a**2)
+    again = certify(slow)
+    assert again.success
+    assert abs(again.duration / cert.duration - 1.0) < 1e-3
+    assert abs(again.ratio / (a * cert.ratio) - 1.0) < 1e-3
