@@ -57,6 +57,8 @@ from sixplus3.robot_description.robot import Robot
 
 #: Built NLPs by structure (see Problem._template); one per process.
 _TEMPLATES: dict[tuple, dict] = {}
+#: a node interval next to a rest, as a share of a regular one (Problem.node_fractions)
+REST_INTERVAL = 0.4
 
 
 class _IterationRelay(ca.Callback):
@@ -410,11 +412,13 @@ class Problem:
         ns = task.nodes_per_segment
         S = task.n_segments
         wp_x = self.waypoint_states(psi_wp)
+        frac = self.node_fractions()
         xs, seg_T = [], []
         for s in range(S):
             a, b = wp_x[s], wp_x[s + 1]
             rots = Rotation.from_rotvec([a[3:6], b[3:6]])
-            tau = np.linspace(0, 1, ns + 1)[:-1] if s < S - 1 else np.linspace(0, 1, ns + 1)
+            c = np.r_[0.0, np.cumsum(frac[s])]  # the nodes' share of the segment
+            tau = c[:-1] if s < S - 1 else c
             sm = 3 * tau**2 - 2 * tau**3  # rest-to-rest smooth blend for the guess
             rv = Slerp([0, 1], rots)(sm).as_rotvec()
             seg = np.c_[a[:3] + sm[:, None] * (b[:3] - a[:3]), rv,
@@ -427,7 +431,7 @@ class Problem:
             seg_T.append(max(0.15, 2.0 * math.sqrt(2.0 * dth / 40.0), 1.5 * dth / 4.0))
         x = np.vstack(xs)
         T = np.array(seg_T)
-        t = np.concatenate([[0.0], np.cumsum(np.repeat(T / ns, ns))])
+        t = self.node_times(T)
         xd = np.gradient(x, t, axis=0)
         xd[0] = xd[-1] = 0.0
         xdd = np.gradient(xd, t, axis=0)
@@ -762,7 +766,7 @@ class Problem:
             x0, xd0, xdd0, T0 = self._on_nodes(warm)
         # the start at the nodes and the midpoints (the NLP's points), with its theta_dot,
         # theta_ddot, torques and gravity torques from the model
-        t0 = np.r_[0.0, np.cumsum(np.repeat(T0 / ns, ns))]
+        t0 = self.node_times(T0)
         xm, xdm, um = sample_cubic(t0, x0, xd0, xdd0, (t0[:-1] + t0[1:]) / 2)
         pts = (np.r_[x0, xm], np.r_[xd0, xdm], np.r_[xdd0, um])
         profile = actuated_profile(self.robot, *pts)
@@ -810,7 +814,8 @@ class Problem:
             args = {"x0": w0 / D}
         solver, relay = tmpl["solver"], tmpl["relay"]
         weights = (1.0, 0.0) if duration is None else (0.0, 1.0)
-        args.update(p=np.r_[D, lim.jerk, lim.torque_rate, weights], lbx=lbx / D,
+        args.update(p=np.r_[D, lim.jerk, lim.torque_rate, weights,
+                            self.node_fractions().ravel()], lbx=lbx / D,
                     ubx=ubx / D, lbg=lbg, ubg=ubg)
         if self.progress is not None:
             relay.listener = self._iteration_listener(D[-S:], lbg, ubg)
@@ -834,7 +839,7 @@ class Problem:
         if not found:
             raise InfeasibleTaskError(self._diagnose(x, xd, u, tau, status), None,
                                       "solver: " + status, value=status, valid="Solve_Succeeded")
-        t = np.concatenate([[0.0], np.cumsum(np.repeat(Tv / ns, ns))])
+        t = self.node_times(Tv)
         theta = np.array(sr.theta.map(N + 1)(x.T)).T
         residuals = {
             "dynamics": float(np.abs(
@@ -870,18 +875,38 @@ class Problem:
 
         return listener
 
+    def node_fractions(self) -> np.ndarray:
+        """(S, ns) each node interval's share of its segment's duration (rows sum to 1).
+
+        Uniform, except that the interval next to a rest (the start, the end, a
+        ``stop`` waypoint) is ``REST_INTERVAL`` of a regular one: the acceleration is
+        zero at rest and linear over that interval, and a full-length first interval
+        made the ramp up to the limits take twice what the torque-rate limit needs
+        (the certificate, planner.certificate, found 3 ms of 12 lost at each end of a
+        2-waypoint plan, BENCHMARKS.md)."""
+        ns, S = self.task.nodes_per_segment, self.task.n_segments
+        wps = self.task.waypoints
+        w = np.ones((S, ns))
+        for s in range(S):
+            if s == 0 or wps[s].stop:
+                w[s, 0] = REST_INTERVAL
+            if s == S - 1 or wps[s + 1].stop:
+                w[s, -1] = REST_INTERVAL
+        return w / w.sum(axis=1, keepdims=True)
+
+    def node_times(self, T: np.ndarray) -> np.ndarray:
+        """(N+1,) node times [s] for the segment durations T (S,)."""
+        steps = np.asarray(T, dtype=float)[:, None] * self.node_fractions()
+        return np.r_[0.0, np.cumsum(steps.ravel())]
+
     def _on_nodes(self, sol: Solution):
         """(x, xd, xdd, T) of a plan of this task on this NLP's node grid (its own arrays
-        if it has that grid; else sampled, ``nodes_per_segment`` uniform nodes per
-        segment)."""
+        if it has that grid; else sampled at :meth:`node_times`)."""
         ns, S = self.task.nodes_per_segment, self.task.n_segments
         if sol.source == "ocp" and len(sol.t) == ns * S + 1:
             return sol.x, sol.xd, sol.xdd, sol.segment_times
         T = np.asarray(sol.segment_times, dtype=float)
-        starts = np.r_[0.0, np.cumsum(T)]
-        times = np.r_[np.concatenate([starts[s] + T[s] * np.arange(ns) / ns
-                                      for s in range(S)]), starts[-1]]
-        x, xd, xdd = sol.sample(times)
+        x, xd, xdd = sol.sample(self.node_times(T))
         return x, xd, xdd, T
 
     def _check_crank_sides(self) -> None:
@@ -1007,11 +1032,13 @@ class Problem:
         nw = self._layout(N, S)[-1]
         # parameters: the variable scaling D (IPOPT's variables are w / D), then the
         # jerk [rad/s^3] and torque-rate [N m/s] limits of the smoothness rows below
-        P = ca.MX.sym("p", nw + 4)
+        P = ca.MX.sym("p", nw + 4 + N)
         Ws, D = ca.MX.sym("w", nw), P[0:nw]
         jerk_lim, rate_lim = P[nw], P[nw + 1]
         # objective weights: duration (minimum time) and effort (fixed duration)
         w_time, w_effort = P[nw + 2], P[nw + 3]
+        # each interval's share of its segment's duration (:meth:`node_fractions`)
+        frac = P[nw + 4:]
         W = Ws * D
         o_taum, o_acc, o_T, _ = self._layout(N, S)
         Z = ca.reshape(W[0:o_taum], 36, N + 1)
@@ -1019,7 +1046,7 @@ class Problem:
         ACC = ca.reshape(W[o_acc:o_T], 9, 2 * N + 1)  # theta_ddot at the nodes, the midpoints
         T = W[o_T:]
         X, XD, U, TAU = Z[0:9, :], Z[9:18, :], Z[18:27, :], Z[27:36, :]
-        hm = ca.horzcat(*[T[s] / ns for s in range(S) for _ in range(ns)])  # (1, N)
+        hm = ca.horzcat(*[T[s] * frac[s * ns + i] for s in range(S) for i in range(ns)])
         Hm = ca.repmat(hm, 9, 1)
         Uk, Uk1 = U[:, 0:N], U[:, 1:N + 1]
         # dynamics of the double integrator (exact for piecewise-linear acceleration)

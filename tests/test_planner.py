@@ -196,6 +196,27 @@ def test_small_task_solves_and_passes_a_10x_pinocchio_check(small_solution) -> N
     np.testing.assert_allclose(x, sol.x[[0, -1]], atol=1e-10)  # cubic evaluated at t = T
 
 
+def test_node_intervals_are_shorter_next_to_rest() -> None:
+    """Node fractions: uniform within a segment except the intervals next to the start,
+    the end and a stop waypoint, REST_INTERVAL of a regular one; rows sum to 1."""
+    from sixplus3.planner import ocp
+
+    task = task_from_dict({"name": "f", "nodes_per_segment": 5, "waypoints": [
+        {"position": [0, 0, 0.30]}, {"position": [0.02, 0, 0.30]},
+        {"position": [0.02, 0.02, 0.30], "stop": True}, {"position": [0, 0, 0.31]}]})
+    prob = Problem(task)
+    f = prob.node_fractions()
+    r = ocp.REST_INTERVAL
+    np.testing.assert_allclose(f.sum(axis=1), 1.0)
+    np.testing.assert_allclose(f[0] / f[0, 1], [r, 1, 1, 1, 1])
+    np.testing.assert_allclose(f[1] / f[1, 0], [1, 1, 1, 1, r])
+    np.testing.assert_allclose(f[2] / f[2, 1], [r, 1, 1, 1, r])
+    t = prob.node_times(np.array([0.1, 0.2, 0.3]))
+    assert len(t) == 16
+    np.testing.assert_allclose(t[[0, 5, 10, 15]], [0.0, 0.1, 0.3, 0.6])
+    np.testing.assert_allclose(t[1], 0.1 * r / (4 + r))
+
+
 def test_locking_the_redundancy_is_not_faster() -> None:
     """With the end cranks free, locking them (a feasible point of the free problem) is
     not faster.  (With the default ends at home the free problem also contains the locked
