@@ -2,7 +2,8 @@
 
 Minimal coordinates x = (platform position [m], rotation vector [rad], crank angles psi
 [rad]).  Direct multiple shooting on a chain of segments, one per pair of consecutive
-waypoints, each with ``nodes_per_segment`` intervals of a free duration T_s:
+waypoints, each with ``nodes_per_segment`` intervals of a free duration T_s (uniform,
+but shorter next to a rest: ``Problem.node_fractions``):
 
 - variables: x, xd (nodes), acceleration u = xdd (nodes, linear in between: the states
   integrate exactly as cubics), actuator torques tau and actuated accelerations

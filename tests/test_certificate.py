@@ -51,9 +51,9 @@ def test_the_path_model_is_exact_in_v_and_a_with_friction(planned) -> None:
 def test_without_third_order_limits_it_agrees_with_toppra() -> None:
     """Two independent solvers of the same problem: on a straight line at rest at both ends
     (a regular path), torque, velocity and acceleration limits only, with the rotor
-    inertia but no friction (TOPP-RA's form), the re-timing and TOPP-RA agree to 0.5 %
-    (each is first-order accurate in its grid); with the jerk and torque-rate limits
-    the re-timing is slower."""
+    inertia but no friction (TOPP-RA's form), the re-timing and TOPP-RA agree to 1e-4
+    (measured: 4e-7 against TOPP-RA with 2000 gridpoints, 9e-6 with 1000); with the
+    jerk and torque-rate limits the re-timing is slower (measured: 11.8 %)."""
     robot = ROBOT.replace(motors=MotorModel(rotor_inertia=5.1e-3, viscous=0.0, coulomb=0.0))
     xa = home_x(robot)
     xb = xa + np.r_[0.04, -0.02, 0.03, 0.3, -0.2, 0.1, 0.0, 0.0, 0.0]
@@ -67,9 +67,9 @@ def test_without_third_order_limits_it_agrees_with_toppra() -> None:
     free = retime_path(robot, lim, s, line, jerk=False, at_rest=True)
     topp = toppra_time(robot, line(s[::3])[0], lim, gridpoints=1000).duration
     assert free.success
-    assert abs(free.duration / topp - 1.0) < 5e-3
+    assert abs(free.duration / topp - 1.0) < 1e-4
     smooth = retime_path(robot, lim, s, line, jerk=True, at_rest=True)
-    assert smooth.success and smooth.duration > 1.01 * free.duration
+    assert smooth.success and smooth.duration > 1.05 * free.duration
 
 
 @pytest.mark.parametrize("jerk", [True, False])
