@@ -30,6 +30,7 @@ import time
 
 import numpy as np
 
+from sixplus3.planner.certificate import certify
 from sixplus3.planner.codegen import ensure_optimised
 from sixplus3.planner.ocp import InfeasibleTaskError, Problem
 from sixplus3.planner.task import task_from_dict
@@ -86,8 +87,6 @@ def main() -> None:
                        source=getattr(sol, "source", "ocp"))
             kind = "planned" if row["ok"] else "refused by the dense check"
             if args.certify and row["ok"]:
-                from sixplus3.planner.certificate import certify
-
                 cert = certify(sol)
                 row.update(cert_T=cert.duration, cert_ratio=cert.ratio,
                            cert_status=cert.status)

@@ -78,16 +78,24 @@ class PathCoefficients:
     coulomb: float
     coulomb_velocity: float
 
+    def rates(self, v, v2, a, col=lambda m: m, tanh=np.tanh):
+        """(theta_ddot, tau) of the re-timing (v, v^2, a): numeric with (n, 1) arrays, or
+        CasADi expressions of one joint with ``col`` picking its column as a DM and
+        ``tanh`` = ``ca.tanh`` (the one formula of both, :func:`retime_path`)."""
+        thp = col(self.theta_p)
+        thdd = thp * a + col(self.theta_pp) * v2
+        tau = (col(self.A) * a + col(self.B) * v2 + col(self.C) + self.viscous * thp * v
+               + self.coulomb * tanh(thp * v / self.coulomb_velocity))
+        return thdd, tau
+
     def torque(self, v: np.ndarray, a: np.ndarray) -> np.ndarray:
         """(n, 9) actuator torques [N m] of the re-timing (v, a), each (n,)."""
         v, a = np.asarray(v, float)[:, None], np.asarray(a, float)[:, None]
-        thd = self.theta_p * v
-        return (self.A * a + self.B * v**2 + self.C + self.viscous * thd
-                + self.coulomb * np.tanh(thd / self.coulomb_velocity))
+        return self.rates(v, v**2, a)[1]
 
     def theta_ddot(self, v: np.ndarray, a: np.ndarray) -> np.ndarray:
         v, a = np.asarray(v, float)[:, None], np.asarray(a, float)[:, None]
-        return self.theta_p * a + self.theta_pp * v**2
+        return self.rates(v, v**2, a)[0]
 
 
 def path_coefficients(robot: Robot, x: np.ndarray, xp: np.ndarray,
@@ -190,13 +198,10 @@ def retime_path(robot: Robot, limits: Limits, s: np.ndarray, path: Callable,
     add((v2[1:] - v2[:-1]) / dsm - (Acc[:-1] + Acc[1:]), 0.0, 0.0)
     add(v2_mid, 1e-12, np.inf)
     for j in range(9):
-        thp = ca.DM(pc.theta_p[:, j])
-        thdd = thp * Aa + ca.DM(pc.theta_pp[:, j]) * V2a
-        tau = (ca.DM(pc.A[:, j]) * Aa + ca.DM(pc.B[:, j]) * V2a + ca.DM(pc.C[:, j])
-               + pc.viscous * thp * Va + pc.coulomb * ca.tanh(thp * Va / pc.coulomb_velocity))
+        thdd, tau = pc.rates(Va, V2a, Aa, col=lambda m, j=j: ca.DM(m[:, j]), tanh=ca.tanh)
         add(tau / limits.torque, -1.0, 1.0)
         add(thdd / limits.acceleration, -1.0, 1.0)
-        add(thp * Va / limits.velocity, -1.0, 1.0)
+        add(ca.DM(pc.theta_p[:, j]) * Va / limits.velocity, -1.0, 1.0)
         if jerk:  # rate = difference / dt over each half interval
             add((thdd[1:] - thdd[:-1]) / (dt * limits.jerk), -1.0, 1.0)
             add((tau[1:] - tau[:-1]) / (dt * limits.torque_rate), -1.0, 1.0)

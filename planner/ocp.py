@@ -464,8 +464,7 @@ class Problem:
     def solve(self) -> Solution:
         t_wall = time.perf_counter()
         task, opt = self.task, self.options
-        at_rest = {0, len(task.waypoints) - 1} | {w for w, wp in enumerate(task.waypoints)
-                                                   if wp.stop}
+        at_rest = self.rest_waypoints()
         self._check_crank_sides()
         psi_wp = choose_static_psi(task, self.robot, self.limits, opt.lock_redundancy,
                                    at_rest)
@@ -886,14 +885,20 @@ class Problem:
         (the certificate, planner.certificate, found 3 ms of 12 lost at each end of a
         2-waypoint plan, BENCHMARKS.md)."""
         ns, S = self.task.nodes_per_segment, self.task.n_segments
-        wps = self.task.waypoints
+        rest = self.rest_waypoints()
         w = np.ones((S, ns))
         for s in range(S):
-            if s == 0 or wps[s].stop:
+            if s in rest:
                 w[s, 0] = REST_INTERVAL
-            if s == S - 1 or wps[s + 1].stop:
+            if s + 1 in rest:
                 w[s, -1] = REST_INTERVAL
         return w / w.sum(axis=1, keepdims=True)
+
+    def rest_waypoints(self) -> set[int]:
+        """Indices of the waypoints where the motion is at rest: the first, the last and
+        every ``stop`` waypoint (zero velocity and acceleration there)."""
+        wps = self.task.waypoints
+        return {0, len(wps) - 1} | {w for w, wp in enumerate(wps) if wp.stop}
 
     def node_times(self, T: np.ndarray) -> np.ndarray:
         """(N+1,) node times [s] for the segment durations T (S,)."""
@@ -1000,12 +1005,10 @@ class Problem:
             lo[k, 0:6] = hi[k, 0:6] = wp_x[w, 0:6]
             if wp.psi is not None and not opt.lock_redundancy:
                 lo[k, 6:9] = hi[k, 6:9] = wp_x[w, 6:9]
-            if wp.stop:  # at rest there: zero velocity and acceleration
-                lo[k, 9:27] = hi[k, 9:27] = 0.0
-        # start and end at rest: zero velocity and zero acceleration, so that the torque
-        # starts and ends at the holding torque (no step at either end)
-        lo[0, 9:27] = hi[0, 9:27] = 0.0
-        lo[N, 9:27] = hi[N, 9:27] = 0.0
+        # at rest (the start, the end, a stop): zero velocity and zero acceleration, so
+        # that the torque starts and ends at the holding torque (no step at either end)
+        for w in self.rest_waypoints():
+            lo[w * ns, 9:27] = hi[w * ns, 9:27] = 0.0
         n_acc = 9 * (2 * N + 1)
         t_lo, t_hi = min(0.02, total), min(60.0, total)
         return (np.r_[lo.ravel(), np.full(9 * N, -tmax), np.full(n_acc, -amax), np.full(S, t_lo)],
