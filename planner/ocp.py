@@ -60,6 +60,9 @@ from sixplus3.robot_description.robot import Robot
 _TEMPLATES: dict[tuple, dict] = {}
 #: a node interval next to a rest, as a share of a regular one (Problem.node_fractions)
 REST_INTERVAL = 0.4
+#: the NLP's torque-balance rows [N, N m] and theta_ddot ties [rad/s^2] are divided by
+#: these (the nominal joint torque and the acceleration variables' scale)
+ROW_SCALE = {"torque": 10.0, "acceleration": 100.0}
 
 
 class _IterationRelay(ca.Callback):
@@ -153,8 +156,8 @@ class PlannerOptions:
     tol: float = 1e-4  # IPOPT's tol (acceptable: 10x for 5 iterations); 4-35% fewer
     #                    iterations than 1e-6, the same durations to 4 digits (BENCHMARKS.md)
     # IPOPT's constr_viol_tol, also for an acceptable stop (IPOPT's default there is
-    # 1e-2): the largest residual of an unscaled row left in a returned solution, e.g.
-    # [N m] in the dynamics rows, [rad] or [m] in the integration rows.  The written
+    # 1e-2): the largest residual of a row left in a returned solution: [rad] or [m] in
+    # the integration rows, [10 N m] in the dynamics rows (ROW_SCALE).  The written
     # torques are Pinocchio's, not these variables (control/validation.py)
     constr_viol_tol: float = 1e-4
     regularisation: float = 1e-4
@@ -1075,7 +1078,13 @@ class Problem:
         # variables each, instead of two dense theta_ddot expressions (that made the jerk
         # rows half of the constraint Jacobian's nonzeros and ~40% of the time of an
         # IPOPT iteration, BENCHMARKS.md)
-        G = ca.vertcat(G[0:18, :], G[18:27, :] - ACC, G[27:, :])
+        # The torque-balance rows (N or N m) and the theta_ddot ties (rad/s^2) in the units
+        # of their variables' scales (ROW_SCALE): IPOPT's constr_viol_tol (1e-4) then
+        # leaves at most 1e-3 N (m) in a balance row, 1e-4 of the nominal torque, and
+        # 1e-2 rad/s^2 in a tie.  Unscaled, it asked for ~1e-6 of their size, and IPOPT
+        # spent 10-15 iterations at the end of a solve on that (BENCHMARKS.md)
+        G = ca.vertcat(G[0:9, :] / ROW_SCALE["torque"], G[9:18, :],
+                       (G[18:27, :] - ACC) / ROW_SCALE["acceleration"], G[27:, :])
         # smoothness: actuated jerk and torque rate bounded between consecutive points
         # (node k, midpoint k, node k+1; half an interval apart): |d| <= limit * h / 2,
         # as one row d / (limit h / 2) in [-1, 1] (h >= 0.02 s / nodes per segment > 0).
