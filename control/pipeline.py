@@ -76,7 +76,7 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
     secs: dict[str, float] = {}
     t0 = time.perf_counter()
     say(f"planning '{task.name}' ({len(task.waypoints)} waypoints, "
-        f"{task.n_segments * task.nodes_per_segment} intervals) ...")
+        f"{task.n_segments * task.segment_nodes} intervals) ...")
     sol = plan(task, robot, options, progress=listener)
     secs["plan"] = time.perf_counter() - t0
     assert sol.check is not None  # plan() returns only checked plans

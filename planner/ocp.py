@@ -2,7 +2,7 @@
 
 Minimal coordinates x = (platform position [m], rotation vector [rad], crank angles psi
 [rad]).  Direct multiple shooting on a chain of segments, one per pair of consecutive
-waypoints, each with ``nodes_per_segment`` intervals of a free duration T_s (uniform,
+waypoints, each with ``Task.segment_nodes`` intervals of a free duration T_s (uniform,
 but shorter next to a rest: ``Problem.node_fractions``):
 
 - variables: x, xd (nodes), acceleration u = xdd (nodes, linear in between: the states
@@ -413,7 +413,7 @@ class Problem:
 
     def _guess(self, psi_wp: np.ndarray):
         task = self.task
-        ns = task.nodes_per_segment
+        ns = task.segment_nodes
         S = task.n_segments
         wp_x = self.waypoint_states(psi_wp)
         frac = self.node_fractions()
@@ -760,7 +760,7 @@ class Problem:
         ``max_iter`` stops the solve earlier than ``options.max_iter`` (a failed start)."""
         task, opt, sr = self.task, self.options, self.sr
         lim = self.limits if margin is None else replace(self.limits, margin=margin)
-        ns, S = task.nodes_per_segment, task.n_segments
+        ns, S = task.segment_nodes, task.n_segments
         N = ns * S
         wp_x, x0, xd0, xdd0, T0 = self._guess(psi_wp)
         if time_scale != 1.0:
@@ -887,7 +887,7 @@ class Problem:
         made the ramp up to the limits take twice what the torque-rate limit needs
         (the certificate, planner.certificate, found 3 ms of 12 lost at each end of a
         2-waypoint plan, BENCHMARKS.md)."""
-        ns, S = self.task.nodes_per_segment, self.task.n_segments
+        ns, S = self.task.segment_nodes, self.task.n_segments
         rest = self.rest_waypoints()
         w = np.ones((S, ns))
         for s in range(S):
@@ -911,7 +911,7 @@ class Problem:
     def _on_nodes(self, sol: Solution):
         """(x, xd, xdd, T) of a plan of this task on this NLP's node grid (its own arrays
         if it has that grid; else sampled at :meth:`node_times`)."""
-        ns, S = self.task.nodes_per_segment, self.task.n_segments
+        ns, S = self.task.segment_nodes, self.task.n_segments
         if sol.source == "ocp" and len(sol.t) == ns * S + 1:
             return sol.x, sol.xd, sol.xdd, sol.segment_times
         T = np.asarray(sol.segment_times, dtype=float)
@@ -978,7 +978,7 @@ class Problem:
         variable by the magnitudes of its guess made IPOPT's L-BFGS slower and erratic on
         the task suite; this choice was the fastest of those measured, BENCHMARKS.md.)
         """
-        ns, S = self.task.nodes_per_segment, self.task.n_segments
+        ns, S = self.task.segment_nodes, self.task.n_segments
         N = ns * S
         node = np.r_[np.ones(18), np.full(9, 100.0), np.full(9, tmax)]
         return np.r_[np.tile(node, N + 1), np.full(9 * N, tmax), np.full(9 * (2 * N + 1), 100.0),
@@ -994,7 +994,7 @@ class Problem:
         (IPOPT removes such fixed variables from the problem).
         """
         task, opt = self.task, self.options
-        ns, S = task.nodes_per_segment, task.n_segments
+        ns, S = task.segment_nodes, task.n_segments
         N = ns * S
         lo = np.full((N + 1, 36), -np.inf)
         hi = np.full((N + 1, 36), np.inf)
@@ -1029,7 +1029,7 @@ class Problem:
         from sixplus3.planner.codegen import compiled_functions
 
         task, opt, sr = self.task, self.options, self.sr
-        ns, S = task.nodes_per_segment, task.n_segments
+        ns, S = task.segment_nodes, task.n_segments
         compiled = compiled_functions(self.robot)
         key = (self.robot.hash, ns, S, opt.max_iter, opt.tol, opt.constr_viol_tol,
                opt.regularisation, opt.verbose, bool(compiled), warm_start)
@@ -1191,7 +1191,7 @@ class Problem:
         """Name the limits most violated by the solver's last iterate."""
         sr, lim = self.sr, self.limits
         n = x.shape[0]
-        ns = self.task.nodes_per_segment
+        ns = self.task.segment_nodes
         tmax = self.options.torque_safety * lim.torque
         thd, _, dyn_tau, _ = actuated_profile(self.robot, x, xd, u)
         items = [

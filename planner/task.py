@@ -18,7 +18,8 @@ Example (units: m and degrees in the file, SI inside)::
       margin: 0.08                  # every singularity margin (robot: 0.05)
       jerk: 1.0e5                   # |d theta_ddot/dt| [rad/s^3]  (robot: 2e5)
       torque_rate: 1500             # |d tau/dt| [N m/s]           (robot: 2000)
-    nodes_per_segment: 12
+    nodes_per_segment: 12           # optional: node intervals per segment (default: 18 for
+                                    # one segment, 12 for more; Task.segment_nodes)
     torque_fraction: 0.9            # plan to this share of the torque limit (default 0.9)
     duration: 2.0                   # optional: exactly this long [s], minimum effort; or
     speed: 0.5                      # optional: the minimum time / 0.5 (also minimum effort)
@@ -56,6 +57,9 @@ from sixplus3.robot_description.robot import MOUNTINGS, Robot
 #: Default share of the torque limit a plan may use: 10 % is left for the feedback of the
 #: drives' position/velocity loops (measured need: docs/planner.md, "Feedback reserve").
 DEFAULT_TORQUE_FRACTION = 0.9
+#: Node intervals per segment when a task does not give them: (one segment, more)
+#: (:attr:`Task.segment_nodes`)
+AUTO_NODES = (18, 12)
 
 _VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
 SCHEMA = {
@@ -153,7 +157,8 @@ class Task:
     #: limits the task asks for, tightening the robot's (name -> value, SI units)
     limits: dict[str, float] = field(default_factory=dict)
     name: str = "task"
-    nodes_per_segment: int = 12
+    #: node intervals per segment; None: :data:`AUTO_NODES` (see :attr:`segment_nodes`)
+    nodes_per_segment: int | None = None
     source: dict | None = None  # the validated file content, for the trajectory header
     #: "platform": waypoints are the platform centre's poses; "tcp": the tool's
     frame: str = "platform"
@@ -175,6 +180,17 @@ class Task:
     #: within the limits); ``speed`` in (0, 1] is the minimum time divided by it
     duration: float | None = None
     speed: float | None = None
+
+    @property
+    def segment_nodes(self) -> int:
+        """Node intervals per segment: ``nodes_per_segment``, or when it is not given
+        18 for a one-segment motion and 12 for more (:data:`AUTO_NODES`).  On the
+        held-out set, 12 intervals left one-segment plans up to 5.5 % slower than the
+        fastest re-timing of their own path (the certificate); 18 brought every one
+        within 2 % (BENCHMARKS.md)."""
+        if self.nodes_per_segment is not None:
+            return self.nodes_per_segment
+        return AUTO_NODES[0] if self.n_segments == 1 else AUTO_NODES[1]
 
     @property
     def n_segments(self) -> int:
@@ -320,7 +336,8 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
         raise TaskError(f"task field setup.{exc.name}: {exc}", value=exc.value,
                         valid=exc.valid) from None
     return Task(tuple(wps), lim, str(doc.get("name", name)),
-                int(doc.get("nodes_per_segment", 12)), source=doc,
+                int(doc["nodes_per_segment"]) if "nodes_per_segment" in doc else None,
+                source=doc,
                 frame=str(doc.get("frame", "platform")), payload=payload, tool=tool,
                 mounting=setup.get("mounting"),
                 torque_fraction=float(doc.get("torque_fraction", DEFAULT_TORQUE_FRACTION)),

@@ -196,3 +196,24 @@ def test_smoothing_keeps_the_tightened_speed_and_acceleration(tmp_path) -> None:
     # the plan binds a tightened limit (otherwise this test checks nothing)
     assert max(np.abs(sm.theta_ddot).max() / 1.5, np.abs(sm.theta_dot).max() / 0.35) > 0.95
     assert res.report.ok and np.array_equal(columns(data, "acc"), sm.theta_ddot)
+
+
+def test_intervals_per_segment_default_to_18_for_one_segment_and_12_for_more() -> None:
+    """Task.segment_nodes: a task's nodes_per_segment wins; without one a one-segment
+    motion gets 18 intervals (12 left such plans up to 5.5 % off their certificate,
+    BENCHMARKS.md) and a longer one 12 per segment; the NLP uses that grid."""
+    one = task_from_dict({"name": "one", "waypoints": [A, B]})
+    three = task_from_dict({"name": "three", "waypoints": [A, B, A]})
+    given = task_from_dict({"name": "given", "waypoints": [A, B], "nodes_per_segment": 8})
+    assert one.nodes_per_segment is None and one.segment_nodes == 18
+    assert three.segment_nodes == 12 and given.segment_nodes == 8
+    # a start state adds a segment; a move to the start is one segment whatever the task
+    theta = robot_ik(np.array([A["position"]]), np.eye(3)[None], np.array([ROBOT.home_psi]),
+                     ROBOT).theta[0]
+    from_state = task_from_dict({"name": "s", "waypoints": [B],
+                                 "start": {"theta": np.degrees(theta).tolist()}})
+    assert from_state.n_segments == 1 and from_state.segment_nodes == 18
+    assert move_to_start(three, theta, ROBOT).segment_nodes == 18
+    frac = Problem(one, ROBOT).node_fractions()
+    assert frac.shape == (1, 18)
+    assert Problem(three, ROBOT).node_fractions().shape == (2, 12)

@@ -241,7 +241,7 @@ def test_explicit_cranks_outside_the_search_range_widen_the_nlps_bounds() -> Non
     sol = problem.solve()
     assert sol.is_feasible() and sol.source == "ocp" and sol.solves == 1
     assert sol.final_time < sol.baseline_time
-    k = task.nodes_per_segment  # the second waypoint's node
+    k = task.segment_nodes  # the second waypoint's node
     np.testing.assert_allclose(sol.x[k, 6:9], np.radians([150, 90, 90]), atol=1e-9)
     assert sol.x[:, 6].max() <= math.radians(150) + 1e-6  # IPOPT relaxes bounds by ~1e-8
 
