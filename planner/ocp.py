@@ -60,9 +60,11 @@ from sixplus3.robot_description.robot import Robot
 _TEMPLATES: dict[tuple, dict] = {}
 #: a node interval next to a rest, as a share of a regular one (Problem.node_fractions)
 REST_INTERVAL = 0.4
+#: the scale [(m or rad)/s^2] of the NLP's acceleration variables (u, theta_ddot)
+ACC_SCALE = 100.0
 #: the NLP's torque-balance rows [N, N m] and theta_ddot ties [rad/s^2] are divided by
 #: these (the nominal joint torque and the acceleration variables' scale)
-ROW_SCALE = {"torque": 10.0, "acceleration": 100.0}
+ROW_SCALE = {"torque": 10.0, "acceleration": ACC_SCALE}
 
 
 class _IterationRelay(ca.Callback):
@@ -980,9 +982,9 @@ class Problem:
         """
         ns, S = self.task.segment_nodes, self.task.n_segments
         N = ns * S
-        node = np.r_[np.ones(18), np.full(9, 100.0), np.full(9, tmax)]
-        return np.r_[np.tile(node, N + 1), np.full(9 * N, tmax), np.full(9 * (2 * N + 1), 100.0),
-                     np.ones(S)]
+        node = np.r_[np.ones(18), np.full(9, ACC_SCALE), np.full(9, tmax)]
+        return np.r_[np.tile(node, N + 1), np.full(9 * N, tmax),
+                     np.full(9 * (2 * N + 1), ACC_SCALE), np.ones(S)]
 
     def _variable_bounds(self, wp_x: np.ndarray, tmax: float, amax: float,
                          total: float = np.inf):
