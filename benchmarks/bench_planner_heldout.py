@@ -3,6 +3,8 @@
     .venv/bin/python benchmarks/bench_planner_heldout.py [--n 30] [--seed 2026] [--out r.jsonl]
     .venv/bin/python benchmarks/bench_planner_heldout.py --examples   # the example suite
     .venv/bin/python benchmarks/bench_planner_heldout.py --certify    # + the certificate
+    .venv/bin/python benchmarks/bench_planner_heldout.py --tasks 0,1,2 --ipopt mumps_pivtol=1e-8
+        # a subset of the tasks, with IPOPT options over the planner's (PlannerOptions)
 
 The task generator is broader than bench_planner_random.py, as in the planner-speed issue:
 2-4 waypoints, all random (start and end away from home): positions x, y in +-0.06 m,
@@ -32,7 +34,7 @@ import numpy as np
 
 from sixplus3.planner.certificate import certify
 from sixplus3.planner.codegen import ensure_optimised
-from sixplus3.planner.ocp import InfeasibleTaskError, Problem
+from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -51,6 +53,19 @@ def pct(values: list[float], q: float) -> float:
     return float(np.percentile(values, q)) if values else float("nan")
 
 
+def ipopt_pair(text: str) -> tuple[str, object]:
+    """NAME=VALUE from the command line: the value as an int, a float or a string."""
+    name, sep, value = text.partition("=")
+    if not sep or not name:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected NAME=VALUE")
+    for kind in (int, float):
+        try:
+            return name, kind(value)
+        except ValueError:
+            pass
+    return name, value
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=30)
@@ -60,7 +75,16 @@ def main() -> None:
                     help="the example suite (examples/*.yaml) instead of random tasks")
     ap.add_argument("--certify", action="store_true",
                     help="also re-time each plan's path under all its limits (after the clock)")
+    ap.add_argument("--tasks", default=None,
+                    help="comma-separated indices of the tasks to run (default: all)")
+    ap.add_argument("--ipopt", type=ipopt_pair, action="append", default=[],
+                    metavar="NAME=VALUE",
+                    help="an IPOPT option over the planner's (repeatable)")
+    ap.add_argument("--regularisation", type=float, default=None,
+                    help="the NLP's acceleration regularisation (PlannerOptions)")
     args = ap.parse_args()
+    reg = {} if args.regularisation is None else {"regularisation": args.regularisation}
+    opts = PlannerOptions(ipopt_options=tuple(args.ipopt), **reg)
     # time the planner as it runs after its first use: with the optimised build
     ensure_optimised(Robot.default())  # the one-time compile, outside the clock
     rng = np.random.default_rng(args.seed)
@@ -75,11 +99,13 @@ def main() -> None:
             (Path(__file__).parents[1] / "examples").glob("*.yaml"))]
     else:
         tasks = [task_from_dict(heldout_task(rng, k)) for k in range(args.n)]
+    if args.tasks:
+        tasks = [tasks[int(k)] for k in args.tasks.split(",")]
     for task in tasks:
         row: dict = {"name": task.name, "waypoints": len(task.waypoints)}
         t0 = time.perf_counter()
         try:
-            sol = Problem(task).solve()
+            sol = Problem(task, options=opts).solve()
             row["wall"] = time.perf_counter() - t0
             row.update(ok=sol.is_feasible(), T=sol.final_time, solve=sol.solve_time,
                        iterations=sol.iterations, solves=sol.solves, status=sol.status,

@@ -164,6 +164,26 @@ class PlannerOptions:
     constr_viol_tol: float = 1e-4
     regularisation: float = 1e-4
     verbose: bool = False
+    #: extra IPOPT options as (name, value) pairs, applied over the planner's own (expert
+    #: use: the planner's settings are the fastest measured, BENCHMARKS.md; e.g.
+    #: ``(("print_timing_statistics", "yes"), ("print_level", 5))`` shows where a solve's
+    #: time goes).  A name or value IPOPT rejects raises ValueError when the NLP is built.
+    ipopt_options: tuple[tuple[str, Any], ...] | dict[str, Any] = ()
+
+    def __post_init__(self) -> None:
+        pairs = (tuple(self.ipopt_options.items()) if isinstance(self.ipopt_options, dict)
+                 else tuple(tuple(p) for p in self.ipopt_options))
+        for pair in pairs:
+            if len(pair) != 2 or not isinstance(pair[0], str):
+                raise ValueError(f"ipopt_options: {pair!r} is not a (name, value) pair")
+            name, value = pair
+            ok = (isinstance(value, str) or (isinstance(value, (int, float))
+                                             and not isinstance(value, bool)
+                                             and math.isfinite(value)))
+            if not ok:
+                raise ValueError(f"ipopt_options: {name} = {value!r}; valid: a finite "
+                                 "number or a string")
+        object.__setattr__(self, "ipopt_options", pairs)
 
 
 @dataclass
@@ -1034,7 +1054,7 @@ class Problem:
         ns, S = task.segment_nodes, task.n_segments
         compiled = compiled_functions(self.robot)
         key = (self.robot.hash, ns, S, opt.max_iter, opt.tol, opt.constr_viol_tol,
-               opt.regularisation, opt.verbose, bool(compiled), warm_start)
+               opt.regularisation, opt.verbose, opt.ipopt_options, bool(compiled), warm_start)
         if key in _TEMPLATES:
             return _TEMPLATES[key]
         N = ns * S
@@ -1130,10 +1150,18 @@ class Problem:
             ipopt.update({"warm_start_init_point": "yes", "mu_init": 1e-5,
                           "warm_start_bound_push": 1e-7, "warm_start_slack_bound_push": 1e-7,
                           "warm_start_mult_bound_push": 1e-7})
+        ipopt.update(dict(opt.ipopt_options))  # the caller's, over the planner's
         relay = _IterationRelay(nw, g.numel())
         solver_opts: dict[str, Any] = {"expand": not compiled, "print_time": False,
                                        "ipopt": ipopt, "iteration_callback": relay}
-        solver = ca.nlpsol("planner", "ipopt", nlp, solver_opts)
+        try:
+            solver = ca.nlpsol("planner", "ipopt", nlp, solver_opts)
+        except RuntimeError as exc:
+            if not opt.ipopt_options:
+                raise
+            reason = str(exc).strip().splitlines()[-1].split(": ", 1)[-1]
+            raise ValueError(f"IPOPT rejected ipopt_options {dict(opt.ipopt_options)}: "
+                             f"{reason}") from None
         tmpl = {"solver": solver, "relay": relay}  # the relay must outlive the solver
         _TEMPLATES[key] = tmpl
         return tmpl

@@ -269,3 +269,21 @@ def test_a_crank_that_would_pass_zero_is_refused_before_any_solve(monkeypatch) -
         {"position": [0, 0, 0.30], "rpy": [0, 0, 0]},
         {"position": [0.03, 0.0, 0.30], "rpy": [10, 0, 0], "psi": [60, 90, 120]}]})
     Problem(ok)._check_crank_sides()
+
+
+def test_extra_ipopt_options_reach_ipopt_and_bad_ones_are_named() -> None:
+    """``PlannerOptions.ipopt_options`` go to IPOPT over the planner's own: IPOPT capped
+    at 2 iterations by them returns the (checked) baseline, as ``max_iter=2`` does.  A
+    malformed pair, a NaN, or an option IPOPT rejects raises ValueError naming it."""
+    task = task_from_dict({**THREE, "waypoints": THREE["waypoints"][:2]})
+    capped = Problem(task, options=PlannerOptions(ipopt_options=(("max_iter", 2),))).solve()
+    assert capped.source == "baseline" and capped.is_feasible()
+    assert capped.final_time == pytest.approx(capped.baseline_time)
+    for bad, words in (((("tol",),), "not a (name, value) pair"),
+                       ((("tol", float("nan")),), "tol = nan"),
+                       (((1, 2),), "not a (name, value) pair"),
+                       ((("tol", None),), "a finite number or a string")):
+        with pytest.raises(ValueError, match=words.replace("(", r"\(").replace(")", r"\)")):
+            PlannerOptions(ipopt_options=bad)
+    with pytest.raises(ValueError, match="No such IPOPT option: no_such_option"):
+        Problem(task, options=PlannerOptions(ipopt_options={"no_such_option": 1})).solve()
