@@ -31,6 +31,7 @@ profile function too).
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import logging
 import os
@@ -54,6 +55,35 @@ CFLAGS = ("-O1", "-fPIC", "-shared")
 QUICK_CFLAGS = ("-O0", "-fPIC", "-shared")
 #: A background build's marker older than this is a dead build [s].
 BACKGROUND_STALE_S = 1200.0
+
+
+#: CasADi's private OpenBLAS (IPOPT's MUMPS calls it); its name inside the wheel
+CASADI_OPENBLAS = "libcasadi-tp-openblas.so.0"
+_blas_done = False
+
+
+def single_threaded_solver_blas() -> int | None:
+    """Run the BLAS of IPOPT's linear solver (MUMPS, through CasADi's own OpenBLAS) on
+    one thread, unless the user set ``OPENBLAS_NUM_THREADS``.  Once per process; returns
+    the thread count now set, or None (the user's setting, or no such library).
+
+    MUMPS's fronts in the planner's KKT systems are too small for threaded BLAS to help,
+    and OpenBLAS's idle threads spin (system time): on the held-out set one thread gave
+    the same iterates (durations within 1e-5), ~40 % less CPU time in IPOPT and a 3-7 %
+    lower wall time in sum, the spinning thread no longer competing with the Jacobian's
+    two (BENCHMARKS.md, sixth round).
+    """
+    global _blas_done
+    if _blas_done or "OPENBLAS_NUM_THREADS" in os.environ:
+        return None
+    _blas_done = True
+    path = Path(ca.__file__).parent / CASADI_OPENBLAS
+    try:  # the name MUMPS links to, so the copy loaded here is the one it uses
+        lib = ctypes.CDLL(str(path))
+        lib.openblas_set_num_threads(1)
+        return int(lib.openblas_get_num_threads())
+    except (OSError, AttributeError):  # another platform or CasADi build: leave it
+        return None
 
 
 def cache_dir() -> Path:

@@ -1048,7 +1048,7 @@ class Problem:
         :mod:`planner.codegen` (mapped over the nodes on two threads) when a C compiler is
         available, otherwise CasADi's interpreted SX functions (expanded).
         """
-        from sixplus3.planner.codegen import compiled_functions
+        from sixplus3.planner.codegen import compiled_functions, single_threaded_solver_blas
 
         task, opt, sr = self.task, self.options, self.sr
         ns, S = task.segment_nodes, task.n_segments
@@ -1154,6 +1154,7 @@ class Problem:
         relay = _IterationRelay(nw, g.numel())
         solver_opts: dict[str, Any] = {"expand": not compiled, "print_time": False,
                                        "ipopt": ipopt, "iteration_callback": relay}
+        single_threaded_solver_blas()
         try:
             solver = ca.nlpsol("planner", "ipopt", nlp, solver_opts)
         except RuntimeError as exc:

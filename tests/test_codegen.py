@@ -97,3 +97,32 @@ def test_a_killed_background_build_is_seen_as_dead_and_cleaned_up(source, tmp_pa
     while len(list(tmp_path.iterdir())) > 1 and time.monotonic() < deadline:
         time.sleep(0.1)  # the builder's last clean-up after the rename
     assert sorted(p.name for p in tmp_path.iterdir()) == [full.name]
+
+
+_THREADS_AFTER_PLANNING = """
+import ctypes, pathlib, casadi
+from sixplus3.planner.codegen import CASADI_OPENBLAS
+from sixplus3.planner.ocp import Problem
+from sixplus3.planner.task import task_from_dict
+task = task_from_dict({"name": "t", "nodes_per_segment": 4, "waypoints": [
+    {"position": [0, 0, 0.30]}, {"position": [0.02, 0, 0.30]}]})
+Problem(task)._template()  # the NLP is built: IPOPT and MUMPS (and their BLAS) loaded
+lib = ctypes.CDLL(str(pathlib.Path(casadi.__file__).parent / CASADI_OPENBLAS))
+print(lib.openblas_get_num_threads())
+"""
+
+
+@pytest.mark.parametrize("env, expected", [(None, "1"), ("2", "2")])
+def test_the_planner_runs_mumps_blas_on_one_thread_unless_the_user_says(env, expected) -> None:
+    """Building the planner's NLP sets CasADi's OpenBLAS (MUMPS's BLAS) to one thread,
+    in a fresh process; a user's OPENBLAS_NUM_THREADS is left as it is."""
+    import subprocess
+    import sys
+
+    child_env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if env is not None:
+        child_env["OPENBLAS_NUM_THREADS"] = env
+    out = subprocess.run([sys.executable, "-c", _THREADS_AFTER_PLANNING], env=child_env,
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split()[-1] == expected
