@@ -171,8 +171,12 @@ class PlannerOptions:
     ipopt_options: tuple[tuple[str, Any], ...] | dict[str, Any] = ()
 
     def __post_init__(self) -> None:
-        pairs = (tuple(self.ipopt_options.items()) if isinstance(self.ipopt_options, dict)
-                 else tuple(tuple(p) for p in self.ipopt_options))
+        try:
+            pairs = (tuple(self.ipopt_options.items()) if isinstance(self.ipopt_options, dict)
+                     else tuple(tuple(p) for p in self.ipopt_options))
+        except TypeError:
+            raise ValueError(f"ipopt_options: {self.ipopt_options!r}; valid: (name, value) "
+                             "pairs or a dict") from None
         for pair in pairs:
             if len(pair) != 2 or not isinstance(pair[0], str):
                 raise ValueError(f"ipopt_options: {pair!r} is not a (name, value) pair")

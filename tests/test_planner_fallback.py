@@ -282,7 +282,8 @@ def test_extra_ipopt_options_reach_ipopt_and_bad_ones_are_named() -> None:
     for bad, words in (((("tol",),), "not a (name, value) pair"),
                        ((("tol", float("nan")),), "tol = nan"),
                        (((1, 2),), "not a (name, value) pair"),
-                       ((("tol", None),), "a finite number or a string")):
+                       ((("tol", None),), "a finite number or a string"),
+                       (5, "pairs or a dict")):
         with pytest.raises(ValueError, match=words.replace("(", r"\(").replace(")", r"\)")):
             PlannerOptions(ipopt_options=bad)
     with pytest.raises(ValueError, match="No such IPOPT option: no_such_option"):
