@@ -84,7 +84,10 @@ def main() -> None:
                     help="the NLP's acceleration regularisation (PlannerOptions)")
     args = ap.parse_args()
     reg = {} if args.regularisation is None else {"regularisation": args.regularisation}
-    opts = PlannerOptions(ipopt_options=tuple(args.ipopt), **reg)
+    try:
+        opts = PlannerOptions(ipopt_options=tuple(args.ipopt), **reg)
+    except ValueError as exc:
+        ap.error(str(exc))
     # time the planner as it runs after its first use: with the optimised build
     ensure_optimised(Robot.default())  # the one-time compile, outside the clock
     rng = np.random.default_rng(args.seed)
@@ -100,7 +103,13 @@ def main() -> None:
     else:
         tasks = [task_from_dict(heldout_task(rng, k)) for k in range(args.n)]
     if args.tasks:
-        tasks = [tasks[int(k)] for k in args.tasks.split(",")]
+        try:
+            picked = [int(k) for k in args.tasks.split(",")]
+        except ValueError:
+            ap.error(f"--tasks {args.tasks!r}: expected comma-separated integers")
+        if not all(0 <= k < len(tasks) for k in picked):
+            ap.error(f"--tasks {args.tasks}: valid indices are 0-{len(tasks) - 1}")
+        tasks = [tasks[k] for k in picked]
     for task in tasks:
         row: dict = {"name": task.name, "waypoints": len(task.waypoints)}
         t0 = time.perf_counter()
