@@ -8,10 +8,11 @@
 
 The task generator is broader than bench_planner_random.py, as in the planner-speed issue:
 2-4 waypoints, all random (start and end away from home): positions x, y in +-0.06 m,
-z in 0.25-0.36 m, roll/pitch/yaw in +-45 deg, the task defaults otherwise (12 intervals per
-segment, 90 % torque fraction, cranks at home at the start and back at the end).  Tasks
-whose waypoints fail the static checks (reach, ranges, margins, holding torque) are
-refused before any optimisation, by design, and counted apart.
+z in 0.25-0.36 m, roll/pitch/yaw in +-45 deg, the task defaults otherwise (18 intervals
+for one segment and 12 per segment for more, ``planner.task.AUTO_NODES``; 90 % torque
+fraction; cranks at home at the start and back at the end).  Tasks whose waypoints fail
+the static checks (reach, ranges, margins, holding torque) are refused before any
+optimisation, by design, and counted apart.
 
 Per task: the wall time of ``Problem(task).solve()`` (everything from the task to a
 dense-checked Solution; the one-time C compilation of the model is done before the clock

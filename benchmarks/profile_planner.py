@@ -45,11 +45,15 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--repeat", type=int, default=20)
     args = ap.parse_args()
+    if args.task < 0 or args.repeat < 1:
+        ap.error(f"--task {args.task}, --repeat {args.repeat}: valid: --task >= 0, "
+                 "--repeat >= 1")
     robot = Robot.default()
     ensure_optimised(robot)
     rng = np.random.default_rng(args.seed)
-    tasks = [task_from_dict(heldout_task(rng, k)) for k in range(args.task + 1)]
-    problem = Problem(tasks[-1])
+    # the generator draws the tasks in turn: task k is the (k+1)-th draw of the seed
+    docs = [heldout_task(rng, k) for k in range(args.task + 1)]
+    problem = Problem(task_from_dict(docs[-1]))
     sol = problem.solve()
     print(f"heldout_{args.task}: {len(sol.task.waypoints)} waypoints, {len(sol.t) - 1} "
           f"intervals, {sol.iterations} IPOPT iterations, solve {sol.solve_time:.2f} s")

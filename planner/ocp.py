@@ -181,10 +181,8 @@ class PlannerOptions:
             if len(pair) != 2 or not isinstance(pair[0], str):
                 raise ValueError(f"ipopt_options: {pair!r} is not a (name, value) pair")
             name, value = pair
-            ok = (isinstance(value, str) or (isinstance(value, (int, float))
-                                             and not isinstance(value, bool)
-                                             and math.isfinite(value)))
-            if not ok:
+            number = isinstance(value, (int, float)) and not isinstance(value, bool)
+            if not (isinstance(value, str) or (number and math.isfinite(value))):
                 raise ValueError(f"ipopt_options: {name} = {value!r}; valid: a finite "
                                  "number or a string")
         object.__setattr__(self, "ipopt_options", pairs)
