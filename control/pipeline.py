@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from sixplus3.control.smoothing import Smoothed, check_rate, smooth
-from sixplus3.control.trajectory_file import output_path, write_trajectory
-from sixplus3.control.validation import ValidationReport, validate_joint_trajectory
-from sixplus3.errors import TrajectoryFileError
+from sixplus3.control.trajectory_file import output_path
+from sixplus3.control.validation import ValidationReport, validate_and_write
+from sixplus3.errors import TrajectoryFileError, ValidationFailed
 from sixplus3.planner.codegen import build_kind
 from sixplus3.planner.ocp import PlannerOptions, Solution, plan
 from sixplus3.planner.task import Task
@@ -105,17 +105,6 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
         f"{sm.duration:.4f} s (+{100 * sm.added_fraction:.2f}%, time stretch "
         f"{sm.time_stretch:.4f}), max jerk {sm.max_jerk:.3g} rad/s^3")
     t2 = time.perf_counter()
-    rep = validate_joint_trajectory(sm.theta, sm.theta_dot, sm.theta_ddot, robot, rate,
-                                    sm.x_guess, sol.limits, t=sm.t)
-    secs["validate"] = time.perf_counter() - t2
-    if not rep.ok:
-        raise TrajectoryFileError("the smoothed trajectory fails validation, nothing written: "
-                                  + "; ".join(rep.messages()),
-                                  value=rep.messages(), valid="a valid trajectory")
-    say(f"  validated {rep.samples} samples and {rep.checked_points - rep.samples} "
-        f"midpoints with Pinocchio: max|tau| {rep.max_torque_ratio * sol.limits.torque:.3f} "
-        f"N m, min margins {rep.min_margin_leg_type1:.3f}/{rep.min_margin_leg_type2:.3f}/"
-        f"{rep.min_margin_platform:.3f}")
     meta = {
         "rate_hz": rate,
         "task": task.source,
@@ -137,8 +126,19 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
                       "max_deviation_rad": sm.max_deviation},
     }
     out.mkdir(parents=True, exist_ok=True)
-    write_trajectory(csv_path, sm.t, sm.theta, sm.theta_dot, sm.theta_ddot, rep, robot,
-                     sol.limits, meta)
+    try:
+        _, rep = validate_and_write(csv_path, sm.t, sm.theta, sm.theta_dot, sm.theta_ddot,
+                                    robot, rate, sm.x_guess, sol.limits, meta)
+    except ValidationFailed as exc:
+        raise TrajectoryFileError("the smoothed trajectory fails validation, nothing "
+                                  "written: " + str(exc).split(": ", 1)[-1],
+                                  value=exc.report.messages() if exc.report else None,
+                                  valid="a valid trajectory") from None
+    secs["validate"] = time.perf_counter() - t2
+    say(f"  validated {rep.samples} samples and {rep.checked_points - rep.samples} "
+        f"midpoints with Pinocchio: max|tau| {rep.max_torque_ratio * sol.limits.torque:.3f} "
+        f"N m, min margins {rep.min_margin_leg_type1:.3f}/{rep.min_margin_leg_type2:.3f}/"
+        f"{rep.min_margin_platform:.3f}")
     say(f"  wrote {csv_path}")
     files: list[str] = []
     stem = csv_path.stem

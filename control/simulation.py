@@ -209,7 +209,9 @@ def simulate(robot: Robot, q0: np.ndarray, theta: np.ndarray, theta_dot: np.ndar
     kp = _check("kp", kp, 0.0, 1e5)
     kd = _check("kd", kd, 0.0, 1e4)
     s = _check("feedforward_scale", feedforward_scale, 0.0, 2.0)
-    rate = _check("rate", rate, 10.0, 1e5)
+    from sixplus3.control.validation import RATE_RANGE
+
+    rate = _check("rate", rate, *RATE_RANGE)
     n_sub = round(1.0 / (rate * timestep))
     if n_sub < 1 or abs(n_sub * timestep * rate - 1.0) > 1e-9:
         raise InputError(f"the control period 1/{rate:g} s is not a multiple of the "
@@ -263,14 +265,15 @@ def simulate_file(path: str | Path, robot: Robot | None = None, kp: float = KP,
                   kd: float = KD, feedforward_scale: float = 1.0):
     """Validate a trajectory file, then replay it in MuJoCo: (validation, simulation).
 
-    A file with a motion defect (exit code 2) is not simulated (simulation is None).
+    Only a file that passes the gate is simulated: with a defect (exit code 2) or a
+    violated limit (exit code 1), the simulation is None.
     """
     from sixplus3.control.trajectory_file import columns
     from sixplus3.control.validation import validate_file
 
     robot = robot or Robot.default()
     rep = validate_file(path, robot)
-    if rep.exit_code == 2 or rep.data is None or rep.position is None:
+    if not rep.ok or rep.data is None or rep.position is None:
         return rep, None
     rate = float(rep.header["rate_hz"]) if rep.header else float("nan")
     sim = simulate(robot, first_configuration(robot, rep), columns(rep.data, "pos"),

@@ -39,6 +39,7 @@ import json
 import math
 import os
 import re
+import stat
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -124,10 +125,13 @@ def _finite_tree(obj: Any) -> Any:
     return obj
 
 
-def digest(header: dict, body: bytes) -> str:
+def digest(header: dict, body: bytes | memoryview) -> str:
     """The integrity digest of a header (without ``integrity``) and the body bytes."""
     h = {k: v for k, v in header.items() if k != "integrity"}
-    return hashlib.sha256(_canonical(h) + b"\n" + body).hexdigest()
+    sha = hashlib.sha256(_canonical(h))
+    sha.update(b"\n")
+    sha.update(body)
+    return sha.hexdigest()
 
 
 def encode(header: dict, data: np.ndarray) -> bytes:
@@ -159,10 +163,22 @@ def samples_array(t, theta, theta_dot, theta_ddot, tau, position, quaternion,
 # ----------------------------------------------------------------------------- writing
 @contextlib.contextmanager
 def _exclusive(path: Path) -> Iterator[None]:
-    """An exclusive, non-blocking lock on ``path``'s name (a lock file beside it)."""
+    """An exclusive, non-blocking lock on ``path``'s name: a lock file beside it, opened
+    without following a link (a planted link is refused), removed when the write is done
+    (so no lock file is left behind)."""
     lock = path.with_name(f".{path.name}.lock")
-    fd = os.open(lock, os.O_CREAT | os.O_RDWR, 0o644)
     try:
+        fd = os.open(lock, os.O_CREAT | os.O_RDWR | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise TrajectoryFileError(f"{lock} is a link: refusing to write through it",
+                                      value=str(lock), valid="no link at the lock's name") \
+                from None
+        raise
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise TrajectoryFileError(f"{lock} is not a regular file", value=str(lock),
+                                      valid="a regular lock file or nothing")
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -170,7 +186,14 @@ def _exclusive(path: Path) -> Iterator[None]:
                 f"another process is writing {path.name} right now; it wins, this write "
                 "was abandoned (the file it leaves is complete)",
                 value=path.name, valid="one writer at a time") from None
-        yield
+        try:
+            yield
+        finally:
+            # still holding the lock: a writer that opened this file meanwhile fails its
+            # flock; one that opens the name after this gets a new file
+            with contextlib.suppress(OSError):
+                if os.path.samestat(os.fstat(fd), os.lstat(lock)):
+                    os.unlink(lock)
     finally:
         os.close(fd)
 
@@ -188,21 +211,59 @@ def write_atomically(path: Path, data: bytes) -> None:
                                   valid="a writable directory with free space") from None
 
 
+def samples_fingerprint(t, theta, theta_dot, theta_ddot, rate: float) -> str:
+    """SHA-256 of a motion's samples (as float64) and its rate: what a validation report
+    records of the motion it judged, and what :func:`write_trajectory` checks."""
+    sha = hashlib.sha256(repr(float(rate)).encode())
+    for arr in (t, theta, theta_dot, theta_ddot):
+        a = np.ascontiguousarray(np.asarray(arr, dtype=np.float64))
+        sha.update(repr(a.shape).encode())
+        sha.update(a.tobytes())
+    return sha.hexdigest()
+
+
+#: Header fields the writer sets itself; ``meta`` may not name them.
+RESERVED = ("format", "rate_hz", "samples", "duration_s", "columns", "units",
+            "joint_names", "robot", "limits", "validation", "integrity")
+
+
 def write_trajectory(path: str | Path, t, theta, theta_dot, theta_ddot, report,
                      robot: Robot, limits: Limits, meta: dict) -> Path:
     """Write the validated trajectory of ``robot`` to ``path`` (one atomic file).
 
-    ``report`` is the :class:`~sixplus3.control.validation.ValidationReport` of exactly
-    these samples for this robot; a failed or missing report is refused and nothing is
-    written.  ``meta`` adds header fields (task, planner, smoothing statistics).
+    ``report`` must be the passed :class:`~sixplus3.control.validation.ValidationReport`
+    of exactly these samples, at its rate, for this robot (its fingerprint of the
+    samples and rate is recomputed here); anything else is refused and nothing is
+    written.  :func:`sixplus3.control.validation.validate_and_write` validates and
+    writes in one call.  ``meta`` adds header fields (task, planner, smoothing
+    statistics); it may not set the fields the writer owns (:data:`RESERVED`), except
+    ``rate_hz`` equal to the validated rate.
     """
-    if report is None or not report.ok:
+    if report is None or not getattr(report, "ok", False):
         reasons = "; ".join(report.messages()) if report is not None else "not validated"
         raise TrajectoryFileError(f"refusing to write an invalid trajectory: {reasons}",
                                   value=reasons, valid="a passed validation report")
     if report.robot_hash != robot.hash:
         raise TrajectoryFileError("refusing to write: the validation report is for another "
                                   "robot", value=report.robot_hash, valid=robot.hash)
+    rate = report.rate_hz
+    if not isinstance(meta, dict):
+        raise InputError("meta must be a mapping of extra header fields",
+                         value=type(meta).__name__, valid="a dict")
+    for key in meta:
+        if key in RESERVED and not (key == "rate_hz" and meta[key] == rate):
+            raise InputError(f"meta may not set the header field {key!r}: the writer sets "
+                             "it from the validated samples", value=key,
+                             valid=f"any field but {', '.join(RESERVED)}")
+    try:
+        mine = samples_fingerprint(t, theta, theta_dot, theta_ddot, rate)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"the samples are not numeric arrays: {exc}", value=None,
+                         valid="(n,) times and (n, 9) arrays") from None
+    if rate is None or mine != report.fingerprint:
+        raise TrajectoryFileError("refusing to write: the validation report is of other "
+                                  "samples or another rate than these",
+                                  value=report.fingerprint, valid=mine)
     path = Path(path)
     if path.suffix != SUFFIX:
         raise TrajectoryFileError(f"trajectory files end in {SUFFIX}, got {path.name}",
@@ -210,15 +271,14 @@ def write_trajectory(path: str | Path, t, theta, theta_dot, theta_ddot, report,
     output_path(path.parent, path.stem)  # the name is safe and stays in its directory
     data = samples_array(t, theta, theta_dot, theta_ddot, report.tau, report.position,
                          report.quaternion, report.psi)
-    rate = float(meta.get("rate_hz", 0.0))
     header = {
-        "format": FORMAT, "rate_hz": rate, "samples": len(t),
+        "format": FORMAT, "rate_hz": float(rate), "samples": len(t),
         "duration_s": float(t[-1]), "columns": COLUMNS, "units": UNITS,
         "joint_names": JOINTS,
         "robot": {"hash": robot.hash, "parameters": robot.as_dict(),
                   "summary": robot.summary()},
         "limits": limits.as_dict(),
-        **{k: v for k, v in meta.items() if k not in ("rate_hz", "robot", "limits")},
+        **{k: v for k, v in meta.items() if k not in RESERVED},
         "validation": report.summary(),
     }
     blob = encode(header, data)
@@ -271,8 +331,104 @@ def _robot_diff(a: dict, b: dict, where: str = "") -> str:
     return ""
 
 
+#: One number of a sample row: the decimal grammar that C's strtod, numpy and pandas
+#: read alike (no underscores, no hex, no inf/nan, no spaces, no leading '+' or '.').
+NUMBER = r"-?(?:0|[1-9][0-9]*)(?:\.[0-9]+)?(?:[eE][+-]?[0-9]+)?"
+_ROW = re.compile(rb"%s(?:,%s){%d}" % (NUMBER.encode(), NUMBER.encode(), len(COLUMNS) - 1))
+#: Deepest nesting of the header JSON (the writer's is 4).
+MAX_HEADER_DEPTH = 16
+#: Rows parsed per block: the text of a block is the only copy of it in memory.
+PARSE_BLOCK = 65536
+
+
+class _HeaderError(ValueError):
+    pass
+
+
 def _no_constants(token: str) -> float:
-    raise ValueError(f"{token} is not a number JSON allows")
+    raise _HeaderError(f"{token} is not a number JSON allows")
+
+
+def _finite_float(token: str) -> float:
+    value = float(token)
+    if not math.isfinite(value):
+        raise _HeaderError(f"{token[:40]} overflows to infinity")
+    return value
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise _HeaderError(f"the key {key[:40]!r} appears twice")
+        out[key] = value
+    return out
+
+
+def _depth(obj: Any, limit: int) -> int:
+    """Nesting depth of a JSON value, counted up to ``limit + 1``."""
+    stack = [(obj, 1)]
+    deepest = 0
+    while stack:
+        o, d = stack.pop()
+        deepest = max(deepest, d)
+        if deepest > limit:
+            return deepest
+        if isinstance(o, dict):
+            stack.extend((v, d + 1) for v in o.values())
+        elif isinstance(o, list):
+            stack.extend((v, d + 1) for v in o)
+    return deepest
+
+
+def parse_header(line: bytes, name: str = "trajectory") -> dict:
+    """The header of a trajectory file's first line (without ``# FORMAT ``), parsed one
+    way only: JSON without duplicate keys, NaN, Infinity or overflowing numbers, at most
+    :data:`MAX_HEADER_DEPTH` deep, and byte for byte the canonical form the writer makes
+    (sorted keys, no spaces, shortest round-trip numbers).  So every reader sees the same
+    header, and the digest, computed over the canonical form, covers line 1's exact
+    bytes."""
+    try:
+        header = json.loads(line.decode("utf-8"), parse_constant=_no_constants,
+                            parse_float=_finite_float, object_pairs_hook=_unique_keys)
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        what = "nests too deep" if isinstance(exc, RecursionError) else str(exc)[:120]
+        raise TrajectoryFileError(f"{name}: the header is not valid JSON of one meaning "
+                                  f"({what})", value=what,
+                                  valid="JSON without duplicate keys, NaN or Infinity") \
+            from None
+    if not isinstance(header, dict):
+        raise TrajectoryFileError(f"{name}: the header is not a JSON object",
+                                  value=type(header).__name__, valid="an object")
+    if _depth(header, MAX_HEADER_DEPTH) > MAX_HEADER_DEPTH:
+        raise TrajectoryFileError(f"{name}: the header nests deeper than {MAX_HEADER_DEPTH}",
+                                  value=None, valid=f"<= {MAX_HEADER_DEPTH} levels")
+    try:
+        canonical = _canonical(header)
+    except (TypeError, ValueError, RecursionError):
+        canonical = b""
+    if canonical != line:
+        raise TrajectoryFileError(
+            f"{name}: line 1 is not the canonical JSON of its header (sorted keys, no "
+            "spaces, shortest numbers), so readers could disagree on it: it was not "
+            "written by sixplus3, or was edited", value=line[:60],
+            valid="the writer's canonical JSON")
+    return header
+
+
+def header_number(header: dict, key: str, name: str, lo: float, hi: float,
+                  integer: bool = False) -> float:
+    """``header[key]`` as a finite number in [lo, hi] (an int if ``integer``); a
+    TrajectoryFileError naming the field and its range otherwise."""
+    value = header.get(key)
+    ok = (isinstance(value, int) if integer else isinstance(value, (int, float))) \
+        and not isinstance(value, bool)
+    if not ok or not (lo <= value <= hi):  # type: ignore[operator]
+        kind = "an integer" if integer else "a number"
+        raise TrajectoryFileError(f"{name}: header field {key} must be {kind} in "
+                                  f"[{lo:g}, {hi:g}], got {fileio.short_repr(value, 60)}",
+                                  value=value, valid=f"{kind} in [{lo:g}, {hi:g}]")
+    return float(value)
 
 
 def parse(raw: bytes, name: str = "trajectory") -> tuple[dict, np.ndarray]:
@@ -281,71 +437,98 @@ def parse(raw: bytes, name: str = "trajectory") -> tuple[dict, np.ndarray]:
     nl = raw.find(b"\n")
     prefix = f"# {FORMAT} ".encode()
     if nl < 0 or not raw.startswith(prefix):
-        old = raw.startswith(b"t,") or raw.startswith(b"# sixplus3-trajectory/")
-        raise TrajectoryFileError(
-            f"{name}: not a {FORMAT} file" + (" (an older format: re-plan it)" if old else ""),
-            valid=f"first line '# {FORMAT} {{header}}'", value=raw[:40])
-    try:
-        header = json.loads(raw[len(prefix):nl].decode("utf-8"), parse_constant=_no_constants)
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise TrajectoryFileError(f"{name}: the header is not valid JSON ({str(exc)[:120]})",
-                                  value=str(exc)[:120], valid="JSON without NaN/Infinity") \
-            from None
-    if not isinstance(header, dict) or header.get("format") != FORMAT:
+        if raw.startswith(prefix) or raw.startswith(b"# sixplus3-trajectory/2 "):
+            why = " (line 1 is cut off: a truncated file)"
+        elif raw.startswith(b"t,") or raw.startswith(b"# sixplus3-trajectory/"):
+            why = " (an older format: re-plan it)"
+        else:
+            why = ""
+        raise TrajectoryFileError(f"{name}: not a {FORMAT} file{why}",
+                                  valid=f"first line '# {FORMAT} {{header}}'", value=raw[:40])
+    header = parse_header(raw[len(prefix):nl], name)
+    if header.get("format") != FORMAT:
         raise TrajectoryFileError(f"{name}: the header does not declare format {FORMAT}",
-                                  value=header.get("format") if isinstance(header, dict) else None,
+                                  value=fileio.short_repr(header.get("format"), 60),
                                   valid=FORMAT)
-    body = raw[nl + 1:]
+    body = memoryview(raw)[nl + 1:]  # no copy
     integ = header.get("integrity")
-    if not isinstance(integ, dict) or integ.get("algorithm") != "sha256":
+    if not isinstance(integ, dict) or integ.get("algorithm") != "sha256" \
+            or not isinstance(integ.get("digest"), str):
         raise TrajectoryFileError(f"{name}: the header has no sha256 integrity digest",
-                                  value=integ, valid="{algorithm: sha256, digest}")
+                                  value=fileio.short_repr(integ, 80),
+                                  valid="{algorithm: sha256, digest}")
     if digest(header, body) != integ.get("digest"):
         raise TrajectoryFileError(f"{name}: integrity digest mismatch: the header or the "
                                   "samples were edited, truncated or corrupted",
                                   value=integ.get("digest"),
                                   valid="the SHA-256 of the header and samples")
-    try:
-        text = body.decode("ascii")
-    except UnicodeDecodeError:
-        raise TrajectoryFileError(f"{name}: the samples are not plain ASCII numbers",
-                                  value=None, valid="ASCII numbers") from None
-    lines = text.split("\n")
-    if lines and lines[-1] == "":
-        lines.pop()
-    if not lines or lines[0].split(",") != COLUMNS:
-        raise TrajectoryFileError(f"{name}: line 2 must be the {len(COLUMNS)} column names "
-                                  f"{','.join(COLUMNS[:3])},...,{COLUMNS[-1]}",
-                                  value=lines[0][:80] if lines else None,
-                                  valid=",".join(COLUMNS))
-    rows = lines[1:]
-    if len(rows) < 2:
-        raise TrajectoryFileError(f"{name}: {len(rows)} samples; a trajectory has >= 2",
-                                  value=len(rows), valid=">= 2 samples")
     ncol = len(COLUMNS)
-    bad = next((k for k, r in enumerate(rows) if r.count(",") != ncol - 1), None)
-    if bad is not None:
-        raise TrajectoryFileError(f"{name}: sample row {bad + 1} does not have {ncol} values",
-                                  value=bad + 1, valid=f"{ncol} values per row")
-    try:
-        data = np.array(",".join(rows).split(","), dtype=np.float64).reshape(len(rows), ncol)
-    except ValueError as exc:
-        raise TrajectoryFileError(f"{name}: unreadable number ({str(exc)[:80]})",
-                                  value=str(exc)[:80], valid="numbers") from None
+    want = (",".join(COLUMNS) + "\n").encode()
+    if bytes(body[:len(want)]) != want:
+        raise TrajectoryFileError(f"{name}: line 2 must be the {ncol} column names "
+                                  f"{','.join(COLUMNS[:3])},...,{COLUMNS[-1]}",
+                                  value=bytes(body[:80]), valid=",".join(COLUMNS))
+    n = int(header_number(header, "samples", name, 2, MAX_BYTES // (2 * ncol), True))
+    header_number(header, "rate_hz", name, 0.0, 1e9)
+    header_number(header, "duration_s", name, 0.0, 1e9)
+    if header.get("columns") != COLUMNS:
+        raise TrajectoryFileError(f"{name}: header field columns does not match the samples",
+                                  value=fileio.short_repr(header.get("columns"), 80),
+                                  valid="the 47 column names")
+    data = _parse_rows(raw, nl + 1 + len(want), n, name)
+    if not math.isclose(float(header["duration_s"]), data[-1, 0], abs_tol=1e-12):
+        raise TrajectoryFileError(f"{name}: header duration differs from the last sample",
+                                  value=header.get("duration_s"), valid=float(data[-1, 0]))
+    return header, data
+
+
+def _parse_rows(raw: bytes, pos: int, n: int, name: str) -> np.ndarray:
+    """The (n, 47) samples of the rows that start at ``raw[pos]``, each ending in a
+    newline, parsed block by block: every number must match :data:`NUMBER`."""
+    ncol = len(COLUMNS)
+    data = np.empty((n, ncol))
+    k = 0
+    while k < n:
+        stop = min(n, k + PARSE_BLOCK)
+        lines = []
+        for r in range(k, stop):
+            e = raw.find(b"\n", pos)
+            if e < 0:
+                raise TrajectoryFileError(
+                    f"{name}: {r} complete sample rows, the header says {n} (a truncated "
+                    "file)", value=r, valid=f"{n} rows, each ending in a newline")
+            line = raw[pos:e]
+            if _ROW.fullmatch(line) is None:
+                _bad_row(line, r + 1, name)
+            lines.append(line)
+            pos = e + 1
+        data[k:stop] = np.array(b",".join(lines).split(b","),
+                                dtype=np.float64).reshape(stop - k, ncol)
+        k = stop
+    if pos != len(raw):
+        raise TrajectoryFileError(f"{name}: more sample rows than the header's {n}",
+                                  value=f"> {n}", valid=f"{n} rows")
     finite = np.isfinite(data)
     if not finite.all():
         r, c = np.argwhere(~finite)[0]
         raise TrajectoryFileError(f"{name}: non-finite value in column {COLUMNS[c]} at sample "
                                   f"{r} (t = {data[r, 0]:g} s)",
                                   value=float(data[r, c]), valid="finite numbers")
-    for key, want in (("samples", len(rows)), ("columns", COLUMNS)):
-        if header.get(key) != want:
-            raise TrajectoryFileError(f"{name}: header field {key} does not match the samples",
-                                      value=header.get(key), valid="consistent with the samples")
-    if not math.isclose(float(header.get("duration_s", -1)), data[-1, 0], abs_tol=1e-12):
-        raise TrajectoryFileError(f"{name}: header duration differs from the last sample",
-                                  value=header.get("duration_s"), valid=float(data[-1, 0]))
-    return header, data
+    return data
+
+
+def _bad_row(line: bytes, row: int, name: str) -> None:
+    ncol = len(COLUMNS)
+    fields = line.split(b",")
+    if len(fields) != ncol:
+        raise TrajectoryFileError(f"{name}: sample row {row} does not have {ncol} values",
+                                  value=row, valid=f"{ncol} values per row")
+    num = re.compile(NUMBER.encode())
+    c = next(i for i, f in enumerate(fields) if num.fullmatch(f) is None)
+    raise TrajectoryFileError(
+        f"{name}: sample row {row}, column {COLUMNS[c]}: {fields[c][:40]!r} is not a plain "
+        "decimal number (digits, one '.', an exponent; no '_', '+', hex, inf or nan)",
+        value=fields[c][:40].decode("ascii", "replace"), valid=NUMBER)
 
 
 def read_bytes(path: str | Path) -> bytes:

@@ -34,6 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sixplus3.control import interval
+from sixplus3.control.interval import hermite, hermite_midpoints
 from sixplus3.control.trajectory_file import (
     COLUMNS,
     JOINTS,
@@ -41,17 +43,21 @@ from sixplus3.control.trajectory_file import (
     columns,
     parse,
     read_bytes,
+    samples_fingerprint,
 )
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.errors import InputError
+from sixplus3.errors import InputError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import leg_clearance, robot_fk_batch, spherical_tilts
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
-#: Controller rates accepted [Hz]: below 100 Hz the samples cannot resolve a motion of
-#: this robot (its fastest moves last ~40 ms), above 10 kHz no drive listens.
-RATE_RANGE = (100.0, 10000.0)
+#: Controller rates accepted [Hz].  Below 500 Hz the gate and a sampled drive part: a
+#: MuJoCo replay of feed-forward held for a tick + PD (300 / 6) of a plan at 100 Hz
+#: peaks at 133 N m while its interpolant is within every limit (the PD loop is near its
+#: discrete stability bound, Kd dt / M ~ 2); at 250 Hz it is 0.9 of that bound, at 500 Hz
+#: 0.4 (docs/validation.md).  Above 10 kHz no drive listens.
+RATE_RANGE = (500.0, 10000.0)
 #: Motions of fewer points (samples + midpoints) are checked in one process: forking a
 #: worker costs more than it saves below this.
 OFFLOAD_MIN_POINTS = 2000
@@ -62,6 +68,9 @@ OFFLOAD_MAX_POINTS = 1_000_000
 #: spherical joints and the clearance (measured balance on 2 cores:
 #: benchmarks/bench_validate.py).
 OFFLOAD_SHARE = 0.72
+#: Samples checked at once: a longer motion is checked in windows of this many samples
+#: (sharing their end samples), so the checks' memory does not grow with its length.
+WINDOW = 8192
 #: Longest motion accepted [s].
 MAX_DURATION = 3600.0
 #: |t_k - k / rate| allowed [s] (17 significant digits are written).
@@ -124,6 +133,7 @@ class Finding:
     worst_t: float
     worst_where: str
     worst_value: float
+    excess: float = 0.0  # how far past the bound the worst is (in the check's own terms)
 
     def message(self) -> str:
         u = f" {self.unit}" if self.unit else ""
@@ -148,7 +158,7 @@ def _finding(check: str, kind: str, unit: str, bound: float, excess: np.ndarray,
     kw, jw = divmod(int(np.argmax(flat)), excess.shape[1])
     return Finding(check, kind, unit, float(bound), int(len(rows)), float(times[k0]),
                    names[j0], float(value[k0, j0]), float(times[kw]), names[jw],
-                   float(value[kw, jw]))
+                   float(value[kw, jw]), float(flat[kw * excess.shape[1] + jw]))
 
 
 @dataclass
@@ -178,9 +188,16 @@ class ValidationReport:
     #: (the planner bounds it between its own points, docs/validation.md)
     max_torque_rate: float | None = None
     duration: float | None = None  # [s]
+    #: max |jerk| of the interpolant over the intervals / (C_JERK x the jerk limit): above
+    #: 1 no motion within the jerk limit has these samples (control/interval.py)
+    max_interpolant_jerk_ratio: float = 0.0
     header: dict | None = field(default=None, repr=False)  # validate_file only
     #: the samples validated, exactly as read (validate_file): send these
     data: np.ndarray | None = field(default=None, repr=False)
+    rate_hz: float | None = None  # the rate the samples were judged at [Hz]
+    #: trajectory_file.samples_fingerprint of (t, theta, theta_dot, theta_ddot, rate)
+    fingerprint: str | None = field(default=None, repr=False)
+    limits: dict | None = None  # the limits judged by (the robot's, or tighter)
 
     @property
     def defects(self) -> list[Finding]:
@@ -207,7 +224,7 @@ class ValidationReport:
                 "max_acceleration_ratio", "max_jerk_ratio", "min_margin_leg_type1",
                 "min_margin_leg_type2", "min_margin_platform", "min_leg_clearance",
                 "max_spherical_tilt_deg", "theta_range_ok", "checked_points", "tolerances",
-                "max_torque_rate")
+                "max_torque_rate", "max_interpolant_jerk_ratio", "rate_hz", "limits")
         out = {k: getattr(self, k) for k in keys}
         out["exit_code"] = self.exit_code
         out["findings"] = self.messages()
@@ -217,43 +234,6 @@ class ValidationReport:
 def _failed(n: int, robot: Robot, findings: list[Finding], tol: dict) -> ValidationReport:
     return ValidationReport(False, n, robot.hash, math.inf, math.inf, math.inf, math.inf,
                             0.0, 0.0, 0.0, -math.inf, 180.0, False, findings, tol)
-
-
-def hermite(dt: float, th: np.ndarray, v: np.ndarray, a: np.ndarray, k: np.ndarray,
-            s: np.ndarray):
-    """(theta, theta_dot, theta_ddot) at fraction s in [0, 1] of interval k (arrays) of
-    the quintic Hermite interpolant through the samples (th, v, a) spaced dt [s]."""
-    s = s[:, None]
-    p0, p1, v0, v1, a0, a1 = th[k], th[k + 1], v[k] * dt, v[k + 1] * dt, a[k] * dt**2, \
-        a[k + 1] * dt**2
-    s2, s3, s4, s5 = s**2, s**3, s**4, s**5
-    h0 = 1 - 10 * s3 + 15 * s4 - 6 * s5
-    h1 = s - 6 * s3 + 8 * s4 - 3 * s5
-    h2 = 0.5 * (s2 - 3 * s3 + 3 * s4 - s5)
-    h3 = 0.5 * (s3 - 2 * s4 + s5)
-    h4 = -4 * s3 + 7 * s4 - 3 * s5
-    h5 = 10 * s3 - 15 * s4 + 6 * s5
-    pos = h0 * p0 + h1 * v0 + h2 * a0 + h3 * a1 + h4 * v1 + h5 * p1
-    d0 = -30 * s2 + 60 * s3 - 30 * s4
-    d1 = 1 - 18 * s2 + 32 * s3 - 15 * s4
-    d2 = 0.5 * (2 * s - 9 * s2 + 12 * s3 - 5 * s4)
-    d3 = 0.5 * (3 * s2 - 8 * s3 + 5 * s4)
-    d4 = -12 * s2 + 28 * s3 - 15 * s4
-    vel = (d0 * (p0 - p1) + d1 * v0 + d2 * a0 + d3 * a1 + d4 * v1) / dt
-    e0 = -60 * s + 180 * s2 - 120 * s3
-    e1 = -36 * s + 96 * s2 - 60 * s3
-    e2 = 0.5 * (2 - 18 * s + 36 * s2 - 20 * s3)
-    e3 = 0.5 * (6 * s - 24 * s2 + 20 * s3)
-    e4 = -24 * s + 84 * s2 - 60 * s3
-    acc = (e0 * (p0 - p1) + e1 * v0 + e2 * a0 + e3 * a1 + e4 * v1) / dt**2
-    return pos, vel, acc
-
-
-def hermite_midpoints(dt: float, th: np.ndarray, v: np.ndarray, a: np.ndarray):
-    """(theta, theta_dot, theta_ddot) halfway between consecutive samples on the quintic
-    Hermite interpolant of (theta, v, a) at both ends (the C^2 motion through them)."""
-    k = np.arange(len(th) - 1)
-    return hermite(dt, th, v, a, k, np.full(len(k), 0.5))
 
 
 def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
@@ -270,16 +250,112 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
     ``limits`` tighter than the robot's (default: the robot's hardware limits);
     ``platform`` (n, 10) position, quaternion, psi to compare with the forward
     kinematics; ``tau_file`` (n, 9) feed-forward torques to compare with Pinocchio's.
+
+    A motion of more than :data:`WINDOW` samples is checked window by window (each
+    window shares its last sample with the next, so every interval is checked once), so
+    that the memory of the checks does not grow with the length of the motion.
     """
+    if not isinstance(robot, Robot):
+        raise InputError("robot must be a sixplus3 Robot", value=type(robot).__name__,
+                         valid="a Robot")
+    if limits is not None and not isinstance(limits, Limits):
+        raise InputError("limits must be a Limits (or None)", value=type(limits).__name__,
+                         valid="Limits or None")
     lim = robot.limits if limits is None else robot.limits.tightened(**limits.as_dict())
-    t = np.asarray(t, dtype=float)
-    arrays = [np.asarray(a, dtype=float) for a in (theta, theta_dot, theta_ddot)]
+    try:
+        t = np.asarray(t, dtype=float).reshape(-1)
+        arrays = [np.asarray(a, dtype=float) for a in (theta, theta_dot, theta_ddot)]
+        extra = {k: (None if a is None else np.asarray(a, dtype=float))
+                 for k, a in (("x_guess", x_guess), ("platform", platform),
+                              ("tau_file", tau_file))}
+        rate = float(rate)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"the motion must be numeric arrays and a rate: {exc}"[:200],
+                         value=None, valid="(n,) times, (n, 9) arrays, a rate [Hz]") from None
     n = len(t)
-    for name, arr in zip(("theta", "theta_dot", "theta_ddot"), arrays, strict=True):
-        if arr.shape != (n, 9):
-            raise InputError(f"{name} must be ({n}, 9), got {arr.shape}",
-                             value=arr.shape, valid=f"({n}, 9)")
+    for name, arr, width in (("theta", arrays[0], 9), ("theta_dot", arrays[1], 9),
+                             ("theta_ddot", arrays[2], 9), ("x_guess", extra["x_guess"], 9),
+                             ("platform", extra["platform"], 10),
+                             ("tau_file", extra["tau_file"], 9)):
+        if arr is not None and arr.shape != (n, width):
+            raise InputError(f"{name} must be ({n}, {width}), got {arr.shape}",
+                             value=arr.shape, valid=f"({n}, {width})")
     th, v, a = arrays
+    xg, pf, tf_ = extra["x_guess"], extra["platform"], extra["tau_file"]
+    if n <= WINDOW:
+        rep = _validate_window(t, th, v, a, robot, rate, xg, lim, pf, tf_, midpoints)
+    else:
+        reps = []
+        for i0 in range(0, n - 1, WINDOW - 1):
+            sl = slice(i0, min(n, i0 + WINDOW))
+            reps.append(_validate_window(
+                t[sl], th[sl], v[sl], a[sl], robot, rate, xg[sl], lim,
+                None if pf is None else pf[sl], None if tf_ is None else tf_[sl],
+                midpoints, k0=i0, rest=(i0 == 0, sl.stop == n), n_total=n))
+            if reps[-1].tau is None:  # a window that could not be checked through
+                break
+        rep = _merge(reps, n)
+    rep.rate_hz = rate
+    rep.fingerprint = samples_fingerprint(t, th, v, a, rate)
+    rep.limits = lim.as_dict()
+    return rep
+
+
+def _merge(reps: list[ValidationReport], n: int) -> ValidationReport:
+    """One report of consecutive windows that share their end samples."""
+    first = reps[0]
+    by_check: dict[str, Finding] = {}
+    for r in reps:
+        for f in r.findings:
+            old = by_check.get(f.check)
+            if old is None:
+                by_check[f.check] = f
+                continue
+            worst = f if f.excess > old.excess else old
+            by_check[f.check] = Finding(
+                f.check, f.kind, f.unit, f.bound, old.count + f.count, old.first_t,
+                old.first_where, old.first_value, worst.worst_t, worst.worst_where,
+                worst.worst_value, max(old.excess, f.excess))
+    complete = all(r.tau is not None for r in reps) and len(reps) > 0
+
+    def cat(name: str) -> np.ndarray | None:
+        if not complete:
+            return None
+        parts = [getattr(r, name) for r in reps]
+        return np.concatenate([parts[0]] + [p[1:] for p in parts[1:]])
+
+    ffs = [r.feedforward_error for r in reps if r.feedforward_error is not None]
+    rates = [r.max_torque_rate for r in reps if r.max_torque_rate is not None]
+    findings = list(by_check.values())
+    return ValidationReport(
+        ok=not findings and complete, samples=n, robot_hash=first.robot_hash,
+        max_torque_ratio=max(r.max_torque_ratio for r in reps),
+        max_velocity_ratio=max(r.max_velocity_ratio for r in reps),
+        max_acceleration_ratio=max(r.max_acceleration_ratio for r in reps),
+        max_jerk_ratio=max(r.max_jerk_ratio for r in reps),
+        min_margin_leg_type1=min(r.min_margin_leg_type1 for r in reps),
+        min_margin_leg_type2=min(r.min_margin_leg_type2 for r in reps),
+        min_margin_platform=min(r.min_margin_platform for r in reps),
+        min_leg_clearance=min(r.min_leg_clearance for r in reps),
+        max_spherical_tilt_deg=max(r.max_spherical_tilt_deg for r in reps),
+        theta_range_ok=all(r.theta_range_ok for r in reps), findings=findings,
+        tolerances=first.tolerances,
+        checked_points=sum(r.checked_points for r in reps) - (len(reps) - 1),
+        tau=cat("tau"), position=cat("position"), quaternion=cat("quaternion"),
+        psi=cat("psi"), feedforward_error=max(ffs) if ffs else None,
+        max_torque_rate=max(rates) if rates else None,
+        duration=reps[-1].duration,
+        max_interpolant_jerk_ratio=max(r.max_interpolant_jerk_ratio for r in reps))
+
+
+def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray,
+                     robot: Robot, rate: float, x_guess: np.ndarray, lim: Limits,
+                     platform: np.ndarray | None, tau_file: np.ndarray | None,
+                     midpoints: bool, k0: int = 0, rest: tuple[bool, bool] = (True, True),
+                     n_total: int | None = None) -> ValidationReport:
+    """:func:`validate_motion` of samples k0 .. k0 + len(t) - 1 of a motion of
+    ``n_total`` samples; ``rest``: whether this window holds the start / the end."""
+    n = len(t)
     findings: list[Finding] = []
     f: Finding | None
     # ------------------------------------------------------------ grid and rate
@@ -294,8 +370,8 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
     if n < 2 or not np.all(np.isfinite(np.c_[t, th, v, a])):
         f = Finding("samples", "defect", "", 2, 1, 0.0, "file", float(n), 0.0, "file", n)
         return _failed(n, robot, [f], tol_d)
-    grid = np.arange(n) / rate
-    if grid[-1] > MAX_DURATION:
+    grid = (k0 + np.arange(n)) / rate
+    if (k0 + (n_total or n) - 1) / rate > MAX_DURATION:
         f = Finding("duration", "defect", "s", MAX_DURATION, 1, float(t[-1]), "file",
                     float(grid[-1]), float(t[-1]), "file", float(grid[-1]))
         return _failed(n, robot, [f], tol_d)
@@ -305,7 +381,8 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
     if g is not None:
         return _failed(n, robot, [g], tol_d)
     # ------------------------------------------------------------ rest at both ends
-    for k, end in ((0, "start"), (n - 1, "end")):
+    for k, end in [e for e, on in zip(((0, "start"), (n - 1, "end")), rest, strict=True)
+                   if on]:
         for arr, bound, what, unit in ((v, REST_VELOCITY_TOL, "velocity", "rad/s"),
                                        (a, REST_ACCELERATION_TOL, "acceleration", "rad/s^2")):
             f = _finding(f"at rest at the {end} ({what})", "defect", unit, bound,
@@ -398,6 +475,10 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
         tau_all, rcond_all = offload.tau[:n_all].copy(), offload.rcond[:n_all].copy()
         tau = tau_all[:n]
         checked = n_all
+        # ------------------------------------------------------------ whole intervals
+        between = _interval_findings(lim, dt, th, v, a, t_int, tau_all, n,
+                                     offload.inertia[:n_all] if fkm is not None else None)
+        findings += between.findings
         if tau_file is not None:
             ff = np.abs(np.asarray(tau_file, dtype=float) - tau)
             ff_err = float(np.nan_to_num(ff, nan=np.inf).max())
@@ -420,15 +501,18 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
         mp = min(float(c.margins.platform.min()) for c in cfg_points)
         rep = ValidationReport(
             ok=not findings, samples=n, robot_hash=robot.hash,
-            max_torque_ratio=float(np.nan_to_num(np.abs(tau_all), nan=np.inf).max() / lim.torque),
-            max_velocity_ratio=float(np.abs(v_all).max() / lim.velocity),
-            max_acceleration_ratio=float(np.abs(a_all).max() / lim.acceleration),
+            max_torque_ratio=max(float(np.nan_to_num(np.abs(tau_all), nan=np.inf).max()),
+                                 between.torque) / lim.torque,
+            max_velocity_ratio=max(float(np.abs(v_all).max()), between.velocity) / lim.velocity,
+            max_acceleration_ratio=max(float(np.abs(a_all).max()),
+                                       between.acceleration) / lim.acceleration,
             max_jerk_ratio=float(jerk.max() / lim.jerk),
             min_margin_leg_type1=m1, min_margin_leg_type2=m2, min_margin_platform=mp,
             min_leg_clearance=clearance, max_spherical_tilt_deg=math.degrees(tilt),
             theta_range_ok=theta_ok, findings=findings, tolerances=tol_d, checked_points=checked,
             tau=tau, position=cfg.position.copy(), quaternion=quat, psi=cfg.psi.copy(),
             feedforward_error=ff_err, duration=float(t[-1]),
+            max_interpolant_jerk_ratio=between.jerk / (interval.C_JERK * lim.jerk),
             max_torque_rate=(float(np.nan_to_num(np.abs(np.diff(tau, axis=0)), nan=np.inf).max()
                                    / np.diff(t).min()) if n > 1 else 0.0))
         return rep
@@ -461,16 +545,17 @@ class _Offload:
         self.pid = 0
         self.to_child = self.from_child = -1
         self.pending: list[tuple[int, int]] = []
-        widths = (nq, 9, 9, 9, 1)
+        widths = (nq, 9, 9, 9, 1, 81)
         fork = OFFLOAD_MIN_POINTS <= points <= OFFLOAD_MAX_POINTS and _may_fork()
         size = max(1, points * sum(widths))
         # shared with the worker (the array keeps the mapping alive), else private
         flat = (np.frombuffer(mmap.mmap(-1, 8 * size), dtype=np.float64) if fork
                 else np.empty(size))
         cols = np.cumsum((0,) + widths) * points
-        self.q, self.v, self.a, self.tau, rcond = (
+        self.q, self.v, self.a, self.tau, rcond, inertia = (
             flat[cols[k]:cols[k + 1]].reshape(points, w) for k, w in enumerate(widths))
         self.rcond = rcond[:, 0]
+        self.inertia = inertia.reshape(points, 9, 9)
         if fork:
             self._fork()
 
@@ -508,8 +593,10 @@ class _Offload:
         """Points [start, stop) in this process."""
         if stop > start:
             sl = slice(start, stop)
+            m_red = np.empty((stop - start, 9, 9))
             self.tau[sl], self.rcond[sl] = self.dyn.actuated_inverse_dynamics_batch(
-                self.q[sl], self.v[sl], self.a[sl])
+                self.q[sl], self.v[sl], self.a[sl], inertia=m_red)
+            self.inertia[sl] = m_red
 
     def submit(self, start: int, stop: int) -> None:
         """Points [start, stop) to the worker if there is one (else computed now)."""
@@ -574,6 +661,47 @@ def _may_fork() -> bool:
     return False
 
 
+@dataclass
+class _Between:
+    """What the whole intervals gave: findings and the largest values [SI]."""
+
+    findings: list[Finding]
+    velocity: float
+    acceleration: float
+    jerk: float
+    torque: float
+
+
+def _interval_findings(lim: Limits, dt: float, th: np.ndarray, v: np.ndarray, a: np.ndarray,
+                       t_int: np.ndarray, tau_all: np.ndarray, n: int,
+                       inertia: np.ndarray | None) -> _Between:
+    """The interpolant over every whole interval (control/interval.py): its jerk against
+    what a motion within the jerk limit allows (a defect above), its velocity and
+    acceleration exactly, and the torque bound (with the midpoints' dynamics)."""
+    ext = interval.rate_extremes(dt, th, v, a)
+    out: list[Finding | None] = []
+    jerk = ext["jerk"][0]
+    cap = interval.C_JERK * lim.jerk
+    out.append(_finding("interpolant jerk (no motion within the jerk limit has these "
+                        "samples)", "defect", "rad/s^3", cap, jerk - cap * (1 + 1e-9), jerk,
+                        t_int, JOINTS))
+    vel, acc = ext["velocity"][0], ext["acceleration"][0]
+    out.append(_finding("velocity (between samples)", "limit", "rad/s", lim.velocity,
+                        vel - lim.velocity * (1 + 1e-9), vel, t_int, JOINTS))
+    out.append(_finding("acceleration (between samples)", "limit", "rad/s^2",
+                        lim.acceleration, acc - lim.acceleration * (1 + 1e-9), acc, t_int,
+                        JOINTS))
+    torque = 0.0
+    if inertia is not None and len(tau_all) > n:
+        bound, _ = interval.torque_bound(dt, th, v, a, tau_all[:n], inertia[:n],
+                                         tau_all[n:], inertia[n:])
+        torque = float(bound.max())
+        out.append(_finding("torque (between samples, bound)", "limit", "N m", lim.torque,
+                            bound - lim.torque * (1 + 1e-9), bound, t_int, JOINTS))
+    return _Between([f for f in out if f is not None], float(vel.max()), float(acc.max()),
+                    float(jerk.max()), torque)
+
+
 def _limit_findings(lim: Limits, cfgs: list, tau: np.ndarray, v: np.ndarray, a: np.ndarray,
                     t: np.ndarray, rcond: np.ndarray, jerk: np.ndarray, t_int: np.ndarray,
                     sph: np.ndarray, clear: np.ndarray) -> list[Finding]:
@@ -629,16 +757,34 @@ def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory") -> Valida
     """
     header, data = parse(raw, name)
     check_robot(header, robot, name)
-    try:
-        rate = float(header.get("rate_hz", float("nan")))
-    except (TypeError, ValueError):
-        rate = float("nan")
+    rate = float(header["rate_hz"])  # a finite number (parse)
     x_guess = np.c_[data[:, 37:40], _rotvec(data[:, 40:44]), data[:, 44:47]]
     rep = validate_motion(data[:, 0], columns(data, "pos"), columns(data, "vel"),
                           columns(data, "acc"), robot, rate, x_guess,
                           platform=data[:, 37:47], tau_file=columns(data, "tau"))
     rep.header, rep.data = header, data
     return rep
+
+
+def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
+                       theta_dot: np.ndarray, theta_ddot: np.ndarray, robot: Robot,
+                       rate: float, x_guess: np.ndarray, limits: Limits | None = None,
+                       meta: dict | None = None) -> tuple[Path, ValidationReport]:
+    """Validate the motion (:func:`validate_motion`, the gate) and, only if it passes,
+    write it as one atomic trajectory file: (path, report).  Raises
+    :class:`~sixplus3.errors.ValidationFailed` (exit code 1 or 2, every finding) and
+    writes nothing otherwise."""
+    from sixplus3.control.trajectory_file import write_trajectory
+
+    rep = validate_joint_trajectory(theta, theta_dot, theta_ddot, robot, rate, x_guess,
+                                    limits, t=t)
+    if not rep.ok:
+        raise ValidationFailed("the trajectory fails validation, nothing written: "
+                               + "; ".join(rep.messages()), rep.exit_code, rep)
+    lim = robot.limits if limits is None else robot.limits.tightened(**limits.as_dict())
+    out = write_trajectory(path, t, theta, theta_dot, theta_ddot, rep, robot, lim,
+                           meta or {})
+    return out, rep
 
 
 def _rotvec(quat: np.ndarray) -> np.ndarray:
@@ -657,5 +803,5 @@ def validate_file(path: str | Path, robot: Robot | None = None) -> ValidationRep
 
 
 __all__ = ["COLUMNS", "Finding", "Tolerances", "ValidationReport", "hermite", "hermite_midpoints",
-           "validate_bytes", "validate_file", "validate_joint_trajectory",
+           "validate_and_write", "validate_bytes", "validate_file", "validate_joint_trajectory",
            "validate_motion"]

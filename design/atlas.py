@@ -59,7 +59,6 @@ symbolic statics (:func:`planner.model.holding_function`, checked against Pinocc
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -640,13 +639,9 @@ def save(ds: xr.Dataset, path: str | Path) -> Path:
     if not path.parent.is_dir():
         raise InputError(f"output directory {str(path.parent)!r} does not exist",
                          value=str(path.parent), valid="an existing directory")
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        ds.to_netcdf(tmp, engine="h5netcdf")
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    from sixplus3.fileio import atomic_write_with
+
+    atomic_write_with(path, lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
     return path
 
 

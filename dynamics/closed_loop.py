@@ -209,8 +209,9 @@ class ClosedLoopDynamics:
         return h[self._act] - X.T @ h[self._pas] + self._friction(theta_dot), rcond
 
     def actuated_inverse_dynamics_batch(self, q: np.ndarray, theta_dot: np.ndarray,
-                                        theta_ddot: np.ndarray) -> tuple[np.ndarray,
-                                                                         np.ndarray]:
+                                        theta_ddot: np.ndarray,
+                                        inertia: np.ndarray | None = None,
+                                        ) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`actuated_inverse_dynamics` of n states at once: (tau (n, 9), rcond (n,)).
 
         Three passes over the states with Pinocchio (the closure Jacobian, the joints'
@@ -219,6 +220,10 @@ class ClosedLoopDynamics:
         (:meth:`ClosedLoopModel.constraint_jacobian_batch`, :meth:`~ClosedLoopModel.drift_batch`).
         ``rcond`` is the exact 1-norm reciprocal condition number of J_pas; states at or
         below :data:`SINGULAR_RCOND` get NaN torques.
+
+        With ``inertia`` (an (n, 9, 9) array), it is filled with the reduced inertia
+        M_red = S^T M S of each state (S = [I; -J_pas^-1 J_act], M from ``crba``, rotors
+        included): tau is affine in theta_ddot with this slope at fixed (q, theta_dot).
         """
         m, d = self.model, self.data
         q = np.asarray(q, dtype=float)
@@ -250,10 +255,29 @@ class ClosedLoopDynamics:
         ok: list[bool] = np.isfinite(np.c_[a, v]).all(axis=1).tolist()  # type: ignore[union-attr]
         for k in range(n):
             H[k] = rnea(m, d, q[k], v[k], a[k]) if ok[k] else np.nan
+        if inertia is not None:
+            self._reduced_inertia(q, X, inertia)
         tau = H[:, self._act] - np.einsum("nij,ni->nj", X, H[:, self._pas])
         tau += self._friction(theta_dot)
         tau[rcond <= SINGULAR_RCOND] = np.nan
         return tau, rcond
+
+    def _reduced_inertia(self, q: np.ndarray, X: np.ndarray, out: np.ndarray) -> None:
+        """out[k] = S^T M(q_k) S with S = [I on the actuated; -X_k on the passive]."""
+        m, d = self.model, self.data
+        act, pas = self._act, self._pas
+        crba = pin.crba
+        for k in range(len(q)):
+            if not np.isfinite(X[k]).all():
+                out[k] = np.nan
+                continue
+            M = crba(m, d, q[k])
+            M = np.triu(M) + np.triu(M, 1).T
+            Map = M[np.ix_(act, pas)]
+            Xk = X[k]
+            MpX = Map @ Xk
+            out[k] = (M[np.ix_(act, act)] - MpX - MpX.T
+                      + Xk.T @ M[np.ix_(pas, pas)] @ Xk)
 
     def holding_torques_batch(self, q: np.ndarray) -> np.ndarray:
         """(n, 9) static actuator torques holding the robot still at n configurations

@@ -589,11 +589,9 @@ def atlas(out_dir: str, step: float, azimuth_step: float, torsions: tuple[float,
     click.echo(at.headline(ds))
 
 
-#: Controller rates accepted [Hz].
-RATE_RANGE = (10.0, 10000.0)
-
-
 def _check_rate(rate: float) -> None:
+    from sixplus3.control.validation import RATE_RANGE
+
     lo, hi = RATE_RANGE
     if not (math.isfinite(rate) and lo <= rate <= hi):
         _fail(f"--rate must be in [{lo:g}, {hi:g}] Hz, got {rate!r}")
@@ -799,7 +797,10 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
     robot = _task_robot(task_file)
     rep, sim = simulate_file(csv_file, robot, kp, kd, ff_scale)
     if sim is None:
-        _fail(f"{csv_file} is not a valid motion: " + "; ".join(rep.messages())[:1500])
+        what = "is not a valid motion" if rep.exit_code == 2 else "violates a limit"
+        click.echo(f"refused: {csv_file} {what} (the gate's verdict; nothing simulated): "
+                   + "; ".join(rep.messages())[:1500], err=True)
+        sys.exit(rep.exit_code or 2)
     assert sim is not None
     if as_json:
         click.echo(json.dumps(sim.summary()))

@@ -16,8 +16,11 @@ Atomic writes of one file live here too (:func:`atomic_write`).
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
+import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -150,38 +153,63 @@ def short_repr(value: object, limit: int = 80) -> str:
     return r if len(r) <= limit else r[:limit - 3] + "..."
 
 
-def atomic_write(path: str | Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` so that an interruption leaves no partial file: a
-    temporary file in the same directory, flushed and fsynced, renamed over ``path``,
-    then the directory fsynced.  On any error the old file is untouched and the
-    temporary file removed; the OSError propagates, naming ``path``.  Only a regular
-    file (or nothing) is ever replaced: a device, a directory or a FIFO at ``path`` is
-    refused, never swapped for a file."""
+def _check_target(path: Path) -> None:
+    """Only a regular file, a link (replaced itself, never followed) or nothing may be at
+    ``path``, in an existing directory."""
     import stat
 
-    path = Path(path)
     try:
-        mode = os.stat(path).st_mode
+        mode = os.lstat(path).st_mode
     except FileNotFoundError:
         mode = None
-    if mode is not None and not stat.S_ISREG(mode):
+    if mode is not None and not (stat.S_ISREG(mode) or stat.S_ISLNK(mode)):
         raise IsADirectoryError(errno.EISDIR if stat.S_ISDIR(mode) else errno.EINVAL,
                                 "not a regular file, not replaced", str(path))
     if not path.parent.is_dir():
         raise FileNotFoundError(errno.ENOENT, "no such directory for the output",
                                 str(path))
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+
+
+def _fsync_dir(directory: Path) -> None:
+    dfd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
     try:
+        os.fsync(dfd)
+    finally:
+        os.close(dfd)
+
+
+def atomic_write(path: str | Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` so that an interruption leaves no partial file: a
+    temporary file in the same directory, flushed and fsynced, renamed over ``path``,
+    then the directory fsynced.  On any error the old file is untouched and the
+    temporary file removed; the OSError propagates, naming ``path``.
+
+    Nothing is written through a link: the temporary file has a random name and is
+    created with ``O_CREAT | O_EXCL`` (``mkstemp``: a file or link planted under any
+    name is never opened), and the rename replaces a link at ``path`` itself, never its
+    target.  Only a regular file, a link or nothing at ``path`` is replaced: a device, a
+    directory or a FIFO is refused."""
+    def write(tmp: Path) -> None:
         with open(tmp, "wb") as fh:
             fh.write(data)
-            fh.flush()
+
+    atomic_write_with(path, write)
+
+
+def atomic_write_with(path: str | Path, write: Callable[[Path], object]) -> None:
+    """:func:`atomic_write` for writers that need a file name (``write(tmp)`` fills the
+    fresh, empty temporary file ``tmp``, e.g. matplotlib's or xarray's savers)."""
+    path = Path(path)
+    _check_target(path)
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:80]}.", suffix=".tmp")
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        write(tmp)
+        with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-        dfd = os.open(path.parent, os.O_RDONLY)
-        try:
-            os.fsync(dfd)
-        finally:
-            os.close(dfd)
+        _fsync_dir(path.parent)
     finally:
-        if tmp.exists():
+        with contextlib.suppress(FileNotFoundError):
             tmp.unlink()

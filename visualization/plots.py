@@ -15,10 +15,12 @@ from sixplus3.robot_description.urdf import actuated_joint_names
 def _save(fig, path: Path) -> str:
     import matplotlib.pyplot as plt
 
-    tmp = path.with_name(f".{path.stem}.tmp.png")
-    fig.savefig(tmp, dpi=100)
-    plt.close(fig)
-    tmp.replace(path)
+    from sixplus3.fileio import atomic_write_with
+
+    try:
+        atomic_write_with(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
+    finally:
+        plt.close(fig)
     return str(path)
 
 
