@@ -17,22 +17,22 @@ import json
 import math
 import socket
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.trajectory_file import JOINTS, columns, read_bytes
+from sixplus3.control.trajectory_file import JOINTS, check_samples, columns, read_bytes
 from sixplus3.control.validation import (
     RATE_RANGE,
     ValidationReport,
     hermite,
+    rotvec_of_quaternions,
     validate_bytes,
     validate_motion,
 )
 from sixplus3.errors import InputError, ValidationFailed
-from sixplus3.kinematics import rotations as rot
 from sixplus3.robot_description.robot import Robot
 
 #: Replay speeds accepted (1 = as planned).
@@ -52,13 +52,15 @@ class FeedPlan:
     speed: float
     report: ValidationReport  # the validation of exactly these samples
 
-    def messages(self) -> list[bytes]:
-        """One JSON datagram per sample."""
-        return [json.dumps({"t": float(self.t[k]), "joints": JOINTS,
-                            "pos": self.theta[k].tolist(), "vel": self.theta_dot[k].tolist(),
-                            "acc": self.theta_ddot[k].tolist(),
-                            "tau_ff": self.tau[k].tolist()}).encode()
-                for k in range(len(self.t))]
+    def messages(self) -> Iterator[bytes]:
+        """One JSON datagram per sample, made as it is sent (memory does not grow with
+        the length of the motion)."""
+        for k in range(len(self.t)):
+            yield json.dumps({"t": float(self.t[k]), "joints": JOINTS,
+                              "pos": self.theta[k].tolist(),
+                              "vel": self.theta_dot[k].tolist(),
+                              "acc": self.theta_ddot[k].tolist(),
+                              "tau_ff": self.tau[k].tolist()}).encode()
 
 
 def check_speed(speed: float) -> float:
@@ -93,6 +95,7 @@ def retime(report: ValidationReport, robot: Robot, speed: float) -> FeedPlan:
     dt = 1.0 / rate
     th, v, a = columns(data, "pos"), columns(data, "vel"), columns(data, "acc")
     T = float(data[-1, 0])
+    check_samples(T / speed, rate, f"the replay at speed {speed:g}")
     m = math.ceil(T / speed * rate - 1e-9)
     tau_new = np.arange(m + 1) * dt
     u = np.minimum(tau_new * speed, T)  # time in the original motion
@@ -106,7 +109,7 @@ def retime(report: ValidationReport, robot: Robot, speed: float) -> FeedPlan:
     assert report.psi is not None
     # platform seeds for the forward kinematics: the validated poses, nearest sample
     near = np.minimum(np.rint(u / dt).astype(int), len(data) - 1)
-    x_seed = np.c_[report.position[near], _rotvec(report.quaternion[near]),
+    x_seed = np.c_[report.position[near], rotvec_of_quaternions(report.quaternion[near]),
                    report.psi[near]]
     rep = validate_motion(tau_new, p, vel, acc, robot, rate, x_seed)
     if not rep.ok:
@@ -116,22 +119,89 @@ def retime(report: ValidationReport, robot: Robot, speed: float) -> FeedPlan:
     return FeedPlan(tau_new, p, vel, acc, rep.tau, rate, speed, rep)
 
 
-def _rotvec(quat: np.ndarray) -> np.ndarray:
-    return rot.rotvec_from_quat(quat)
+#: The robot's actuated angles and the file's first sample must agree to this [rad]
+#: (0.057 deg; the drives' encoders resolve 1.4 microrad at the joint).
+START_TOL = 1e-3
+#: ... and the platform pose the robot is in (forward kinematics continued from home)
+#: and the file's first pose to this [m, rad]: else another assembly branch.
+START_POSE_TOL = 1e-4
+#: Steps of the continuation from home to the robot's angles.
+START_STEPS = 64
 
 
-def prepare_feed(path: str | Path, robot: Robot, speed: float = 1.0) -> FeedPlan:
+def robot_pose_from_home(robot: Robot, theta: np.ndarray) -> np.ndarray | None:
+    """The minimal coordinates (position, rotation vector, psi) of the robot at actuated
+    angles ``theta``, on the assembly branch of its home pose: forward kinematics
+    continued along the straight path in joint space from home (the robot was assembled
+    at home and moves continuously).  None if the continuation fails."""
+    from sixplus3.kinematics.robot import home, robot_fk_batch
+
+    h = home(robot)
+    x = np.r_[np.asarray(robot.home_position), np.zeros(3), np.asarray(robot.home_psi)]
+    th0 = h.theta[0]
+    for s in np.linspace(0.0, 1.0, START_STEPS + 1)[1:]:
+        fk = robot_fk_batch((th0 + s * (theta - th0))[None], x[None], robot, margins=False)
+        if not bool(fk.converged[0]):
+            return None
+        x = fk.x[0]
+    return x
+
+
+def check_start(rep: ValidationReport, robot: Robot, current_theta: np.ndarray) -> None:
+    """Refuse to send a validated file that does not start where the robot is: its first
+    sample's actuated angles against ``current_theta`` (9, rad; naming the joint), and
+    the platform pose of those angles on the robot's own assembly branch against the
+    file's first pose.  Raises :class:`ValidationFailed` (exit code 2)."""
+    cur = np.asarray(current_theta, dtype=float).reshape(-1)
+    if cur.shape != (9,) or not np.all(np.isfinite(cur)):
+        raise InputError(f"the robot's current angles must be 9 finite numbers [rad], got "
+                         f"{cur.shape[0]} values", value=cur.tolist()[:12],
+                         valid="9 finite angles, legs 0..2 each A, B, C")
+    assert rep.data is not None and rep.position is not None
+    first = columns(rep.data[:1], "pos")[0]
+    gap = np.abs(first - cur)
+    j = int(np.argmax(gap))
+    if gap[j] > START_TOL:
+        raise ValidationFailed(
+            f"the robot is not at the file's start: {JOINTS[j]} is at "
+            f"{math.degrees(cur[j]):.3f} deg, the file starts at {math.degrees(first[j]):.3f}"
+            f" deg ({math.degrees(gap[j]):.3f} deg apart, tolerance "
+            f"{math.degrees(START_TOL):.3f} deg): move it there first (sixplus3 "
+            "move-to-start)", 2, rep)
+    x = robot_pose_from_home(robot, cur)
+    assert rep.quaternion is not None and rep.psi is not None
+    file_x = np.r_[rep.position[0], rotvec_of_quaternions(rep.quaternion[:1])[0],
+                   rep.psi[0]]
+    if x is None or float(np.abs(x - file_x).max()) > START_POSE_TOL:
+        what = ("cannot be followed from home to the robot's angles" if x is None else
+                f"differs by {float(np.abs(x - file_x).max()):.3g} m or rad")
+        raise ValidationFailed(
+            "the file starts on another assembly branch than the robot's: the platform "
+            f"pose of the robot's angles on its home branch {what} from the file's first "
+            "pose; re-plan from the robot's state (sixplus3 move-to-start)", 2, rep)
+
+
+def prepare_feed(path: str | Path, robot: Robot, speed: float = 1.0,
+                 current_theta: np.ndarray | Callable[[], np.ndarray] | None = None
+                 ) -> FeedPlan:
     """Read ``path`` once, validate its bytes for ``robot`` and return what to send.
+
+    ``current_theta``: the robot's actuated angles now (9, rad), or a callable that reads
+    them from the controller; the file must start there, on the robot's assembly branch
+    (:func:`check_start`).  None skips that check (the caller confirms the start).
 
     Raises :class:`TrajectoryFileError` for a bad or mismatched file and
     :class:`ValidationFailed` (with the report and its exit code) for a motion that fails
-    validation; nothing is sent then.
+    validation or does not start at the robot's state; nothing is sent then.
     """
     speed = check_speed(speed)
     rep = validate_bytes(read_bytes(path), robot, Path(path).name)
     if not rep.ok:
         raise ValidationFailed(f"{Path(path).name} fails validation: "
                                + "; ".join(rep.messages()), rep.exit_code, rep)
+    if current_theta is not None:
+        check_start(rep, robot, current_theta() if callable(current_theta)
+                    else current_theta)
     assert rep.data is not None and rep.tau is not None
     data = rep.data
     rate = float(rep.header["rate_hz"]) if rep.header else float("nan")
@@ -145,14 +215,15 @@ def send(feed: FeedPlan, emit: Callable[[bytes], object],
          clock: Callable[[], float] = time.perf_counter,
          sleep: Callable[[float], object] = time.sleep) -> int:
     """Emit every datagram at its time on ``clock``; returns how many were sent."""
-    msgs = feed.messages()
     t0 = clock()
-    for k, msg in enumerate(msgs):
+    sent = 0
+    for k, msg in enumerate(feed.messages()):
         delay = float(feed.t[k]) - (clock() - t0)
         if delay > 0:
             sleep(delay)
         emit(msg)
-    return len(msgs)
+        sent += 1
+    return sent
 
 
 def udp_sender(address: tuple[str, int]) -> Callable[[bytes], object]:
@@ -160,5 +231,6 @@ def udp_sender(address: tuple[str, int]) -> Callable[[bytes], object]:
     return lambda msg: sock.sendto(msg, address)
 
 
-__all__ = ["RATE_RANGE", "SPEED_RANGE", "FeedPlan", "check_speed",
+__all__ = ["RATE_RANGE", "SPEED_RANGE", "FeedPlan", "check_speed", "check_start",
+           "robot_pose_from_home",
            "parse_address", "prepare_feed", "retime", "send", "udp_sender"]

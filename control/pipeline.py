@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from sixplus3.control.smoothing import Smoothed, check_rate, smooth
-from sixplus3.control.trajectory_file import output_path
+from sixplus3.control.trajectory_file import check_samples, output_path
 from sixplus3.control.validation import ValidationReport, validate_and_write
 from sixplus3.errors import TrajectoryFileError, ValidationFailed
 from sixplus3.planner.codegen import build_kind
@@ -73,6 +73,10 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
     csv_path = output_path(out, task.name)  # a safe name, inside out_dir: before the solve
     check_rate(rate)
     task.limits_for(robot)
+    # a fixed duration and the dwells are known before the solve: refuse a task that
+    # would make more samples than the cap now, not after planning it
+    check_samples((task.duration or 0.0) + sum(w.dwell for w in task.waypoints), rate,
+                  f"task '{task.name}'")
     secs: dict[str, float] = {}
     t0 = time.perf_counter()
     say(f"planning '{task.name}' ({len(task.waypoints)} waypoints, "

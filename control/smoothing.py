@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
+from sixplus3.control.trajectory_file import check_samples
 from sixplus3.control.validation import RATE_RANGE
 from sixplus3.errors import SmoothingError
 from sixplus3.planner.ocp import Solution, actuated_profile
@@ -107,6 +108,9 @@ def smooth(sol: Solution, rate: float = 1000.0) -> Smoothed:
     dt = 1.0 / rate
     parts = []
     pieces = rest_pieces(sol)
+    # every sample the plan will make, estimated before any is (a 1 % stretch included)
+    check_samples(sum(1.01 * (t1 - t0) + dwell for t0, t1, dwell in pieces), rate,
+                  "the plan" if sol.task is None else f"the plan '{sol.task.name}'")
     for k, (t0, t1, dwell) in enumerate(pieces):
         p = _smooth_piece(sol, t0, t1, rate)
         if k > 0:  # the previous piece's last sample is this one's first (both at rest)

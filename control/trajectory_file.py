@@ -61,8 +61,12 @@ COLUMNS = (["t"] + [f"{j}_{k}" for j in JOINTS for k in ("pos", "vel", "acc", "t
            + [f"psi_{i}" for i in range(3)])
 UNITS = {"t": "s", "pos": "rad", "vel": "rad/s", "acc": "rad/s^2", "tau": "N m",
          "platform_xyz": "m", "platform_q": "unit quaternion (x, y, z, w)", "psi": "rad"}
-#: Largest trajectory file read [bytes] (~40 min at 1 kHz).
-MAX_BYTES = 1 << 30
+#: Largest trajectory file read [bytes] (~1.1e6 samples; ~18 min at 1 kHz).  Reading and
+#: validating one this size stays under 2 GB (docs/validation.md, "Caps").
+MAX_BYTES = 512 << 20
+#: Most samples of a motion this package makes (a plan at a rate, its dwells, a slower
+#: replay): 2 minutes at 1 kHz.  Estimated before anything is allocated.
+MAX_SAMPLES = 120_000
 #: Longest output name [characters].
 MAX_NAME = 100
 _SAFE = re.compile(r"[^A-Za-z0-9._-]+")
@@ -209,6 +213,18 @@ def write_atomically(path: Path, data: bytes) -> None:
                                   "is unchanged",
                                   value=str(path),
                                   valid="a writable directory with free space") from None
+
+
+def check_samples(duration: float, rate: float, what: str) -> int:
+    """The number of samples of ``duration`` [s] at ``rate`` [Hz], refused (InputError
+    naming ``what``) past :data:`MAX_SAMPLES`, before anything is allocated."""
+    n = duration * rate + 1 if math.isfinite(duration * rate) else math.inf
+    if not n <= MAX_SAMPLES:
+        raise InputError(f"{what}: {duration:.6g} s at {rate:g} Hz would make {n:.6g} "
+                         f"samples, over the cap of {MAX_SAMPLES} ({MAX_SAMPLES / rate:g} s "
+                         "at this rate): shorten it, or plan it in parts", value=n,
+                         valid=f"<= {MAX_SAMPLES} samples")
+    return int(n)
 
 
 def samples_fingerprint(t, theta, theta_dot, theta_ddot, rate: float) -> str:
@@ -365,22 +381,6 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def _depth(obj: Any, limit: int) -> int:
-    """Nesting depth of a JSON value, counted up to ``limit + 1``."""
-    stack = [(obj, 1)]
-    deepest = 0
-    while stack:
-        o, d = stack.pop()
-        deepest = max(deepest, d)
-        if deepest > limit:
-            return deepest
-        if isinstance(o, dict):
-            stack.extend((v, d + 1) for v in o.values())
-        elif isinstance(o, list):
-            stack.extend((v, d + 1) for v in o)
-    return deepest
-
-
 def parse_header(line: bytes, name: str = "trajectory") -> dict:
     """The header of a trajectory file's first line (without ``# FORMAT ``), parsed one
     way only: JSON without duplicate keys, NaN, Infinity or overflowing numbers, at most
@@ -400,7 +400,7 @@ def parse_header(line: bytes, name: str = "trajectory") -> dict:
     if not isinstance(header, dict):
         raise TrajectoryFileError(f"{name}: the header is not a JSON object",
                                   value=type(header).__name__, valid="an object")
-    if _depth(header, MAX_HEADER_DEPTH) > MAX_HEADER_DEPTH:
+    if fileio.depth(header, MAX_HEADER_DEPTH) > MAX_HEADER_DEPTH:
         raise TrajectoryFileError(f"{name}: the header nests deeper than {MAX_HEADER_DEPTH}",
                                   value=None, valid=f"<= {MAX_HEADER_DEPTH} levels")
     try:

@@ -758,7 +758,7 @@ def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory") -> Valida
     header, data = parse(raw, name)
     check_robot(header, robot, name)
     rate = float(header["rate_hz"])  # a finite number (parse)
-    x_guess = np.c_[data[:, 37:40], _rotvec(data[:, 40:44]), data[:, 44:47]]
+    x_guess = np.c_[data[:, 37:40], rotvec_of_quaternions(data[:, 40:44]), data[:, 44:47]]
     rep = validate_motion(data[:, 0], columns(data, "pos"), columns(data, "vel"),
                           columns(data, "acc"), robot, rate, x_guess,
                           platform=data[:, 37:47], tau_file=columns(data, "tau"))
@@ -787,7 +787,7 @@ def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
     return out, rep
 
 
-def _rotvec(quat: np.ndarray) -> np.ndarray:
+def rotvec_of_quaternions(quat: np.ndarray) -> np.ndarray:
     """Rotation vectors of (possibly non-unit) quaternions; garbage in, a guess out."""
     q = np.array(quat, dtype=float)
     norm = np.linalg.norm(q, axis=1, keepdims=True)

@@ -414,11 +414,22 @@ def _chunk_task(robot: Robot, positions: np.ndarray, settings: AtlasSettings,
         numba.set_num_threads(before)
 
 
+#: Most LocalCluster worker processes: each holds ~0.3 GB (numba, Pinocchio, its chunk),
+#: so 4 stay under 2 GB; a real cluster is a --scheduler address.
+MAX_WORKERS = 4
+#: Most results an atlas may hold (positions x azimuths x torsions x {free, locked}):
+#: ~0.2 GB of float64 and int arrays, and the chunk lists around them.
+MAX_VALUES = 20_000_000
+
+
 def check_run(workers: int, chunk: int) -> None:
     """Refuse a worker count or chunk size out of range (before anything runs)."""
-    if not (isinstance(workers, int) and 1 <= workers <= 1024):
-        raise InputError(f"workers must be an integer in [1, 1024], got {workers!r}",
-                         value=workers, valid="[1, 1024]")
+    if isinstance(workers, bool) or not (isinstance(workers, int)
+                                         and 1 <= workers <= MAX_WORKERS):
+        raise InputError(f"workers must be an integer in [1, {MAX_WORKERS}] (each local "
+                         f"worker process holds ~0.3 GB; a bigger run belongs on a Dask "
+                         f"scheduler), got {workers!r}", value=workers,
+                         valid=f"[1, {MAX_WORKERS}]")
     if not (isinstance(chunk, int) and 1 <= chunk <= 100000):
         raise InputError(f"chunk must be an integer in [1, 100000], got {chunk!r}",
                          value=chunk, valid="[1, 100000]")
@@ -442,6 +453,12 @@ def compute_atlas(robot: Robot | None = None, settings: AtlasSettings | None = N
     st = (settings or AtlasSettings()).check()
     check_run(workers, chunk)
     xs, ys, zs = grid if grid is not None else position_grid(robot, st.step)
+    values = 2 * len(xs) * len(ys) * len(zs) * len(st.azimuths_deg) * len(st.torsions_deg)
+    if values > MAX_VALUES:
+        raise InputError(f"the atlas would hold {values:.3g} results (positions x azimuths "
+                         f"x torsions x 2), over the cap of {MAX_VALUES:.3g}: use a coarser "
+                         "--step or --azimuth-step, or fewer torsions", value=values,
+                         valid=f"<= {MAX_VALUES}")
     X, Y, Z = np.meshgrid(xs, ys, zs, indexing="ij")
     pts = np.c_[X.ravel(), Y.ravel(), Z.ravel()]
     chunks = [pts[i:i + chunk] for i in range(0, len(pts), chunk)]

@@ -13,8 +13,14 @@ from dataclasses import asdict, dataclass, field, fields
 
 from sixplus3.errors import LimitError
 
-#: Joint speed limit [rad/s]: 300 rpm rated motor speed through the 72/34 belt.
-VELOCITY_LIMIT = 300.0 * 2.0 * math.pi / 60.0 * 34.0 / 72.0
+#: Rated speed of the motors [rpm] (Yaskawa SGMCS-05B).
+RATED_SPEED_RPM = 300.0
+#: Joint speed limit [rad/s]: the rated motor speed through the 72/34 belt.
+VELOCITY_LIMIT = RATED_SPEED_RPM * 2.0 * math.pi / 60.0 * 34.0 / 72.0
+
+
+#: The smallest fraction of a hardware limit a tightened limit may be.
+MIN_FRACTION = 1e-3
 
 
 def _lim(default: float, doc: str, unit: str):
@@ -87,9 +93,13 @@ class Limits:
                 raise LimitError(name, v, f"a finite number [{self.unit(name)}]")
             v = float(v)
             hw = getattr(self, name)
-            if name in self.UPPER and not 0.0 < v <= hw:
-                raise LimitError(name, v, f"in (0, {hw:g}] {self.unit(name)}",
-                                 "a task may only tighten the robot's hardware limit")
+            if name in self.UPPER and not MIN_FRACTION * hw <= v <= hw * (1.0 + 1e-12):
+                raise LimitError(name, v, f"in [{MIN_FRACTION * hw:g}, {hw:g}] "
+                                 f"{self.unit(name)}", "a limit may only tighten the "
+                                 f"hardware's, and not below {MIN_FRACTION:g} of it (no "
+                                 "motion within the sample cap)")
+            if name in self.UPPER:
+                v = min(v, hw)
             if name == "margin" and not hw <= v < 1.0:
                 raise LimitError(name, v, f"in [{hw:g}, 1)",
                                  "a task may only tighten the robot's margin")
@@ -99,6 +109,11 @@ class Limits:
                 raise LimitError(name, v, f"<= {hw:g} rad", "only a narrower actuated range")
             new[name] = v
         return Limits(**{**asdict(self), **new})
+
+    def replace_upper(self, **values: float) -> Limits:
+        """These limits with some upper limits replaced (no tightening check: for the
+        hardware envelope, :func:`sixplus3.robot_description.robot.hardware_envelope`)."""
+        return Limits(**{**asdict(self), **values})
 
     def within(self, hardware: Limits) -> bool:
         """Whether every limit here is at least as tight as ``hardware``'s."""

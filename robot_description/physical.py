@@ -153,6 +153,9 @@ class Payload:
         if max(abs(c) for c in self.com) > 1.0:
             raise GeometryError("payload.com", self.com, "within 1 m of the platform centre")
         inertia = _vec("payload.inertia", self.inertia, 6, "kg m^2")
+        if max(abs(x) for x in inertia) > 10.0:
+            raise GeometryError("payload.inertia", inertia, "components within 10 kg m^2 "
+                                "(20 kg at 0.7 m)")
         object.__setattr__(self, "inertia", inertia)
         eig = np.linalg.eigvalsh(self.inertia_matrix)
         tol = 1e-12 + 1e-9 * max(abs(x) for x in inertia)

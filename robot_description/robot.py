@@ -29,10 +29,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from sixplus3 import fileio
 from sixplus3.errors import GeometryError
 from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
 from sixplus3.robot_description.geometry import GRAVITY, LegGeometry
-from sixplus3.robot_description.limits import Limits
+from sixplus3.robot_description.limits import RATED_SPEED_RPM, Limits
 from sixplus3.robot_description.physical import MotorModel, Payload, Tool, _vec
 
 if TYPE_CHECKING:
@@ -147,8 +148,11 @@ class MassModel:
         for name in ("proximal", "body", "crank", "distal", "ucross", "platform",
                      "platform_crank", "point_mass_value"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0.0):
-                raise GeometryError(name, v, ">= 0 kg")
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v)
+                                           and 0.0 <= v <= 100.0):
+                raise GeometryError(name, v, "a number in [0, 100] kg")
+        if not isinstance(self.point_mass, bool):
+            raise GeometryError("point_mass", self.point_mass, "true or false")
 
     @property
     def leg_total(self) -> float:
@@ -228,6 +232,7 @@ class Robot:
         object.__setattr__(self, "home_psi", psi)
         if not isinstance(self.name, str) or not 0 < len(self.name) <= 100:
             raise GeometryError("name", self.name, "a string of 1 to 100 characters")
+        hardware_envelope(self.motors).tightened(**self.limits.as_dict())
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -323,7 +328,7 @@ class Robot:
             if "gravity" in doc:
                 raise GeometryError("mounting", doc["mounting"], "either mounting or "
                                     "gravity, not both")
-            if doc["mounting"] not in MOUNTINGS:
+            if not isinstance(doc["mounting"], str) or doc["mounting"] not in MOUNTINGS:
                 raise GeometryError("mounting", doc["mounting"], f"one of {sorted(MOUNTINGS)}")
             kw["gravity"] = MOUNTINGS[doc["mounting"]]
         for key in ("mode", "gravity", "home_position", "home_psi", "name"):
@@ -401,6 +406,17 @@ NAMED_ROBOTS: dict[str, tuple[Any, str]] = {
 }
 
 
+def hardware_envelope(motors: MotorModel) -> Limits:
+    """The loosest limits any robot file may give (the authority a file cannot raise):
+    the torque the motor model delivers at the joint (rated torque x belt ratio), the
+    joint speed of its rated speed through the belt, and the built robot's own limits for
+    what no motor datum sets (acceleration, jerk, torque rate, singularity margin,
+    actuated range, spherical tilt).  :meth:`Limits.tightened` of this is the check."""
+    return Limits().replace_upper(
+        torque=motors.rated_torque * motors.gear_ratio,
+        velocity=RATED_SPEED_RPM * 2.0 * math.pi / 60.0 / motors.gear_ratio)
+
+
 def _mapping(name: str, v: object) -> dict[str, Any]:
     if not isinstance(v, dict):
         raise GeometryError(name, type(v).__name__, "a mapping of parameters")
@@ -408,6 +424,10 @@ def _mapping(name: str, v: object) -> dict[str, Any]:
 
 
 def _no_unknown(where: str, doc: dict[str, Any], known: set[str]) -> None:
+    bad = next((k for k in doc if not isinstance(k, str)), None)
+    if bad is not None:
+        raise GeometryError(f"{where} key", fileio.short_repr(bad, 40),
+                            f"one of the known keys {sorted(known)} (text)", "not text")
     extra = sorted(set(doc) - known)
     if extra:
         raise GeometryError(f"{where}.{extra[0]}", doc[extra[0]],

@@ -761,6 +761,9 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
                    f"{limits.torque:g}); margins {rep.min_margin_leg_type1:.3f} / "
                    f"{rep.min_margin_leg_type2:.3f} / {rep.min_margin_platform:.3f} "
                    f"(>= {limits.margin:g}); {verdict}")
+        lim_txt = ", ".join(f"{k} {v:.6g}" for k, v in limits.as_dict().items())
+        click.echo(f"  judged by robot {robot.hash[:12]} at {rep.rate_hz:g} Hz, its hardware "
+                   f"limits: {lim_txt}")
         for msg in rep.messages():
             click.echo(f"  {'defect' if rep.exit_code == 2 else 'violation'}: {msg}")
         if eng is not None:
@@ -843,19 +846,34 @@ def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | N
 @click.option("--speed", default=1.0, show_default=True, type=float,
               help="Replay speed in [0.01, 1]: < 1 is a real retiming, validated again.")
 @click.option("--dry-run", is_flag=True, help="Print the datagrams instead of sending.")
-def feed(csv_file: str, udp: str, speed: float, dry_run: bool) -> None:
+@click.option("--start-theta", nargs=9, type=float, default=None, metavar="A0 B0 C0 ... C2",
+              help="The robot's current actuated angles [deg], legs 0..2 each A, B, C: the "
+                   "file must start there, on the robot's assembly branch.")
+def feed(csv_file: str, udp: str, speed: float, dry_run: bool,
+         start_theta: tuple[float, ...] | None) -> None:
     """Send a trajectory file to the controller: read once, validate, send those samples.
 
-    Exit codes: 0 sent; 1 a limit is violated; 2 bad input or a bad file (nothing sent).
+    Exit codes: 0 sent; 1 a limit is violated; 2 bad input, a bad file, or a file that
+    does not start at --start-theta (nothing sent).
     """
     from sixplus3.control.feed import check_speed, parse_address, prepare_feed, send, udp_sender
 
     address = parse_address(udp)
     check_speed(speed)
-    plan = prepare_feed(csv_file, _robot(), speed)
+    current = None
+    if start_theta is not None:
+        if not all(math.isfinite(v) for v in start_theta):
+            _fail(f"--start-theta must be 9 finite angles [deg], got {list(start_theta)}")
+        import numpy as np
+
+        current = np.radians(start_theta)
+    plan = prepare_feed(csv_file, _robot(), speed, current_theta=current)
+    if current is None:
+        click.echo("note: the robot's start state was not checked (--start-theta)", err=True)
     emit = (lambda m: click.echo(m.decode())) if dry_run else udp_sender(address)
     n = send(plan, emit)
-    click.echo(f"sent {n} samples of {plan.t[-1]:.4f} s at {plan.rate:g} Hz "
+    verb = "printed (dry run, nothing sent)" if dry_run else "sent"
+    click.echo(f"{verb} {n} samples of {plan.t[-1]:.4f} s at {plan.rate:g} Hz "
                f"(speed {plan.speed:g})", err=True)
 
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import re
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -70,6 +71,15 @@ class _Loader(yaml.SafeLoader):
 
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
                         _Loader.construct_mapping)
+# YAML 1.2 floats: PyYAML (YAML 1.1) reads 1.0e5 or 1e5 as text (it wants 1.0e+5); here
+# they are numbers, as in YAML 1.2 and JSON.  Integers keep their own resolver (first).
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."))
+
+#: Deepest nesting of a user's YAML document.
+MAX_DEPTH = 32
 
 
 def read_bytes(path: str | Path, what: str, max_bytes: int = MAX_BYTES) -> bytes:
@@ -120,10 +130,43 @@ def _expanded_size(obj: Any, memo: dict[int, int], limit: int) -> int:
     return n
 
 
+def depth(obj: Any, limit: int) -> int:
+    """Nesting depth of plain data (dicts and lists), counted up to ``limit + 1``
+    without recursion."""
+    stack = [(obj, 1)]
+    deepest = 0
+    while stack:
+        o, d = stack.pop()
+        deepest = max(deepest, d)
+        if deepest > limit:
+            return deepest
+        if isinstance(o, dict):
+            stack.extend((v, d + 1) for v in list(o.keys()) + list(o.values()))
+        elif isinstance(o, list):
+            stack.extend((v, d + 1) for v in o)
+    return deepest
+
+
+def _nesting(text: str) -> int:
+    """A quick upper bound on the flow nesting ([ and {) of YAML text, before the parser
+    (which recurses once per level) sees it; block nesting is bounded by indentation."""
+    depth = deepest = 0
+    for ch in text:
+        if ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth = max(0, depth - 1)
+    return deepest
+
+
 def parse_yaml(text: str, what: str, max_aliases: int = MAX_ALIASES,
                max_values: int = MAX_VALUES) -> Any:
     """Plain data from YAML text with bounded aliases, bounded expanded size and unique
     keys."""
+    if _nesting(text) > MAX_DEPTH:
+        raise InputError(f"{what} nests deeper than {MAX_DEPTH} levels", value=">" +
+                         str(MAX_DEPTH), valid=f"<= {MAX_DEPTH} levels")
     loader = _Loader(text)
     loader.max_aliases = max_aliases
     try:
@@ -132,8 +175,14 @@ def parse_yaml(text: str, what: str, max_aliases: int = MAX_ALIASES,
         first = str(exc).strip().splitlines()
         msg = " ".join(line.strip() for line in first[:3])[:300]
         raise InputError(f"{what} is not valid YAML: {msg}", valid="YAML", value=msg) from None
+    except RecursionError:
+        raise InputError(f"{what} nests too deep", value=None,
+                         valid=f"<= {MAX_DEPTH} levels") from None
     finally:
         loader.dispose()
+    if depth(doc, MAX_DEPTH) > MAX_DEPTH:
+        raise InputError(f"{what} nests deeper than {MAX_DEPTH} levels", value=">" +
+                         str(MAX_DEPTH), valid=f"<= {MAX_DEPTH} levels")
     if _expanded_size(doc, {}, max_values) > max_values:
         raise InputError(f"{what}: its aliases expand to more than {max_values} values "
                          "(a YAML alias bomb?); write the values out",
