@@ -422,6 +422,21 @@ MAX_WORKERS = 4
 MAX_VALUES = 20_000_000
 
 
+def check_scheduler(scheduler: str | None) -> None:
+    """None (a LocalCluster), ``"synchronous"``, or a Dask scheduler address
+    ``PROTOCOL://HOST:PORT``; anything else is refused before a cluster is touched."""
+    import re
+
+    if scheduler is None or scheduler == "synchronous":
+        return
+    ok = isinstance(scheduler, str) and re.fullmatch(
+        r"(tcp|tls|ucx|inproc)://[A-Za-z0-9._\-\[\]:]+:[0-9]{1,5}", scheduler)
+    if not ok:
+        raise InputError(f"scheduler must be a Dask address such as tcp://host:8786 (or "
+                         f"'synchronous'), got {str(scheduler)[:80]!r}",
+                         value=str(scheduler)[:80], valid="PROTOCOL://HOST:PORT")
+
+
 def check_run(workers: int, chunk: int) -> None:
     """Refuse a worker count or chunk size out of range (before anything runs)."""
     if isinstance(workers, bool) or not (isinstance(workers, int)
@@ -452,6 +467,7 @@ def compute_atlas(robot: Robot | None = None, settings: AtlasSettings | None = N
     robot = robot or Robot.default()
     st = (settings or AtlasSettings()).check()
     check_run(workers, chunk)
+    check_scheduler(scheduler)
     xs, ys, zs = grid if grid is not None else position_grid(robot, st.step)
     values = 2 * len(xs) * len(ys) * len(zs) * len(st.azimuths_deg) * len(st.torsions_deg)
     if values > MAX_VALUES:

@@ -547,6 +547,7 @@ def atlas(out_dir: str, step: float, azimuth_step: float, torsions: tuple[float,
                           torsions_deg=tuple(torsions) or (0.0,), max_tilt_deg=max_tilt,
                           resolution_deg=resolution, accel_g=accel_g).check()
     at.check_run(workers, chunk)
+    at.check_scheduler(scheduler)
     if z_range is not None and not (all(math.isfinite(v) for v in z_range)
                                     and 0 < z_range[0] <= z_range[1] <= 3):
         _fail(f"--z must be 0 < ZMIN <= ZMAX <= 3 m, got {z_range[0]!r} {z_range[1]!r}")

@@ -84,13 +84,18 @@ MAX_DEPTH = 32
 
 def read_bytes(path: str | Path, what: str, max_bytes: int = MAX_BYTES) -> bytes:
     """The bytes of a user file of at most ``max_bytes``; raises InputError."""
+    if not isinstance(path, (str, os.PathLike)) or "\x00" in os.fspath(path):
+        raise InputError(f"the {what} path must be text without NUL bytes, got "
+                         f"{short_repr(path, 60)}", value=short_repr(path, 60),
+                         valid="a file path")
     path = Path(path)
     try:
         with open(path, "rb") as fh:
             raw = fh.read(max_bytes + 1)
-    except OSError as exc:
-        raise InputError(f"cannot read {what} {path}: {exc.strerror or exc}",
-                         value=str(path), valid="a readable file") from None
+    except (OSError, ValueError) as exc:
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise InputError(f"cannot read {what} {path}: {why}"[:300],
+                         value=str(path)[:200], valid="a readable file") from None
     if len(raw) > max_bytes:
         raise InputError(f"{what} {path} is larger than {max_bytes} bytes", value=len(raw),
                          valid=f"<= {max_bytes} bytes")

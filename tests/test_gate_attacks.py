@@ -1,0 +1,524 @@
+"""The attack audit's cases (issue: the gate can be beaten), as tests.
+
+- the motion between samples: zig-zag forgeries at every accepted rate, the interval
+  bounds of control/interval.py against dense evaluation (polynomials) and against
+  Pinocchio's torques inside the intervals of real plans;
+- one parse: duplicate keys, non-canonical line 1, overflowing and Python-only numbers;
+- bounded resources and types at the door;
+- no write through a link, no lock file left;
+- the library's promises (write_trajectory) and the authority (robot limits, the feed's
+  start check, simulate = the gate's verdict).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from sixplus3.cli import main as cli
+from sixplus3.control import interval
+from sixplus3.control import trajectory_file as tf
+from sixplus3.control.feed import check_start, prepare_feed, retime
+from sixplus3.control.pipeline import run_plan
+from sixplus3.control.trajectory_file import COLUMNS, JOINTS, encode, parse
+from sixplus3.control.validation import RATE_RANGE, validate_bytes, validate_motion
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.errors import InputError, Sixplus3Error, TrajectoryFileError, ValidationFailed
+from sixplus3.kinematics import rotations as rot
+from sixplus3.kinematics.robot import home, robot_fk_batch
+from sixplus3.planner.task import task_from_dict
+from sixplus3.robot_description.robot import Robot
+
+ROBOT = Robot.default()
+SMALL = {"name": "attack", "waypoints": [{"position": [0, 0, 0.30]},
+                                         {"position": [0.03, 0.0, 0.33], "rpy": [10, 0, 0]}],
+         "nodes_per_segment": 6}
+POS = [COLUMNS.index(f"{j}_pos") for j in JOINTS]
+TAU = [COLUMNS.index(f"{j}_tau") for j in JOINTS]
+FEW = settings(max_examples=10, deadline=None, derandomize=True,
+               suppress_health_check=[HealthCheck.function_scoped_fixture])
+
+
+@pytest.fixture(scope="module")
+def planned(tmp_path_factory):
+    out = tmp_path_factory.mktemp("attack")
+    res = run_plan(task_from_dict(SMALL), out, ROBOT, html=False, plots=False)
+    raw = res.csv.read_bytes()
+    header, data = parse(raw)
+    return res, raw, header, data
+
+
+def code(raw: bytes) -> int:
+    try:
+        return validate_bytes(raw, ROBOT).exit_code
+    except TrajectoryFileError:
+        return 2
+
+
+# ------------------------------------------------------------------ zig-zag forgeries
+_DYN = ClosedLoopDynamics(ROBOT)
+
+
+def zigzag(rate: float, eps: float, joints=range(9), n: int = 24,
+           robot: Robot = ROBOT) -> bytes:
+    """The audit's forgery: every sample alternates by +-eps around home, velocities and
+    accelerations 0, platform columns and torques recomputed, digest recomputed."""
+    th = np.repeat(home(ROBOT).theta, n, axis=0)
+    sign = np.where(np.arange(n) % 2 == 0, -1.0, 1.0)
+    sign[[0, -1]] = 0.0
+    for j in joints:
+        th[:, j] += eps * sign
+    x0 = np.r_[ROBOT.home_position, np.zeros(3), ROBOT.home_psi]
+    fk = robot_fk_batch(th, np.repeat(x0[None], n, 0), ROBOT)
+    tau, _ = _DYN.actuated_inverse_dynamics_batch(fk.cfg.q, np.zeros((n, 9)),
+                                                  np.zeros((n, 9)))
+    data = np.zeros((n, len(COLUMNS)))
+    data[:, 0] = np.arange(n) / rate
+    data[:, POS] = th
+    data[:, TAU] = tau
+    data[:, 37:40] = fk.cfg.position
+    data[:, 40:44] = rot.quat_from_matrix(fk.rotation)
+    data[:, 44:47] = fk.cfg.psi
+    header = {"format": tf.FORMAT, "rate_hz": float(rate), "samples": n,
+              "duration_s": float(data[-1, 0]), "columns": COLUMNS,
+              "robot": {"hash": robot.hash, "parameters": robot.as_dict()}}
+    return encode(header, data)
+
+
+@pytest.mark.parametrize("rate,eps,joints,want", [
+    (100.0, 0.0037, range(9), 2),   # the audit's 100 Hz file: below the minimum rate
+    (500.0, 1e-4, range(9), 2),     # passes the old J dt^3/6 bound; no jerk-J motion
+    (500.0, 2e-4, [4], 2),          # one joint
+    (1000.0, 1e-5, range(9), 2),    # the audit's +-10 microrad at 1 kHz
+    (500.0, 7e-5, range(9), 2),     # also 202 rad/s^2 and 10.9 N m between samples
+])
+def test_zigzag_forgeries_are_refused(rate, eps, joints, want, tmp_path) -> None:
+    raw = zigzag(rate, eps, joints)
+    assert code(raw) == want
+    path = tmp_path / "zig.csv"
+    path.write_bytes(raw)
+    for args in (["validate", str(path)], ["export", str(path), "--format", "ros2-json"],
+                 ["feed", str(path), "--dry-run"], ["simulate", str(path)]):
+        r = CliRunner().invoke(cli, args)
+        assert r.exit_code == want, (args, r.output)
+        assert "Traceback" not in r.output
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(st.floats(RATE_RANGE[0], RATE_RANGE[1]), st.floats(1e-8, 1e-2))
+def test_a_zigzag_passes_only_if_its_motion_between_samples_is_within_limits(rate,
+                                                                           eps) -> None:
+    """At any accepted rate and amplitude: accepted only when the interpolant (whose
+    acceleration peaks at 5.77 x the step / dt^2, jerk 60 x the step / dt^3) is within
+    the acceleration limit and what a jerk-limited motion allows."""
+    dt = 1.0 / rate
+    step = 2 * eps
+    acc = step * 10 / math.sqrt(3) / dt**2  # max |h5''| = 10 / sqrt(3) = 5.7735
+    jerk = 60 * step / dt**3
+    lim = ROBOT.limits
+    c = code(zigzag(rate, eps, n=8))
+    if acc > lim.acceleration * 1.001 or jerk > interval.C_JERK * lim.jerk * 1.001:
+        assert c != 0
+    if c == 0:
+        assert acc <= lim.acceleration * (1 + 1e-6)
+        assert jerk <= interval.C_JERK * lim.jerk * (1 + 1e-6)
+
+
+# ------------------------------------------------------------------ the interval bounds
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(st.lists(st.floats(-10, 10), min_size=5, max_size=5))
+def test_max_abs_is_the_maximum_of_the_polynomial(coefs) -> None:
+    c = np.array(coefs)[:, None]
+    got, s = interval.max_abs(c)
+    dense = np.abs(interval.evaluate(c[:, 0], np.linspace(0, 1, 20001))).max()
+    assert got[0] >= dense - 1e-9 * max(1.0, dense)
+    assert got[0] <= dense + 1e-6 * max(1.0, dense)  # reached on the grid up to its step
+    assert 0.0 <= s[0] <= 1.0
+
+
+def test_c_jerk_is_the_peano_constant_of_the_interpolant() -> None:
+    """Recomputed independently: the interpolant's jerk at s as a linear map of the real
+    jerk on the interval (a midpoint rule on 4000 cells), its L1 norm maximised over s."""
+    n = 4000
+    sig = (np.arange(n) + 0.5) / n
+    h = 1.0 / n
+    # the data of f''' = delta(sigma), f = f' = f'' = 0 at s = 0
+    p1, v1, a1 = (1 - sig) ** 2 / 2 * h, (1 - sig) * h, np.full(n, h)
+    c3 = 10 * p1 - 4 * v1 + a1 / 2
+    c4 = -15 * p1 + 7 * v1 - a1
+    c5 = 6 * p1 - 3 * v1 + a1 / 2
+    best = max(np.abs(6 * c3 + 24 * c4 * s + 60 * c5 * s**2).sum()
+               for s in np.linspace(0, 1, 401))
+    assert best <= interval.C_JERK < best * (1 + 1e-3)
+
+
+def test_hermite_reproduces_a_quintic_and_its_rates() -> None:
+    rng = np.random.default_rng(3)
+    c = rng.normal(size=6)
+    dt = 0.002
+    t = np.arange(4) * dt
+
+    def p(tt, d=0):
+        return np.polynomial.polynomial.polyval(tt, np.polynomial.polynomial.polyder(c, d))
+
+    th, v, a = (p(t, d)[:, None] for d in range(3))
+    k = np.array([0, 1, 2])
+    s = np.array([0.21, 0.5, 0.93])
+    pos, vel, acc = interval.hermite(dt, th, v, a, k, s)
+    tt = (k + s) * dt
+    np.testing.assert_allclose(pos[:, 0], p(tt), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(vel[:, 0], p(tt, 1), rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(acc[:, 0], p(tt, 2), rtol=1e-6, atol=1e-8)
+
+
+@pytest.mark.parametrize("rate", [500.0, 1000.0])
+def test_the_torque_bound_holds_inside_every_interval_of_a_real_plan(rate, tmp_path) -> None:
+    """Pinocchio's torques at 15 points inside every interval of a real plan stay under
+    the bound the gate computed from the samples and midpoints only."""
+    res = run_plan(task_from_dict({**SMALL, "name": f"bound{int(rate)}"}), tmp_path, ROBOT,
+                   rate=rate, html=False, plots=False)
+    sm, rep = res.smoothed, res.report
+    dt = 1.0 / rate
+    th, v, a = sm.theta, sm.theta_dot, sm.theta_ddot
+    n = len(th)
+    k = np.arange(n - 1)
+    m_s, m_m = np.empty((n, 9, 9)), np.empty((n - 1, 9, 9))
+    mid = np.full(n - 1, 0.5)
+    pm, vm, am = interval.hermite(dt, th, v, a, k, mid)
+    fk = robot_fk_batch(th, sm.x_guess, ROBOT)
+    fkm = robot_fk_batch(pm, 0.5 * (fk.x[:-1] + fk.x[1:]), ROBOT)
+    tau_s, _ = _DYN.actuated_inverse_dynamics_batch(fk.cfg.q, v, a, inertia=m_s)
+    tau_m, _ = _DYN.actuated_inverse_dynamics_batch(fkm.cfg.q, vm, am, inertia=m_m)
+    bound, _ = interval.torque_bound(dt, th, v, a, tau_s, m_s, tau_m, m_m)
+    assert rep.max_torque_ratio * ROBOT.limits.torque >= bound.max() - 1e-9
+    for s in np.linspace(0.0625, 0.9375, 15):
+        ps, vs, as_ = interval.hermite(dt, th, v, a, k, np.full(n - 1, s))
+        fks = robot_fk_batch(ps, (1 - s) * fk.x[:-1] + s * fk.x[1:], ROBOT)
+        tau, _ = _DYN.actuated_inverse_dynamics_batch(fks.cfg.q, vs, as_)
+        assert np.all(np.abs(tau) <= bound + 1e-9), (s, float((np.abs(tau) - bound).max()))
+
+
+def test_the_minimum_rate_plans_validates_and_simulates_within_the_limit(tmp_path) -> None:
+    """At the lowest rate accepted, the gate and MuJoCo's sampled replay (feed-forward
+    held for a tick + PD) agree: within the torque limit.  Below it nothing plans."""
+    pytest.importorskip("mujoco")
+    lo = RATE_RANGE[0]
+    r = CliRunner().invoke(cli, ["plan", "tilt30_x", "-o", str(tmp_path), "--rate",
+                                 f"{lo:g}", "--no-html", "--quiet"])
+    assert r.exit_code == 0, r.output
+    path = tmp_path / "tilt30_x.csv"
+    assert CliRunner().invoke(cli, ["validate", str(path)]).exit_code == 0
+    sim = CliRunner().invoke(cli, ["simulate", str(path), "--json"])
+    assert sim.exit_code == 0, sim.output
+    assert json.loads(sim.output)["peak_total_torque"] <= ROBOT.limits.torque
+    low = CliRunner().invoke(cli, ["plan", "tilt30_x", "-o", str(tmp_path), "--rate", "100",
+                                   "--no-html", "--quiet"])
+    assert low.exit_code == 2 and "--rate must be in" in low.output
+
+
+# ------------------------------------------------------------------ one parse
+def _line1(raw: bytes) -> tuple[bytes, bytes]:
+    nl = raw.index(b"\n")
+    return raw[:nl], raw[nl:]
+
+
+@pytest.mark.parametrize("edit", [
+    lambda h: h.replace(b'"rate_hz":1000.0', b'"rate_hz":100.0,"rate_hz":1000.0'),
+    lambda h: h.replace(b'{"algorithm"', b'{"algorithm":"md5","algorithm"'),
+    lambda h: h.replace(b'"rate_hz":1000.0', b'"rate_hz": 1000.0'),
+    lambda h: h.replace(b'"rate_hz":1000.0', b'"rate_hz":1e3'),
+    lambda h: h.replace(b'"rate_hz":1000.0', b'"rate_hz":1e400'),
+    lambda h: h.replace(b'"rate_hz":1000.0', b'"rate_hz":NaN'),
+])
+def test_line_1_has_one_meaning(planned, edit) -> None:
+    _, raw, _, _ = planned
+    head, rest = _line1(raw)
+    bad = edit(head)
+    assert bad != head
+    with pytest.raises(TrajectoryFileError):
+        parse(bad + rest)
+
+
+def test_a_duplicate_key_with_a_recomputed_digest_is_refused(planned) -> None:
+    """The digest is recomputed over the last-wins header: still refused."""
+    _, raw, header, data = planned
+    good = encode(header, data)
+    head, rest = _line1(good)
+    dup = head.replace(b'"rate_hz":1000.0', b'"rate_hz":500.0,"rate_hz":1000.0')
+    with pytest.raises(TrajectoryFileError, match="appears twice"):
+        parse(dup + rest)
+
+
+@pytest.mark.parametrize("value", [b"2.6_865316169336193", b"+1", b".5", b"1.", b"0x1",
+                                   b"inf", b"nan", b" 1", b"1e", b"--1", b"1,0"])
+def test_numbers_outside_the_strict_grammar_are_refused(planned, value) -> None:
+    _, raw, header, data = planned
+    lines = encode(header, data).split(b"\n")
+    row = lines[5].split(b",")
+    row[3] = value
+    lines[5] = b",".join(row)
+    body = b"\n".join(lines[1:])
+    h = {k: v for k, v in header.items() if k != "integrity"}
+    h["integrity"] = {"algorithm": "sha256", "digest": tf.digest(h, body)}
+    forged = f"# {tf.FORMAT} ".encode() + tf._canonical(h) + b"\n" + body
+    with pytest.raises(TrajectoryFileError):
+        parse(forged)
+
+
+@pytest.mark.parametrize("value", [[1.0], {"a": 1}, "0.1", True, None, -1.0])
+def test_header_fields_of_the_wrong_type_are_named(planned, value, tmp_path) -> None:
+    _, raw, header, data = planned
+    forged = encode({**header, "duration_s": value}, data)
+    with pytest.raises(TrajectoryFileError, match="duration"):
+        parse(forged)
+    path = tmp_path / "t.csv"
+    path.write_bytes(forged)
+    for cmd in ("validate", "play", "simulate"):
+        r = CliRunner().invoke(cli, [cmd, str(path)] + (["--no-wait"] if cmd == "play" else []))
+        assert r.exit_code == 2 and "Traceback" not in r.output and "internal" not in r.output
+
+
+def test_a_deeply_nested_header_is_refused(planned) -> None:
+    _, raw, header, data = planned
+    head = f"# {tf.FORMAT} ".encode() + b'{"x":' + b"[" * 20000 + b"1" + b"]" * 20000 + b"}"
+    with pytest.raises(TrajectoryFileError):
+        parse(head + b"\n" + _line1(raw)[1])
+
+
+# ------------------------------------------------------------------ resources
+def test_a_task_past_the_sample_cap_is_refused_before_the_solve(tmp_path) -> None:
+    for extra in ({"duration": 600}, {"speed": 1e-9}):
+        doc = {**SMALL, **extra}
+        (tmp_path / "t.yaml").write_text(json.dumps(doc))
+        r = CliRunner().invoke(cli, ["plan", str(tmp_path / "t.yaml"), "-o",
+                                     str(tmp_path), "--no-html", "--quiet"])
+        assert r.exit_code == 2 and "over the cap" in r.output, r.output
+    dwell = {**SMALL, "waypoints": [SMALL["waypoints"][0]] + [
+        {**SMALL["waypoints"][1 - k % 2], "dwell": 60} for k in range(49)]}
+    with pytest.raises(InputError, match="over the cap"):
+        run_plan(task_from_dict(dwell), tmp_path, ROBOT, rate=10000.0, html=False,
+                 plots=False)
+
+
+def test_a_slow_replay_past_the_cap_is_refused(planned) -> None:
+    res, raw, _, _ = planned
+    rep = validate_bytes(raw, ROBOT)
+    too_slow = rep.duration / tf.MAX_SAMPLES * 1000.0 / 2  # twice the cap
+    with pytest.raises(InputError, match="over the cap"):
+        retime(rep, ROBOT, max(too_slow, 1e-6))
+
+
+@pytest.mark.parametrize("args", [["--workers", "1024"], ["--step", "0.002"],
+                                  ["--scheduler", "nonsense", "--workers", "1"]])
+def test_atlas_runs_past_their_caps_are_refused(args, tmp_path) -> None:
+    r = CliRunner().invoke(cli, ["atlas", "-o", str(tmp_path / "a")] + args)
+    assert r.exit_code == 2, r.output
+    assert "Traceback" not in r.output and "internal" not in r.output
+
+
+# ------------------------------------------------------------------ types at the door
+@pytest.mark.parametrize("text,match", [
+    ("a: " + "[" * 20000 + "]" * 20000, "nests"),
+    ("mounting: [floor]", "mounting"),
+    ("1: 2\nname: x", "key"),
+    ("masses: {point_mass: 'no'}", "point_mass"),
+    ("payload: {mass: 1, inertia: [1e300, 1e300, 1e300, 0, 0, 0]}", "inertia"),
+    ("limits: {torque: 16.2}", "torque"),
+    ("limits: {margin: 1.0e-300}", "margin"),
+    ("limits: {theta_min: -3.14}", "theta_min"),
+])
+def test_robot_files_are_checked_at_the_door(text, match, tmp_path) -> None:
+    path = tmp_path / "r.yaml"
+    path.write_text(text)
+    r = CliRunner().invoke(cli, ["--robot", str(path), "robot", "show"])
+    assert r.exit_code == 2, r.output
+    assert match in r.output and "internal" not in r.output
+
+
+def test_yaml_1_2_floats_are_numbers(tmp_path) -> None:
+    from sixplus3.fileio import parse_yaml
+
+    assert parse_yaml("a: 1.0e5\nb: 1e5\nc: 10\nd: '1e5'", "t") == {
+        "a": 1e5, "b": 1e5, "c": 10, "d": "1e5"}
+
+
+@pytest.mark.parametrize("limits", [{"velocity": 1.0e-300}, {"jerk": "fast"}])
+def test_task_limits_are_range_checked(limits, tmp_path) -> None:
+    (tmp_path / "t.yaml").write_text(json.dumps({**SMALL, "limits": limits}))
+    r = CliRunner().invoke(cli, ["plan", str(tmp_path / "t.yaml"), "-o", str(tmp_path)])
+    assert r.exit_code == 2 and "internal" not in r.output, r.output
+
+
+@pytest.mark.parametrize("path", [None, "a\x00b", 3, b"x"])
+def test_bad_paths_are_named_errors(path) -> None:
+    from sixplus3.control.validation import validate_file
+
+    with pytest.raises(Sixplus3Error):
+        validate_file(path, ROBOT)
+
+
+# ------------------------------------------------------------------ links
+def _outside_unchanged(outside: Path, before: dict) -> None:
+    assert {p.name: p.read_bytes() for p in outside.iterdir()} == before
+
+
+@FEW
+@given(st.sampled_from([".attack.csv.lock", ".attack.csv.tmp", ".attack_torques.tmp.png",
+                        ".attack.html.tmp"]), st.booleans())
+def test_planted_links_change_nothing_outside(planned, tmp_path_factory, name,
+                                              dangling) -> None:
+    res, raw, header, data = planned
+    out = tmp_path_factory.mktemp("out")
+    outside = tmp_path_factory.mktemp("outside")
+    target = outside / "victim"
+    if not dangling:
+        target.write_bytes(b"precious")
+    before = {p.name: p.read_bytes() for p in outside.iterdir()}
+    (out / name).symlink_to(target)
+    rep = res.report
+    sm = res.smoothed
+    try:
+        tf.write_trajectory(out / "attack.csv", sm.t, sm.theta, sm.theta_dot,
+                            sm.theta_ddot, rep, ROBOT, ROBOT.limits, {})
+    except TrajectoryFileError as exc:
+        assert "link" in str(exc)
+    _outside_unchanged(outside, before)
+    assert not (out / ".attack.csv.lock").exists() or (out / ".attack.csv.lock").is_symlink()
+
+
+def test_no_lock_file_is_left_and_export_replaces_a_link_not_its_target(planned,
+                                                                       tmp_path) -> None:
+    res, raw, _, _ = planned
+    assert not any(p.name.endswith(".lock") for p in res.csv.parent.iterdir())
+    src = tmp_path / "t.csv"
+    src.write_bytes(raw)
+    victim = tmp_path / "victim"
+    victim.write_bytes(b"precious")
+    link = tmp_path / "out.json"
+    link.symlink_to(victim)
+    r = CliRunner().invoke(cli, ["export", str(src), "--format", "ros2-json", "-o",
+                                 str(link)])
+    assert r.exit_code == 0, r.output
+    assert victim.read_bytes() == b"precious"
+    assert not link.is_symlink() and json.loads(link.read_text())["joint_names"]
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+
+
+# ------------------------------------------------------------------ promises
+def test_write_trajectory_writes_only_what_its_report_judged(planned, tmp_path) -> None:
+    res, _, _, _ = planned
+    sm, rep = res.smoothed, res.report
+    args = (sm.t, sm.theta, sm.theta_dot, sm.theta_ddot)
+    other = sm.theta.copy()
+    other[5, 2] += 1e-3
+    with pytest.raises(TrajectoryFileError, match="other samples"):
+        tf.write_trajectory(tmp_path / "a.csv", sm.t, other, sm.theta_dot, sm.theta_ddot,
+                            rep, ROBOT, ROBOT.limits, {})
+    for meta in ({"rate_hz": 500.0}, {"format": "x"}, {"robot": {}}, {"validation": {}}):
+        with pytest.raises(InputError, match="may not set"):
+            tf.write_trajectory(tmp_path / "a.csv", *args, rep, ROBOT, ROBOT.limits, meta)
+    assert not (tmp_path / "a.csv").exists()
+    path = tf.write_trajectory(tmp_path / "a.csv", *args, rep, ROBOT, ROBOT.limits,
+                               {"rate_hz": rep.rate_hz, "note": "ok"})
+    assert validate_bytes(path.read_bytes(), ROBOT).ok
+
+
+def test_the_feed_checks_the_robots_start_state(planned, tmp_path) -> None:
+    res, raw, _, data = planned
+    path = tmp_path / "t.csv"
+    path.write_bytes(raw)
+    first = data[0, POS]
+    assert prepare_feed(path, ROBOT, current_theta=first).report.ok
+    assert prepare_feed(path, ROBOT, current_theta=lambda: first).report.ok
+    off = first.copy()
+    off[4] += 0.01
+    with pytest.raises(ValidationFailed, match="leg1_B"):
+        prepare_feed(path, ROBOT, current_theta=off)
+    r = CliRunner().invoke(cli, ["feed", str(path), "--dry-run", "--start-theta",
+                                 *[f"{v:.9f}" for v in np.degrees(off)]])
+    assert r.exit_code == 2 and "leg1_B" in r.output
+    # the same angles, but the file's first pose on another branch than the robot's
+    rep = validate_bytes(raw, ROBOT)
+    rep.position = rep.position.copy()
+    rep.position[0, 2] += 0.01
+    with pytest.raises(ValidationFailed, match="assembly branch"):
+        check_start(rep, ROBOT, first)
+
+
+TIGHT = ROBOT.replace(limits=ROBOT.limits.tightened(torque=3.0))
+
+
+def test_a_zigzag_within_the_jerk_bound_is_judged_by_its_motion(tmp_path) -> None:
+    """+-20 microrad at 500 Hz is a motion some jerk-limited trajectory has: 58 rad/s^2
+    and 3.3 N m between the samples.  Accepted for the robot, refused (exit 1, a limit)
+    for one whose torque limit is 3 N m, by validate and simulate alike."""
+    from sixplus3.control.simulation import simulate_file
+
+    assert code(zigzag(500.0, 2e-5)) == 0
+    path = tmp_path / "z.csv"
+    path.write_bytes(zigzag(500.0, 2e-5, robot=TIGHT))
+    rep = validate_bytes(path.read_bytes(), TIGHT)
+    assert rep.exit_code == 1
+    assert any(f.check.startswith("torque (between samples") for f in rep.findings)
+    rep, sim = simulate_file(path, TIGHT)
+    assert sim is None and rep.exit_code == 1
+    robot_file = tmp_path / "tight.json"
+    robot_file.write_text(json.dumps(TIGHT.as_dict()))
+    for cmd in ("validate", "simulate"):
+        r = CliRunner().invoke(cli, ["--robot", str(robot_file), cmd, str(path)])
+        assert r.exit_code == 1, (cmd, r.output)
+
+
+def test_a_long_motion_is_validated_in_windows_with_the_same_verdict(planned,
+                                                                    monkeypatch) -> None:
+    import sixplus3.control.validation as V
+
+    _, raw, _, _ = planned
+    whole = validate_bytes(raw, ROBOT)
+    monkeypatch.setattr(V, "WINDOW", 40)
+    parts = validate_bytes(raw, ROBOT)
+    assert parts.ok and whole.ok
+    np.testing.assert_allclose(parts.tau, whole.tau, atol=1e-12)
+    assert parts.checked_points == whole.checked_points
+    for key in ("max_torque_ratio", "max_acceleration_ratio", "min_margin_platform"):
+        assert getattr(parts, key) == pytest.approx(getattr(whole, key), abs=1e-12)
+    bad = zigzag(500.0, 2e-5, n=100, robot=TIGHT)
+    monkeypatch.setattr(V, "WINDOW", 30)
+    rep = validate_bytes(bad, TIGHT)
+    assert rep.exit_code == 1
+    assert all(f.count >= 1 for f in rep.findings)
+
+
+def test_validate_names_the_robot_and_limits_it_judged_by(planned, tmp_path) -> None:
+    _, raw, _, _ = planned
+    path = tmp_path / "t.csv"
+    path.write_bytes(raw)
+    r = CliRunner().invoke(cli, ["validate", str(path)])
+    assert ROBOT.hash[:12] in r.output and "torque 10" in r.output
+    js = json.loads(CliRunner().invoke(cli, ["validate", str(path), "--json"]).output)
+    assert js["limits"]["torque"] == ROBOT.limits.torque and js["robot_hash"] == ROBOT.hash
+
+
+def test_validate_motion_refuses_malformed_arguments() -> None:
+    t = np.arange(3) / 1000.0
+    z = np.zeros((3, 9))
+    for bad in (dict(x_guess=np.zeros((2, 9))), dict(robot="default"),
+                dict(rate="fast")):
+        kw = {"t": t, "theta": z, "theta_dot": z, "theta_ddot": z, "robot": ROBOT,
+              "rate": 1000.0, "x_guess": z, **bad}
+        with pytest.raises(InputError):
+            validate_motion(**kw)
+
+
+def test_no_command_leaves_a_tmp_or_lock_file(planned) -> None:
+    res, _, _, _ = planned
+    left = [p for p in os.listdir(res.csv.parent) if p.endswith((".tmp", ".lock"))]
+    assert not left
