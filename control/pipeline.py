@@ -136,7 +136,7 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
     except ValidationFailed as exc:
         raise TrajectoryFileError("the smoothed trajectory fails validation, nothing "
                                   "written: " + str(exc).split(": ", 1)[-1],
-                                  value=exc.report.messages() if exc.report else None,
+                                  value=str(exc)[:2000],
                                   valid="a valid trajectory") from None
     secs["validate"] = time.perf_counter() - t2
     say(f"  validated {rep.samples} samples and {rep.checked_points - rep.samples} "

@@ -423,12 +423,13 @@ def header_number(header: dict, key: str, name: str, lo: float, hi: float,
     value = header.get(key)
     ok = (isinstance(value, int) if integer else isinstance(value, (int, float))) \
         and not isinstance(value, bool)
-    if not ok or not (lo <= value <= hi):  # type: ignore[operator]
+    number = float(value) if ok else math.nan  # type: ignore[arg-type]
+    if not lo <= number <= hi:
         kind = "an integer" if integer else "a number"
         raise TrajectoryFileError(f"{name}: header field {key} must be {kind} in "
                                   f"[{lo:g}, {hi:g}], got {fileio.short_repr(value, 60)}",
                                   value=value, valid=f"{kind} in [{lo:g}, {hi:g}]")
-    return float(value)
+    return number
 
 
 def parse(raw: bytes, name: str = "trajectory") -> tuple[dict, np.ndarray]:

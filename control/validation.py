@@ -282,6 +282,9 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
                              value=arr.shape, valid=f"({n}, {width})")
     th, v, a = arrays
     xg, pf, tf_ = extra["x_guess"], extra["platform"], extra["tau_file"]
+    if xg is None:
+        raise InputError("x_guess (n, 9) is needed to seed the forward kinematics",
+                         value=None, valid=f"({n}, 9)")
     if n <= WINDOW:
         rep = _validate_window(t, th, v, a, robot, rate, xg, lim, pf, tf_, midpoints)
     else:

@@ -49,7 +49,7 @@ import casadi as ca
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from sixplus3.errors import InfeasibleTaskError
+from sixplus3.errors import InfeasibleTaskError, InputError, TaskError
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN, measure_limits, pose_masks
 from sixplus3.kinematics.robot import leg_clearance, robot_ik
 from sixplus3.planner.task import Task, Waypoint, rotvec
@@ -404,6 +404,7 @@ class Problem:
 
     def __init__(self, task: Task, robot: Robot | None = None,
                  options: PlannerOptions | None = None, progress: Any = None) -> None:
+        _check_arguments(task, robot, options)
         # the task's setup (payload, tool, mounting) on the robot; TCP waypoints become
         # platform poses through that robot's tool
         self.robot = task.robot_for(robot or Robot.default())
@@ -1245,6 +1246,30 @@ class Problem:
         return (f"planning failed ({status}): the {name} limit ({rng}) binds between "
                 f"waypoints {seg} and {seg + 1} ({how}); lower the demand or move the "
                 "waypoints")
+
+
+def _check_arguments(task: object, robot: object, options: object) -> None:
+    """Named errors for arguments of the wrong kind or out of range (a Task made with
+    ``dataclasses.replace`` skips the task schema)."""
+    if not isinstance(task, Task):
+        raise TaskError("task must be a Task (load_task, task_from_dict)",
+                        value=type(task).__name__, valid="a Task")
+    if robot is not None and not isinstance(robot, Robot):
+        raise InputError("robot must be a Robot or None", value=type(robot).__name__,
+                         valid="a Robot or None")
+    if options is not None and not isinstance(options, PlannerOptions):
+        raise InputError("options must be PlannerOptions or None",
+                         value=type(options).__name__, valid="PlannerOptions or None")
+    n = task.nodes_per_segment
+    if n is not None and (isinstance(n, bool) or not isinstance(n, int) or not 4 <= n <= 60):
+        raise TaskError(f"task field nodes_per_segment must be an integer in [4, 60], got "
+                        f"{n!r}", value=n, valid="[4, 60]")
+    for name, lo, hi in (("duration", 0.0, 600.0), ("speed", 0.0, 1.0)):
+        v = getattr(task, name)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
+                              or not lo < v <= hi):
+            raise TaskError(f"task field {name} must be in ({lo:g}, {hi:g}], got {v!r}",
+                            value=v, valid=f"({lo:g}, {hi:g}]")
 
 
 def plan(task: Task, robot: Robot | None = None,

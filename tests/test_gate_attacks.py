@@ -522,3 +522,61 @@ def test_no_command_leaves_a_tmp_or_lock_file(planned) -> None:
     res, _, _, _ = planned
     left = [p for p in os.listdir(res.csv.parent) if p.endswith((".tmp", ".lock"))]
     assert not left
+
+
+_JSON = st.recursive(st.none() | st.booleans() | st.integers(-10**20, 10**20)
+                     | st.floats(allow_nan=False, allow_infinity=False) | st.text(max_size=8),
+                     lambda inner: st.lists(inner, max_size=4)
+                     | st.dictionaries(st.text(max_size=6), inner, max_size=4),
+                     max_leaves=12)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.sampled_from(["rate_hz", "samples", "duration_s", "columns", "robot", "format",
+                        "integrity", "limits", "extra"]), _JSON)
+def test_any_header_value_with_a_recomputed_digest_gets_a_verdict(planned, key,
+                                                                  value) -> None:
+    """Whatever an attacker puts in a header field (the digest recomputed), the gate
+    answers with a verdict or a TrajectoryFileError, never another exception, and it
+    accepts a changed file only where the field is information (not rate, samples,
+    duration, columns, robot, format)."""
+    _, raw, header, data = planned
+    forged = encode({**header, key: value}, data)
+    try:
+        rep = validate_bytes(forged, ROBOT)
+    except TrajectoryFileError:
+        return
+    if rep.ok and key in ("rate_hz", "samples", "duration_s", "columns", "robot", "format"):
+        assert value == header[key] or (key == "rate_hz" and value == 1000)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.binary(max_size=64), st.integers(0, 4000))
+def test_any_bytes_spliced_into_line_1_get_a_named_error(planned, junk, at) -> None:
+    _, raw, _, _ = planned
+    head, rest = _line1(raw)
+    at = min(at, len(head))
+    bad = head[:at] + junk.replace(b"\n", b"") + head[at:]
+    if bad == head:
+        return
+    with pytest.raises(TrajectoryFileError):
+        parse(bad + rest)
+
+
+def test_plan_arguments_are_named_errors() -> None:
+    import dataclasses
+
+    from sixplus3.errors import TaskError
+    from sixplus3.planner.ocp import plan
+
+    task = task_from_dict(SMALL)
+    for kw in ({"nodes_per_segment": 0}, {"nodes_per_segment": -3},
+               {"duration": float("nan")}, {"speed": 2.0}):
+        with pytest.raises(TaskError):
+            plan(dataclasses.replace(task, **kw), ROBOT)
+    with pytest.raises(InputError):
+        plan(task, "default")  # type: ignore[arg-type]
+    with pytest.raises(InputError):
+        plan(task, ROBOT, "fast")  # type: ignore[arg-type]

@@ -141,7 +141,7 @@ def test_bad_task_files_name_the_field(tmp_path) -> None:
                             "limits": {"torque": 12}})
     with pytest.raises(LimitError) as err:
         loose.limits_for(ROBOT)
-    assert err.value.name == "torque" and err.value.value == 12.0 and "(0, 10]" in str(err.value)
+    assert err.value.name == "torque" and err.value.value == 12.0 and "[0.01, 10]" in str(err.value)
     with pytest.raises(LimitError):
         Problem(loose, ROBOT)
     bad = tmp_path / "bad.yaml"
