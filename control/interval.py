@@ -104,15 +104,39 @@ def _real_roots_01(c: np.ndarray) -> np.ndarray:
             out[1, two] = np.where(qq != 0, a0 / qq, np.nan)
         three = eff == 3
         if three.any():
-            lead = flat[3, three]
-            comp = np.zeros((int(three.sum()), 3, 3))
-            comp[:, 0, :] = -(flat[2::-1, three] / lead).T
-            comp[:, 1, 0] = comp[:, 2, 1] = 1.0
-            ev = np.linalg.eigvals(comp)
-            real = np.abs(ev.imag) <= 1e-9 * np.maximum(1.0, np.abs(ev.real))
-            out[:3, three] = np.where(real, ev.real, np.nan).T
+            out[:3, three] = _cubic_real_roots(flat[3, three], flat[2, three],
+                                               flat[1, three], flat[0, three])
     out[(out < 0) | (out > 1)] = np.nan
     return out.reshape((len(out),) + shape)
+
+
+def _cubic_real_roots(a3: np.ndarray, a2: np.ndarray, a1: np.ndarray,
+                      a0: np.ndarray) -> np.ndarray:
+    """(3, m) real roots of a3 x^3 + a2 x^2 + a1 x + a0 (a3 != 0), NaN where fewer: the
+    closed form (Cardano / the trigonometric form), each polished by two Newton steps."""
+    with np.errstate(all="ignore"):
+        B, C, D = a2 / a3, a1 / a3, a0 / a3
+        p = C - B**2 / 3
+        q = 2 * B**3 / 27 - B * C / 3 + D
+        disc = (q / 2) ** 2 + (p / 3) ** 3
+        roots = np.full((3,) + B.shape, np.nan)
+        one = disc > 0
+        sq = np.sqrt(np.where(one, disc, 0.0))
+        roots[0] = np.where(one, np.cbrt(-q / 2 + sq) + np.cbrt(-q / 2 - sq), np.nan)
+        three = ~one
+        r = np.sqrt(np.where(three, -p / 3, 0.0))
+        arg = np.where(three & (r > 0), -q / 2 / np.where(r > 0, r, 1.0) ** 3, 0.0)
+        phi = np.arccos(np.clip(arg, -1.0, 1.0)) / 3
+        for k in range(3):
+            tk = 2 * r * np.cos(phi - 2 * np.pi * k / 3)
+            roots[k] = np.where(three, tk, roots[k])
+        roots -= B / 3
+        for _ in range(2):  # Newton on the original polynomial
+            f = ((a3 * roots + a2) * roots + a1) * roots + a0
+            df = (3 * a3 * roots + 2 * a2) * roots + a1
+            step = np.where(np.abs(df) > 0, f / np.where(df != 0, df, 1.0), 0.0)
+            roots = roots - np.where(np.isfinite(step), step, 0.0)
+    return roots
 
 
 def max_abs(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

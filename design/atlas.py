@@ -418,7 +418,9 @@ def _chunk_task(robot: Robot, positions: np.ndarray, settings: AtlasSettings,
 #: so 4 stay under 2 GB; a real cluster is a --scheduler address.
 MAX_WORKERS = 4
 #: Most results an atlas may hold (positions x azimuths x torsions x {free, locked}):
-#: ~0.2 GB of float64 and int arrays, and the chunk lists around them.
+#: 33 bytes each (the tilt, its binding limit, three crank angles), held twice while the
+#: chunks are joined into the dataset: ~1.3 GB at the cap.  The default atlas holds
+#: 3.5e6; --step 0.01 would hold 2.8e7 (refused: run it on a Dask cluster in parts).
 MAX_VALUES = 20_000_000
 
 

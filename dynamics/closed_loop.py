@@ -263,21 +263,24 @@ class ClosedLoopDynamics:
         return tau, rcond
 
     def _reduced_inertia(self, q: np.ndarray, X: np.ndarray, out: np.ndarray) -> None:
-        """out[k] = S^T M(q_k) S with S = [I on the actuated; -X_k on the passive]."""
+        """out[k] = S^T M(q_k) S with S = [I on the actuated; -X_k on the passive]: one
+        ``crba`` per state, which fills the upper triangle U of M = U + U^T - diag(M),
+        so S^T M S = A + A^T - S^T diag(M) S with A = S^T U S (batched)."""
         m, d = self.model, self.data
-        act, pas = self._act, self._pas
+        n = len(q)
+        M = np.empty((n, m.nv, m.nv))
         crba = pin.crba
-        for k in range(len(q)):
-            if not np.isfinite(X[k]).all():
-                out[k] = np.nan
-                continue
-            M = crba(m, d, q[k])
-            M = np.triu(M) + np.triu(M, 1).T
-            Map = M[np.ix_(act, pas)]
-            Xk = X[k]
-            MpX = Map @ Xk
-            out[k] = (M[np.ix_(act, act)] - MpX - MpX.T
-                      + Xk.T @ M[np.ix_(pas, pas)] @ Xk)
+        ok = np.isfinite(X).all(axis=(1, 2))
+        for k in range(n):
+            M[k] = crba(m, d, q[k]) if ok[k] else np.nan
+        U = np.triu(M)
+        diag = np.diagonal(M, axis1=1, axis2=2)
+        S = np.zeros((n, m.nv, len(self._act)))
+        S[:, self._act, np.arange(len(self._act))] = 1.0
+        S[:, self._pas, :] = -X
+        St = np.swapaxes(S, 1, 2)
+        A = St @ (U @ S)
+        out[:] = A + np.swapaxes(A, 1, 2) - St @ (diag[:, :, None] * S)
 
     def holding_torques_batch(self, q: np.ndarray) -> np.ndarray:
         """(n, 9) static actuator torques holding the robot still at n configurations
