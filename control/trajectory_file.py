@@ -61,9 +61,10 @@ COLUMNS = (["t"] + [f"{j}_{k}" for j in JOINTS for k in ("pos", "vel", "acc", "t
            + [f"psi_{i}" for i in range(3)])
 UNITS = {"t": "s", "pos": "rad", "vel": "rad/s", "acc": "rad/s^2", "tau": "N m",
          "platform_xyz": "m", "platform_q": "unit quaternion (x, y, z, w)", "psi": "rad"}
-#: Largest trajectory file read [bytes] (~1.1e6 samples; ~18 min at 1 kHz).  Reading and
-#: validating one this size stays under 2 GB (docs/validation.md, "Caps").
-MAX_BYTES = 512 << 20
+#: Largest trajectory file read [bytes]: ~143,000 samples (the package writes at most
+#: MAX_SAMPLES).  Validating one this size peaks near 1 GB (benchmarks/bench_gate_memory.py;
+#: about 1.9 kB per sample above a 0.8 GB base, docs/validation.md "Caps").
+MAX_BYTES = 128 << 20
 #: Most samples of a motion this package makes (a plan at a rate, its dwells, a slower
 #: replay): 2 minutes at 1 kHz.  Estimated before anything is allocated.
 MAX_SAMPLES = 120_000

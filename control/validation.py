@@ -472,6 +472,9 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
             findings.append(mid_finding)
         sph = np.vstack([spherical_tilts(c).reshape(len(c), 9) for c in cfg_points])
         clear = np.concatenate([leg_clearance(c) for c in cfg_points])
+        # the interpolant's rates over whole intervals need no dynamics: done while the
+        # worker computes
+        extremes = interval.rate_extremes(dt, th, v, a)
         # ------------------------------------------------------------ dynamics (Pinocchio)
         offload.compute(split, n_all)
         offload.wait()
@@ -480,7 +483,8 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
         checked = n_all
         # ------------------------------------------------------------ whole intervals
         between = _interval_findings(lim, dt, th, v, a, t_int, tau_all, n,
-                                     offload.inertia[:n_all] if fkm is not None else None)
+                                     offload.inertia[:n_all] if fkm is not None else None,
+                                     extremes)
         findings += between.findings
         if tau_file is not None:
             ff = np.abs(np.asarray(tau_file, dtype=float) - tau)
@@ -677,11 +681,12 @@ class _Between:
 
 def _interval_findings(lim: Limits, dt: float, th: np.ndarray, v: np.ndarray, a: np.ndarray,
                        t_int: np.ndarray, tau_all: np.ndarray, n: int,
-                       inertia: np.ndarray | None) -> _Between:
+                       inertia: np.ndarray | None,
+                       ext: dict[str, tuple[np.ndarray, np.ndarray]]) -> _Between:
     """The interpolant over every whole interval (control/interval.py): its jerk against
     what a motion within the jerk limit allows (a defect above), its velocity and
-    acceleration exactly, and the torque bound (with the midpoints' dynamics)."""
-    ext = interval.rate_extremes(dt, th, v, a)
+    acceleration exactly (``ext``: :func:`interval.rate_extremes`), and the torque bound
+    (with the midpoints' dynamics)."""
     out: list[Finding | None] = []
     jerk = ext["jerk"][0]
     cap = interval.C_JERK * lim.jerk
