@@ -12,7 +12,7 @@ import numpy as np
 from sixplus3.control.smoothing import Smoothed, check_rate, smooth
 from sixplus3.control.trajectory_file import check_samples, output_path
 from sixplus3.control.validation import ValidationReport, validate_and_write
-from sixplus3.errors import TrajectoryFileError, ValidationFailed
+from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed
 from sixplus3.planner.codegen import build_kind
 from sixplus3.planner.ocp import PlannerOptions, Solution, plan
 from sixplus3.planner.task import Task
@@ -62,6 +62,12 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
     :class:`InfeasibleTaskError` for an infeasible task and :class:`TrajectoryFileError`
     if the smoothed trajectory fails its validation; in both cases nothing is written.
     """
+    if not isinstance(task, Task):
+        raise InputError("run_plan needs a Task (load_task, task_from_dict)",
+                         value=type(task).__name__, valid="a Task")
+    if robot is not None and not isinstance(robot, Robot):
+        raise InputError("robot must be a Robot or None", value=type(robot).__name__,
+                         valid="a Robot or None")
     robot = task.robot_for(robot or Robot.default())  # with the task's payload/tool/mounting
     listener: PlanProgress | None = None
     say: Callable[[str], None] = _silent

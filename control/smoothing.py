@@ -38,7 +38,7 @@ from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from sixplus3.control.trajectory_file import check_samples
 from sixplus3.control.validation import RATE_RANGE
-from sixplus3.errors import SmoothingError
+from sixplus3.errors import InputError, SmoothingError
 from sixplus3.planner.ocp import Solution, actuated_profile
 
 
@@ -104,6 +104,9 @@ def smooth(sol: Solution, rate: float = 1000.0) -> Smoothed:
     whole number of periods, so every stop lands on a sample), with each waypoint's
     dwell held at rest in between.
     """
+    if not isinstance(sol, Solution):
+        raise InputError("smooth needs a planner Solution (sixplus3.plan)",
+                         value=type(sol).__name__, valid="a Solution")
     rate = check_rate(rate)
     dt = 1.0 / rate
     parts = []

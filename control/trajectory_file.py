@@ -545,8 +545,9 @@ def read_trajectory(path: str | Path, robot: Robot | None = None) -> tuple[dict,
     """Load, format-check and integrity-check a trajectory made for ``robot`` (default
     ``Robot.default()``); raises :class:`TrajectoryFileError`."""
     robot = robot or Robot.default()
+    raw = read_bytes(path)  # checks that path is a path
     name = Path(path).name
-    header, data = parse(read_bytes(path), name)
+    header, data = parse(raw, name)
     check_robot(header, robot, name)
     return header, data
 

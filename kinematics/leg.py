@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sixplus3.errors import ConvergenceError, InputError, UnreachableError
+from sixplus3.errors import ConvergenceError, InputError, UnreachableError, as_float_array
 from sixplus3.kinematics import _leg_kernel as kern
 from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
@@ -161,7 +161,7 @@ class LegState:
 
 
 def _as_points(points: np.ndarray | list, name: str = "points") -> np.ndarray:
-    arr = np.asarray(points, dtype=np.float64)
+    arr = as_float_array(points, name, "(n, 3) or (3,) [m]")
     if arr.ndim == 1:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != 3:

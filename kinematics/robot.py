@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sixplus3.errors import ConvergenceError, InputError, UnreachableError
+from sixplus3.errors import ConvergenceError, InputError, UnreachableError, as_float_array
 from sixplus3.kinematics import _geometry_kernel
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.leg import LegState, failing_chain, leg_ik, status_reason
@@ -161,18 +161,27 @@ def _rot(axis: int, a: np.ndarray) -> np.ndarray:
 
 
 def _as_batch(position, rotation, psi):
-    position = np.atleast_2d(np.asarray(position, dtype=float))
-    rotation = np.asarray(rotation, dtype=float)
+    position = np.atleast_2d(as_float_array(position, "position", "(n, 3) [m]"))
+    rotation = as_float_array(rotation, "rotation", "(n, 3, 3)")
     if rotation.ndim == 2:
         rotation = rotation[None]
-    psi = np.asarray(psi, dtype=float)
+    psi = as_float_array(psi, "psi", "(n, 3) [rad]")
+    shapes_ok = (position.ndim == 2 and position.shape[-1] == 3 and rotation.ndim == 3
+                 and rotation.shape[-2:] == (3, 3) and psi.ndim in (1, 2)
+                 and psi.shape[-1] == NUM_LEGS)
+    if not shapes_ok:
+        raise InputError("position must be (n, 3) [m], rotation (n, 3, 3) and psi (n, 3)",
+                         value=(position.shape, rotation.shape, psi.shape),
+                         valid="(n, 3), (n, 3, 3) and (n, 3)")
     n = max(position.shape[0], rotation.shape[0], psi.shape[0] if psi.ndim == 2 else 1)
-    psi = np.broadcast_to(psi, (n, NUM_LEGS))
-    position = np.broadcast_to(position, (n, 3))
-    rotation = np.broadcast_to(rotation, (n, 3, 3))
-    if position.shape[-1] != 3 or rotation.shape[-2:] != (3, 3):
-        raise InputError("position must be (n, 3) [m] and rotation (n, 3, 3)",
-                         value=(position.shape, rotation.shape), valid="(n, 3) and (n, 3, 3)")
+    try:
+        psi = np.broadcast_to(psi, (n, NUM_LEGS))
+        position = np.broadcast_to(position, (n, 3))
+        rotation = np.broadcast_to(rotation, (n, 3, 3))
+    except ValueError:
+        raise InputError("position, rotation and psi must have one length n (or 1)",
+                         value=(position.shape, rotation.shape, psi.shape),
+                         valid="(n, 3), (n, 3, 3), (n, 3)") from None
     for name, arr in (("position", position), ("rotation", rotation), ("psi", psi)):
         if not np.all(np.isfinite(arr)):
             raise InputError(f"{name} must be finite (got NaN or inf)",
@@ -257,8 +266,9 @@ def robot_ik_pose(position, rpy=(0.0, 0.0, 0.0), psi=None,
     the robot's home ones); raises :class:`UnreachableError` naming the failing leg."""
     robot = robot or Robot.default()
     psi = robot.home_psi if psi is None else psi
-    pos = np.asarray(position, dtype=float)
-    if pos.shape != (3,) or np.asarray(rpy).shape != (3,) or np.asarray(psi).shape != (3,):
+    pos = as_float_array(position, "position", "3 numbers [m]")
+    if pos.shape != (3,) or as_float_array(rpy, "rpy", "3 angles [rad]").shape != (3,) \
+            or as_float_array(psi, "psi", "3 angles [rad]").shape != (3,):
         raise InputError("position, rpy and psi must each be 3 numbers",
                          value=(pos.shape, np.shape(rpy), np.shape(psi)), valid="(3,) each")
     cfg = robot_ik(pos, rpy_matrix(*rpy), psi, robot)
@@ -377,7 +387,7 @@ def robot_fk(theta, robot: Robot | None = None, q_hint=None, tol: float = 1e-12,
         robot = model.robot
     robot = robot or Robot.default()
     clm = model or robot.closed_loop_model()
-    theta = np.asarray(theta, dtype=float)
+    theta = as_float_array(theta, "theta", "9 actuated angles [rad]")
     if theta.shape != (9,) or not np.all(np.isfinite(theta)):
         raise InputError(f"theta must be 9 finite angles [rad], got shape {theta.shape}",
                          value=theta.shape, valid="(9,) finite [rad]")

@@ -351,12 +351,11 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
 
 def load_task(path: str | Path) -> Task:
     """Read and validate a YAML task file; raises :class:`TaskError`."""
-    path = Path(path)
     try:
         doc = read_yaml(path, "task file")
     except InputError as exc:
         raise TaskError(str(exc), value=exc.value, valid=exc.valid) from None
-    return task_from_dict(doc, name=path.stem)
+    return task_from_dict(doc, name=Path(path).stem)
 
 
 def rotvec(R: np.ndarray) -> np.ndarray:

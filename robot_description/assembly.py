@@ -37,7 +37,8 @@ class AssemblyMode:
     ALIASES: ClassVar[dict[str, str]] = {"default": "++++"}
 
     def __post_init__(self) -> None:
-        if len(self.signs) != 4 or any(s not in (1, -1) for s in self.signs):
+        if not isinstance(self.signs, (tuple, list)) or len(self.signs) != 4 or any(
+                isinstance(s, bool) or s not in (1, -1) for s in self.signs):
             raise InputError(f"assembly mode signs must be four values in {{+1, -1}}, got "
                              f"{self.signs!r}", value=self.signs, valid="four values in {+1, -1}")
 

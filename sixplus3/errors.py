@@ -10,6 +10,8 @@ a limit is reported by ``sixplus3 validate`` with exit code 1.
 
 from __future__ import annotations
 
+from typing import Any
+
 
 class Sixplus3Error(Exception):
     """Root of every error raised on purpose by sixplus3.
@@ -112,8 +114,22 @@ class ValidationFailed(Sixplus3Error):
         super().__init__(message)
 
 
+def as_float_array(value: object, name: str, valid: str) -> Any:
+    """``numpy.asarray(value, dtype=float)``, or an :class:`InputError` naming ``name``
+    and ``valid`` for anything that is not numbers (None, text, a mapping, ragged lists)."""
+    import numpy as np
+
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        text = repr(value)
+        raise InputError(f"{name} must be numbers ({valid}), got "
+                         f"{text if len(text) <= 60 else text[:57] + '...'}",
+                         value=text[:60], valid=valid) from None
+
+
 __all__ = [
     "ConvergenceError", "GeometryError", "InfeasibleTaskError", "InputError", "LimitError",
     "SingularityError", "Sixplus3Error", "SmoothingError", "TaskError",
-    "TrajectoryFileError", "UnreachableError", "ValidationFailed",
+    "TrajectoryFileError", "UnreachableError", "ValidationFailed", "as_float_array",
 ]

@@ -198,7 +198,8 @@ def parse_yaml(text: str, what: str, max_aliases: int = MAX_ALIASES,
 def read_yaml(path: str | Path, what: str = "file", max_bytes: int = MAX_BYTES,
               max_aliases: int = MAX_ALIASES) -> Any:
     """Plain data from a YAML (or JSON) user file; raises InputError."""
-    return parse_yaml(read_text(path, what, max_bytes), f"{what} {Path(path)}", max_aliases)
+    text = read_text(path, what, max_bytes)  # checks that path is a path
+    return parse_yaml(text, f"{what} {Path(path)}", max_aliases)
 
 
 def short_repr(value: object, limit: int = 80) -> str:

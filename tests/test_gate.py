@@ -20,15 +20,22 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from forgeries import zigzag
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sixplus3.cli import main as cli
+from sixplus3.control import interval
 from sixplus3.control import trajectory_file as tf
 from sixplus3.control.feed import prepare_feed
 from sixplus3.control.pipeline import run_plan
 from sixplus3.control.trajectory_file import COLUMNS, JOINTS, columns, encode, parse
-from sixplus3.control.validation import validate_bytes, validate_file, validate_motion
+from sixplus3.control.validation import (
+    RATE_RANGE,
+    validate_bytes,
+    validate_file,
+    validate_motion,
+)
 from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
@@ -574,3 +581,44 @@ def test_errors_carry_the_value_and_the_valid_range(valid, tmp_path) -> None:
             make()
         assert err.value.valid is not None, (str(err.value), err.value.value)
         assert str(err.value)
+
+
+@pytest.mark.parametrize("rate,eps,joints,want", [
+    (100.0, 0.0037, range(9), 2),   # the audit's 100 Hz file: below the minimum rate
+    (500.0, 1e-4, range(9), 2),     # passes the old J dt^3/6 bound; no jerk-J motion
+    (500.0, 2e-4, [4], 2),          # one joint
+    (1000.0, 1e-5, range(9), 2),    # the audit's +-10 microrad at 1 kHz
+    (500.0, 7e-5, range(9), 2),     # also 202 rad/s^2 and 10.9 N m between samples
+])
+def test_zigzag_forgeries_are_refused(rate, eps, joints, want, tmp_path) -> None:
+    raw = zigzag(rate, eps, joints)
+    assert verdict(raw) == want
+    path = tmp_path / "zig.csv"
+    path.write_bytes(raw)
+    for args in (["validate", str(path)], ["export", str(path), "--format", "ros2-json"],
+                 ["feed", str(path), "--dry-run"], ["simulate", str(path)]):
+        r = CliRunner().invoke(cli, args)
+        assert r.exit_code == want, (args, r.output)
+        assert "Traceback" not in r.output
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(st.floats(RATE_RANGE[0], RATE_RANGE[1]), st.floats(1e-8, 1e-2))
+def test_a_zigzag_passes_only_if_its_motion_between_samples_is_within_limits(rate,
+                                                                           eps) -> None:
+    """At any accepted rate and amplitude: accepted only when the interpolant (whose
+    acceleration peaks at 5.77 x the step / dt^2, jerk 60 x the step / dt^3) is within
+    the acceleration limit and what a jerk-limited motion allows."""
+    dt = 1.0 / rate
+    step = 2 * eps
+    acc = step * 10 / math.sqrt(3) / dt**2  # max |h5''| = 10 / sqrt(3) = 5.7735
+    jerk = 60 * step / dt**3
+    lim = ROBOT.limits
+    c = verdict(zigzag(rate, eps, n=8))
+    if acc > lim.acceleration * 1.001 or jerk > interval.C_JERK * lim.jerk * 1.001:
+        assert c != 0
+    if c == 0:
+        assert acc <= lim.acceleration * (1 + 1e-6)
+        assert jerk <= interval.C_JERK * lim.jerk * (1 + 1e-6)
+
+

@@ -20,6 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from forgeries import DYN as _DYN
+from forgeries import zigzag
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -30,10 +32,8 @@ from sixplus3.control.feed import check_start, prepare_feed, retime
 from sixplus3.control.pipeline import run_plan
 from sixplus3.control.trajectory_file import COLUMNS, JOINTS, encode, parse
 from sixplus3.control.validation import RATE_RANGE, validate_bytes, validate_motion
-from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError, Sixplus3Error, TrajectoryFileError, ValidationFailed
-from sixplus3.kinematics import rotations as rot
-from sixplus3.kinematics.robot import home, robot_fk_batch
+from sixplus3.kinematics.robot import robot_fk_batch
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -61,75 +61,6 @@ def code(raw: bytes) -> int:
         return validate_bytes(raw, ROBOT).exit_code
     except TrajectoryFileError:
         return 2
-
-
-# ------------------------------------------------------------------ zig-zag forgeries
-_DYN = ClosedLoopDynamics(ROBOT)
-
-
-def zigzag(rate: float, eps: float, joints=range(9), n: int = 24,
-           robot: Robot = ROBOT) -> bytes:
-    """The audit's forgery: every sample alternates by +-eps around home, velocities and
-    accelerations 0, platform columns and torques recomputed, digest recomputed."""
-    th = np.repeat(home(ROBOT).theta, n, axis=0)
-    sign = np.where(np.arange(n) % 2 == 0, -1.0, 1.0)
-    sign[[0, -1]] = 0.0
-    for j in joints:
-        th[:, j] += eps * sign
-    x0 = np.r_[ROBOT.home_position, np.zeros(3), ROBOT.home_psi]
-    fk = robot_fk_batch(th, np.repeat(x0[None], n, 0), ROBOT)
-    tau, _ = _DYN.actuated_inverse_dynamics_batch(fk.cfg.q, np.zeros((n, 9)),
-                                                  np.zeros((n, 9)))
-    data = np.zeros((n, len(COLUMNS)))
-    data[:, 0] = np.arange(n) / rate
-    data[:, POS] = th
-    data[:, TAU] = tau
-    data[:, 37:40] = fk.cfg.position
-    data[:, 40:44] = rot.quat_from_matrix(fk.rotation)
-    data[:, 44:47] = fk.cfg.psi
-    header = {"format": tf.FORMAT, "rate_hz": float(rate), "samples": n,
-              "duration_s": float(data[-1, 0]), "columns": COLUMNS,
-              "robot": {"hash": robot.hash, "parameters": robot.as_dict()}}
-    return encode(header, data)
-
-
-@pytest.mark.parametrize("rate,eps,joints,want", [
-    (100.0, 0.0037, range(9), 2),   # the audit's 100 Hz file: below the minimum rate
-    (500.0, 1e-4, range(9), 2),     # passes the old J dt^3/6 bound; no jerk-J motion
-    (500.0, 2e-4, [4], 2),          # one joint
-    (1000.0, 1e-5, range(9), 2),    # the audit's +-10 microrad at 1 kHz
-    (500.0, 7e-5, range(9), 2),     # also 202 rad/s^2 and 10.9 N m between samples
-])
-def test_zigzag_forgeries_are_refused(rate, eps, joints, want, tmp_path) -> None:
-    raw = zigzag(rate, eps, joints)
-    assert code(raw) == want
-    path = tmp_path / "zig.csv"
-    path.write_bytes(raw)
-    for args in (["validate", str(path)], ["export", str(path), "--format", "ros2-json"],
-                 ["feed", str(path), "--dry-run"], ["simulate", str(path)]):
-        r = CliRunner().invoke(cli, args)
-        assert r.exit_code == want, (args, r.output)
-        assert "Traceback" not in r.output
-
-
-@settings(max_examples=25, deadline=None, derandomize=True)
-@given(st.floats(RATE_RANGE[0], RATE_RANGE[1]), st.floats(1e-8, 1e-2))
-def test_a_zigzag_passes_only_if_its_motion_between_samples_is_within_limits(rate,
-                                                                           eps) -> None:
-    """At any accepted rate and amplitude: accepted only when the interpolant (whose
-    acceleration peaks at 5.77 x the step / dt^2, jerk 60 x the step / dt^3) is within
-    the acceleration limit and what a jerk-limited motion allows."""
-    dt = 1.0 / rate
-    step = 2 * eps
-    acc = step * 10 / math.sqrt(3) / dt**2  # max |h5''| = 10 / sqrt(3) = 5.7735
-    jerk = 60 * step / dt**3
-    lim = ROBOT.limits
-    c = code(zigzag(rate, eps, n=8))
-    if acc > lim.acceleration * 1.001 or jerk > interval.C_JERK * lim.jerk * 1.001:
-        assert c != 0
-    if c == 0:
-        assert acc <= lim.acceleration * (1 + 1e-6)
-        assert jerk <= interval.C_JERK * lim.jerk * (1 + 1e-6)
 
 
 # ------------------------------------------------------------------ the interval bounds
@@ -580,3 +511,86 @@ def test_plan_arguments_are_named_errors() -> None:
         plan(task, "default")  # type: ignore[arg-type]
     with pytest.raises(InputError):
         plan(task, ROBOT, "fast")  # type: ignore[arg-type]
+
+
+def test_a_plan_writes_nothing_through_links_planted_in_its_output_folder(tmp_path) -> None:
+    """Links at every name the pipeline used to write through (the trajectory's temp
+    file and lock, the plots' temp files, the page's temp file), some dangling, some to
+    a file outside: the plan is written, and nothing outside -o changes."""
+    out, outside = tmp_path / "out", tmp_path / "outside"
+    out.mkdir()
+    outside.mkdir()
+    (outside / "victim").write_bytes(b"precious")
+    names = [".attack.csv.tmp", f".attack.csv.tmp-{os.getpid()}", ".attack_torques.tmp.png",
+             ".attack_margins.tmp.png", ".attack.html.tmp", ".attack.csv.lock"]
+    for k, name in enumerate(names[:-1]):
+        (out / name).symlink_to(outside / ("victim" if k % 2 else f"new{k}"))
+    before = {p.name: p.read_bytes() for p in outside.iterdir()}
+    res = run_plan(task_from_dict(SMALL), out, ROBOT, html=True, plots=True)
+    assert res.csv.is_file() and not res.csv.is_symlink()
+    _outside_unchanged(outside, before)
+    # a planted lock link: refused with a named error, nothing created outside
+    (out / names[-1]).symlink_to(outside / "lock-target")
+    with pytest.raises(TrajectoryFileError, match="link"):
+        run_plan(task_from_dict(SMALL), out, ROBOT, html=False, plots=False)
+    _outside_unchanged(outside, before)
+
+
+_TOKEN = st.text(alphabet="0123456789.eE+-_xXinfaN ", min_size=1, max_size=10)
+
+
+@settings(max_examples=80, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(_TOKEN)
+def test_a_sample_number_is_read_only_if_every_reader_reads_it_alike(planned, token) -> None:
+    """Any token put in a sample cell (digest recomputed): the reader accepts it only if
+    it is in the strict grammar, and then numpy's float64 reads exactly what Python's
+    float reads (the C-library path and the Python path agree)."""
+    import re
+
+    _, _, header, data = planned
+    lines = encode(header, data).split(b"\n")
+    row = lines[7].split(b",")
+    row[5] = token.encode()
+    lines[7] = b",".join(row)
+    body = b"\n".join(lines[1:])
+    h = {k: v for k, v in header.items() if k != "integrity"}
+    h["integrity"] = {"algorithm": "sha256", "digest": tf.digest(h, body)}
+    raw = f"# {tf.FORMAT} ".encode() + tf._canonical(h) + b"\n" + body
+    strict = re.fullmatch(tf.NUMBER, token) is not None
+    try:
+        _, got = parse(raw)
+    except TrajectoryFileError:
+        assert not strict or not math.isfinite(float(token))
+        return
+    assert strict
+    assert got[5, 5] == float(token) == float(np.array([token]).astype(np.float64)[0])
+
+
+@pytest.mark.parametrize("value", [None, "x\x00", float("nan"), -1, [1, 2], {"a": 1}])
+def test_public_functions_raise_only_the_projects_errors(value) -> None:
+    """Every function of the curated top level, called with a value of the wrong kind in
+    each required argument, raises a Sixplus3Error (never a raw TypeError, IndexError,
+    AttributeError or ValueError from inside)."""
+    import inspect
+
+    import sixplus3
+
+    for name in sixplus3.__all__:
+        obj = getattr(sixplus3, name)
+        if not callable(obj) or (inspect.isclass(obj) and issubclass(obj, BaseException)):
+            continue
+        try:
+            sig = inspect.signature(obj)
+        except (TypeError, ValueError):
+            continue
+        req = [p for p in sig.parameters.values() if p.default is p.empty
+               and p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+        if not req or len(req) > 3 or name == "demo":
+            continue
+        try:
+            obj(*([value] * len(req)))
+        except Sixplus3Error:
+            pass
+        except Exception as exc:  # noqa: BLE001 - what the test is about
+            pytest.fail(f"{name}({value!r}): {type(exc).__name__}: {exc}"[:300])
