@@ -12,9 +12,9 @@ import numpy as np
 from sixplus3.control.smoothing import Smoothed, check_rate, smooth
 from sixplus3.control.trajectory_file import check_samples, output_path
 from sixplus3.control.validation import ValidationReport, validate_and_write
-from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed
+from sixplus3.errors import TrajectoryFileError, ValidationFailed
 from sixplus3.planner.codegen import build_kind
-from sixplus3.planner.ocp import PlannerOptions, Solution, plan
+from sixplus3.planner.ocp import PlannerOptions, Solution, check_plan_arguments, plan
 from sixplus3.planner.task import Task
 from sixplus3.progress import PlanProgress
 from sixplus3.robot_description.robot import Robot
@@ -62,12 +62,7 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
     :class:`InfeasibleTaskError` for an infeasible task and :class:`TrajectoryFileError`
     if the smoothed trajectory fails its validation; in both cases nothing is written.
     """
-    if not isinstance(task, Task):
-        raise InputError("run_plan needs a Task (load_task, task_from_dict)",
-                         value=type(task).__name__, valid="a Task")
-    if robot is not None and not isinstance(robot, Robot):
-        raise InputError("robot must be a Robot or None", value=type(robot).__name__,
-                         valid="a Robot or None")
+    check_plan_arguments(task, robot, options)
     robot = task.robot_for(robot or Robot.default())  # with the task's payload/tool/mounting
     listener: PlanProgress | None = None
     say: Callable[[str], None] = _silent

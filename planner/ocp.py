@@ -404,7 +404,7 @@ class Problem:
 
     def __init__(self, task: Task, robot: Robot | None = None,
                  options: PlannerOptions | None = None, progress: Any = None) -> None:
-        _check_arguments(task, robot, options)
+        check_plan_arguments(task, robot, options)
         # the task's setup (payload, tool, mounting) on the robot; TCP waypoints become
         # platform poses through that robot's tool
         self.robot = task.robot_for(robot or Robot.default())
@@ -1248,7 +1248,7 @@ class Problem:
                 "waypoints")
 
 
-def _check_arguments(task: object, robot: object, options: object) -> None:
+def check_plan_arguments(task: object, robot: object, options: object) -> None:
     """Named errors for arguments of the wrong kind or out of range (a Task made with
     ``dataclasses.replace`` skips the task schema)."""
     if not isinstance(task, Task):
