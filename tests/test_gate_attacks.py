@@ -110,7 +110,7 @@ def test_hermite_reproduces_a_quintic_and_its_rates() -> None:
     np.testing.assert_allclose(acc[:, 0], p(tt, 2), rtol=1e-6, atol=1e-8)
 
 
-@pytest.mark.parametrize("rate", [500.0, 1000.0])
+@pytest.mark.parametrize("rate", [1000.0, 2000.0])
 def test_the_torque_bound_holds_inside_every_interval_of_a_real_plan(rate, tmp_path) -> None:
     """Pinocchio's torques at 15 points inside every interval of a real plan stay under
     the bound the gate computed from the samples and midpoints only."""
@@ -384,18 +384,19 @@ def test_the_feed_checks_the_robots_start_state(planned, tmp_path) -> None:
         check_start(rep, ROBOT, first)
 
 
-TIGHT = ROBOT.replace(limits=ROBOT.limits.tightened(torque=3.0))
+TIGHT = ROBOT.replace(limits=ROBOT.limits.tightened(torque=2.0))
 
 
 def test_a_zigzag_within_the_jerk_bound_is_judged_by_its_motion(tmp_path) -> None:
-    """+-20 microrad at 500 Hz is a motion some jerk-limited trajectory has: 58 rad/s^2
-    and 3.3 N m between the samples.  Accepted for the robot, refused (exit 1, a limit)
-    for one whose torque limit is 3 N m, by validate and simulate alike."""
+    """+-3.5 microrad at 1 kHz is a motion some jerk-limited trajectory has: 40 rad/s^2
+    and 2.3 N m between the samples, while every sample and midpoint holds 0.45 N m.
+    Accepted for the robot, refused (exit 1, a limit) for one whose torque limit is
+    2 N m, by validate and simulate alike: only the bound between the samples sees it."""
     from sixplus3.control.simulation import simulate_file
 
-    assert code(zigzag(500.0, 2e-5)) == 0
+    assert code(zigzag(1000.0, 3.5e-6)) == 0
     path = tmp_path / "z.csv"
-    path.write_bytes(zigzag(500.0, 2e-5, robot=TIGHT))
+    path.write_bytes(zigzag(1000.0, 3.5e-6, robot=TIGHT))
     rep = validate_bytes(path.read_bytes(), TIGHT)
     assert rep.exit_code == 1
     assert any(f.check.startswith("torque (between samples") for f in rep.findings)
@@ -421,7 +422,7 @@ def test_a_long_motion_is_validated_in_windows_with_the_same_verdict(planned,
     assert parts.checked_points == whole.checked_points
     for key in ("max_torque_ratio", "max_acceleration_ratio", "min_margin_platform"):
         assert getattr(parts, key) == pytest.approx(getattr(whole, key), abs=1e-12)
-    bad = zigzag(500.0, 2e-5, n=100, robot=TIGHT)
+    bad = zigzag(1000.0, 3.5e-6, n=100, robot=TIGHT)
     monkeypatch.setattr(V, "WINDOW", 30)
     rep = validate_bytes(bad, TIGHT)
     assert rep.exit_code == 1

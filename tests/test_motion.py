@@ -118,7 +118,7 @@ def test_move_to_start_plans_from_any_state_to_the_task_start(tmp_path) -> None:
                       ROBOT).theta[0]
     np.testing.assert_allclose(th[-1], target, atol=1e-8)
     out = CliRunner().invoke(main, ["move-to-start", "--theta", *map(str, np.degrees(now)),
-                                    "-o", str(tmp_path / "cli"), "--rate", "500",
+                                    "-o", str(tmp_path / "cli"), "--rate", "2000",
                                     str(Path(__file__).parents[1] / "examples/tilt30_x.yaml")])
     assert out.exit_code == 0, out.output
 

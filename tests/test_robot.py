@@ -139,7 +139,7 @@ def test_a_non_default_robot_reaches_every_part() -> None:
         assert np.abs(tau_def - tau_cas).max() > 1e-3
 
 
-def _slow_motion(robot: Robot, rate: float = 500.0, duration: float = 0.4):
+def _slow_motion(robot: Robot, rate: float = 1000.0, duration: float = 0.4):
     """A rest-to-rest quintic from home to a small tilt and back, in minimal coordinates,
     sampled at ``rate``; actuated angles, rates and accelerations from robot's model."""
     sr = robot.symbolic()
@@ -161,10 +161,10 @@ def _slow_motion(robot: Robot, rate: float = 500.0, duration: float = 0.4):
 
 def test_a_file_for_one_robot_is_refused_for_another(tmp_path) -> None:
     t, th, thd, thdd, x = _slow_motion(OTHER)
-    rep = validate_joint_trajectory(th, thd, thdd, OTHER, 500.0, x, t=t)
+    rep = validate_joint_trajectory(th, thd, thdd, OTHER, 1000.0, x, t=t)
     assert rep.ok, rep.violations
     csv = write_trajectory(tmp_path / "other.csv", t, th, thd, thdd, rep, OTHER,
-                           OTHER.limits, {"rate_hz": 500.0})
+                           OTHER.limits, {"rate_hz": 1000.0})
     header, _ = read_trajectory(csv, OTHER)
     assert header["robot"]["hash"] == OTHER.hash
     assert Robot.from_dict(header["robot"]["parameters"]) == OTHER
@@ -181,7 +181,7 @@ def test_a_file_for_one_robot_is_refused_for_another(tmp_path) -> None:
     assert r.exit_code == 0, r.output
     # the validator uses the robot it is given: the motion is checked with its dynamics
     heavy = OTHER.replace(masses=MassModel(platform=30.0))
-    rep_heavy = validate_joint_trajectory(th, thd, thdd, heavy, 500.0, x, t=t)
+    rep_heavy = validate_joint_trajectory(th, thd, thdd, heavy, 1000.0, x, t=t)
     assert rep_heavy.max_torque_ratio > 1.5 * rep.max_torque_ratio
 
 
