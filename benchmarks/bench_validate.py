@@ -8,7 +8,7 @@ the trajectory file at 1 kHz, then times the command a user runs, ``sixplus3 val
 FILE``, as a subprocess (wall time, including the interpreter start-up and imports), and
 the library call ``validate_file`` inside one process.  Every check runs, midpoints
 included.  The command is timed twice: as shipped (a forked worker shares the dynamics,
-control/validation.py ``_Offload``) and in one process (``SIXPLUS3_NO_FORK=1``); the
+control/offload.py ``Offload``) and in one process (``SIXPLUS3_NO_FORK=1``); the
 in-process library call runs in one process too (numba's threads are started there).
 """
 

@@ -24,11 +24,6 @@ first and of the worst violation.
 from __future__ import annotations
 
 import math
-import mmap
-import os
-import struct
-import sys
-import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -36,6 +31,7 @@ import numpy as np
 
 from sixplus3.control import interval
 from sixplus3.control.interval import hermite, hermite_midpoints
+from sixplus3.control.offload import OFFLOAD_SHARE, Offload
 from sixplus3.control.trajectory_file import (
     COLUMNS,
     JOINTS,
@@ -45,7 +41,6 @@ from sixplus3.control.trajectory_file import (
     read_bytes,
     samples_fingerprint,
 )
-from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import leg_clearance, robot_fk_batch, spherical_tilts
@@ -58,16 +53,6 @@ from sixplus3.robot_description.robot import Robot
 #: bound) and at 11.0 N m at 500 Hz (translate); at 1 kHz every example stays within
 #: 10 N m (docs/validation.md, "The lowest rate").  Above 10 kHz no drive listens.
 RATE_RANGE = (1000.0, 10000.0)
-#: Motions of fewer points (samples + midpoints) are checked in one process: forking a
-#: worker costs more than it saves below this.
-OFFLOAD_MIN_POINTS = 2000
-#: ... and above this (the shared states take 0.5 kB per point) in one process.
-OFFLOAD_MAX_POINTS = 1_000_000
-#: The worker's share of the points' dynamics: this process meanwhile computes the
-#: midpoints' forward kinematics, checks the branch (a second forward kinematics), the
-#: spherical joints and the clearance (measured balance on 2 cores:
-#: benchmarks/bench_validate.py).
-OFFLOAD_SHARE = 0.72
 #: Samples checked at once: a longer motion is checked in windows of this many samples
 #: (sharing their end samples), so the checks' memory does not grow with its length.
 WINDOW = 8192
@@ -407,8 +392,8 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
             findings.append(f)
     jerk = np.abs(d_a) / dt
     # ------------------------------------------------------------ forward kinematics
-    # a worker for the dynamics, forked now if this process may fork (see _Offload)
-    offload = _Offload(robot, n + (n - 1 if midpoints else 0))
+    # a worker for the dynamics, forked now if this process may fork (control/offload.py)
+    offload = Offload(robot, n + (n - 1 if midpoints else 0))
     try:
         x_guess = np.asarray(x_guess, dtype=float)
         fk = robot_fk_batch(th, x_guess, robot)
@@ -525,147 +510,6 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
         return rep
     finally:
         offload.close()
-
-
-class _Offload:
-    """The constrained inverse dynamics of a motion's points (samples, then midpoints),
-    range by range, shared between this process and a forked worker process.
-
-    Why a process: the per-state Pinocchio calls hold the GIL, so a thread does not run
-    them in parallel.  Why a fork, made early: the child starts with the modules and the
-    robot's model already loaded (an interpreter started afresh spends ~0.5 s
-    importing), and it must be made before numba starts its thread pool here (GNU
-    OpenMP aborts a child forked after that).  So a worker is forked only on Linux, when
-    this process runs no other thread and numba's threading layer is not started, for
-    :data:`OFFLOAD_MIN_POINTS` to :data:`OFFLOAD_MAX_POINTS` points.
-
-    The states (q, theta_dot, theta_ddot) and the results (tau, rcond) live in one
-    anonymous shared mapping; the pipes carry only (start, stop) ranges and their
-    acknowledgements.  The worker computes with numpy and Pinocchio only, and leaves with
-    ``os._exit`` when the job pipe closes.  A range it did not acknowledge is computed
-    here: the results never depend on whether a worker ran.
-    """
-
-    def __init__(self, robot: Robot, points: int) -> None:
-        self.dyn = ClosedLoopDynamics(robot)
-        nq = self.dyn.model.nq
-        self.pid = 0
-        self.to_child = self.from_child = -1
-        self.pending: list[tuple[int, int]] = []
-        widths = (nq, 9, 9, 9, 1, 81)
-        fork = OFFLOAD_MIN_POINTS <= points <= OFFLOAD_MAX_POINTS and _may_fork()
-        size = max(1, points * sum(widths))
-        # shared with the worker (the array keeps the mapping alive), else private
-        flat = (np.frombuffer(mmap.mmap(-1, 8 * size), dtype=np.float64) if fork
-                else np.empty(size))
-        cols = np.cumsum((0,) + widths) * points
-        self.q, self.v, self.a, self.tau, rcond, inertia = (
-            flat[cols[k]:cols[k + 1]].reshape(points, w) for k, w in enumerate(widths))
-        self.rcond = rcond[:, 0]
-        self.inertia = inertia.reshape(points, 9, 9)
-        if fork:
-            self._fork()
-
-    def _fork(self) -> None:
-        try:
-            r_job, w_job = os.pipe()
-            r_ack, w_ack = os.pipe()
-        except OSError:
-            return
-        try:
-            pid = os.fork()
-        except OSError:
-            for fd in (r_job, w_job, r_ack, w_ack):
-                os.close(fd)
-            return
-        if pid == 0:  # the worker
-            code = 0
-            try:
-                os.close(w_job)
-                os.close(r_ack)
-                while True:
-                    msg = _read_exactly(r_job, 16)
-                    if len(msg) < 16:
-                        break
-                    self.compute(*struct.unpack("<qq", msg))
-                    os.write(w_ack, msg)
-            except BaseException:  # noqa: BLE001 - the parent computes what is missing
-                code = 1
-            os._exit(code)
-        os.close(r_job)
-        os.close(w_ack)
-        self.pid, self.to_child, self.from_child = pid, w_job, r_ack
-
-    def compute(self, start: int, stop: int) -> None:
-        """Points [start, stop) in this process."""
-        if stop > start:
-            sl = slice(start, stop)
-            m_red = np.empty((stop - start, 9, 9))
-            self.tau[sl], self.rcond[sl] = self.dyn.actuated_inverse_dynamics_batch(
-                self.q[sl], self.v[sl], self.a[sl], inertia=m_red)
-            self.inertia[sl] = m_red
-
-    def submit(self, start: int, stop: int) -> None:
-        """Points [start, stop) to the worker if there is one (else computed now)."""
-        if stop > start and self.pid and self.to_child >= 0:
-            try:
-                os.write(self.to_child, struct.pack("<qq", start, stop))
-                self.pending.append((start, stop))
-                return
-            except OSError:
-                pass
-        self.compute(start, stop)
-
-    def wait(self) -> None:
-        """Every submitted range done: acknowledged by the worker, or computed here."""
-        if self.to_child >= 0:
-            os.close(self.to_child)
-            self.to_child = -1
-        done = set()
-        for _ in self.pending:
-            msg = _read_exactly(self.from_child, 16) if self.from_child >= 0 else b""
-            if len(msg) < 16:
-                break
-            done.add(struct.unpack("<qq", msg))
-        for rng in self.pending:
-            if rng not in done:
-                self.compute(*rng)
-        self.pending = []
-        self.close()
-
-    def close(self) -> None:
-        for fd in (self.to_child, self.from_child):
-            if fd >= 0:
-                os.close(fd)
-        self.to_child = self.from_child = -1
-        if self.pid:
-            os.waitpid(self.pid, 0)
-            self.pid = 0
-
-
-def _read_exactly(fd: int, size: int) -> bytes:
-    out = b""
-    while len(out) < size:
-        chunk = os.read(fd, size - len(out))
-        if not chunk:
-            break
-        out += chunk
-    return out
-
-
-def _may_fork() -> bool:
-    """Linux, no other thread in this process, numba's thread pool not started, and
-    not switched off (environment variable ``SIXPLUS3_NO_FORK=1``)."""
-    if (sys.platform != "linux" or threading.active_count() != 1
-            or os.environ.get("SIXPLUS3_NO_FORK", "") not in ("", "0")):
-        return False
-    import numba
-
-    try:
-        numba.threading_layer()
-    except ValueError:  # no threading layer started yet
-        return True
-    return False
 
 
 @dataclass

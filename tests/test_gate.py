@@ -80,12 +80,13 @@ def cli_validate(path: Path):
 # ------------------------------------------------------------------ the valid file
 _WORKER_SCRIPT = """
 import json, os, sys
+import sixplus3.control.offload as O
 import sixplus3.control.validation as V
 from sixplus3.robot_description.robot import Robot
 
-V.OFFLOAD_MIN_POINTS = 10  # this short motion gets a worker too
+O.OFFLOAD_MIN_POINTS = 10  # this short motion gets a worker too
 parent, forks = os.getpid(), []
-fork, compute = V._Offload._fork, V._Offload.compute
+fork, compute = O.Offload._fork, O.Offload.compute
 
 
 def record(self):
@@ -99,9 +100,9 @@ def dying(self, start, stop):
     compute(self, start, stop)
 
 
-V._Offload._fork = record
+O.Offload._fork = record
 if sys.argv[2] == "die":
-    V._Offload.compute = dying
+    O.Offload.compute = dying
 rep = V.validate_file(sys.argv[1], Robot.default())
 print(json.dumps({"forks": forks, "tau": rep.tau.tolist(), "summary": rep.summary()}))
 """
@@ -109,13 +110,13 @@ print(json.dumps({"forks": forks, "tau": rep.tau.tolist(), "summary": rep.summar
 
 def test_the_dynamics_worker_changes_nothing(valid, monkeypatch) -> None:
     """The validator shares the dynamics with a forked worker process when it may
-    (control/validation.py, _Offload): in a fresh process, where numba has not started
+    (control/offload.py, Offload): in a fresh process, where numba has not started
     its threads.  The report is the one computed in a single process, exactly, and
     when the worker dies the parent computes its ranges itself."""
-    import sixplus3.control.validation as V
+    import sixplus3.control.offload as O
 
     path = valid[0]
-    monkeypatch.setattr(V, "OFFLOAD_MIN_POINTS", 10**9)  # here: one process
+    monkeypatch.setattr(O, "OFFLOAD_MIN_POINTS", 10**9)  # here: one process
     one = validate_file(path, ROBOT)
     for mode in ("work", "die"):
         out = subprocess.run([sys.executable, "-c", _WORKER_SCRIPT, str(path), mode],
