@@ -53,7 +53,9 @@ class MujocoRobot:
     def __init__(self, robot: Robot | None = None, timestep: float = TIMESTEP) -> None:
         mj = self.mj = _mujoco()
         self.robot = robot or Robot.default()
-        self.model = mj.MjModel.from_xml_string(build_mjcf(self.robot, timestep))
+        # unlimited actuators: the replay reports the torque it commands, saturated or not
+        self.model = mj.MjModel.from_xml_string(build_mjcf(self.robot, timestep,
+                                                           limits=False))
         self.data = mj.MjData(self.model)
         clm = self.robot.closed_loop_model()
         pm = clm.model
@@ -189,6 +191,23 @@ class SimulationReport:
         out = asdict(self)
         out["within_torque_limit"] = self.within_torque_limit
         return out
+
+
+def export_mjcf(robot: Robot | None = None, contacts: bool = False) -> str:
+    """The MJCF file of ``robot`` as a user runs it: actuators and actuated joints
+    limited by the robot's limits, and a ``home`` keyframe in the assembled home pose
+    whose ctrl holds it against gravity (Pinocchio's closed-loop holding torques);
+    ``contacts`` between the links of different legs.  ``mujoco.mj_resetDataKeyframe(m,
+    d, 0)`` starts it assembled."""
+    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+    from sixplus3.kinematics.robot import home
+    from sixplus3.robot_description.mjcf import qpos_from_q
+
+    robot = robot or Robot.default()
+    q = home(robot).q[0]
+    ctrl = ClosedLoopDynamics(robot).gravity_torques(q)
+    return build_mjcf(robot, keyframe=(qpos_from_q(robot, q), ctrl), limits=True,
+                      contacts=bool(contacts))
 
 
 def _check(name: str, v: float, lo: float, hi: float) -> float:

@@ -13,8 +13,16 @@ frames away and knows no loop closures (LIBRARY-NOTES.md).  What is written:
 - on the nine actuated hinges: ``armature`` (the reflected rotor inertia), ``damping``
   (viscous friction) and ``frictionloss`` (MuJoCo's dry friction: the Coulomb term,
   unsmoothed) and a ``<motor>`` of gear 1 (torque at the joint [N m]);
-- gravity from the robot's mounting; contacts off (the legs' clearance is a planner
-  constraint, not a contact); Newton solver, dense Jacobians.
+- the actuators limited to the robot's torque limit (``ctrlrange`` and ``forcerange``),
+  the actuated hinges to its actuated range (``range``), when ``limits`` (the default);
+- a ``home`` keyframe when ``keyframe`` is given (qpos of the assembled home pose and the
+  holding torques as ctrl: :func:`sixplus3.control.simulation.export_mjcf` computes
+  them), so that the file starts assembled instead of at MuJoCo's qpos0, where the
+  closures are 0.26 m open;
+- gravity from the robot's mounting; contacts off by default (the legs' clearance is a
+  planner and gate constraint), or, with ``contacts``, between the capsules of
+  different legs (each leg its own ``contype`` bit, colliding with the other legs'
+  bits); Newton solver, dense Jacobians.
 
 The geometry is light capsules along the links for MuJoCo's viewer, with no mass
 (``mass="0"``: the inertias above are the authority).
@@ -44,8 +52,35 @@ def _quat_wxyz(R: np.ndarray) -> np.ndarray:
     return np.array([q.w, q.x, q.y, q.z])
 
 
-def build_mjcf(robot: Robot | None = None, timestep: float = TIMESTEP) -> str:
-    """The MJCF text of ``robot`` (default ``Robot.default()``)."""
+def qpos_from_q(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """MuJoCo's qpos of the exported model from a Pinocchio configuration q: the same
+    joints in the same order (hinges: the angle; the platform's free joint: position
+    and the quaternion as (w, x, y, z), Pinocchio's being (x, y, z, w))."""
+    m = robot.closed_loop_model().model
+    q = np.asarray(q, dtype=float)
+    out: list[float] = []
+    for j in range(1, m.njoints):
+        iq, nq = m.idx_qs[j], m.nqs[j]
+        if nq == 7:
+            x, y, z, w = q[iq + 3:iq + 7]
+            out += [*q[iq:iq + 3], w, x, y, z]
+        else:
+            out += list(q[iq:iq + nq])
+    return np.array(out)
+
+
+def _leg_of(name: str) -> int | None:
+    return int(name[3]) if name.startswith("leg") and name[3:4].isdigit() else None
+
+
+def build_mjcf(robot: Robot | None = None, timestep: float = TIMESTEP,
+               keyframe: tuple[np.ndarray, np.ndarray] | None = None,
+               limits: bool = True, contacts: bool = False) -> str:
+    """The MJCF text of ``robot`` (default ``Robot.default()``).
+
+    ``keyframe``: (qpos, ctrl) of a ``home`` keyframe (:func:`qpos_from_q`); ``limits``:
+    actuator and actuated-joint ranges from the robot's limits; ``contacts``: contact
+    between the links of different legs (module doc)."""
     robot = robot or Robot.default()
     if not (math.isfinite(timestep) and 1e-6 <= timestep <= 1e-2):
         from sixplus3.errors import InputError
@@ -62,7 +97,9 @@ def build_mjcf(robot: Robot | None = None, timestep: float = TIMESTEP) -> str:
     opt = ET.SubElement(root, "option", timestep=_f(timestep), gravity=_v(robot.gravity),
                         solver="Newton", jacobian="dense", integrator="implicitfast",
                         iterations="50", tolerance="1e-12")
-    ET.SubElement(opt, "flag", contact="disable")
+    if not contacts:
+        ET.SubElement(opt, "flag", contact="disable")
+    lim = robot.limits
     default = ET.SubElement(root, "default")
     ET.SubElement(default, "geom", contype="0", conaffinity="0", mass="0",
                   rgba="0.7 0.7 0.75 1")
@@ -101,31 +138,54 @@ def build_mjcf(robot: Robot | None = None, timestep: float = TIMESTEP) -> str:
             if name in act:
                 attrs.update(armature=_f(mot.armature), damping=_f(mot.viscous),
                              frictionloss=_f(mot.coulomb))
+                if limits:
+                    attrs.update(limited="true", range=_v([lim.theta_min, lim.theta_max]))
             ET.SubElement(body, "joint", **attrs)
         for sname, P in sites.get(j, []):
             ET.SubElement(body, "site", name=sname, pos=_v(P.translation),
                           quat=_v(_quat_wxyz(P.rotation)), size="0.004")
         bodies[j] = body
-    # visual capsules from each body to its children's origins
+    # capsules from each body to its children's origins: visual, and with ``contacts``
+    # the links of different legs collide (leg i: contype bit i, conaffinity the others)
+    def capsule(j: int, size: str, t: np.ndarray) -> None:
+        leg = _leg_of(m.names[j])
+        extra = {}
+        if contacts and leg is not None:
+            extra = {"contype": str(1 << leg), "conaffinity": str(7 & ~(1 << leg))}
+        ET.SubElement(bodies[j], "geom", type="capsule", size=size,
+                      fromto=_v(np.r_[np.zeros(3), t]), **extra)
+
     for j in range(1, m.njoints):
         for c in range(j + 1, m.njoints):
             if m.parents[c] == j:
                 t = m.jointPlacements[c].translation
                 if np.linalg.norm(t) > 1e-4:
-                    ET.SubElement(bodies[j], "geom", type="capsule", size="0.006",
-                                  fromto=_v(np.r_[np.zeros(3), t]))
+                    capsule(j, "0.006", t)
         for sname, P in sites.get(j, []):
             t = P.translation
             if sname != "tcp" and np.linalg.norm(t) > 1e-4:
-                ET.SubElement(bodies[j], "geom", type="capsule", size="0.005",
-                              fromto=_v(np.r_[np.zeros(3), t]))
+                capsule(j, "0.005", t)
 
     eq = ET.SubElement(root, "equality")
     for a, b in closure_pairs():
         ET.SubElement(eq, "connect", name=f"{a}-{b}", site1=a, site2=b)
     actuators = ET.SubElement(root, "actuator")
     for name in actuated_joint_names():
-        ET.SubElement(actuators, "motor", name=name, joint=name, gear="1")
+        attrs = {"name": name, "joint": name, "gear": "1"}
+        if limits:
+            attrs.update(ctrlrange=_v([-lim.torque, lim.torque]),
+                         forcerange=_v([-lim.torque, lim.torque]))
+        ET.SubElement(actuators, "motor", **attrs)
+    if keyframe is not None:
+        qpos, ctrl = (np.asarray(k, dtype=float).ravel() for k in keyframe)
+        if qpos.shape != (m.nq,) or ctrl.shape != (len(act),) or not (
+                np.isfinite(qpos).all() and np.isfinite(ctrl).all()):
+            from sixplus3.errors import InputError
+
+            raise InputError("the keyframe must be finite qpos of the model and 9 torques",
+                             value=(qpos.shape, ctrl.shape), valid=f"({m.nq},), (9,)")
+        keys = ET.SubElement(root, "keyframe")
+        ET.SubElement(keys, "key", name="home", qpos=_v(qpos), ctrl=_v(ctrl))
     ET.indent(root, space="  ")
     return ("<!-- Generated by sixplus3 (robot_description/mjcf.py) for robot "
             f"{robot.hash[:12]}; do not edit -->\n" + ET.tostring(root, encoding="unicode")

@@ -362,16 +362,19 @@ def robot_show(as_json: bool) -> None:
 @click.argument("fmt", type=click.Choice(["urdf", "mjcf", "yaml"]))
 @click.option("-o", "--out", "out_file", default=None, type=click.Path(dir_okay=False),
               help="Write to this file (atomically) instead of stdout.")
-def robot_export(fmt: str, out_file: str | None) -> None:
-    """Write the robot as URDF (tree), MJCF (MuJoCo, closures included) or YAML
-    (its parameters: the input of --robot)."""
+@click.option("--contacts", is_flag=True,
+              help="MJCF: contacts between the links of different legs (off by default).")
+def robot_export(fmt: str, out_file: str | None, contacts: bool) -> None:
+    """Write the robot as URDF (tree), MJCF (MuJoCo, closures included; a 'home'
+    keyframe, assembled and held by its ctrl; actuator and joint limits) or YAML (its
+    parameters: the input of --robot)."""
     robot = _robot()
     if fmt == "urdf":
         text = robot.urdf()
     elif fmt == "mjcf":
-        from sixplus3.robot_description.mjcf import mjcf
+        from sixplus3.control.simulation import export_mjcf
 
-        text = mjcf(robot)
+        text = export_mjcf(robot, contacts=contacts)
     else:
         import yaml
 
