@@ -61,6 +61,37 @@ def ros2_joint_trajectory(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarra
             "joint_names": actuated_joint_names(), "points": points}
 
 
+def _yaml_float(x: float) -> str:
+    """A float as YAML 1.1 reads it back exactly (PyYAML wants a '.' before an exponent:
+    '1e-05' would be text)."""
+    r = repr(float(x))
+    if r in ("inf", "-inf", "nan"):
+        return {"inf": ".inf", "-inf": "-.inf", "nan": ".nan"}[r]
+    if "e" in r and "." not in r:
+        r = r.replace("e", ".0e")
+    return r
+
+
+def ros2_yaml(msg: dict[str, Any]) -> str:
+    """The JointTrajectory mapping of :func:`ros2_joint_trajectory` as block YAML, the
+    points' arrays in flow style, written line by line (``yaml.safe_dump`` of a long
+    motion held ~2.8 GB; this holds the text only).  ``yaml.safe_load`` returns ``msg``."""
+    h = msg["header"]
+    lines = ["header:", "  stamp:", f"    sec: {int(h['stamp']['sec'])}",
+             f"    nanosec: {int(h['stamp']['nanosec'])}",
+             f"  frame_id: {json.dumps(h['frame_id'])}", "joint_names:"]
+    lines += [f"- {json.dumps(n)}" for n in msg["joint_names"]]
+    lines.append("points:" if msg["points"] else "points: []")
+    for p in msg["points"]:
+        for k, key in enumerate(("positions", "velocities", "accelerations", "effort")):
+            lead = "- " if k == 0 else "  "
+            lines.append(f"{lead}{key}: [" + ", ".join(_yaml_float(v) for v in p[key]) + "]")
+        tf = p["time_from_start"]
+        lines += ["  time_from_start:", f"    sec: {int(tf['sec'])}",
+                  f"    nanosec: {int(tf['nanosec'])}"]
+    return "\n".join(lines) + "\n"
+
+
 def drive_units(robot: Robot) -> dict[str, Any]:
     """The conversion parameters of :func:`drive_table` (recorded in its header)."""
     m = robot.motors
@@ -108,9 +139,7 @@ def export_file(path: str | Path, robot: Robot, fmt: str) -> str:
         msg = ros2_joint_trajectory(t, th, thd, thdd, tau)
         if fmt == "ros2-json":
             return json.dumps(msg) + "\n"
-        import yaml
-
-        return yaml.safe_dump(msg, sort_keys=False)
+        return ros2_yaml(msg)
     counts, vel, torque = drive_table(robot, t, th, thd, tau)
     out = io.StringIO()
     out.write("# sixplus3 drive table " + json.dumps({

@@ -208,6 +208,17 @@ def short_repr(value: object, limit: int = 80) -> str:
     return r if len(r) <= limit else r[:limit - 3] + "..."
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+#: The process's umask, read once at import: files are created 0o666 & ~umask, as
+#: ``open`` would (``mkstemp`` alone makes them 0o600).
+UMASK = _umask()
+
+
 def _check_target(path: Path) -> None:
     """Only a regular file, a link (replaced itself, never followed) or nothing may be at
     ``path``, in an existing directory."""
@@ -257,7 +268,10 @@ def atomic_write_with(path: str | Path, write: Callable[[Path], object]) -> None
     path = Path(path)
     _check_target(path)
     fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:80]}.", suffix=".tmp")
-    os.close(fd)
+    try:
+        os.fchmod(fd, 0o666 & ~UMASK)
+    finally:
+        os.close(fd)
     tmp = Path(name)
     try:
         write(tmp)

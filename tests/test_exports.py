@@ -104,3 +104,19 @@ def test_outputs_never_replace_a_non_regular_file(tmp_path) -> None:
     missing = tmp_path / "no" / "x.xml"
     res = runner.invoke(main, ["robot", "export", "mjcf", "-o", str(missing)])
     assert res.exit_code == 2 and str(missing) in res.output and "Traceback" not in res.output
+
+
+def test_the_ros2_yaml_reads_back_exactly_for_any_floats() -> None:
+    """The hand-written YAML (a long motion's yaml.safe_dump held 2.8 GB) reads back with
+    PyYAML as the message itself, for floats PyYAML 1.1 is fussy about (1e-05 without a
+    '.', -0.0, subnormals, 1e16, 1e300)."""
+    from sixplus3.control.exports import ros2_joint_trajectory, ros2_yaml
+
+    rng = np.random.default_rng(1)
+    n = 40
+    vals = [rng.normal(size=(n, 9)) * 10.0 ** rng.integers(-20, 20, size=(n, 9))
+            for _ in range(4)]
+    vals[0][0, 0], vals[1][0, 1], vals[2][0, 2] = 1e-5, -0.0, 1e300
+    vals[3][0, 3], vals[3][0, 4] = 5e-324, 1e16
+    msg = ros2_joint_trajectory(np.arange(n) / 1000.0, *vals)
+    assert yaml.safe_load(ros2_yaml(msg)) == msg

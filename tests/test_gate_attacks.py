@@ -327,8 +327,12 @@ def test_planted_links_change_nothing_outside(planned, tmp_path_factory, name,
 
 def test_no_lock_file_is_left_and_export_replaces_a_link_not_its_target(planned,
                                                                        tmp_path) -> None:
+    from sixplus3.fileio import UMASK
+
     res, raw, _, _ = planned
     assert not any(p.name.endswith(".lock") for p in res.csv.parent.iterdir())
+    # the random-named temporary file does not leave the file private (mkstemp's 0o600)
+    assert res.csv.stat().st_mode & 0o777 == 0o666 & ~UMASK
     src = tmp_path / "t.csv"
     src.write_bytes(raw)
     victim = tmp_path / "victim"
