@@ -42,7 +42,7 @@ import re
 import stat
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -541,15 +541,70 @@ def read_bytes(path: str | Path) -> bytes:
         raise TrajectoryFileError(str(exc), value=exc.value, valid=exc.valid) from None
 
 
-def read_trajectory(path: str | Path, robot: Robot | None = None) -> tuple[dict, np.ndarray]:
+class TrajectoryData(NamedTuple):
+    """A trajectory file as read: ``header`` (the dict of line 1) and ``data`` (the
+    (n, 47) samples in :data:`COLUMNS` order).  It unpacks as ``header, data`` and names
+    its columns:
+
+    - ``traj["t"]``, ``traj["leg1_B_tau"]``, ``traj["platform_qw"]``: one column (n,);
+    - ``traj.t``; ``traj.joints("pos" | "vel" | "acc" | "tau")``: (n, 9) in joint order;
+    - ``traj.platform_position`` (n, 3) [m], ``traj.platform_quaternion`` (n, 4)
+      (x, y, z, w), ``traj.psi`` (n, 3) [rad];
+    - ``traj.to_pandas()``: a DataFrame with the 47 named columns (pandas is optional:
+      an InputError says how to install it if it is missing).
+    """
+
+    header: dict
+    data: np.ndarray
+
+    def __getitem__(self, key):  # type: ignore[override]
+        if isinstance(key, str):
+            if key not in COLUMNS:
+                raise InputError(f"no column {key!r} in a trajectory file", value=key,
+                                 valid=f"one of {', '.join(COLUMNS[:3])}, ..., {COLUMNS[-1]}")
+            return self.data[:, COLUMNS.index(key)]
+        return tuple.__getitem__(self, key)
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.data[:, 0]
+
+    def joints(self, kind: str) -> np.ndarray:
+        return columns(self.data, kind)
+
+    @property
+    def platform_position(self) -> np.ndarray:
+        return self.data[:, 37:40]
+
+    @property
+    def platform_quaternion(self) -> np.ndarray:
+        return self.data[:, 40:44]
+
+    @property
+    def psi(self) -> np.ndarray:
+        return self.data[:, 44:47]
+
+    def to_pandas(self):  # noqa: ANN201 - pandas is optional
+        try:
+            import pandas as pd
+        except ImportError:
+            raise InputError("to_pandas needs pandas: pip install pandas", value=None,
+                             valid="pandas installed") from None
+        return pd.DataFrame(self.data, columns=COLUMNS)
+
+
+def read_trajectory(path: str | Path, robot: Robot | None = None) -> TrajectoryData:
     """Load, format-check and integrity-check a trajectory made for ``robot`` (default
-    ``Robot.default()``); raises :class:`TrajectoryFileError`."""
+    ``Robot.default()``): a :class:`TrajectoryData` (``header, data = ...`` unpacks it;
+    ``traj["leg0_A_pos"]``, ``traj.joints("tau")`` name the columns).  Raises
+    :class:`TrajectoryFileError`.  It checks the format, the digest and the robot, not
+    the motion: :func:`sixplus3.validate_file` is the gate."""
     robot = robot or Robot.default()
     raw = read_bytes(path)  # checks that path is a path
     name = Path(path).name
     header, data = parse(raw, name)
     check_robot(header, robot, name)
-    return header, data
+    return TrajectoryData(header, data)
 
 
 def columns(data: np.ndarray, kind: str) -> np.ndarray:

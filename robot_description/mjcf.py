@@ -149,11 +149,10 @@ def build_mjcf(robot: Robot | None = None, timestep: float = TIMESTEP,
     # the links of different legs collide (leg i: contype bit i, conaffinity the others)
     def capsule(j: int, size: str, t: np.ndarray) -> None:
         leg = _leg_of(m.names[j])
-        extra = {}
+        attrs = {"type": "capsule", "size": size, "fromto": _v(np.r_[np.zeros(3), t])}
         if contacts and leg is not None:
-            extra = {"contype": str(1 << leg), "conaffinity": str(7 & ~(1 << leg))}
-        ET.SubElement(bodies[j], "geom", type="capsule", size=size,
-                      fromto=_v(np.r_[np.zeros(3), t]), **extra)
+            attrs.update(contype=str(1 << leg), conaffinity=str(7 & ~(1 << leg)))
+        ET.SubElement(bodies[j], "geom", attrs)
 
     for j in range(1, m.njoints):
         for c in range(j + 1, m.njoints):

@@ -120,3 +120,22 @@ def test_the_ros2_yaml_reads_back_exactly_for_any_floats() -> None:
     vals[3][0, 3], vals[3][0, 4] = 5e-324, 1e16
     msg = ros2_joint_trajectory(np.arange(n) / 1000.0, *vals)
     assert yaml.safe_load(ros2_yaml(msg)) == msg
+
+
+def test_read_trajectory_names_its_columns(planned) -> None:
+    from sixplus3.control.trajectory_file import COLUMNS
+    from sixplus3.errors import InputError
+
+    path, data = planned
+    traj = read_trajectory(path, ROBOT)
+    header, same = traj  # unpacks as before
+    assert same is traj.data and header["format"] == "sixplus3-trajectory/2"
+    np.testing.assert_array_equal(traj["leg1_B_tau"], data[:, COLUMNS.index("leg1_B_tau")])
+    np.testing.assert_array_equal(traj.joints("vel")[:, 4], traj["leg1_B_vel"])
+    np.testing.assert_array_equal(traj.t, data[:, 0])
+    np.testing.assert_array_equal(traj.platform_quaternion[:, 3], traj["platform_qw"])
+    np.testing.assert_array_equal(traj.psi[:, 2], traj["psi_2"])
+    df = traj.to_pandas()
+    assert list(df.columns) == COLUMNS and df["leg2_C_pos"].iloc[-1] == data[-1, 33]
+    with pytest.raises(InputError, match="no column"):
+        traj["leg3_A_pos"]
