@@ -364,13 +364,34 @@ def robot_show(as_json: bool) -> None:
               help="Write to this file (atomically) instead of stdout.")
 @click.option("--contacts", is_flag=True,
               help="MJCF: contacts between the links of different legs (off by default).")
-def robot_export(fmt: str, out_file: str | None, contacts: bool) -> None:
-    """Write the robot as URDF (tree), MJCF (MuJoCo, closures included; a 'home'
+@click.option("--ros2-control", "ros2_control", is_flag=True,
+              help="URDF: add a <ros2_control> block (effort interfaces, 72/34 "
+                   "transmissions, rotor inertia and friction as parameters).")
+def robot_export(fmt: str, out_file: str | None, contacts: bool, ros2_control: bool) -> None:
+    """Write the robot as URDF (tree; with -o the closures file it names,
+    sixplus3_closures.yaml, beside it), MJCF (MuJoCo, closures included; a 'home'
     keyframe, assembled and held by its ctrl; actuator and joint limits) or YAML (its
     parameters: the input of --robot)."""
     robot = _robot()
+    if (contacts and fmt != "mjcf") or (ros2_control and fmt != "urdf"):
+        _fail("--contacts goes with mjcf and --ros2-control with urdf")
     if fmt == "urdf":
-        text = robot.urdf()
+        from sixplus3.robot_description.urdf import CLOSURES_PATH, with_ros2_control
+
+        text = with_ros2_control(robot) if ros2_control else robot.urdf()
+        if out_file is not None:
+            from pathlib import Path
+
+            from sixplus3.fileio import atomic_write
+
+            closures = Path(out_file).with_name(CLOSURES_PATH.name)
+            if closures.resolve() == Path(out_file).resolve():
+                _fail(f"-o must not be named {CLOSURES_PATH.name}: the closures go there")
+            atomic_write(closures, robot.closures_yaml().encode())
+            click.echo(f"wrote {closures} (the loop closures the URDF names)", err=True)
+        else:
+            click.echo(f"note: the URDF names {CLOSURES_PATH.name}; -o FILE writes it "
+                       "beside FILE", err=True)
     elif fmt == "mjcf":
         from sixplus3.control.simulation import export_mjcf
 

@@ -201,3 +201,45 @@ def test_yourdfpy_posed_at_a_closed_configuration_closes_the_loops() -> None:
                                        atol=1e-9)
         # the platform really moved: not the file's identity origin
         assert np.abs(model.get_transform("platform")[:3, 3]).max() > 0.2
+
+
+def test_export_urdf_writes_its_closures_and_a_ros2_control_block(tmp_path) -> None:
+    """`robot export urdf --ros2-control -o FILE` writes FILE and the closures file it
+    names beside it; the pair loads in Pinocchio as the robot (27 closure rows, the
+    same tree), yourdfpy reads the URDF, and the ros2_control block has an effort
+    interface within the torque limit, the rotor inertia and a 72/34 transmission for
+    each of the nine actuated joints."""
+    import xml.etree.ElementTree as ET
+
+    from click.testing import CliRunner
+
+    from sixplus3.cli import main
+
+    robot = Robot.default()
+    out = tmp_path / "robot.urdf"
+    res = CliRunner().invoke(main, ["robot", "export", "urdf", "--ros2-control", "-o",
+                                    str(out)])
+    assert res.exit_code == 0, res.output
+    closures = tmp_path / "sixplus3_closures.yaml"
+    assert closures.read_text() == robot.closures_yaml()
+    clm = load_model_from(out, closures)
+    ref = robot.closed_loop_model()
+    assert clm.model.nq == ref.model.nq and clm.n_constraints == ref.n_constraints == 27
+    assert len(yourdfpy.URDF.load(str(out), load_meshes=False).actuated_joint_names) > 9
+    block = ET.parse(out).getroot().find("ros2_control")
+    assert block is not None
+    joints = block.findall("joint")
+    assert [j.get("name") for j in joints] == gen.actuated_joint_names()
+    for j in joints:
+        cmd = j.find("command_interface")
+        assert cmd.get("name") == "effort"
+        lo, hi = (float(p.text) for p in cmd.findall("param"))
+        assert (lo, hi) == (-robot.limits.torque, robot.limits.torque)
+        params = {p.get("name"): float(p.text) for p in j.findall("param")}
+        assert params["rotor_inertia_at_joint_kg_m2"] == pytest.approx(robot.motors.armature)
+    trs = block.findall("transmission")
+    assert len(trs) == 9
+    for tr in trs:
+        assert float(tr.find("joint/mechanical_reduction").text) == pytest.approx(72 / 34)
+    plain = CliRunner().invoke(main, ["robot", "export", "urdf", "--contacts"])
+    assert plain.exit_code == 2
