@@ -117,10 +117,16 @@ def drive_table(robot: Robot, t: np.ndarray, theta: np.ndarray, theta_dot: np.nd
     return counts, vel, torque
 
 
-def export_file(path: str | Path, robot: Robot, fmt: str) -> str:
+def export_file(path: str | Path, robot: Robot, fmt: str,
+                torque_hold: str | None = None) -> str:
     """Validate the trajectory file at ``path`` for ``robot`` and return its export in
     ``fmt`` (one of :data:`FORMATS`); raises :class:`ValidationFailed` (nothing is
-    exported) when the file is not a valid motion within the limits."""
+    exported) when the file is not a valid motion within the limits.  The torque
+    (effort, drive torque) is as ``torque_hold`` says: ``mean``, each sample carries the
+    mean of its own and the next sample's torque, for a drive that holds it over the
+    tick (the default of ``drive-csv``); ``sample``, the sample's own (the default of the
+    ROS 2 forms, whose controllers interpolate between points)."""
+    from sixplus3.control.interval import held_torque
     from sixplus3.control.trajectory_file import columns
     from sixplus3.control.validation import validate_file
     from sixplus3.errors import InputError
@@ -128,13 +134,17 @@ def export_file(path: str | Path, robot: Robot, fmt: str) -> str:
     if fmt not in FORMATS:
         raise InputError(f"unknown export format {fmt!r}", value=fmt,
                          valid=", ".join(FORMATS))
+    if torque_hold is None:
+        torque_hold = "mean" if fmt == "drive-csv" else "sample"
+    held_torque(np.zeros((2, 9)), torque_hold)  # a bad mode is refused before the work
     rep = validate_file(path, robot)
     if rep.exit_code != 0 or rep.data is None:
         raise ValidationFailed("not exported: " + "; ".join(rep.messages()),
                                exit_code=rep.exit_code, report=rep)
     data = rep.data
-    t, th, thd, thdd, tau = (data[:, 0], columns(data, "pos"), columns(data, "vel"),
-                             columns(data, "acc"), columns(data, "tau"))
+    t, th, thd, thdd = (data[:, 0], columns(data, "pos"), columns(data, "vel"),
+                        columns(data, "acc"))
+    tau = held_torque(columns(data, "tau"), torque_hold)
     if fmt.startswith("ros2"):
         msg = ros2_joint_trajectory(t, th, thd, thdd, tau)
         if fmt == "ros2-json":
@@ -144,7 +154,8 @@ def export_file(path: str | Path, robot: Robot, fmt: str) -> str:
     out = io.StringIO()
     out.write("# sixplus3 drive table " + json.dumps({
         "source": Path(path).name, "robot_hash": robot.hash,
-        "rate_hz": (rep.header or {}).get("rate_hz"), **drive_units(robot)}) + "\n")
+        "rate_hz": (rep.header or {}).get("rate_hz"), "torque_hold": torque_hold,
+        **drive_units(robot)}) + "\n")
     w = csv.writer(out, lineterminator="\n")
     names = actuated_joint_names()
     w.writerow(["t_s"] + [f"{n}_{q}" for n in names for q in ("counts", "counts_per_s",

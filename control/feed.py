@@ -18,11 +18,12 @@ import math
 import socket
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from sixplus3.control.interval import held_torque
 from sixplus3.control.trajectory_file import JOINTS, check_samples, columns, read_bytes
 from sixplus3.control.validation import (
     RATE_RANGE,
@@ -47,10 +48,12 @@ class FeedPlan:
     theta: np.ndarray  # (n, 9) [rad]
     theta_dot: np.ndarray  # (n, 9) [rad/s]
     theta_ddot: np.ndarray  # (n, 9) [rad/s^2]
-    tau: np.ndarray  # (n, 9) feed-forward [N m], recomputed by the validation
+    tau: np.ndarray  # (n, 9) feed-forward [N m] sent: the validated torques, held
+    #: as ``torque_hold`` says (control/interval.py, held_torque)
     rate: float
     speed: float
     report: ValidationReport  # the validation of exactly these samples
+    torque_hold: str = "mean"
 
     def messages(self) -> Iterator[bytes]:
         """One JSON datagram per sample, made as it is sent (memory does not grow with
@@ -182,19 +185,23 @@ def check_start(rep: ValidationReport, robot: Robot, current_theta: np.ndarray) 
 
 
 def prepare_feed(path: str | Path, robot: Robot, speed: float = 1.0,
-                 current_theta: np.ndarray | Callable[[], np.ndarray] | None = None
-                 ) -> FeedPlan:
+                 current_theta: np.ndarray | Callable[[], np.ndarray] | None = None,
+                 torque_hold: str = "mean") -> FeedPlan:
     """Read ``path`` once, validate its bytes for ``robot`` and return what to send.
 
     ``current_theta``: the robot's actuated angles now (9, rad), or a callable that reads
     them from the controller; the file must start there, on the robot's assembly branch
     (:func:`check_start`).  None skips that check (the caller confirms the start).
+    ``torque_hold``: ``mean`` (default) sends each tick the mean of the torques at both
+    ends of the interval the drive holds it over, ``sample`` the tick's own
+    (docs/validation.md, "Torque for sampled drives").
 
     Raises :class:`TrajectoryFileError` for a bad or mismatched file and
     :class:`ValidationFailed` (with the report and its exit code) for a motion that fails
     validation or does not start at the robot's state; nothing is sent then.
     """
     speed = check_speed(speed)
+    held_torque(np.zeros((2, 9)), torque_hold)  # a bad mode is refused before the work
     rep = validate_bytes(read_bytes(path), robot, Path(path).name)
     if not rep.ok:
         raise ValidationFailed(f"{Path(path).name} fails validation: "
@@ -206,9 +213,11 @@ def prepare_feed(path: str | Path, robot: Robot, speed: float = 1.0,
     data = rep.data
     rate = float(rep.header["rate_hz"]) if rep.header else float("nan")
     if speed == 1.0:
-        return FeedPlan(data[:, 0], columns(data, "pos"), columns(data, "vel"),
+        plan = FeedPlan(data[:, 0], columns(data, "pos"), columns(data, "vel"),
                         columns(data, "acc"), rep.tau, rate, 1.0, rep)
-    return retime(rep, robot, speed)
+    else:
+        plan = retime(rep, robot, speed)
+    return replace(plan, tau=held_torque(plan.tau, torque_hold), torque_hold=torque_hold)
 
 
 def send(feed: FeedPlan, emit: Callable[[bytes], object],

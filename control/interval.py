@@ -238,5 +238,27 @@ def _rescale(c: np.ndarray, s0: float, h: float) -> np.ndarray:
     return out
 
 
-__all__ = ["C_ACC", "C_JERK", "coefficients", "derivative", "evaluate", "hermite",
-           "hermite_midpoints", "max_abs", "rate_extremes", "torque_bound"]
+#: How a drive holding each feed-forward for a tick is given the torque: ``sample`` the
+#: torque at the tick, ``mean`` the mean of the torques at both ends of the interval the
+#: drive holds it over (docs/validation.md, "Torque for sampled drives").
+TORQUE_HOLDS = ("sample", "mean")
+
+
+def held_torque(tau: np.ndarray, hold: str) -> np.ndarray:
+    """The feed-forward a sampled drive holds from each tick to the next: ``tau`` itself
+    (``sample``), or (tau_k + tau_{k+1}) / 2 (``mean``; the last sample keeps its own,
+    at rest)."""
+    if hold not in TORQUE_HOLDS:
+        from sixplus3.errors import InputError
+
+        raise InputError(f"torque hold must be one of {', '.join(TORQUE_HOLDS)}, got "
+                         f"{hold!r}", value=hold, valid=", ".join(TORQUE_HOLDS))
+    tau = np.asarray(tau, dtype=float)
+    if hold == "sample" or len(tau) < 2:
+        return tau
+    return np.vstack([0.5 * (tau[:-1] + tau[1:]), tau[-1:]])
+
+
+__all__ = ["C_ACC", "C_JERK", "TORQUE_HOLDS", "coefficients", "derivative", "evaluate",
+           "held_torque", "hermite", "hermite_midpoints", "max_abs", "rate_extremes",
+           "torque_bound"]

@@ -182,6 +182,10 @@ class SimulationReport:
     peak_total_torque: float
     torque_limit: float
     max_closure_residual_m: float
+    #: MuJoCo's step [s] (implicitfast): the peak is of the torques commanded at the
+    #: ticks, from the state this step integrated
+    timestep_s: float = TIMESTEP
+    torque_hold: str = "sample"  # the feed-forward held over each tick
 
     @property
     def within_torque_limit(self) -> bool:
@@ -191,6 +195,11 @@ class SimulationReport:
         out = asdict(self)
         out["within_torque_limit"] = self.within_torque_limit
         return out
+
+
+#: The feed-forward a sampled drive is given by default (docs/validation.md, "Torque for
+#: sampled drives": the measured peaks of both modes on every example).
+DEFAULT_TORQUE_HOLD = "mean"
 
 
 def export_mjcf(robot: Robot | None = None, contacts: bool = False) -> str:
@@ -266,7 +275,7 @@ def simulate(robot: Robot, q0: np.ndarray, theta: np.ndarray, theta_dot: np.ndar
         pd_share=float(np.linalg.norm(pd)) / max(float(np.linalg.norm(total)), 1e-300),
         peak_total_torque=float(np.abs(total).max()),
         torque_limit=robot.limits.torque,
-        max_closure_residual_m=res)
+        max_closure_residual_m=res, timestep_s=timestep)
 
 
 def first_configuration(robot: Robot, rep) -> np.ndarray:
@@ -281,23 +290,28 @@ def first_configuration(robot: Robot, rep) -> np.ndarray:
 
 
 def simulate_file(path: str | Path, robot: Robot | None = None, kp: float = KP,
-                  kd: float = KD, feedforward_scale: float = 1.0):
+                  kd: float = KD, feedforward_scale: float = 1.0,
+                  torque_hold: str = DEFAULT_TORQUE_HOLD):
     """Validate a trajectory file, then replay it in MuJoCo: (validation, simulation).
 
     Only a file that passes the gate is simulated: with a defect (exit code 2) or a
-    violated limit (exit code 1), the simulation is None.
+    violated limit (exit code 1), the simulation is None.  ``torque_hold``: the
+    feed-forward held over each tick (:func:`sixplus3.control.interval.held_torque`).
     """
+    from sixplus3.control.interval import held_torque
     from sixplus3.control.trajectory_file import columns
     from sixplus3.control.validation import validate_file
 
     robot = robot or Robot.default()
+    held_torque(np.zeros((2, 9)), torque_hold)  # a bad mode is refused before the work
     rep = validate_file(path, robot)
     if not rep.ok or rep.data is None or rep.position is None:
         return rep, None
     rate = float(rep.header["rate_hz"]) if rep.header else float("nan")
+    ff = held_torque(columns(rep.data, "tau"), torque_hold)
     sim = simulate(robot, first_configuration(robot, rep), columns(rep.data, "pos"),
-                   columns(rep.data, "vel"), columns(rep.data, "tau"), rate, kp, kd,
-                   feedforward_scale)
+                   columns(rep.data, "vel"), ff, rate, kp, kd, feedforward_scale)
+    sim.torque_hold = torque_hold
     return rep, sim
 
 
@@ -318,7 +332,8 @@ class EngineCheck:
                 "messages": self.messages}
 
 
-def engine_check(robot: Robot, rep, kp: float = KP, kd: float = KD) -> EngineCheck:
+def engine_check(robot: Robot, rep, kp: float = KP, kd: float = KD,
+                 torque_hold: str = DEFAULT_TORQUE_HOLD) -> EngineCheck:
     """Check a validated report's file in MuJoCo: its feed-forward torques against
     MuJoCo's constrained inverse dynamics on every sample (a defect beyond the
     validator's feed-forward tolerance), then the closed-loop replay's peak total torque
@@ -336,8 +351,11 @@ def engine_check(robot: Robot, rep, kp: float = KP, kd: float = KD) -> EngineChe
     tau, res = mujoco_inverse_dynamics(robot, q, columns(data, "vel"), columns(data, "acc"))
     ff = float(np.abs(tau - columns(data, "tau")).max())
     rate = float(rep.header["rate_hz"]) if rep.header else float("nan")
+    from sixplus3.control.interval import held_torque
+
     sim = simulate(robot, q[0], columns(data, "pos"), columns(data, "vel"),
-                   columns(data, "tau"), rate, kp, kd)
+                   held_torque(columns(data, "tau"), torque_hold), rate, kp, kd)
+    sim.torque_hold = torque_hold
     code, msgs = 0, []
     if not ff <= FEEDFORWARD_TOL:
         code = 2

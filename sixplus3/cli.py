@@ -786,6 +786,10 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
                    f"{limits.torque:g}); margins {rep.min_margin_leg_type1:.3f} / "
                    f"{rep.min_margin_leg_type2:.3f} / {rep.min_margin_platform:.3f} "
                    f"(>= {limits.margin:g}); {verdict}")
+        if rep.max_torque_rate is not None:
+            click.echo(f"  torque rate between samples: max {rep.max_torque_rate:.0f} N m/s "
+                       f"(reported, not a gate limit: the planner bounds it at "
+                       f"{limits.torque_rate:g} N m/s between its own nodes)")
         lim_txt = ", ".join(f"{k} {v:.6g}" for k, v in limits.as_dict().items())
         click.echo(f"  judged by robot {robot.hash[:12]} at {rep.rate_hz:g} Hz, its hardware "
                    f"limits: {lim_txt}")
@@ -811,9 +815,13 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
 @click.option("--ff-scale", default=1.0, show_default=True, type=float,
               help="Scale the feed-forward torques by this factor, in [0, 2].")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@click.option("--torque-hold", type=click.Choice(["sample", "mean"]), default="mean",
+              show_default=True,
+              help="Feed-forward held over each tick: the 'mean' of both ends' torques, "
+                   "or the 'sample''s own.")
 @_gains
 def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: bool,
-             kp: float, kd: float) -> None:
+             torque_hold: str, kp: float, kd: float) -> None:
     """Replay a trajectory file in MuJoCo at its rate: feed-forward + PD.
 
     The file is validated first (a defective file is not simulated: exit 2).  Reports
@@ -823,7 +831,7 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
     from sixplus3.control.simulation import simulate_file
 
     robot = _task_robot(task_file)
-    rep, sim = simulate_file(csv_file, robot, kp, kd, ff_scale)
+    rep, sim = simulate_file(csv_file, robot, kp, kd, ff_scale, torque_hold)
     if sim is None:
         what = "is not a valid motion" if rep.exit_code == 2 else "violates a limit"
         click.echo(f"refused: {csv_file} {what} (the gate's verdict; nothing simulated): "
@@ -834,12 +842,15 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
         click.echo(json.dumps(sim.summary()))
     else:
         click.echo(f"{csv_file}: {sim.samples} ticks at {sim.rate_hz:g} Hz, Kp {kp:g}, "
-                   f"Kd {kd:g}, feed-forward x{ff_scale:g}")
+                   f"Kd {kd:g}, feed-forward x{ff_scale:g} held per tick as "
+                   f"'{sim.torque_hold}'; MuJoCo step {sim.timestep_s * 1e3:g} ms "
+                   "(implicitfast)")
         click.echo(f"  tracking error: max {math.degrees(sim.max_tracking_error_rad):.4f} "
                    f"deg, rms {math.degrees(sim.rms_tracking_error_rad):.4f} deg, final "
                    f"{math.degrees(sim.final_tracking_error_rad):.4f} deg")
         click.echo(f"  PD share {100 * sim.pd_share:.2f}% (max |tau_PD| "
-                   f"{sim.max_pd_torque:.3f} N m); peak |tau| {sim.peak_total_torque:.3f} N m "
+                   f"{sim.max_pd_torque:.3f} N m); peak |tau| commanded at the ticks "
+                   f"{sim.peak_total_torque:.3f} N m "
                    f"(limit {sim.torque_limit:g}); closure residual "
                    f"{sim.max_closure_residual_m:.1e} m")
     sys.exit(0 if sim.within_torque_limit else 1)
@@ -855,12 +866,17 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
               help="Write to this file (atomically) instead of stdout.")
 @click.option("--task", "task_file", default=None, type=click.Path(dir_okay=False),
               help="Apply this task file's setup (payload, tool, mounting) to the robot.")
-def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | None) -> None:
+@click.option("--torque-hold", type=click.Choice(["sample", "mean"]), default=None,
+              help="Torque per sample: 'mean' of it and the next (for a drive that holds "
+                   "it over the tick; drive-csv's default) or the 'sample''s own (the "
+                   "ROS 2 forms' default).")
+def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | None,
+               torque_hold: str | None) -> None:
     """Export a trajectory file for the controller side, after validating it (exit 1
     for a violated limit, 2 for a bad file: nothing is written)."""
     from sixplus3.control.exports import export_file
 
-    text = export_file(csv_file, _task_robot(task_file), fmt)
+    text = export_file(csv_file, _task_robot(task_file), fmt, torque_hold)
     _emit(text, out_file)
 
 
@@ -874,8 +890,12 @@ def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | N
 @click.option("--start-theta", nargs=9, type=float, default=None, metavar="A0 B0 C0 ... C2",
               help="The robot's current actuated angles [deg], legs 0..2 each A, B, C: the "
                    "file must start there, on the robot's assembly branch.")
+@click.option("--torque-hold", type=click.Choice(["sample", "mean"]), default="mean",
+              show_default=True,
+              help="Feed-forward per tick: the 'mean' of the torques at both ends of the "
+                   "tick the drive holds it over, or the 'sample''s own.")
 def feed(csv_file: str, udp: str, speed: float, dry_run: bool,
-         start_theta: tuple[float, ...] | None) -> None:
+         start_theta: tuple[float, ...] | None, torque_hold: str) -> None:
     """Send a trajectory file to the controller: read once, validate, send those samples.
 
     Exit codes: 0 sent; 1 a limit is violated; 2 bad input, a bad file, or a file that
@@ -892,14 +912,15 @@ def feed(csv_file: str, udp: str, speed: float, dry_run: bool,
         import numpy as np
 
         current = np.radians(start_theta)
-    plan = prepare_feed(csv_file, _robot(), speed, current_theta=current)
+    plan = prepare_feed(csv_file, _robot(), speed, current_theta=current,
+                        torque_hold=torque_hold)
     if current is None:
         click.echo("note: the robot's start state was not checked (--start-theta)", err=True)
     emit = (lambda m: click.echo(m.decode())) if dry_run else udp_sender(address)
     n = send(plan, emit)
     verb = "printed (dry run, nothing sent)" if dry_run else "sent"
     click.echo(f"{verb} {n} samples of {plan.t[-1]:.4f} s at {plan.rate:g} Hz "
-               f"(speed {plan.speed:g})", err=True)
+               f"(speed {plan.speed:g}, torque hold {plan.torque_hold})", err=True)
 
 
 @main.command()

@@ -476,7 +476,9 @@ def test_the_feed_sends_exactly_the_bytes_it_validated(valid, tmp_path) -> None:
     fast[:, IDX["tau"]] *= 2.0
     copy.write_bytes(forged(header, fast))
     np.testing.assert_array_equal(plan.theta, columns(data, "pos"))
-    np.testing.assert_array_equal(plan.tau, plan.report.tau)
+    # the validated torques, held as the feed says (default: the interval's mean)
+    assert plan.torque_hold == "mean"
+    np.testing.assert_array_equal(plan.tau, interval.held_torque(plan.report.tau, "mean"))
     sent = [json.loads(m) for m in plan.messages()]
     assert len(sent) == len(data) and sent[5]["tau_ff"] == plan.tau[5].tolist()
 

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from forgeries import DYN as _DYN
-from forgeries import zigzag
+from forgeries import TAU, zigzag
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -42,7 +42,6 @@ SMALL = {"name": "attack", "waypoints": [{"position": [0, 0, 0.30]},
                                          {"position": [0.03, 0.0, 0.33], "rpy": [10, 0, 0]}],
          "nodes_per_segment": 6}
 POS = [COLUMNS.index(f"{j}_pos") for j in JOINTS]
-TAU = [COLUMNS.index(f"{j}_tau") for j in JOINTS]
 FEW = settings(max_examples=10, deadline=None, derandomize=True,
                suppress_health_check=[HealthCheck.function_scoped_fixture])
 
@@ -615,8 +614,40 @@ def test_every_example_at_the_lowest_rate_is_within_the_limit_in_mujoco(tmp_path
         task = examples.load(name)
         res = run_plan(task, tmp_path, ROBOT, rate=RATE_RANGE[0], html=False, plots=False)
         robot = task.robot_for(ROBOT)
-        rep, sim = simulate_file(res.csv, robot)
-        assert rep.ok and sim is not None, name
-        peaks[name] = sim.peak_total_torque
-        assert sim.within_torque_limit, (name, sim.peak_total_torque)
+        planned = res.solution.limits.torque  # the plan's share of the limit (0.9 x 10)
+        _, sample = simulate_file(res.csv, robot, torque_hold="sample")
+        rep, mean = simulate_file(res.csv, robot)  # the default: the interval's mean
+        assert rep.ok and sample is not None and mean is not None, name
+        assert mean.torque_hold == "mean"
+        peaks[name] = (sample.peak_total_torque, mean.peak_total_torque)
+        # holding each tick's own torque: within the hardware limit; holding the
+        # interval's mean: within what was planned (the feedback reserve untouched)
+        assert sample.within_torque_limit, (name, peaks[name])
+        assert mean.peak_total_torque <= planned, (name, peaks[name], planned)
     assert len(peaks) >= 10
+
+
+def test_held_torque_and_the_exports_and_feed_that_use_it(planned, tmp_path) -> None:
+    from sixplus3.control.exports import export_file
+
+    tau = np.arange(12.0).reshape(4, 3)
+    np.testing.assert_array_equal(interval.held_torque(tau, "sample"), tau)
+    np.testing.assert_array_equal(interval.held_torque(tau, "mean"),
+                                  [[1.5, 2.5, 3.5], [4.5, 5.5, 6.5], [7.5, 8.5, 9.5],
+                                   [9.0, 10.0, 11.0]])
+    with pytest.raises(InputError, match="torque hold"):
+        interval.held_torque(tau, "linear")
+    res, raw, _, data = planned
+    path = tmp_path / "t.csv"
+    path.write_bytes(raw)
+    drive = export_file(path, ROBOT, "drive-csv")
+    assert '"torque_hold": "mean"' in drive.splitlines()[0]
+    ros = json.loads(export_file(path, ROBOT, "ros2-json"))
+    assert ros["points"][3]["effort"] == data[3, TAU].tolist()  # interpolated: samples
+    mean = json.loads(export_file(path, ROBOT, "ros2-json", "mean"))
+    assert mean["points"][3]["effort"] == pytest.approx(
+        (0.5 * (data[3, TAU] + data[4, TAU])).tolist(), abs=1e-15)
+    sample = prepare_feed(path, ROBOT, torque_hold="sample")
+    np.testing.assert_array_equal(sample.tau, sample.report.tau)
+    with pytest.raises(InputError):
+        prepare_feed(path, ROBOT, torque_hold="linear")
