@@ -208,7 +208,10 @@ def leg(x: float, y: float, z: float, force: tuple[float, float, float] | None,
     if tau is not None:
         click.echo("  tau [N m] for f = (" + ", ".join(f"{v:g}" for v in force)  # type: ignore[union-attr]
                    + ") N:  " + "  ".join(f"{v:+.4f}" for v in tau))
-    click.echo(f"  tau_ext = {state.tau_ext[0]:.4f} N m  (F = F_g + 2 m g B^3, m = 0.5 kg)")
+    over = state.tau_ext[0] > robot.limits.torque
+    click.echo(f"  tau_ext = {state.tau_ext[0]:.4f} N m  (F = F_g + 2 m g B^3, m = 0.5 kg)"
+               + (f"  OVER the robot's {robot.limits.torque:g} N m torque limit: this point "
+                  "is outside the 2 g COW" if over else ""))
 
 
 @main.group()
@@ -219,7 +222,8 @@ def robot() -> None:
 @robot.command("check")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 def robot_check(as_json: bool) -> None:
-    """Build the robot's URDF + closures model and check its home pose."""
+    """Build the robot's URDF + closures model and check its home pose (exit 1 if home
+    is outside the robot's constant-orientation workspace)."""
     import numpy as np
 
     from sixplus3.design.cow import home_in_cow
@@ -256,7 +260,7 @@ def robot_check(as_json: bool) -> None:
     }
     if as_json:
         click.echo(json.dumps(out, default=_json_default))
-        return
+        sys.exit(0 if where.inside else 1)
     click.echo(f"robot     {out['robot']}")
     click.echo(f"gravity   {list(robot.gravity)} m/s^2; committed URDF of the default robot "
                f"fresh: {out['committed_urdf_fresh']}")
@@ -276,6 +280,10 @@ def robot_check(as_json: bool) -> None:
                + f" | platform {m['platform']:.3f}")
     click.echo("tau_g     " + " ".join(f"{v:+.3f}" for v in tau) + "  N m (home)")
     click.echo(f"mass      {out['total_mass_kg']:.3f} kg")
+    if not where.inside:
+        click.echo("FAILED    home is outside the robot's constant-orientation workspace "
+                   f"({where.line()})", err=True)
+        sys.exit(1)
 
 
 @robot.command("ik", context_settings=_NUMERIC_ARGS)

@@ -90,7 +90,7 @@ def test_the_paper_assemblies_interfere_the_built_one_does_not() -> None:
 
 def test_cli_named_robot_and_bad_name() -> None:
     res = CliRunner().invoke(main, ["--robot", "paper", "robot", "check", "--json"])
-    assert res.exit_code == 0, res.output
+    assert res.exit_code == 1, res.output  # its home is outside its (empty) COW
     doc = json.loads(res.output)
     assert doc["assembly_mode"] == "++--" and doc["home_in_cow"]["failing"] == "clear"
     res = CliRunner().invoke(main, ["robot", "list"])

@@ -215,9 +215,10 @@ def test_robot_show_output_is_the_robot_file_format(tmp_path) -> None:
     doc["limits"]["torque"] = 8.0
     path.write_text(json.dumps(doc))
     r = CliRunner().invoke(cli, ["--robot", str(path), "robot", "check", "--json"])
-    assert r.exit_code == 0, r.output
-    assert json.loads(r.output)["robot_hash"] == DEFAULT.replace(
-        limits=Limits(torque=8.0)).hash
+    checked = json.loads(r.output)
+    # exit 1 when home is outside the COW (at 8 N m the 2 g COW is empty)
+    assert r.exit_code == (0 if checked["home_in_cow"]["inside"] else 1), r.output
+    assert checked["robot_hash"] == DEFAULT.replace(limits=Limits(torque=8.0)).hash
     path.write_text('{"geometry": {"leg": {"l2": "long"}}}')
     r = CliRunner().invoke(cli, ["--robot", str(path), "robot", "check"])
     assert r.exit_code == 2 and "l2" in r.output and "Traceback" not in r.output
