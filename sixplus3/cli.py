@@ -867,9 +867,11 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
 @main.command("export")
 @click.argument("csv_file", type=click.Path(dir_okay=False))
 @click.option("--format", "fmt", required=True,
-              type=click.Choice(["ros2-yaml", "ros2-json", "drive-csv"]),
-              help="ROS 2 trajectory_msgs/JointTrajectory, or a servo-drive table "
-                   "(encoder counts, counts/s, torque in 0.1 % of rated).")
+              type=click.Choice(["ros2-yaml", "ros2-json", "drive-csv", "rosbag2"]),
+              help="ROS 2 trajectory_msgs/JointTrajectory, a servo-drive table "
+                   "(encoder counts, counts/s, torque in 0.1 % of rated), or a ROS 2 bag "
+                   "(MCAP directory: /joint_states of every joint, /tf, the trajectory; "
+                   "needs -o).")
 @click.option("-o", "--out", "out_file", default=None, type=click.Path(dir_okay=False),
               help="Write to this file (atomically) instead of stdout.")
 @click.option("--task", "task_file", default=None, type=click.Path(dir_okay=False),
@@ -884,6 +886,14 @@ def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | N
     for a violated limit, 2 for a bad file: nothing is written)."""
     from sixplus3.control.exports import export_file
 
+    if fmt == "rosbag2":
+        from sixplus3.control.rosbag import write_rosbag2
+
+        if out_file is None:
+            _fail("--format rosbag2 writes a directory: give it with -o DIR")
+        bag = write_rosbag2(csv_file, _task_robot(task_file), out_file)
+        click.echo(f"wrote {bag} (ros2 bag play {bag})", err=True)
+        return
     text = export_file(csv_file, _task_robot(task_file), fmt, torque_hold)
     _emit(text, out_file)
 

@@ -139,3 +139,60 @@ def test_read_trajectory_names_its_columns(planned) -> None:
     assert list(df.columns) == COLUMNS and df["leg2_C_pos"].iloc[-1] == data[-1, 33]
     with pytest.raises(InputError, match="no column"):
         traj["leg3_A_pos"]
+
+
+def test_the_rosbag2_export_reads_back_in_rosbags(planned, tmp_path) -> None:
+    """`export --format rosbag2 -o DIR`: an MCAP bag that the rosbags library reads with
+    ROS 2 Humble's types: /joint_states of the 30 one-DoF joints on the file's time grid
+    (the actuated positions exactly the file's), /tf of the platform, the trajectory."""
+    rosbags = pytest.importorskip("rosbags")  # noqa: F841 - the optional extra
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    from sixplus3.control.rosbag import revolute_joints
+
+    path, data = planned
+    out = tmp_path / "bag"
+    res = CliRunner().invoke(main, ["export", str(path), "--format", "rosbag2", "-o",
+                                    str(out)])
+    assert res.exit_code == 0, res.output
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    names = revolute_joints(ROBOT)[0]
+    assert len(names) == 30 and set(actuated_joint_names()) <= set(names)
+    act = [names.index(n) for n in actuated_joint_names()]
+    seen = {"/joint_states": 0, "/tf": 0, "/joint_trajectory": 0}
+    with Reader(out) as reader:
+        types = {c.topic: c.msgtype for c in reader.connections}
+        assert types == {"/joint_states": "sensor_msgs/msg/JointState",
+                         "/tf": "tf2_msgs/msg/TFMessage",
+                         "/joint_trajectory": "trajectory_msgs/msg/JointTrajectory"}
+        for conn, stamp, raw in reader.messages():
+            msg = store.deserialize_cdr(raw, conn.msgtype)
+            if conn.topic == "/joint_trajectory":
+                assert list(msg.joint_names) == actuated_joint_names()
+                assert len(msg.points) == len(data)
+            elif conn.topic == "/joint_states":
+                k = seen["/joint_states"]
+                assert stamp == round(data[k, 0] * 1e9)
+                assert list(msg.name) == names and len(msg.velocity) == 30
+                np.testing.assert_allclose(msg.position[act], columns(data, "pos")[k],
+                                           atol=1e-9)
+                np.testing.assert_allclose(msg.velocity[act], columns(data, "vel")[k],
+                                           atol=1e-9)
+            else:
+                k = seen["/tf"]
+                tr = msg.transforms[0]
+                assert tr.header.frame_id == "base_link" and tr.child_frame_id == "platform"
+                assert tr.transform.translation.z == pytest.approx(data[k, 39], abs=1e-9)
+            seen[conn.topic] += 1
+    assert seen == {"/joint_states": len(data), "/tf": len(data), "/joint_trajectory": 1}
+    again = CliRunner().invoke(main, ["export", str(path), "--format", "rosbag2", "-o",
+                                      str(out)])
+    assert again.exit_code == 2 and "directory" in again.output  # never written over
+    from sixplus3.control.rosbag import write_rosbag2
+    from sixplus3.errors import InputError
+
+    with pytest.raises(InputError, match="exists"):
+        write_rosbag2(path, ROBOT, out)
+    nodir = CliRunner().invoke(main, ["export", str(path), "--format", "rosbag2"])
+    assert nodir.exit_code == 2
