@@ -117,15 +117,73 @@ def drive_table(robot: Robot, t: np.ndarray, theta: np.ndarray, theta_dot: np.nd
     return counts, vel, torque
 
 
+def decimate(rep, robot: Robot, rate: float):
+    """The validated motion of ``rep`` (a report of :func:`validate_file`) at the lower
+    ``rate``: every m-th sample, m = file rate / rate an integer (the file is first
+    continued at rest so that its end falls on the new grid), validated again as a
+    motion that is interpolated between its points (the whole-interval checks at the
+    new rate, :data:`~sixplus3.control.validation.INTERPOLATED_RATE_RANGE`).  Returns
+    (t, theta, theta_dot, theta_ddot, tau, report); raises ValidationFailed or
+    InputError."""
+    from sixplus3.control.trajectory_file import columns
+    from sixplus3.control.validation import (
+        INTERPOLATED_RATE_RANGE,
+        rotvec_of_quaternions,
+        validate_motion,
+    )
+    from sixplus3.errors import InputError
+
+    r0 = float(rep.header["rate_hz"])
+    lo = INTERPOLATED_RATE_RANGE[0]
+    m = round(r0 / rate) if isinstance(rate, (int, float)) and math.isfinite(rate) and \
+        rate > 0 else 0
+    if not (lo <= rate <= r0 and m >= 1 and abs(m * rate - r0) <= 1e-9 * r0):
+        raise InputError(f"--rate must divide the file's {r0:g} Hz by a whole number and "
+                         f"be at least {lo:g} Hz, got {rate!r}", value=rate,
+                         valid=f"{r0:g} / k Hz >= {lo:g} Hz")
+    data = rep.data
+    n = len(data)
+    pad = (-(n - 1)) % m
+    idx = np.arange(0, n, m)
+    if pad:
+        idx = np.append(idx, n - 1)
+    th = columns(data, "pos")[idx]
+    # with a remainder, the resting end is placed one new period after the last point of
+    # the grid: a slightly slower ending, which the validation below judges like the rest
+    v, a = columns(data, "vel")[idx], columns(data, "acc")[idx]
+    t = np.arange(len(idx)) / float(rate)
+    x = np.c_[rep.position[idx], rotvec_of_quaternions(rep.quaternion[idx]), rep.psi[idx]]
+    again = validate_motion(t, th, v, a, robot, float(rate), x,
+                            rate_range=INTERPOLATED_RATE_RANGE)
+    if not again.ok:
+        raise ValidationFailed(f"the trajectory decimated to {rate:g} Hz fails validation: "
+                               + "; ".join(again.messages()), again.exit_code, again)
+    return t, th, v, a, again.tau, again
+
+
+def follow_joint_trajectory_goal(msg: dict[str, Any],
+                                 goal_time_tolerance_s: float = 0.0) -> dict[str, Any]:
+    """A ``control_msgs/action/FollowJointTrajectory`` goal around a JointTrajectory
+    mapping: empty path and goal tolerances (the controller's own) and the goal time
+    tolerance, in the form ``ros2 action send_goal`` takes."""
+    ns = int(round(goal_time_tolerance_s * 1e9))
+    return {"trajectory": msg, "path_tolerance": [], "goal_tolerance": [],
+            "goal_time_tolerance": {"sec": ns // 1_000_000_000,
+                                    "nanosec": ns % 1_000_000_000}}
+
+
 def export_file(path: str | Path, robot: Robot, fmt: str,
-                torque_hold: str | None = None) -> str:
+                torque_hold: str | None = None, rate: float | None = None,
+                goal: bool = False) -> str:
     """Validate the trajectory file at ``path`` for ``robot`` and return its export in
     ``fmt`` (one of :data:`FORMATS`); raises :class:`ValidationFailed` (nothing is
     exported) when the file is not a valid motion within the limits.  The torque
     (effort, drive torque) is as ``torque_hold`` says: ``mean``, each sample carries the
     mean of its own and the next sample's torque, for a drive that holds it over the
     tick (the default of ``drive-csv``); ``sample``, the sample's own (the default of the
-    ROS 2 forms, whose controllers interpolate between points)."""
+    ROS 2 forms, whose controllers interpolate between points).  ``rate`` (ROS 2 forms):
+    decimate to this rate first (:func:`decimate`, validated again); ``goal``: the ROS 2
+    forms as a FollowJointTrajectory goal (:func:`follow_joint_trajectory_goal`)."""
     from sixplus3.control.interval import held_torque
     from sixplus3.control.trajectory_file import columns
     from sixplus3.control.validation import validate_file
@@ -142,13 +200,29 @@ def export_file(path: str | Path, robot: Robot, fmt: str,
         raise ValidationFailed("not exported: " + "; ".join(rep.messages()),
                                exit_code=rep.exit_code, report=rep)
     data = rep.data
+    if (rate is not None or goal) and not fmt.startswith("ros2"):
+        raise InputError("--rate and --goal go with the ROS 2 forms (ros2-yaml, ros2-json)",
+                         value=fmt, valid="ros2-yaml or ros2-json")
     t, th, thd, thdd = (data[:, 0], columns(data, "pos"), columns(data, "vel"),
                         columns(data, "acc"))
-    tau = held_torque(columns(data, "tau"), torque_hold)
+    tau = columns(data, "tau")
+    if rate is not None and rate != float((rep.header or {}).get("rate_hz", 0.0)):
+        t, th, thd, thdd, tau, _ = decimate(rep, robot, rate)
+    tau = held_torque(tau, torque_hold)
     if fmt.startswith("ros2"):
         msg = ros2_joint_trajectory(t, th, thd, thdd, tau)
+        if goal:
+            msg = follow_joint_trajectory_goal(msg)
         if fmt == "ros2-json":
             return json.dumps(msg) + "\n"
+        if goal:
+            import yaml
+
+            tolerances = {k: v for k, v in msg.items() if k != "trajectory"}
+            body = ros2_yaml(msg["trajectory"])
+            return ("trajectory:\n" + "".join(f"  {line}\n" for line in body.splitlines())
+                    + yaml.safe_dump(tolerances, sort_keys=False,
+                                     default_flow_style=False))
         return ros2_yaml(msg)
     counts, vel, torque = drive_table(robot, t, th, thd, tau)
     out = io.StringIO()

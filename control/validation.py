@@ -53,6 +53,10 @@ from sixplus3.robot_description.robot import Robot
 #: bound) and at 11.0 N m at 500 Hz (translate); at 1 kHz every example stays within
 #: 10 N m (docs/validation.md, "The lowest rate").  Above 10 kHz no drive listens.
 RATE_RANGE = (1000.0, 10000.0)
+#: Rates accepted for consumers that interpolate the quintic through the points instead
+#: of holding each (a ROS 2 JointTrajectory controller with positions, velocities and
+#: accelerations): the whole-interval checks prove that interpolated motion, at any rate.
+INTERPOLATED_RATE_RANGE = (10.0, 10000.0)
 #: Samples checked at once: a longer motion is checked in windows of this many samples
 #: (sharing their end samples), so the checks' memory does not grow with its length.
 WINDOW = 8192
@@ -226,7 +230,8 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
                     x_guess: np.ndarray, limits: Limits | None = None,
                     platform: np.ndarray | None = None,
                     tau_file: np.ndarray | None = None,
-                    midpoints: bool = True) -> ValidationReport:
+                    midpoints: bool = True,
+                    rate_range: tuple[float, float] = RATE_RANGE) -> ValidationReport:
     """Validate a sampled motion of ``robot``: every check of docs/validation.md.
 
     t (n,) [s]; theta, theta_dot, theta_ddot (n, 9); ``rate`` [Hz] the declared rate;
@@ -235,6 +240,9 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
     ``limits`` tighter than the robot's (default: the robot's hardware limits);
     ``platform`` (n, 10) position, quaternion, psi to compare with the forward
     kinematics; ``tau_file`` (n, 9) feed-forward torques to compare with Pinocchio's.
+    ``rate_range``: the rates accepted (default :data:`RATE_RANGE`, for drives that hold
+    each sample; :data:`INTERPOLATED_RATE_RANGE` for consumers that interpolate the
+    quintic through the points, such as a decimated ROS 2 JointTrajectory).
 
     A motion of more than :data:`WINDOW` samples is checked window by window (each
     window shares its last sample with the next, so every interval is checked once), so
@@ -271,7 +279,8 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
         raise InputError("x_guess (n, 9) is needed to seed the forward kinematics",
                          value=None, valid=f"({n}, 9)")
     if n <= WINDOW:
-        rep = _validate_window(t, th, v, a, robot, rate, xg, lim, pf, tf_, midpoints)
+        rep = _validate_window(t, th, v, a, robot, rate, xg, lim, pf, tf_, midpoints,
+                               rate_range=rate_range)
     else:
         reps = []
         for i0 in range(0, n - 1, WINDOW - 1):
@@ -279,7 +288,8 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
             reps.append(_validate_window(
                 t[sl], th[sl], v[sl], a[sl], robot, rate, xg[sl], lim,
                 None if pf is None else pf[sl], None if tf_ is None else tf_[sl],
-                midpoints, k0=i0, rest=(i0 == 0, sl.stop == n), n_total=n))
+                midpoints, k0=i0, rest=(i0 == 0, sl.stop == n), n_total=n,
+                rate_range=rate_range))
             if reps[-1].tau is None:  # a window that could not be checked through
                 break
         rep = _merge(reps, n)
@@ -340,14 +350,15 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
                      robot: Robot, rate: float, x_guess: np.ndarray, lim: Limits,
                      platform: np.ndarray | None, tau_file: np.ndarray | None,
                      midpoints: bool, k0: int = 0, rest: tuple[bool, bool] = (True, True),
-                     n_total: int | None = None) -> ValidationReport:
+                     n_total: int | None = None,
+                     rate_range: tuple[float, float] = RATE_RANGE) -> ValidationReport:
     """:func:`validate_motion` of samples k0 .. k0 + len(t) - 1 of a motion of
     ``n_total`` samples; ``rest``: whether this window holds the start / the end."""
     n = len(t)
     findings: list[Finding] = []
     f: Finding | None
     # ------------------------------------------------------------ grid and rate
-    lo, hi = RATE_RANGE
+    lo, hi = rate_range
     if not (math.isfinite(rate) and lo <= rate <= hi):
         f = Finding("rate", "defect", "Hz", lo, 1, 0.0, "header", float(rate), 0.0, "header",
                     float(rate))

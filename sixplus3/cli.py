@@ -880,8 +880,14 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
               help="Torque per sample: 'mean' of it and the next (for a drive that holds "
                    "it over the tick; drive-csv's default) or the 'sample''s own (the "
                    "ROS 2 forms' default).")
+@click.option("--rate", "rate", default=None, type=float,
+              help="ROS 2 forms: decimate to this rate [Hz] (the file's rate / a whole "
+                   "number, >= 10 Hz), validated again as an interpolated motion.")
+@click.option("--goal", is_flag=True,
+              help="ROS 2 forms: a control_msgs/action/FollowJointTrajectory goal "
+                   "(for 'ros2 action send_goal').")
 def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | None,
-               torque_hold: str | None) -> None:
+               torque_hold: str | None, rate: float | None, goal: bool) -> None:
     """Export a trajectory file for the controller side, after validating it (exit 1
     for a violated limit, 2 for a bad file: nothing is written)."""
     from sixplus3.control.exports import export_file
@@ -891,10 +897,11 @@ def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | N
 
         if out_file is None:
             _fail("--format rosbag2 writes a directory: give it with -o DIR")
+            return
         bag = write_rosbag2(csv_file, _task_robot(task_file), out_file)
         click.echo(f"wrote {bag} (ros2 bag play {bag})", err=True)
         return
-    text = export_file(csv_file, _task_robot(task_file), fmt, torque_hold)
+    text = export_file(csv_file, _task_robot(task_file), fmt, torque_hold, rate, goal)
     _emit(text, out_file)
 
 
