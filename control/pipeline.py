@@ -159,8 +159,10 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
     if html:
         from sixplus3.visualization.meshcat_player import frames_from_samples, write_html
 
+        wps = (sol.task or task).waypoints
         frames = frames_from_samples(robot, sm.t, rep.position, rep.quaternion, rep.psi,
-                                     title=f"sixplus3: {task.name}", theta_dot=sm.theta_dot)
+                                     title=f"sixplus3: {task.name}", theta_dot=sm.theta_dot,
+                                     waypoints=[w.position for w in wps])
         html_path = write_html(frames, out / f"{stem}.html")
         say(f"  MeshCat page: {html_path} (slowed down {frames.slowdown:.0f}x)")
     secs["total"] = time.perf_counter() - t0

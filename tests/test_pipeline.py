@@ -161,3 +161,13 @@ def test_playback_page_renders_the_robot(planned, tmp_path) -> None:
     # the trace of a 3 cm move, partly behind the robot at the screenshot's frame: 17-20
     # pixels with the 10-interval plan (measured), 0 when no trace is drawn
     assert magenta.sum() > 10, magenta.sum()
+    floor = (np.abs(r_ - 176) < 25) & (np.abs(g_ - 176) < 25) & (np.abs(b_ - 168) < 25)
+    assert floor.sum() > 5000, floor.sum()  # the floor plate under the base
+    # the time readout (its text is set from the animation's clock by the page's script)
+    assert 'id="sixplus3-time"' in text and "viewer.animator.actions" in text
+
+
+def test_the_planned_page_marks_the_task_waypoints(planned) -> None:
+    res, _ = planned
+    text = res.html.read_text()
+    assert "green: the task's waypoints" in text and 'id="sixplus3-time"' in text

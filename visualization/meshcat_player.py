@@ -31,19 +31,26 @@ class Frames:
     title: str = "sixplus3"
     #: (K, 3) points to mark (e.g. where the motion stops or its waypoints) [m]
     marks: np.ndarray | None = None
+    #: (W, 3) the task's waypoints (platform centre) [m], drawn apart from the rests
+    waypoints: np.ndarray | None = None
 
 #: Times the page and the live viewer replay the animation (MeshCat has no endless loop
 #: through its Python API; at a few seconds per play this is hours).
 REPETITIONS = 10_000
+#: Height the camera orbits around [m] (about the middle of the robot).
+FOCUS_Z = 0.17
+#: The floor: a plate under the base, 1 m square, its top this far below z = 0 [m].
+FLOOR_Z = -0.05
 
 
 def frames_from_samples(robot: Robot, t, position, quaternion, psi, fps: float = 30.0,
                         min_seconds: float = 3.0, title: str = "sixplus3",
-                        theta_dot=None) -> Frames:
+                        theta_dot=None, waypoints=None) -> Frames:
     """Tree configurations at ``fps``, slowed down so the animation lasts >= min_seconds.
 
     The platform path is kept for a trace; with ``theta_dot`` the samples at rest inside
-    the motion (stops, dwells) and at both ends are marked."""
+    the motion (stops, dwells) and at both ends are marked; ``waypoints`` (W, 3), the
+    task's platform positions, are drawn as their own markers."""
     duration = float(t[-1])
     slowdown = max(1.0, min_seconds / max(duration, 1e-9))
     n = max(2, int(round(duration * slowdown * fps)) + 1)
@@ -55,8 +62,9 @@ def frames_from_samples(robot: Robot, t, position, quaternion, psi, fps: float =
     if theta_dot is not None:
         rest = np.flatnonzero(~np.asarray(theta_dot).any(axis=1))
         marks = np.asarray(position)[rest]
+    wps = None if waypoints is None else np.asarray(waypoints, dtype=float).reshape(-1, 3)
     return Frames(robot, cfg.q, fps, slowdown, np.asarray(position, dtype=float),
-                  duration, title, marks)
+                  duration, title, marks, wps)
 
 
 @functools.lru_cache(maxsize=1)
@@ -71,8 +79,12 @@ def _server():
     # written, so it is kept quiet here; the live `play` command prints viewer_url()
     with contextlib.redirect_stdout(io.StringIO()):
         vis = meshcat.Visualizer()
-    # camera ~0.8 m from the base centre (meshcat's camera frame is y-up)
-    vis["/Cameras/default/rotated/<object>"].set_property("position", [0.55, 0.45, 0.55])
+    # the camera orbits a point halfway up the robot (the base is at z = 0, the platform
+    # near 0.3 m), ~0.9 m away (meshcat's camera frame is y-up)
+    import meshcat.transformations as tf
+
+    vis["/Cameras/default"].set_transform(tf.translation_matrix([0.0, 0.0, FOCUS_Z]))
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [0.6, 0.35, 0.6])
     return vis
 
 
@@ -115,10 +127,14 @@ def animate(frames: Frames):
 
 
 def _overlay(vis, frames: Frames) -> None:
-    """The platform centre's path as a line, and a small sphere at each marked point."""
+    """The floor, the platform centre's path as a line, a small sphere at each marked
+    point (magenta: at rest) and at each waypoint (green)."""
     import meshcat.geometry as g
     import meshcat.transformations as tf
 
+    vis["sixplus3_floor"].set_object(g.Box([1.0, 1.0, 0.004]), g.MeshLambertMaterial(
+        color=0xB0B0A8, opacity=0.85, transparent=True))
+    vis["sixplus3_floor"].set_transform(tf.translation_matrix([0.0, 0.0, FLOOR_Z - 0.002]))
     vis["sixplus3_path"].delete()
     if frames.path is not None and len(frames.path) > 1:
         step = max(1, len(frames.path) // 2000)
@@ -129,6 +145,11 @@ def _overlay(vis, frames: Frames) -> None:
         for k, p in enumerate(_distinct(frames.marks)):
             node = vis[f"sixplus3_path/mark{k}"]
             node.set_object(g.Sphere(0.006), g.MeshLambertMaterial(color=0xC020C0))
+            node.set_transform(tf.translation_matrix(p))
+    if frames.waypoints is not None:
+        for k, p in enumerate(_distinct(frames.waypoints)):
+            node = vis[f"sixplus3_path/waypoint{k}"]
+            node.set_object(g.Sphere(0.012), g.MeshLambertMaterial(color=0x20B040))
             node.set_transform(tf.translation_matrix(p))
 
 
@@ -151,12 +172,26 @@ def write_html(frames: Frames, out: str | Path) -> Path:
     page = vis.static_html()
     title = html.escape(frames.title)
     info = (f"{title}: {frames.duration:.3f} s motion, shown {frames.slowdown:.0f}x "
-            f"slower, looping; magenta: the platform centre's path and where it rests")
+            f"slower, looping; magenta: the platform centre's path and where it rests"
+            + ("; green: the task's waypoints" if frames.waypoints is not None else ""))
     page = page.replace("<title>MeshCat</title>", f"<title>{title}</title>", 1)
-    banner = ('<div style="position:fixed;top:8px;left:8px;z-index:10;padding:4px 8px;'
-              'font:14px sans-serif;background:rgba(255,255,255,0.85);border-radius:4px">'
-              f'{info}</div>')
+    box = "padding:4px 8px;background:rgba(255,255,255,0.85);border-radius:4px"
+    banner = ('<div style="position:fixed;top:8px;left:8px;right:240px;z-index:10;'
+              'font:14px sans-serif;display:flex;flex-direction:column;'
+              f'align-items:flex-start;gap:4px"><div style="{box}">{info}</div>'
+              f'<div id="sixplus3-time" style="{box};font-family:monospace">'
+              f't = 0.000 s of {frames.duration:.3f} s</div></div>')
+    # the time of the motion shown, read from the animation's clip time
+    clock = ("<script>setInterval(function () {"
+             " var a = (typeof viewer !== 'undefined' && viewer.animator) ?"
+             " viewer.animator.actions : [];"
+             " if (!a.length) { return; }"
+             f" var t = Math.min(a[0].time / {frames.slowdown!r}, {frames.duration!r});"
+             " document.getElementById('sixplus3-time').textContent ="
+             f" 't = ' + t.toFixed(3) + ' s of {frames.duration:.3f} s';"
+             " }, 50);</script>")
     page = page.replace("<body>", "<body>" + banner, 1)
+    page = page.replace("</body>", clock + "</body>", 1)
     atomic_write(out, page.encode())
     return out
 
