@@ -46,12 +46,15 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
     names = actuated_joint_names()
     lim = robot.limits
     files = []
+    # joints A, B, C of a leg: colour and line style both differ (B and C move alike)
+    styles = [{"color": "tab:blue", "ls": "-"}, {"color": "tab:green", "ls": "--"},
+              {"color": "tab:purple", "ls": "-."}]
 
     def per_leg(values, ylabel: str, hw: float, fname: str, what: str, planned=None):
         fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
         for i, ax in enumerate(axes):
             for j in range(3 * i, 3 * i + 3):
-                ax.plot(t, values[:, j], lw=1.2, label=names[j])
+                ax.plot(t, values[:, j], lw=1.2, label=names[j], **styles[j % 3])
             for sgn in (1, -1):
                 ax.axhline(sgn * hw, color="r", ls="--", lw=1.0,
                            label="hardware limit" if sgn == 1 else None)
@@ -71,32 +74,49 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
     files.append(per_leg(tau, "torque [N m]", torque_limit, "torques", "actuator torques",
                          planned_torque))
     if theta_dot is not None and theta_ddot is not None:
-        fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
-        for ax, values, hw, label in ((axes[0], theta_dot, lim.velocity, "speed [rad/s]"),
-                                      (axes[1], theta_ddot, lim.acceleration,
-                                       "acceleration [rad/s^2]")):
+        dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
+        jerk = np.diff(theta_ddot, axis=0) / dt
+        trate = np.diff(np.asarray(tau), axis=0) / dt
+        tm = 0.5 * (np.asarray(t)[1:] + np.asarray(t)[:-1])
+        fig, axes = plt.subplots(4, 1, figsize=(9, 9.5), sharex=True)
+        panels = ((axes[0], t, theta_dot, lim.velocity, "speed [rad/s]", "hardware limit"),
+                  (axes[1], t, theta_ddot, lim.acceleration, "acceleration [rad/s^2]",
+                   "hardware limit"),
+                  (axes[2], tm, jerk, lim.jerk, "jerk [rad/s^3]", "jerk limit"),
+                  (axes[3], tm, trate, lim.torque_rate, "torque rate [N m/s]",
+                   "planner's bound (not a gate limit)"))
+        for ax, tt, values, hw, label, what in panels:
             for j in range(9):
-                ax.plot(t, values[:, j], lw=1.0, label=names[j])
+                ax.plot(tt, values[:, j], lw=1.0, label=names[j], **styles[j % 3])
+            limit_line = None
             for sgn in (1, -1):
-                ax.axhline(sgn * hw, color="r", ls="--", lw=1.0)
+                line = ax.axhline(sgn * hw, color="r", ls="--", lw=1.0, label=what)
+                limit_line = limit_line or line
             ax.set_ylabel(label, fontsize=8)
-            ax.set_ylim(-1.08 * hw, 1.08 * hw)
-        axes[0].legend(loc="center left", bbox_to_anchor=(1.01, 0.0), fontsize=7)
-        axes[1].set_xlabel("t [s]")
+            top = max(1.08 * hw, 1.05 * float(np.abs(values).max()) if values.size else 0.0)
+            ax.set_ylim(-top, top)
+            ax.legend(handles=[limit_line], loc="upper right", fontsize=7)
+        handles = axes[0].get_lines()[:9]
+        fig.legend(handles=handles, labels=[h.get_label() for h in handles],
+                   loc="center right", fontsize=7)
+        axes[-1].set_xlabel("t [s]")
         axes[0].set_title(
             f"{title}: joint speeds (peak {np.abs(theta_dot).max() / lim.velocity:.0%} of "
-            f"the limit) and accelerations (peak "
-            f"{np.abs(theta_ddot).max() / lim.acceleration:.0%}); limits red", fontsize=10)
-        fig.tight_layout()
+            f"the limit), accelerations ({np.abs(theta_ddot).max() / lim.acceleration:.0%}),"
+            f"\njerk between samples ({np.abs(jerk).max() / lim.jerk:.0%}) and torque rate "
+            f"({np.abs(trate).max() / lim.torque_rate:.0%} of the planner's bound)",
+            fontsize=9)
+        fig.subplots_adjust(left=0.12, right=0.84, top=0.93, bottom=0.06, hspace=0.12)
         files.append(_save(fig, out / f"{prefix}rates.png"))
 
     cfg = robot_ik(position, Rotation.from_quat(quaternion).as_matrix(), psi, robot)
     fig, ax = plt.subplots(figsize=(9, 4.8))
     for i in range(3):
         ax.plot(t, cfg.margins.leg_type1[:, i], lw=1.0, label=f"leg {i} type I")
-        ax.plot(t, cfg.margins.leg_type2[:, i], lw=1.0, ls="--", label=f"leg {i} type II")
+        ax.plot(t, cfg.margins.leg_type2[:, i], lw=1.4, ls=":", label=f"leg {i} type II")
     ax.plot(t, cfg.margins.platform, "k", lw=1.5, label="platform")
-    ax.axhline(margin, color="r", ls="--", lw=1.0, label="threshold")
+    ax.axhspan(0.0, margin, color="r", alpha=0.12, lw=0)
+    ax.axhline(margin, color="r", ls="-", lw=2.0, alpha=0.8, label="threshold")
     ax.set_ylim(0, 1)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("singularity margin (0 singular .. 1)")
@@ -108,13 +128,17 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
     fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     for i, ax in enumerate(axes):
         for j in range(3 * i, 3 * i + 3):
-            ax.plot(t, np.degrees(theta[:, j]), lw=1.2, label=names[j])
+            ax.plot(t, np.degrees(theta[:, j]), lw=1.2, label=names[j], **styles[j % 3])
         ax.plot(t, np.degrees(psi[:, i]), "k", ls=":", lw=1.2, label=f"crank psi {i}")
+        for k, bound in enumerate((lim.theta_min, lim.theta_max)):
+            ax.axhline(np.degrees(bound), color="r", ls="--", lw=1.0,
+                       label="actuated range" if k == 0 else None)
         ax.set_ylabel("angle [deg]", fontsize=8)
         ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
     axes[-1].set_xlabel("t [s]")
-    axes[0].set_title(f"{title}: actuated angles and crank angles (dotted), per leg",
-                      fontsize=10)
+    axes[0].set_title(f"{title}: actuated angles and crank angles (dotted), per leg; "
+                      f"actuated range {np.degrees(lim.theta_min):g}.."
+                      f"{np.degrees(lim.theta_max):g} deg (red)", fontsize=10)
     fig.tight_layout()
     files.append(_save(fig, out / f"{prefix}joints.png"))
 
