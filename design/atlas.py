@@ -718,10 +718,16 @@ def figures(ds: xr.Dataset, out_dir: str | Path, robot: Robot | None = None,
                 ax.set_title(f"{mode}, z = {zs[k]:.2f} m", fontsize=9)
                 ax.set_xlabel("x [m]")
                 ax.set_ylabel("y [m]")
+        # room on the right for the colour bar (its own axes: it covers no panel) and at
+        # the top for the title (above the first row's panel titles)
+        height = 3.2 * len(pick)
+        fig.subplots_adjust(hspace=0.45, right=0.84, top=1 - 0.9 / height,
+                            bottom=0.5 / height)
         if im is not None:
-            fig.colorbar(im, ax=axes, shrink=0.6, label="tilt in every direction [deg]")
-        fig.subplots_adjust(hspace=0.45, top=1 - 0.5 / (3.2 * len(pick)))
-        fig.suptitle(f"Largest tilt reached in every direction (min over azimuths){dyn}")
+            cax = fig.add_axes((0.88, 0.5 / height + 0.05, 0.025, 0.8 - 1.4 / height))
+            fig.colorbar(im, cax=cax, label="tilt in every direction [deg]")
+        fig.suptitle(f"Largest tilt reached in every direction (min over azimuths){dyn}",
+                     y=1 - 0.25 / height)
         paths.append(_save(fig, out / "atlas_layers.png", plt))
     # volume vs threshold
     th = np.arange(0.0, float(ds.attrs["max_tilt_deg"]) + 1e-9, 5.0)

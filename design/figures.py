@@ -97,12 +97,16 @@ def make_figures(out_dir: str | Path, reading: Reading | None = None,
         pc = ax.pcolormesh(X, Y, vm, cmap="RdBu_r", shading="auto",
                            norm=SymLogNorm(linthresh=lim * 1e-3, vmin=-lim, vmax=lim))
         fig.colorbar(pc, ax=ax, label=f"{name.replace('_', ' ')} [{unit}]")
-        # type II: det J changes sign away from type I (where J_p, K are regular)
-        zero = np.ma.masked_where(~ok, s.det_J.reshape(X.shape))
+        # each panel's own zero set: det J = 0 is the type II singularity, det K = 0 the
+        # type I (paper §IV)
+        zero = np.ma.masked_where(~ok, v)
         ax.contour(X, Y, zero, levels=[0.0], colors="k", linewidths=1.5)
         _disk_outline(ax, geometry)
-        ax.set_title(f"{name.replace('_', ' ')} (black: det J = 0, type II)", fontsize=10)
-    fig.suptitle(f"Fig. det_JK - {tag}; grid {ws_step * 1000:g} mm", fontsize=9)
+        kind = "type II" if name == "det_J" else "type I"
+        ax.set_title(f"{name.replace('_', ' ')} (black: {name.replace('_', ' ')} = 0, "
+                     f"{kind})", fontsize=10)
+    fig.suptitle(f"det J and det K over the leg's half-plane (the paper's det_JK figure) - "
+                 f"{tag}; grid {ws_step * 1000:g} mm", fontsize=9)
     fig.tight_layout()
     files.append(_save(fig, out / "det_JK.png"))
 
@@ -126,7 +130,8 @@ def make_figures(out_dir: str | Path, reading: Reading | None = None,
     ax.set_title(f"tau_ext for F = F_g + 2mg B^3, m = 0.5 kg (black: 10 N m)\n"
                  f"white dashed: counted (theta in [0, {math.degrees(reading.theta_max):.0f}]"
                  f" deg, tau_ext <= 10): {area:.4f} m^2", fontsize=9)
-    fig.suptitle(f"Fig. WFW_optimal - {tag}", fontsize=8)
+    fig.suptitle(f"tau_ext over the leg's half-plane (the paper's WFW_optimal figure) - "
+                 f"{tag}", fontsize=8)
     fig.tight_layout()
     files.append(_save(fig, out / "tau_ext.png"))
 
