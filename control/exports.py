@@ -7,8 +7,12 @@ reads (for the robot of the invocation) and converts exactly those samples.
   as a plain mapping (YAML or JSON): ``joint_names`` (the nine actuated joints, legs
   0..2 each A, B, C, as in the URDF), one point per sample with ``positions`` [rad],
   ``velocities`` [rad/s], ``accelerations`` [rad/s^2], ``effort`` [N m] at the joint and
-  ``time_from_start`` {sec, nanosec}.  ``ros2 topic pub`` and ``rclpy``'s
-  ``set_message_fields`` take it as is.
+  ``time_from_start`` {sec, nanosec}.  ``rclpy``'s ``set_message_fields`` takes it as
+  is; ``ros2 topic pub`` takes it on its command line only while it is under Linux's
+  128 KiB limit for one argument (a 0.14 s motion at 1 kHz is already ~135 KB): for
+  longer motions use ``--rate`` (fewer points, validated again), the FollowJointTrajectory
+  goal (:func:`follow_joint_trajectory_goal`) from a node, or the rosbag2 export
+  (:mod:`sixplus3.control.rosbag`).
 - **Drive** (:func:`drive_table`): the same samples in the units of servo drives in
   cyclic synchronous position or torque mode (e.g. Yaskawa SGD7S in CSP/CST), per axis:
   position in encoder counts of the motor, velocity in counts/s, torque in 0.1 % of the

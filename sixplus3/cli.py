@@ -363,7 +363,7 @@ def robot_show(as_json: bool) -> None:
         click.echo(json.dumps({**doc, "hash": robot.hash}, indent=1))
         return
     click.echo(robot.summary())
-    click.echo(json.dumps(doc, indent=1))
+    click.echo(json.dumps({**doc, "hash": robot.hash}, indent=1))
 
 
 @robot.command("export")
