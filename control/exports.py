@@ -122,13 +122,15 @@ def drive_table(robot: Robot, t: np.ndarray, theta: np.ndarray, theta_dot: np.nd
 
 
 def decimate(rep, robot: Robot, rate: float):
-    """The validated motion of ``rep`` (a report of :func:`validate_file`) at the lower
-    ``rate``: every m-th sample, m = file rate / rate an integer (the file is first
-    continued at rest so that its end falls on the new grid), validated again as a
-    motion that is interpolated between its points (the whole-interval checks at the
-    new rate, :data:`~sixplus3.control.validation.INTERPOLATED_RATE_RANGE`).  Returns
+    """The validated motion of ``rep`` (a report of :func:`validate_file`) resampled at the
+    lower ``rate`` [Hz] on the gate's quintic Hermite interpolant of its samples (at a
+    whole fraction of the file's rate these are exactly every m-th sample), the resting
+    end held until the next point of the new grid, and validated again as a motion that
+    is interpolated between its points (every check over whole intervals, at rates down
+    to :data:`~sixplus3.control.validation.INTERPOLATED_RATE_RANGE`'s 10 Hz).  Returns
     (t, theta, theta_dot, theta_ddot, tau, report); raises ValidationFailed or
     InputError."""
+    from sixplus3.control.interval import hermite
     from sixplus3.control.trajectory_file import columns
     from sixplus3.control.validation import (
         INTERPOLATED_RATE_RANGE,
@@ -139,28 +141,29 @@ def decimate(rep, robot: Robot, rate: float):
 
     r0 = float(rep.header["rate_hz"])
     lo = INTERPOLATED_RATE_RANGE[0]
-    m = round(r0 / rate) if isinstance(rate, (int, float)) and math.isfinite(rate) and \
-        rate > 0 else 0
-    if not (lo <= rate <= r0 and m >= 1 and abs(m * rate - r0) <= 1e-9 * r0):
-        raise InputError(f"--rate must divide the file's {r0:g} Hz by a whole number and "
-                         f"be at least {lo:g} Hz, got {rate!r}", value=rate,
-                         valid=f"{r0:g} / k Hz >= {lo:g} Hz")
+    ok = isinstance(rate, (int, float)) and not isinstance(rate, bool) \
+        and math.isfinite(rate) and lo <= rate <= r0
+    if not ok:
+        raise InputError(f"--rate must be in [{lo:g}, {r0:g}] Hz (at most the file's rate), "
+                         f"got {rate!r}", value=rate, valid=f"[{lo:g}, {r0:g}] Hz")
+    rate = float(rate)
     data = rep.data
     n = len(data)
-    pad = (-(n - 1)) % m
-    idx = np.arange(0, n, m)
-    if pad:
-        idx = np.append(idx, n - 1)
-    th = columns(data, "pos")[idx]
-    # with a remainder, the resting end is placed one new period after the last point of
-    # the grid: a slightly slower ending, which the validation below judges like the rest
-    v, a = columns(data, "vel")[idx], columns(data, "acc")[idx]
-    t = np.arange(len(idx)) / float(rate)
-    x = np.c_[rep.position[idx], rotvec_of_quaternions(rep.quaternion[idx]), rep.psi[idx]]
-    again = validate_motion(t, th, v, a, robot, float(rate), x,
-                            rate_range=INTERPOLATED_RATE_RANGE)
+    T = float(data[-1, 0])
+    m = math.ceil(T * rate - 1e-9)  # the end, at rest, held to the next new point
+    t = np.arange(m + 1) / rate
+    u = np.minimum(t, T) * r0  # in sample periods of the file
+    k = np.minimum(np.floor(u + 1e-9).astype(int), n - 2)
+    frac = np.clip(u - k, 0.0, 1.0)
+    th, v, a = hermite(1.0 / r0, columns(data, "pos"), columns(data, "vel"),
+                       columns(data, "acc"), k, frac)
+    v[-1], a[-1] = 0.0, 0.0  # the file ends at rest (the gate checked it)
+    near = np.minimum(np.rint(u).astype(int), n - 1)
+    x = np.c_[rep.position[near], rotvec_of_quaternions(rep.quaternion[near]),
+              rep.psi[near]]
+    again = validate_motion(t, th, v, a, robot, rate, x, rate_range=INTERPOLATED_RATE_RANGE)
     if not again.ok:
-        raise ValidationFailed(f"the trajectory decimated to {rate:g} Hz fails validation: "
+        raise ValidationFailed(f"the trajectory resampled at {rate:g} Hz fails validation: "
                                + "; ".join(again.messages()), again.exit_code, again)
     return t, th, v, a, again.tau, again
 

@@ -881,8 +881,8 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
                    "it over the tick; drive-csv's default) or the 'sample''s own (the "
                    "ROS 2 forms' default).")
 @click.option("--rate", "rate", default=None, type=float,
-              help="ROS 2 forms: decimate to this rate [Hz] (the file's rate / a whole "
-                   "number, >= 10 Hz), validated again as an interpolated motion.")
+              help="ROS 2 forms: resample at this lower rate [Hz] (>= 10) on the gate's "
+                   "quintic interpolant, validated again as an interpolated motion.")
 @click.option("--goal", is_flag=True,
               help="ROS 2 forms: a control_msgs/action/FollowJointTrajectory goal "
                    "(for 'ros2 action send_goal').")

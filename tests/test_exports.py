@@ -199,10 +199,11 @@ def test_the_rosbag2_export_reads_back_in_rosbags(planned, tmp_path) -> None:
 
 
 def test_decimation_is_validated_again_and_the_goal_form_wraps_it(planned, tmp_path) -> None:
-    """--rate keeps every m-th sample (exactly the file's) and validates the motion
-    interpolated through them again: a rate either gives a valid trajectory or is
-    refused for what the interpolation does between the points (exit 1), never
-    silently.  --goal wraps the trajectory into a FollowJointTrajectory goal."""
+    """--rate resamples on the quintic interpolant (at a whole fraction of the file's
+    rate: exactly every m-th sample) and validates the motion interpolated through the
+    new points again: a rate either gives a valid trajectory or is refused for what the
+    interpolation does between the points (exit 1), never silently.  --goal wraps the
+    trajectory into a FollowJointTrajectory goal."""
     from sixplus3.control.exports import decimate
     from sixplus3.control.validation import validate_file
     from sixplus3.errors import InputError, ValidationFailed
@@ -210,25 +211,28 @@ def test_decimation_is_validated_again_and_the_goal_form_wraps_it(planned, tmp_p
     path, data = planned
     rep = validate_file(path, ROBOT)
     passed = []
-    for rate in (500.0, 250.0, 200.0, 100.0, 50.0, 10.0):
+    for rate in (500.0, 250.0, 200.0, 100.0, 50.0, 10.0, 333.0, 37.5):
         try:
             t, th, v, a, tau, again = decimate(rep, ROBOT, rate)
         except ValidationFailed as exc:
             assert exc.exit_code == 1 and "between samples" in str(exc), str(exc)[:300]
             continue
         passed.append(rate)
-        m = int(round(1000.0 / rate))
         assert again.ok and again.rate_hz == rate
         np.testing.assert_array_equal(t, np.arange(len(t)) / rate)
-        inner = min(len(t), (len(data) - 1) // m + 1)
-        np.testing.assert_array_equal(th[:inner], columns(data, "pos")[::m][:inner])
-        np.testing.assert_array_equal(th[-1], columns(data, "pos")[-1])
+        if 1000.0 % rate == 0:  # a whole fraction: exactly every m-th sample
+            m = int(round(1000.0 / rate))
+            inner = min(len(t), (len(data) - 1) // m + 1)
+            np.testing.assert_allclose(th[:inner], columns(data, "pos")[::m][:inner],
+                                       rtol=0, atol=1e-12)
+        np.testing.assert_allclose(th[-1], columns(data, "pos")[-1], rtol=0, atol=1e-12)
         np.testing.assert_array_equal(tau, again.tau)
         out = json.loads(export_file(path, ROBOT, "ros2-json", rate=rate))
         assert len(out["points"]) == len(t)
     assert passed, "no decimation of the small plan validated"
-    with pytest.raises(InputError, match="whole number"):
-        decimate(rep, ROBOT, 333.0)
+    for bad in (2000.0, 5.0, float("nan"), True):
+        with pytest.raises(InputError, match="--rate must be in"):
+            decimate(rep, ROBOT, bad)
     with pytest.raises(InputError, match="ROS 2 forms"):
         export_file(path, ROBOT, "drive-csv", rate=500.0)
     goal = yaml.safe_load(export_file(path, ROBOT, "ros2-yaml", goal=True))
@@ -237,5 +241,5 @@ def test_decimation_is_validated_again_and_the_goal_form_wraps_it(planned, tmp_p
     assert goal["trajectory"] == yaml.safe_load(export_file(path, ROBOT, "ros2-yaml"))
     assert json.loads(export_file(path, ROBOT, "ros2-json", goal=True)) == goal
     r = CliRunner().invoke(main, ["export", str(path), "--format", "ros2-json", "--rate",
-                                  "333"])
-    assert r.exit_code == 2 and "whole number" in r.output
+                                  "5"])
+    assert r.exit_code == 2 and "--rate must be in" in r.output
