@@ -39,6 +39,8 @@ e / 2.  :func:`torque_bound` returns the bound per interval and joint.
 
 from __future__ import annotations
 
+from math import comb
+
 import numpy as np
 
 #: For every motion with |jerk| <= J through the samples, the interpolant's jerk is at
@@ -230,8 +232,6 @@ def _rescale(c: np.ndarray, s0: float, h: float) -> np.ndarray:
     deg = len(c) - 1
     out = np.zeros_like(c)
     # p(s0 + h u) = sum_k c_k (s0 + h u)^k = sum_k c_k sum_j C(k, j) s0^(k-j) h^j u^j
-    from math import comb
-
     for k in range(deg + 1):
         for j in range(k + 1):
             out[j] += c[k] * (comb(k, j) * s0 ** (k - j) * h**j)
