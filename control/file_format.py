@@ -1,0 +1,69 @@
+"""The trajectory file format: its name, columns, units, size cap, canonical header JSON
+and integrity digest (docs/validation.md).  The layer under the reader
+(:mod:`sixplus3.control.trajectory_parse`) and the writer
+(:mod:`sixplus3.control.trajectory_file`, which re-exports these names)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from typing import Any
+
+import numpy as np
+
+from sixplus3.robot_description.urdf import actuated_joint_names
+
+FORMAT = "sixplus3-trajectory/2"
+SUFFIX = ".csv"
+JOINTS = actuated_joint_names()
+COLUMNS = (["t"] + [f"{j}_{k}" for j in JOINTS for k in ("pos", "vel", "acc", "tau")]
+           + [f"platform_{c}" for c in ("x", "y", "z", "qx", "qy", "qz", "qw")]
+           + [f"psi_{i}" for i in range(3)])
+UNITS = {"t": "s", "pos": "rad", "vel": "rad/s", "acc": "rad/s^2", "tau": "N m",
+         "platform_xyz": "m", "platform_q": "unit quaternion (x, y, z, w)", "psi": "rad"}
+#: Largest trajectory file read [bytes]: ~143,000 samples (the package writes at most
+#: MAX_SAMPLES).  Validating one this size peaks near 1 GB (benchmarks/bench_gate_memory.py;
+#: about 1.9 kB per sample above a 0.8 GB base, docs/validation.md "Caps").
+MAX_BYTES = 128 << 20
+
+def _canonical(header: dict) -> bytes:
+    return json.dumps(header, sort_keys=True, separators=(",", ":"), allow_nan=False,
+                      default=_jsonable).encode()
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return str(obj)
+
+
+def _finite_tree(obj: Any) -> Any:
+    """The header with non-finite floats as null (JSON has no NaN)."""
+    if isinstance(obj, dict):
+        return {str(k): _finite_tree(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_tree(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _finite_tree(obj.tolist())
+    if isinstance(obj, np.generic):
+        return _finite_tree(obj.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def digest(header: dict, body: bytes | memoryview) -> str:
+    """The integrity digest of a header (without ``integrity``) and the body bytes."""
+    h = {k: v for k, v in header.items() if k != "integrity"}
+    sha = hashlib.sha256(_canonical(h))
+    sha.update(b"\n")
+    sha.update(body)
+    return sha.hexdigest()
+
+
+__all__ = ["COLUMNS", "FORMAT", "JOINTS", "MAX_BYTES", "SUFFIX", "UNITS", "digest"]
