@@ -130,11 +130,9 @@ def decimate(rep, robot: Robot, rate: float):
     to :data:`~sixplus3.control.validation.INTERPOLATED_RATE_RANGE`'s 10 Hz).  Returns
     (t, theta, theta_dot, theta_ddot, tau, report); raises ValidationFailed or
     InputError."""
-    from sixplus3.control.interval import hermite
-    from sixplus3.control.trajectory_file import columns
     from sixplus3.control.validation import (
         INTERPOLATED_RATE_RANGE,
-        rotvec_of_quaternions,
+        resample,
         validate_motion,
     )
     from sixplus3.errors import InputError
@@ -146,22 +144,9 @@ def decimate(rep, robot: Robot, rate: float):
     if not ok:
         raise InputError(f"--rate must be in [{lo:g}, {r0:g}] Hz (at most the file's rate), "
                          f"got {rate!r}", value=rate, valid=f"[{lo:g}, {r0:g}] Hz")
-    rate = float(rate)
-    data = rep.data
-    n = len(data)
-    T = float(data[-1, 0])
-    m = math.ceil(T * rate - 1e-9)  # the end, at rest, held to the next new point
-    t = np.arange(m + 1) / rate
-    u = np.minimum(t, T) * r0  # in sample periods of the file
-    k = np.minimum(np.floor(u + 1e-9).astype(int), n - 2)
-    frac = np.clip(u - k, 0.0, 1.0)
-    th, v, a = hermite(1.0 / r0, columns(data, "pos"), columns(data, "vel"),
-                       columns(data, "acc"), k, frac)
-    v[-1], a[-1] = 0.0, 0.0  # the file ends at rest (the gate checked it)
-    near = np.minimum(np.rint(u).astype(int), n - 1)
-    x = np.c_[rep.position[near], rotvec_of_quaternions(rep.quaternion[near]),
-              rep.psi[near]]
-    again = validate_motion(t, th, v, a, robot, rate, x, rate_range=INTERPOLATED_RATE_RANGE)
+    t, th, v, a, x = resample(rep, float(rate))
+    again = validate_motion(t, th, v, a, robot, float(rate), x,
+                            rate_range=INTERPOLATED_RATE_RANGE)
     if not again.ok:
         raise ValidationFailed(f"the trajectory resampled at {rate:g} Hz fails validation: "
                                + "; ".join(again.messages()), again.exit_code, again)
@@ -191,7 +176,7 @@ def export_file(path: str | Path, robot: Robot, fmt: str,
     ROS 2 forms, whose controllers interpolate between points).  ``rate`` (ROS 2 forms):
     decimate to this rate first (:func:`decimate`, validated again); ``goal``: the ROS 2
     forms as a FollowJointTrajectory goal (:func:`follow_joint_trajectory_goal`)."""
-    from sixplus3.control.interval import held_torque
+    from sixplus3.control.interval import check_torque_hold, held_torque
     from sixplus3.control.trajectory_file import columns
     from sixplus3.control.validation import validate_file
     from sixplus3.errors import InputError
@@ -201,7 +186,7 @@ def export_file(path: str | Path, robot: Robot, fmt: str,
                          valid=", ".join(FORMATS))
     if torque_hold is None:
         torque_hold = "mean" if fmt == "drive-csv" else "sample"
-    held_torque(np.zeros((2, 9)), torque_hold)  # a bad mode is refused before the work
+    check_torque_hold(torque_hold)  # a bad mode is refused before the work
     rep = validate_file(path, robot)
     if rep.exit_code != 0 or rep.data is None:
         raise ValidationFailed("not exported: " + "; ".join(rep.messages()),

@@ -23,12 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.interval import held_torque
+from sixplus3.control.interval import check_torque_hold, held_torque
 from sixplus3.control.trajectory_file import JOINTS, check_samples, columns, read_bytes
 from sixplus3.control.validation import (
     RATE_RANGE,
     ValidationReport,
-    hermite,
+    resample,
     rotvec_of_quaternions,
     validate_bytes,
     validate_motion,
@@ -92,28 +92,10 @@ def parse_address(text: str) -> tuple[str, int]:
 def retime(report: ValidationReport, robot: Robot, speed: float) -> FeedPlan:
     """The validated file motion replayed at ``speed`` (< 1: slower), resampled at the
     file's rate and validated again with recomputed torques."""
-    data, header = report.data, report.header
-    assert data is not None and header is not None
-    rate = float(header["rate_hz"])
-    dt = 1.0 / rate
-    th, v, a = columns(data, "pos"), columns(data, "vel"), columns(data, "acc")
-    T = float(data[-1, 0])
-    check_samples(T / speed, rate, f"the replay at speed {speed:g}")
-    m = math.ceil(T / speed * rate - 1e-9)
-    tau_new = np.arange(m + 1) * dt
-    u = np.minimum(tau_new * speed, T)  # time in the original motion
-    k = np.minimum((u / dt).astype(int), len(data) - 2)
-    s = np.clip((u - k * dt) / dt, 0.0, 1.0)
-    p, vel, acc = hermite(dt, th, v, a, k, s)
-    vel, acc = vel * speed, acc * speed**2
-    vel[[0, -1]] = 0.0
-    acc[[0, -1]] = 0.0
-    assert report.position is not None and report.quaternion is not None
-    assert report.psi is not None
-    # platform seeds for the forward kinematics: the validated poses, nearest sample
-    near = np.minimum(np.rint(u / dt).astype(int), len(data) - 1)
-    x_seed = np.c_[report.position[near], rotvec_of_quaternions(report.quaternion[near]),
-                   report.psi[near]]
+    assert report.data is not None and report.header is not None
+    rate = float(report.header["rate_hz"])
+    check_samples(float(report.data[-1, 0]) / speed, rate, f"the replay at speed {speed:g}")
+    tau_new, p, vel, acc, x_seed = resample(report, rate, speed)
     rep = validate_motion(tau_new, p, vel, acc, robot, rate, x_seed)
     if not rep.ok:
         raise ValidationFailed(f"the replay at speed {speed:g} fails validation: "
@@ -201,7 +183,7 @@ def prepare_feed(path: str | Path, robot: Robot, speed: float = 1.0,
     validation or does not start at the robot's state; nothing is sent then.
     """
     speed = check_speed(speed)
-    held_torque(np.zeros((2, 9)), torque_hold)  # a bad mode is refused before the work
+    check_torque_hold(torque_hold)  # a bad mode is refused before the work
     rep = validate_bytes(read_bytes(path), robot, Path(path).name)
     if not rep.ok:
         raise ValidationFailed(f"{Path(path).name} fails validation: "

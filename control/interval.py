@@ -244,21 +244,28 @@ def _rescale(c: np.ndarray, s0: float, h: float) -> np.ndarray:
 TORQUE_HOLDS = ("sample", "mean")
 
 
-def held_torque(tau: np.ndarray, hold: str) -> np.ndarray:
-    """The feed-forward a sampled drive holds from each tick to the next: ``tau`` itself
-    (``sample``), or (tau_k + tau_{k+1}) / 2 (``mean``; the last sample keeps its own,
-    at rest)."""
+def check_torque_hold(hold: object) -> str:
+    """``hold`` if it is one of :data:`TORQUE_HOLDS`, else an InputError naming them."""
     if hold not in TORQUE_HOLDS:
         from sixplus3.errors import InputError
 
         raise InputError(f"torque hold must be one of {', '.join(TORQUE_HOLDS)}, got "
                          f"{hold!r}", value=hold, valid=", ".join(TORQUE_HOLDS))
+    return str(hold)
+
+
+def held_torque(tau: np.ndarray, hold: str) -> np.ndarray:
+    """The feed-forward a sampled drive holds from each tick to the next: ``tau`` itself
+    (``sample``), or (tau_k + tau_{k+1}) / 2 (``mean``; the last sample keeps its own,
+    at rest)."""
+    check_torque_hold(hold)
     tau = np.asarray(tau, dtype=float)
     if hold == "sample" or len(tau) < 2:
         return tau
     return np.vstack([0.5 * (tau[:-1] + tau[1:]), tau[-1:]])
 
 
-__all__ = ["C_ACC", "C_JERK", "TORQUE_HOLDS", "coefficients", "derivative", "evaluate",
+__all__ = ["C_ACC", "C_JERK", "TORQUE_HOLDS", "check_torque_hold", "coefficients",
+           "derivative", "evaluate",
            "held_torque", "hermite", "hermite_midpoints", "max_abs", "rate_extremes",
            "torque_bound"]

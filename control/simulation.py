@@ -298,12 +298,12 @@ def simulate_file(path: str | Path, robot: Robot | None = None, kp: float = KP,
     violated limit (exit code 1), the simulation is None.  ``torque_hold``: the
     feed-forward held over each tick (:func:`sixplus3.control.interval.held_torque`).
     """
-    from sixplus3.control.interval import held_torque
+    from sixplus3.control.interval import check_torque_hold, held_torque
     from sixplus3.control.trajectory_file import columns
     from sixplus3.control.validation import validate_file
 
     robot = robot or Robot.default()
-    held_torque(np.zeros((2, 9)), torque_hold)  # a bad mode is refused before the work
+    check_torque_hold(torque_hold)  # a bad mode is refused before the work
     rep = validate_file(path, robot)
     if not rep.ok or rep.data is None or rep.position is None:
         return rep, None

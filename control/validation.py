@@ -650,6 +650,36 @@ def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
     return out, rep
 
 
+def resample(rep: ValidationReport, rate: float, speed: float = 1.0
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The validated motion of ``rep`` (a report of :func:`validate_file`) at ``rate``
+    [Hz], replayed at ``speed`` (time x 1/speed, rates x speed, accelerations x speed^2),
+    on the quintic Hermite interpolant of its samples; the resting end is held until the
+    next point of the new grid.  Returns (t, theta, theta_dot, theta_ddot, x_seed), the
+    last the validated platform poses at the nearest samples (to seed the forward
+    kinematics).  The caller validates the result again."""
+    data, header = rep.data, rep.header
+    assert data is not None and header is not None and rep.position is not None
+    assert rep.quaternion is not None and rep.psi is not None
+    r0 = float(header["rate_hz"])
+    n = len(data)
+    T = float(data[-1, 0])
+    m = math.ceil(T / speed * rate - 1e-9)
+    t = np.arange(m + 1) / rate
+    u = np.minimum(t * speed, T) * r0  # in sample periods of the file
+    k = np.minimum(np.floor(u + 1e-9).astype(int), n - 2)
+    frac = np.clip(u - k, 0.0, 1.0)
+    th, v, a = hermite(1.0 / r0, columns(data, "pos"), columns(data, "vel"),
+                       columns(data, "acc"), k, frac)
+    v, a = v * speed, a * speed**2
+    v[[0, -1]] = 0.0  # the file starts and ends at rest (checked)
+    a[[0, -1]] = 0.0
+    near = np.minimum(np.rint(u).astype(int), n - 1)
+    x = np.c_[rep.position[near], rotvec_of_quaternions(rep.quaternion[near]),
+              rep.psi[near]]
+    return t, th, v, a, x
+
+
 def rotvec_of_quaternions(quat: np.ndarray) -> np.ndarray:
     """Rotation vectors of (possibly non-unit) quaternions; garbage in, a guess out."""
     q = np.array(quat, dtype=float)
@@ -665,6 +695,6 @@ def validate_file(path: str | Path, robot: Robot | None = None) -> ValidationRep
     return validate_bytes(read_bytes(path), robot, Path(path).name)
 
 
-__all__ = ["COLUMNS", "Finding", "Tolerances", "ValidationReport", "hermite", "hermite_midpoints",
-           "validate_and_write", "validate_bytes", "validate_file", "validate_joint_trajectory",
-           "validate_motion"]
+__all__ = ["COLUMNS", "Finding", "Tolerances", "ValidationReport", "hermite",
+           "hermite_midpoints", "resample", "validate_and_write", "validate_bytes",
+           "validate_file", "validate_joint_trajectory", "validate_motion"]
