@@ -32,6 +32,9 @@ from sixplus3.planner.task import load_task, task_from_dict
 from sixplus3.planner.toppra_baseline import toppra_along
 from sixplus3.robot_description.robot import Robot
 
+#: Height of the default robot's home [m].
+HOME_Z = Robot.default().home_position[2]
+
 
 def run(task, locked: bool):
     try:
@@ -60,16 +63,16 @@ def planned_tilt(axis: str, locked: bool, static_deg: float) -> str:
         angles = [0.0, 0.0, 0.0]
         angles[rpy] = deg
         task = task_from_dict({"name": f"tilt_{axis}_{deg:g}", "nodes_per_segment": 10,
-                               "waypoints": [{"position": [0, 0, 0.30]},
-                                             {"position": [0, 0, 0.30], "rpy": angles},
-                                             {"position": [0, 0, 0.30]}]})
+                               "waypoints": [{"position": [0, 0, HOME_Z]},
+                                             {"position": [0, 0, HOME_Z], "rpy": angles},
+                                             {"position": [0, 0, HOME_Z]}]})
         try:
             sol = Problem(task, options=PlannerOptions(lock_redundancy=locked)).solve()
             if sol.is_feasible():
                 return (f"{deg:g} deg in {sol.final_time:.4f} s (solve {sol.solve_time:.2f} s, "
                         f"max|tau|/lim {sol.check.max_torque_ratio:.3f}, margin "
                         f"{sol.check.min_margin:.3f}, clearance "
-                        f"{sol.check.min_leg_clearance * 1e3:.1f} mm)"
+                        f"{sol.check.min_clearance * 1e3:.1f} mm)"
                         + (f"; failed at {', '.join(tried)}" if tried else ""))
             tried.append(f"{deg:g} ({'; '.join(sol.check.violations)})")
         except InfeasibleTaskError as exc:
@@ -129,7 +132,7 @@ def main() -> None:
         print("ours / re-timed along our path (all limits): median "
               f"{statistics.median(certs):.3f}, range {min(certs):.3f}-{max(certs):.3f}; "
               f"<= 1.02 on {sum(c <= 1.02 for c in certs)} of {len(certs)}")
-    print("\nlargest static tilt at home (0, 0, 0.30 m), margins >= 0.05, 10 N m, and the "
+    print(f"\nlargest static tilt at home (0, 0, {HOME_Z} m), margins >= 0.05, 10 N m, and the "
           "largest tilt-and-back motion the planner then delivers (dense check incl. leg "
           "clearance):")
     for axis in ("x", "y"):

@@ -8,9 +8,10 @@
 
 The task generator is broader than bench_planner_random.py, as in the planner-speed issue:
 2-4 waypoints, all random (start and end away from home): positions x, y in +-0.06 m,
-z in 0.25-0.36 m, roll/pitch/yaw in +-45 deg, the task defaults otherwise (18 intervals
-for one segment and 12 per segment for more, ``planner.task.AUTO_NODES``; 90 % torque
-fraction; cranks at home at the start and back at the end).  Tasks whose waypoints fail
+z from 5 cm below the default robot's home to 6 cm above, roll/pitch/yaw in +-45 deg,
+the task defaults otherwise (18 intervals for one segment and 12 per segment for more,
+``planner.task.AUTO_NODES``; 90 % torque fraction; cranks at home at the start and back
+at the end).  Tasks whose waypoints fail
 the static checks (reach, ranges, margins, holding torque) are refused before any
 optimisation, by design, and counted apart.
 
@@ -39,13 +40,16 @@ from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
+#: Height of the default robot's home [m]: the tasks' z range is around it.
+HOME_Z = Robot.default().home_position[2]
+
 
 def heldout_task(rng: np.random.Generator, k: int) -> dict:
     wps = []
     for _ in range(int(rng.integers(2, 5))):
         wps.append({"position": [float(rng.uniform(-0.06, 0.06)),
                                  float(rng.uniform(-0.06, 0.06)),
-                                 float(rng.uniform(0.25, 0.36))],
+                                 float(HOME_Z + rng.uniform(-0.05, 0.06))],
                     "rpy": [float(v) for v in rng.uniform(-45, 45, 3)]})
     return {"name": f"heldout_{k}", "waypoints": wps}
 

@@ -43,7 +43,7 @@ def main() -> None:
     tau = dyn.inverse_dynamics(q, v, a)
     rows = [
         ("robot IK, one pose (robot_ik_pose)",
-         lambda: robot_ik_pose((0.02, 0.01, 0.31), (0.1, 0.2, 0.3)), 200),
+         lambda: robot_ik_pose((0.02, 0.01, 0.59), (0.1, 0.2, 0.3)), 200),
         ("robot FK, Newton from the previous sample",
          lambda: robot_fk(h.theta[0] + 1e-3, q_hint=q), 50),
         ("constrained inverse dynamics", lambda: dyn.inverse_dynamics(q, v, a), 500),

@@ -43,7 +43,8 @@ from sixplus3.control.trajectory_file import (
 )
 from sixplus3.errors import InputError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
-from sixplus3.kinematics.robot import leg_clearance, robot_fk_batch, spherical_tilts
+from sixplus3.kinematics.collision import clearance
+from sixplus3.kinematics.robot import robot_fk_batch, spherical_tilts
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
@@ -162,7 +163,7 @@ class ValidationReport:
     min_margin_leg_type1: float
     min_margin_leg_type2: float
     min_margin_platform: float
-    min_leg_clearance: float  # [m]
+    min_clearance: float  # [m]
     max_spherical_tilt_deg: float
     theta_range_ok: bool
     findings: list[Finding] = field(default_factory=list)
@@ -211,7 +212,7 @@ class ValidationReport:
     def summary(self) -> dict:
         keys = ("ok", "samples", "robot_hash", "max_torque_ratio", "max_velocity_ratio",
                 "max_acceleration_ratio", "max_jerk_ratio", "min_margin_leg_type1",
-                "min_margin_leg_type2", "min_margin_platform", "min_leg_clearance",
+                "min_margin_leg_type2", "min_margin_platform", "min_clearance",
                 "max_spherical_tilt_deg", "theta_range_ok", "checked_points", "tolerances",
                 "max_torque_rate", "max_interpolant_jerk_ratio", "rate_hz", "limits")
         out = {k: getattr(self, k) for k in keys}
@@ -334,7 +335,7 @@ def _merge(reps: list[ValidationReport], n: int) -> ValidationReport:
         min_margin_leg_type1=min(r.min_margin_leg_type1 for r in reps),
         min_margin_leg_type2=min(r.min_margin_leg_type2 for r in reps),
         min_margin_platform=min(r.min_margin_platform for r in reps),
-        min_leg_clearance=min(r.min_leg_clearance for r in reps),
+        min_clearance=min(r.min_clearance for r in reps),
         max_spherical_tilt_deg=max(r.max_spherical_tilt_deg for r in reps),
         theta_range_ok=all(r.theta_range_ok for r in reps), findings=findings,
         tolerances=first.tolerances,
@@ -467,7 +468,7 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
         if mid_finding is not None:
             findings.append(mid_finding)
         sph = np.vstack([spherical_tilts(c).reshape(len(c), 9) for c in cfg_points])
-        clear = np.concatenate([leg_clearance(c) for c in cfg_points])
+        clear = np.concatenate([clearance(c) for c in cfg_points])
         # the interpolant's rates over whole intervals need no dynamics: done while the
         # worker computes
         extremes = interval.rate_extremes(dt, th, v, a)
@@ -495,7 +496,7 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
         findings += _limit_findings(lim, cfg_points, tau_all, v_all, a_all, t_all, rcond_all,
                                     jerk, t_int, sph, clear)
         tilt = float(sph.max())
-        clearance = float(clear.min())
+        min_clear = float(clear.min())
         th_all = np.vstack([c.theta for c in cfg_points])
         theta_ok = bool(np.all((th_all >= lim.theta_min - 1e-9)
                                & (th_all <= lim.theta_max + 1e-9)))
@@ -511,7 +512,7 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
                                        between.acceleration) / lim.acceleration,
             max_jerk_ratio=float(jerk.max() / lim.jerk),
             min_margin_leg_type1=m1, min_margin_leg_type2=m2, min_margin_platform=mp,
-            min_leg_clearance=clearance, max_spherical_tilt_deg=math.degrees(tilt),
+            min_clearance=min_clear, max_spherical_tilt_deg=math.degrees(tilt),
             theta_range_ok=theta_ok, findings=findings, tolerances=tol_d, checked_points=checked,
             tau=tau, position=cfg.position.copy(), quaternion=quat, psi=cfg.psi.copy(),
             feedforward_error=ff_err, duration=float(t[-1]),
@@ -595,8 +596,8 @@ def _limit_findings(lim: Limits, cfgs: list, tau: np.ndarray, v: np.ndarray, a: 
                + ["platform"])
     out.append(_finding("singularity margin", "limit", "", lim.margin, lim.margin - m, m, t,
                         m_names))
-    out.append(_finding("leg interference (clearance)", "limit", "m", 0.0, -clear, clear, t,
-                        ["legs"]))
+    out.append(_finding("interference (clearance)", "limit", "m", 0.0, -clear, clear, t,
+                        ["collision model"]))
     return [f for f in out if f is not None]
 
 

@@ -2,7 +2,7 @@
 
 Scalar code compiled with numba, the same arithmetic as the numpy path it replaces
 (:func:`kinematics.robot.robot_ik`, :func:`~kinematics.robot.spherical_tilts`,
-:func:`~kinematics.robot.leg_clearance`, :func:`~kinematics.robot.platform_margin`;
+:func:`~kinematics.collision.clearance`, :func:`~kinematics.robot.platform_margin`;
 ``tests/test_atlas.py`` checks that they agree).  One pose's legs go through the leg
 kernel of :mod:`kinematics._leg_kernel` one at a time, and each check runs only where
 the checks before it passed.
@@ -16,8 +16,11 @@ Packed inputs (:func:`pack`):
 
 - ``legc`` (3, 16): per leg, R_base_leg row-major (9), A_i (3), R_i in the platform
   frame (3), beta_i (1);
-- ``par`` (7,): platform crank c, L = hypot(platform radius, c), theta_min,
-  theta_max, cos(spherical limit), margin limit, clearance (2 link radii).
+- ``par`` (8,): platform crank c, L = hypot(platform radius, c), theta_min,
+  theta_max, cos(spherical limit), margin limit, the base plate's top z, the platform
+  plate's offset above the cranks;
+- the collision model (:mod:`kinematics.collision`): ``hubs`` (3, 2, 3) the static
+  hubs, ``radii`` (30,), ``pairs`` (P, 2), ``base`` (9,) the bodies above the plate.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from sixplus3.kinematics._geometry_kernel import segment_distance
+from sixplus3.kinematics._geometry_kernel import pose_clearance
 from sixplus3.kinematics._leg_kernel import (
     MARGIN_I,
     MARGIN_II,
@@ -46,14 +49,17 @@ from sixplus3.kinematics._leg_kernel import (
 )
 
 NL = 3  # legs
-_P_C, _P_L, _P_TMIN, _P_TMAX, _P_COS_SPH, _P_MARGIN, _P_CLEAR = 0, 1, 2, 3, 4, 5, 6
-# upper links compared by the clearance check: AD, DP, GE, HF (kinematics.robot)
-_NSEG = 4
+_P_C, _P_L, _P_TMIN, _P_TMAX, _P_COS_SPH, _P_MARGIN, _P_BASE, _P_PLATE = range(8)
+# the links of a leg in the collision model: AD, DP, BG, GE, CH, HF (kinematics.collision)
+_NSEG = 6
+_NBODY = 30  # kinematics.collision.N_BODIES: 18 links, 3 hubs, 9 platform bodies
 
 
-def pack(robot) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(legc, par, geo, mode, ref) of a :class:`~robot_description.robot.Robot`."""
-    from sixplus3.kinematics.robot import LINK_RADIUS, spherical_reference
+def pack(robot) -> tuple[np.ndarray, ...]:
+    """(legc, par, geo, mode, ref, hubs, radii, pairs, base) of a
+    :class:`~robot_description.robot.Robot`."""
+    from sixplus3.kinematics import collision
+    from sixplus3.kinematics.robot import spherical_reference
 
     g, lim = robot.geometry, robot.limits
     legc = np.zeros((NL, 16))
@@ -64,9 +70,12 @@ def pack(robot) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndar
         legc[i, 15] = g.crank_axis_angle(i)
     par = np.array([g.platform_crank, math.hypot(g.platform_radius, g.platform_crank),
                     lim.theta_min, lim.theta_max, math.cos(lim.spherical), lim.margin,
-                    2.0 * LINK_RADIUS])
+                    robot.collision.base_top, robot.collision.plate_offset])
+    assert collision.N_BODIES == _NBODY
     return (legc, par, g.leg.packed(), robot.mode.array(),
-            np.ascontiguousarray(spherical_reference(robot)))
+            np.ascontiguousarray(spherical_reference(robot)),
+            np.ascontiguousarray(collision.hub_segments(robot)), collision.radii(robot),
+            collision.PAIRS, collision.BASE_BODIES)
 
 
 @njit(cache=True, error_model="numpy")
@@ -157,7 +166,7 @@ def leg_check(pos, R, psi, i, legc, par, geo, mode, ref, row, scratch):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def leg_grid(pos, R, grid, legc, par, geo, mode, ref):
+def leg_grid(pos, R, grid, legc, par, geo, mode, ref, hubs, radii, pairs, base):
     """Checks 1-4 of every leg on a grid of crank angles: pos (n, 3), R (n, 3, 3),
     grid (G,) [rad].  Returns (stage (n, G, 3) int8, score (n, G, 3): the leg's smallest
     margin where all four checks pass, else -inf).  The atlas's grid box uses it;
@@ -179,59 +188,59 @@ def leg_grid(pos, R, grid, legc, par, geo, mode, ref):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _world(legc, i, row, f, out):
-    """Point ``row[f:f+3]`` of leg i (leg frame; f < 0: the origin A) into ``out`` (3,),
-    robot frame."""
-    x, y, z = (0.0, 0.0, 0.0) if f < 0 else (row[f], row[f + 1], row[f + 2])
+def _world(legc, i, row, f, geo, out):
+    """Point ``row[f:f+3]`` of leg i (leg frame; f = -1: the origin A, -2: B at
+    (l6, 0, 0), -3: C at (-l7, 0, 0)) into ``out`` (3,), robot frame."""
+    if f == -1:
+        x, y, z = 0.0, 0.0, 0.0
+    elif f == -2:
+        x, y, z = geo[5], 0.0, 0.0
+    elif f == -3:
+        x, y, z = -geo[6], 0.0, 0.0
+    else:
+        x, y, z = row[f], row[f + 1], row[f + 2]
     for r in range(3):
         out[r] = (legc[i, 3 * r] * x + legc[i, 3 * r + 1] * y + legc[i, 3 * r + 2] * z
                   + legc[i, 9 + r])
 
 
 @njit(cache=True, error_model="numpy")
-def _segments(row, i, legc, out):
-    """The upper links AD, DP, GE, HF of leg i in the robot frame: out (4, 2, 3)."""
-    for k, (f0, f1) in enumerate(((-1, PD), (PD, PP), (PG, PE), (PH, PF))):
-        _world(legc, i, row, f0, out[k, 0])
-        _world(legc, i, row, f1, out[k, 1])
+def _segments(row, i, legc, geo, out):
+    """The links AD, DP, BG, GE, CH, HF of leg i in the robot frame: out (6, 2, 3)."""
+    for k, (f0, f1) in enumerate(((-1, PD), (PD, PP), (-2, PG), (PG, PE), (-3, PH),
+                                  (PH, PF))):
+        _world(legc, i, row, f0, geo, out[k, 0])
+        _world(legc, i, row, f1, geo, out[k, 1])
 
 
 @njit(cache=True, error_model="numpy")
-def _clear(seg, clear, mid, half):
-    """Whether every pair of upper links of different legs is at least ``clear`` apart
-    (kinematics.robot.leg_clearance >= 0).  A pair whose bounding spheres (centre the
-    segment's midpoint, radius half its length) are further apart than that, by 1e-9 m
-    for rounding, cannot interfere and is not measured."""
+def _finish(seg, pm, m_legs, pos, R, psi, legc, par, hubs, radii, pairs, base, caps, mid,
+            half):
+    """Checks 5-6 of a candidate whose legs all passed 1-4 (their links ``seg`` (3, 6,
+    2, 3), their smallest margin ``m_legs``; its crank angles ``psi`` (3,), its
+    platform margin ``pm``): (stage 4..6, margin, -inf unless both pass).  Check 5 is
+    the collision model's clearance >= 0 (kinematics.collision.clearance), with the
+    bodies placed here: the legs' links, the hubs, the platform's spokes, edges and
+    cranks."""
     for i in range(NL):
         for a in range(_NSEG):
-            h = 0.0
-            for r in range(3):
-                mid[i, a, r] = 0.5 * (seg[i, a, 0, r] + seg[i, a, 1, r])
-                h += (seg[i, a, 1, r] - seg[i, a, 0, r]) ** 2
-            half[i, a] = 0.5 * math.sqrt(h)
+            caps[_NSEG * i + a] = seg[i, a]
+        caps[_NSEG * NL + i] = hubs[i]
+    c = par[_P_C]
+    p0 = _NSEG * NL + NL
     for i in range(NL):
-        for j in range(i + 1, NL):
-            for a in range(_NSEG):
-                for b in range(_NSEG):
-                    reach = clear + half[i, a] + half[j, b] + 1e-9
-                    d2 = 0.0
-                    for r in range(3):
-                        d2 += (mid[i, a, r] - mid[j, b, r]) ** 2
-                    if d2 >= reach * reach:
-                        continue
-                    d = segment_distance(seg[i, a, 0], seg[i, a, 1], seg[j, b, 0],
-                                         seg[j, b, 1])
-                    if d - clear < 0.0:
-                        return False
-    return True
-
-
-@njit(cache=True, error_model="numpy")
-def _finish(seg, pm, m_legs, par, mid, half):
-    """Checks 5-6 of a candidate whose legs all passed 1-4 (their links ``seg``, their
-    smallest margin ``m_legs``; its platform margin ``pm``): (stage 4..6, margin, -inf
-    unless both pass)."""
-    if not _clear(seg, par[_P_CLEAR], mid, half):
+        b = legc[i, 15] + psi[i]
+        for r in range(3):
+            ri = pos[r] + R[r, 0] * legc[i, 12] + R[r, 1] * legc[i, 13] + R[r, 2] * legc[i, 14]
+            tip = ri + c * (R[r, 0] * math.cos(b) + R[r, 1] * math.sin(b))
+            up = par[_P_PLATE] * R[r, 2]  # the plate above the cranks' plane
+            caps[p0 + i, 0, r] = pos[r] + up  # spoke O -> R_i
+            caps[p0 + i, 1, r] = ri + up
+            caps[p0 + NL + i, 0, r] = ri + up  # edge R_i -> R_{i+1}
+            caps[p0 + NL + (i + NL - 1) % NL, 1, r] = ri + up
+            caps[p0 + 2 * NL + i, 0, r] = ri  # crank R_i -> P_i
+            caps[p0 + 2 * NL + i, 1, r] = tip
+    if pose_clearance(caps, radii, pairs, base, par[_P_BASE], 0.0, mid, half) < 0.0:
         return 4, -np.inf
     if pm < par[_P_MARGIN]:
         return 5, -np.inf
@@ -282,7 +291,7 @@ def _platform_margin(psi, legc, par):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def pose_checks(pos, R, psi, platform, legc, par, geo, mode, ref):
+def pose_checks(pos, R, psi, platform, legc, par, geo, mode, ref, hubs, radii, pairs, base):
     """Checks 1-6 of candidate crank choices: pos (n, 3), R (n, 3, 3), psi (n, k, 3)
     [rad], with their platform margins ``platform`` (n, k) (:func:`platform_margins`,
     which depend on psi only).  Returns (stage (n, k) int8: checks passed, 0..6;
@@ -295,8 +304,9 @@ def pose_checks(pos, R, psi, platform, legc, par, geo, mode, ref):
         row = np.zeros(NF)
         scratch = np.zeros(12)
         seg = np.empty((NL, _NSEG, 2, 3))
-        mid = np.empty((NL, _NSEG, 3))
-        half = np.empty((NL, _NSEG))
+        caps = np.empty((_NBODY, 2, 3))
+        mid = np.empty((_NBODY, 3))
+        half = np.empty(_NBODY)
         for c in range(K):
             s_min = 4
             m_min = np.inf
@@ -309,16 +319,18 @@ def pose_checks(pos, R, psi, platform, legc, par, geo, mode, ref):
                     break
                 if s == 4:
                     m_min = min(m_min, m)
-                    _segments(row, i, legc, seg[i])
+                    _segments(row, i, legc, geo, seg[i])
             stage[k, c] = s_min
             if s_min == 4:
-                stage[k, c], margin[k, c] = _finish(seg, platform[k, c], m_min, par, mid,
-                                                    half)
+                stage[k, c], margin[k, c] = _finish(
+                    seg, platform[k, c], m_min, pos[k], R[k], psi[k, c], legc, par, hubs,
+                    radii, pairs, base, caps, mid, half)
     return stage, margin
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def free_candidates(pos, R, grid, table, legc, par, geo, mode, ref):
+def free_candidates(pos, R, grid, table, legc, par, geo, mode, ref, hubs, radii, pairs,
+                    base):
     """The free search's candidates and their checks 1-6, in one pass per pose.
 
     Checks 1-4 of every leg on the crank grid (as :func:`leg_grid`); per leg the best
@@ -342,8 +354,10 @@ def free_candidates(pos, R, grid, table, legc, par, geo, mode, ref):
         scratch = np.zeros(12)
         seg = np.empty((2, NL, _NSEG, 2, 3))  # the best and second values' links
         cand = np.empty((NL, _NSEG, 2, 3))
-        mid = np.empty((NL, _NSEG, 3))
-        half = np.empty((NL, _NSEG))
+        caps = np.empty((_NBODY, 2, 3))
+        mid = np.empty((_NBODY, 3))
+        half = np.empty(_NBODY)
+        psi_c = np.empty(NL)
         score = np.full((2, NL), -np.inf)
         pick = np.zeros((2, NL), dtype=np.int64)
         live = True
@@ -360,10 +374,10 @@ def free_candidates(pos, R, grid, table, legc, par, geo, mode, ref):
                     score[1, i], pick[1, i] = score[0, i], pick[0, i]
                     seg[1, i] = seg[0, i]
                     score[0, i], pick[0, i] = m, g
-                    _segments(row, i, legc, seg[0, i])
+                    _segments(row, i, legc, geo, seg[0, i])
                 elif m > score[1, i]:
                     score[1, i], pick[1, i] = m, g
-                    _segments(row, i, legc, seg[1, i])
+                    _segments(row, i, legc, geo, seg[1, i])
             leg_best[k, i] = top
             if top < 4:
                 live = False
@@ -379,7 +393,10 @@ def free_candidates(pos, R, grid, table, legc, par, geo, mode, ref):
                 w = 1 if c == i + 1 else 0
                 idx[k, c, i] = pick[w, i]
                 cand[i] = seg[w, i]
+                psi_c[i] = grid[pick[w, i]]
                 m_min = min(m_min, score[w, i])
             pm = table[idx[k, c, 0], idx[k, c, 1], idx[k, c, 2]]
-            stage[k, c], margin[k, c] = _finish(cand, pm, m_min, par, mid, half)
+            stage[k, c], margin[k, c] = _finish(cand, pm, m_min, pos[k], R[k], psi_c, legc,
+                                                par, hubs, radii, pairs, base, caps, mid,
+                                                half)
     return idx, stage, margin, leg_best

@@ -62,13 +62,14 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
 from sixplus3.design import _atlas_kernel as _kernel
+from sixplus3.design.cluster import check_scheduler, check_workers, map_tasks
 from sixplus3.errors import InputError
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
 from sixplus3.kinematics.rotations import matrix_from_rotvec, rotvec_from_matrix
@@ -250,6 +251,21 @@ class _Checker:
         if rest.any():
             s, m = self._full(pos[rest], R[rest], home[rest], pm_home[rest])
             stage[rest, 4:], margin[rest, 4:] = s, m
+        # then, where still none passed, the three cranks at one grid value each: the
+        # leg-wise choice does not see the legs' interference, which equal cranks keep
+        # symmetric (on the default robot the largest tilt about x, 78.75 deg, is there)
+        G = len(self.psi_grid)
+        diag = np.repeat(self.psi_grid[:, None], 3, axis=1)  # (G, 3)
+        cand = np.concatenate([cand, np.broadcast_to(diag, (n, G, 3))], axis=1)
+        stage = np.concatenate([stage, np.zeros((n, G), dtype=np.int8)], axis=1)
+        margin = np.concatenate([margin, np.full((n, G), -np.inf)], axis=1)
+        rest = live & ~np.any(margin[:, :5] > -np.inf, axis=1)
+        if rest.any():
+            k = int(rest.sum())
+            pm_diag = self.platform_grid[np.arange(G), np.arange(G), np.arange(G)]
+            s, m = self._full(pos[rest], R[rest], np.broadcast_to(diag, (k, G, 3)).copy(),
+                              np.broadcast_to(pm_diag, (k, G)).copy())
+            stage[rest, 5:], margin[rest, 5:] = s, m
         dead = np.where(live, 0, leg_best.min(axis=1)).astype(np.int8)
         return self._pick(cand, stage, margin, dead)
 
@@ -395,7 +411,7 @@ def position_grid(robot: Robot, step: float) -> tuple[np.ndarray, np.ndarray, np
 
 
 # --------------------------------------------------------------------- Dask driver
-def _chunk_task(robot: Robot, positions: np.ndarray, settings: AtlasSettings,
+def _chunk_task(shared: tuple[Robot, AtlasSettings], positions: np.ndarray,
                 ) -> dict[str, np.ndarray]:
     """One Dask task: the kernel over a chunk of positions.
 
@@ -405,6 +421,7 @@ def _chunk_task(robot: Robot, positions: np.ndarray, settings: AtlasSettings,
     """
     import numba
 
+    robot, settings = shared
     before = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
@@ -414,9 +431,6 @@ def _chunk_task(robot: Robot, positions: np.ndarray, settings: AtlasSettings,
         numba.set_num_threads(before)
 
 
-#: Most LocalCluster worker processes: each holds ~0.3 GB (numba, Pinocchio, its chunk),
-#: so 4 stay under 2 GB; a real cluster is a --scheduler address.
-MAX_WORKERS = 4
 #: Most results an atlas may hold (positions x azimuths x torsions x {free, locked}):
 #: 33 bytes each (the tilt, its binding limit, three crank angles), held twice while the
 #: chunks are joined into the dataset: ~1.3 GB at the cap.  The default atlas holds
@@ -424,29 +438,9 @@ MAX_WORKERS = 4
 MAX_VALUES = 20_000_000
 
 
-def check_scheduler(scheduler: str | None) -> None:
-    """None (a LocalCluster), ``"synchronous"``, or a Dask scheduler address
-    ``PROTOCOL://HOST:PORT``; anything else is refused before a cluster is touched."""
-    import re
-
-    if scheduler is None or scheduler == "synchronous":
-        return
-    ok = isinstance(scheduler, str) and re.fullmatch(
-        r"(tcp|tls|ucx|inproc)://[A-Za-z0-9._\-\[\]:]+:[0-9]{1,5}", scheduler)
-    if not ok:
-        raise InputError(f"scheduler must be a Dask address such as tcp://host:8786 (or "
-                         f"'synchronous'), got {str(scheduler)[:80]!r}",
-                         value=str(scheduler)[:80], valid="PROTOCOL://HOST:PORT")
-
-
 def check_run(workers: int, chunk: int) -> None:
     """Refuse a worker count or chunk size out of range (before anything runs)."""
-    if isinstance(workers, bool) or not (isinstance(workers, int)
-                                         and 1 <= workers <= MAX_WORKERS):
-        raise InputError(f"workers must be an integer in [1, {MAX_WORKERS}] (each local "
-                         f"worker process holds ~0.3 GB; a bigger run belongs on a Dask "
-                         f"scheduler), got {workers!r}", value=workers,
-                         valid=f"[1, {MAX_WORKERS}]")
+    check_workers(workers)
     if not (isinstance(chunk, int) and 1 <= chunk <= 100000):
         raise InputError(f"chunk must be an integer in [1, 100000], got {chunk!r}",
                          value=chunk, valid="[1, 100000]")
@@ -481,7 +475,8 @@ def compute_atlas(robot: Robot | None = None, settings: AtlasSettings | None = N
     pts = np.c_[X.ravel(), Y.ravel(), Z.ravel()]
     chunks = [pts[i:i + chunk] for i in range(0, len(pts), chunk)]
     t0 = time.perf_counter()
-    results = _run_chunks(robot, chunks, st, scheduler, workers, progress)
+    results = map_tasks(_chunk_task, chunks, (robot, st), scheduler, workers, progress,
+                        desc="atlas")
     wall = time.perf_counter() - t0
     evaluations = int(sum(int(r["evaluations"][0]) for r in results))
     cat = {k: np.concatenate([r[k] for r in results], axis=3) for k in results[0]
@@ -491,70 +486,6 @@ def compute_atlas(robot: Robot | None = None, settings: AtlasSettings | None = N
                   workers if scheduler is None else None)
     ds.attrs["pose_evaluations"] = evaluations
     return ds
-
-
-def _local_cluster(LocalCluster: Any, workers: int) -> Any:
-    """A LocalCluster of single-threaded worker processes that ignore SIGINT (they are
-    started with it ignored, which a child keeps): Ctrl-C reaches only this process,
-    which closes the cluster, instead of every worker printing its own traceback."""
-    import signal
-    import threading
-
-    main = threading.current_thread() is threading.main_thread()
-    old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
-    try:
-        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                            dashboard_address=None, silence_logs=40)
-    finally:
-        if main:
-            signal.signal(signal.SIGINT, old)
-
-
-def _run_chunks(robot: Robot, chunks: list, st: AtlasSettings, scheduler: str | None,
-                workers: int, progress) -> list[dict]:
-    bar = None
-    total = len(chunks)
-    if progress is True:
-        from tqdm import tqdm
-
-        bar = tqdm(total=total, unit="chunk", desc="atlas", leave=False)
-
-    def tick(done: int) -> None:
-        if bar is not None:
-            bar.update(1)
-        elif callable(progress):
-            progress(done, total)
-
-    out: list[Any] = [None] * total
-    try:
-        if scheduler == "synchronous":
-            for i, c in enumerate(chunks):
-                out[i] = _chunk_task(robot, c, st)
-                tick(i + 1)
-            return out
-        from dask.distributed import Client, LocalCluster, as_completed
-
-        cluster = None
-        if scheduler is None:
-            cluster = _local_cluster(LocalCluster, workers)
-            client = Client(cluster)
-        else:
-            client = Client(scheduler, timeout=30)
-        try:
-            r = client.scatter(robot, broadcast=True)
-            futs = [client.submit(_chunk_task, r, c, st, pure=False) for c in chunks]
-            index = {f.key: i for i, f in enumerate(futs)}
-            for done, f in enumerate(as_completed(futs), 1):
-                out[index[f.key]] = f.result()
-                tick(done)
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
-        return out
-    finally:
-        if bar is not None:
-            bar.close()
 
 
 def _dataset(robot: Robot, st: AtlasSettings, xs, ys, zs, cat: dict, shape: tuple,

@@ -13,9 +13,9 @@ cumulative, so the report says which one bounds the workspace:
                  sign at home, and every margin (leg type I/II, platform) > 0.01;
 4. ``torque``    every leg meets the paper's 2 g criterion: tau_ext <= the robot's torque
                  limit (10 N m) at P_i;
-5. ``clear``     no two legs interfere (:func:`sixplus3.kinematics.robot.leg_clearance`
-                 >= 0: links as capsules).  Not in the paper; it is what makes a COW
-                 physical for our base layout.
+5. ``clear``     no interference (:func:`sixplus3.kinematics.collision.clearance`
+                 >= 0: the robot's collision model, every link, hub and the platform
+                 as capsules).  Not in the paper; it is what makes a COW physical.
 
 With a design :class:`~sixplus3.design.search.Reading`, ``theta`` is the paper's
 collision rule in that reading's angle convention (every angle in [0, 270] deg counted
@@ -40,7 +40,8 @@ from scipy.spatial import ConvexHull
 
 from sixplus3.design.workspace import theta_within
 from sixplus3.errors import InputError
-from sixplus3.kinematics.robot import leg_clearance, robot_ik
+from sixplus3.kinematics.collision import clearance
+from sixplus3.kinematics.robot import robot_ik
 from sixplus3.robot_description.robot import Robot, RobotGeometry
 
 if TYPE_CHECKING:
@@ -133,7 +134,7 @@ def compute_cow(robot: Robot | None = None, step: float = 0.01, z_step: float = 
                                axis=1)
         clear = torque.copy()
         if clear.any():
-            clear[clear] = leg_clearance(cfg, clear)[clear] >= 0.0
+            clear[clear] = clearance(cfg, clear)[clear] >= 0.0
         for key, m in zip(LIMIT_SETS, (reach, theta_ok, sing, torque, clear), strict=True):
             masks[key][iz] = m.reshape(X.shape)
     poly, area = footprint(geom)
@@ -159,7 +160,7 @@ class HomeInCOW:
                  else f"OUTSIDE (fails '{self.failing}')")
         head = (f"home {[round(float(v), 3) for v in self.home]} m is {where}; the COW "
                 "(horizontal platform, 2 g within the torque limit, margins >= the robot's, "
-                f"no leg interference) is {self.volume_l:.1f} L")
+                f"no interference) is {self.volume_l:.1f} L")
         if not math.isfinite(self.z_range[0]):
             return head + " and does not cross the vertical through home"
         return (head + f"; on the vertical through home it spans z = {self.z_range[0]:.2f}.."
@@ -215,3 +216,25 @@ def encoder_resolution(theta_res_joint: float, dtheta_dp: np.ndarray) -> np.ndar
 
 #: Joint resolution of a 20-bit encoder on the motor through the 72/34 belt [rad].
 JOINT_RESOLUTION = 2.0 * math.pi / 2**20 * 34.0 / 72.0
+
+
+def deepest_point(robot: Robot, step: float = 0.01, extent: float = 0.4,
+                  z_max: float = 0.8) -> tuple[tuple[float, float, float], float, float]:
+    """The deepest point of ``robot``'s interference-free, torque-limited 2 g COW (every
+    limit set, at the robot's margin) on a cubic grid of pitch ``step`` [m]: (point,
+    its distance to the COW's boundary [m], the COW's volume [L]).  Ties go to the point
+    nearest the central axis, then the lowest."""
+    from scipy import ndimage
+
+    cow = compute_cow(robot, step=step, z_step=step, extent=extent, z_max=z_max,
+                      margin=robot.limits.margin, z_min=0.0)
+    full = cow.masks["clear"]
+    if not full.any():
+        raise InputError(f"{robot.name} has no interference-free 2 g COW on the grid",
+                         value=robot.name, valid="a robot with a COW")
+    depth = ndimage.distance_transform_edt(full) * step
+    Z, X, Y = np.meshgrid(cow.zs, cow.xs, cow.ys, indexing="ij")
+    key = np.lexsort((Z.ravel(), np.hypot(X, Y).ravel(), -np.round(depth.ravel(), 9)))
+    k = key[0]
+    return ((float(X.ravel()[k]), float(Y.ravel()[k]), float(Z.ravel()[k])),
+            float(depth.ravel()[k]), cow.volume("clear") * 1e3)

@@ -1,4 +1,5 @@
-"""Compiled kernel of the leg-interference check (:func:`kinematics.robot.leg_clearance`).
+"""Compiled kernels of the collision model (:mod:`kinematics.collision`): the distance
+between two segments, and the clearance of whole poses.
 
 Scalar code compiled with numba, the same arithmetic as the numpy reference
 :func:`kinematics.robot._segment_distance` (tested to agree): the distance between two
@@ -10,7 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -65,4 +66,67 @@ def min_link_distance(seg, links):
                                              seg[m, j, b, 0], seg[m, j, b, 1])
                         best = min(best, d)
         out[m] = best
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def pose_clearance(caps, radii, pairs, base, base_top, stop, mid, half):
+    """Smallest signed surface distance of one pose's collision model [m].
+
+    caps (K, 2, 3) capsule segments, radii (K,), pairs (P, 2) the body pairs compared,
+    base (B,) the bodies kept above the plane z = base_top; mid (K, 3), half (K,) work
+    space.  A pair whose bounding spheres (centre the midpoint, radius half the length
+    plus the capsule radius) are further apart than the best distance so far cannot be
+    the minimum and is not measured: the result is exact.  Returns as soon as the
+    minimum is below ``stop`` (-inf: never), with a value below ``stop``.
+    """
+    best = np.inf
+    for b in base:
+        low = min(caps[b, 0, 2], caps[b, 1, 2]) - radii[b] - base_top
+        best = min(best, low)
+        if best < stop:
+            return best
+    for k in range(caps.shape[0]):
+        h = 0.0
+        for r in range(3):
+            mid[k, r] = 0.5 * (caps[k, 0, r] + caps[k, 1, r])
+            h += (caps[k, 1, r] - caps[k, 0, r]) ** 2
+        half[k] = 0.5 * math.sqrt(h) + radii[k]
+    for m in range(pairs.shape[0]):
+        a, b = pairs[m, 0], pairs[m, 1]
+        d2 = 0.0
+        for r in range(3):
+            d2 += (mid[a, r] - mid[b, r]) ** 2
+        reach = best + half[a] + half[b]
+        if reach > 0.0 and d2 >= reach * reach:
+            continue
+        d = segment_distance(caps[a, 0], caps[a, 1], caps[b, 0], caps[b, 1])
+        best = min(best, d - radii[a] - radii[b])
+        if best < stop:
+            return best
+    return best
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def batch_clearance(caps, radii, pairs, base, base_top):
+    """(n,) :func:`pose_clearance` of every pose of caps (n, K, 2, 3), exact."""
+    n, k = caps.shape[0], caps.shape[1]
+    out = np.empty(n)
+    for m in prange(n):
+        mid = np.empty((k, 3))
+        half = np.empty(k)
+        out[m] = pose_clearance(caps[m], radii, pairs, base, base_top, -np.inf, mid, half)
+    return out
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def pair_distances(caps, radii, pairs):
+    """(n, P) signed surface distance of every pair of every pose [m] (no pruning)."""
+    n, p = caps.shape[0], pairs.shape[0]
+    out = np.empty((n, p))
+    for m in prange(n):
+        for j in range(p):
+            a, b = pairs[j, 0], pairs[j, 1]
+            out[m, j] = (segment_distance(caps[m, a, 0], caps[m, a, 1], caps[m, b, 0],
+                                          caps[m, b, 1]) - radii[a] - radii[b])
     return out

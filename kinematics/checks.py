@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sixplus3.kinematics.robot import RobotConfig, leg_clearance, spherical_tilts
+from sixplus3.kinematics.collision import clearance
+from sixplus3.kinematics.robot import RobotConfig, spherical_tilts
 from sixplus3.robot_description.limits import Limits
 
 #: The crank (redundant joint) range the planner and the static analyses search [rad].
@@ -42,7 +43,7 @@ class LimitMeasures:
     min_margin_leg_type1: float
     min_margin_leg_type2: float
     min_margin_platform: float
-    min_leg_clearance: float  # [m] between links of different legs (capsules)
+    min_clearance: float  # [m] of the collision model (kinematics.collision)
     max_spherical_tilt: float  # [rad]
     theta_range_ok: bool
     violations: list[str]
@@ -52,15 +53,15 @@ def measure_limits(cfg: RobotConfig, tau: np.ndarray, theta: np.ndarray, theta_d
                    theta_ddot: np.ndarray, limits: Limits) -> LimitMeasures:
     """The one rule both independent checks apply (the planner's dense re-check and the
     file validation): torques, actuated rates and accelerations against their limits,
-    the numeric singularity margins of ``cfg`` (a batched RobotConfig), leg clearance,
-    spherical-joint tilts and the actuated range.  Each violation is one
+    the numeric singularity margins of ``cfg`` (a batched RobotConfig), the collision
+    model's clearance, spherical-joint tilts and the actuated range.  Each violation is one
     message starting with the limit's name (the planner tightens by that name)."""
     torque = float(np.abs(tau).max() / limits.torque)
     vel = float(np.abs(theta_dot).max() / limits.velocity)
     acc = float(np.abs(theta_ddot).max() / limits.acceleration)
     m = cfg.margins
     m1, m2, mp = float(m.leg_type1.min()), float(m.leg_type2.min()), float(m.platform.min())
-    clearance = float(leg_clearance(cfg).min())
+    clear = float(clearance(cfg).min())
     tilt = float(spherical_tilts(cfg).max())
     theta_ok = bool(np.all((theta >= limits.theta_min - 1e-9)
                            & (theta <= limits.theta_max + 1e-9)))
@@ -77,13 +78,13 @@ def measure_limits(cfg: RobotConfig, tau: np.ndarray, theta: np.ndarray, theta_d
                       ("platform margin", mp)):
         if val < limits.margin:
             violations.append(f"{name} {val:.4f} < {limits.margin:g}")
-    if clearance < 0.0:
-        violations.append(f"leg interference: links of different legs overlap by "
-                          f"{-clearance * 1e3:.1f} mm")
+    if clear < 0.0:
+        violations.append(f"interference: bodies of the collision model overlap by "
+                          f"{-clear * 1e3:.1f} mm")
     if tilt > limits.spherical:
         violations.append(f"spherical joint at {math.degrees(tilt):.1f} deg > "
                           f"{math.degrees(limits.spherical):g} deg")
     if not theta_ok:
         violations.append(f"an actuated angle leaves [{math.degrees(limits.theta_min):g}, "
                           f"{math.degrees(limits.theta_max):g}] deg")
-    return LimitMeasures(torque, vel, acc, m1, m2, mp, clearance, tilt, theta_ok, violations)
+    return LimitMeasures(torque, vel, acc, m1, m2, mp, clear, tilt, theta_ok, violations)

@@ -23,7 +23,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError, as_float_array
-from sixplus3.kinematics import _geometry_kernel
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.leg import LegState, failing_chain, leg_ik, status_reason
 from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, _cached
@@ -424,18 +423,11 @@ def robot_fk(theta, robot: Robot | None = None, q_hint=None, tol: float = 1e-12,
                    iterations=it)
 
 
-# --------------------------------------------------------------------- leg interference
-#: Radius of the capsule around every leg link used by the interference check [m]
-#: (the visual rods are 8 mm; 15 mm leaves room for joints and housings).
-LINK_RADIUS = 0.015
-#: The links :func:`leg_clearance` compares, indices into :func:`leg_segments`: AD, DP,
-#: GE, HF.
-UPPER_LINKS = np.array([0, 1, 3, 5], dtype=np.int64)
-
-
+# --------------------------------------------------------------------- interference
 def _segment_distance(p1, q1, p2, q2):
     """(n,) distance between segments [p1, q1] and [p2, q2] (batched, (n, 3) each): the
-    numpy reference of the compiled kernel ``_geometry_kernel.segment_distance``."""
+    numpy reference of the compiled kernel ``_geometry_kernel.segment_distance`` (the
+    collision model's, :mod:`kinematics.collision`)."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
     a = np.sum(d1 * d1, axis=1)
     e = np.sum(d2 * d2, axis=1)
@@ -450,44 +442,6 @@ def _segment_distance(p1, q1, p2, q2):
                  np.where(t > 1, np.clip((b - c) / np.maximum(a, 1e-300), 0, 1), s))
     diff = (p1 + d1 * s[:, None]) - (p2 + d2 * t_c[:, None])
     return np.linalg.norm(diff, axis=1)
-
-
-def leg_segments(cfg: RobotConfig) -> np.ndarray:
-    """(n, 3 legs, 6 links, 2 ends, 3) link segments in the robot frame [m]:
-    AD, DP, BG, GE, CH, HF."""
-    out = np.zeros((len(cfg), NUM_LEGS, 6, 2, 3))
-    geom = cfg.robot.geometry
-    for i in range(NUM_LEGS):
-        s = cfg.legs[i]
-        a = np.zeros_like(s.d)
-        b = np.zeros_like(s.d)
-        b[:, 0] = geom.leg.l6
-        c = np.zeros_like(s.d)
-        c[:, 0] = -geom.leg.l7
-        pairs = ((a, s.d), (s.d, s.p), (b, s.g), (s.g, s.e), (c, s.h), (s.h, s.f))
-        for k, (u, v) in enumerate(pairs):
-            out[:, i, k, 0] = geom.from_leg(i, u)
-            out[:, i, k, 1] = geom.from_leg(i, v)
-    return out
-
-
-def leg_clearance(cfg: RobotConfig, rows: np.ndarray | None = None) -> np.ndarray:
-    """(n,) smallest surface distance between links of different legs [m] (negative:
-    interference), with every link a capsule of radius ``LINK_RADIUS``.
-
-    Only the moving upper links are compared (AD, DP, GE, HF): the short cranks BG, CH of
-    adjacent legs start 1.3 cm apart at the corners of the base triangle by design
-    (l6 = l7 = 0.13 m, the paper's minimum from its CAD), which is the base layout's
-    business, not the motion's.  ``rows`` (n,) bool: compute only those rows (the others
-    get -inf, like unsolved ones).
-    """
-    sel = cfg.ok if rows is None else cfg.ok & np.asarray(rows, dtype=bool)
-    seg = leg_segments(cfg)[sel]
-    best = _geometry_kernel.min_link_distance(np.ascontiguousarray(seg), UPPER_LINKS)
-    out = np.full(len(cfg), -np.inf)
-    out[sel] = best - 2 * LINK_RADIUS
-    return out
-
 
 
 # --------------------------------------------------------------------- batched FK

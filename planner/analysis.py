@@ -3,8 +3,8 @@
 ``largest_tilt``: the largest tilt of the platform about a horizontal axis, at a given
 position, for which some choice of the crank angles (or the locked nominal 90 deg) keeps
 the robot reachable, every actuated angle in [0, 270] deg, every spherical joint within
-150 deg, no interference between the links of different legs (kinematics.robot.
-leg_clearance), every singularity margin >= the threshold and the static gravity torques
+150 deg, no interference in the collision model (kinematics.collision.clearance), every
+singularity margin >= the threshold and the static gravity torques
 within the limit.  This is the paper's argument for kinematic redundancy (a Gough-Stewart
 platform stops near 45 deg).
 """
@@ -56,7 +56,7 @@ def static_feasible(robot: Robot, position, rotation, limits: Limits, locked: bo
     if not sph_ok.any():
         return False, None, 0.0, math.inf, "spherical joints"
     if not clear_ok.any():
-        return False, None, 0.0, math.inf, "leg interference"
+        return False, None, 0.0, math.inf, "interference"
     if margin.max() < limits.margin:
         return False, None, float(margin.max()), math.inf, "singularity margin"
     best_tau = math.inf

@@ -39,7 +39,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sixplus3.kinematics.checks import pose_masks
-from sixplus3.kinematics.robot import leg_clearance, robot_ik
+from sixplus3.kinematics.collision import clearance
+from sixplus3.kinematics.robot import robot_ik
 
 #: node spacing of the baseline plan [s]
 NODE_STEP = 2.5e-3
@@ -60,7 +61,7 @@ def line_check(robot, limits, xa: np.ndarray, xb: np.ndarray, points: int = 101)
         return "the straight line leaves the actuated range"
     if not sph_ok.all():
         return "the straight line exceeds a spherical joint's tilt"
-    if leg_clearance(cfg).min() < 0.0:
+    if clearance(cfg).min() < 0.0:
         return "the legs' links interfere on the straight line"
     worst = float(cfg.margins.minimum.min())
     if worst < limits.margin:

@@ -210,27 +210,55 @@ def segment_distance(p1, q1, p2, q2):
     return ca.sqrt(ca.dot(diff, diff) + 1e-12)
 
 
-#: sharpness of the soft minimum over link pairs [1/m]: it under-estimates the true
-#: minimum distance by at most ln(16) / 1000 m = 2.8 mm (on the safe side)
-CLEARANCE_SHARPNESS = 1000.0
+#: sharpness of the soft minimum over body pairs [1/m]: each row under-estimates the
+#: true minimum of its pairs by at most ln(pairs in the row) / 2000 m (on the safe side)
+CLEARANCE_SHARPNESS = 2000.0
+#: The rows measure the pairs that come within this of contact somewhere in the sample
+#: of :func:`sixplus3.kinematics.collision.near_pairs` [m]
+PAIR_MARGIN = 0.02
+#: The value of a row none of whose pairs comes near in that sample [m]
+FAR = 1.0
 
 
-def leg_clearance_rows(links) -> ca.SX:
-    """(3,) smooth lower bounds on the surface distance between the upper links of each
-    pair of legs [m] (capsules of kinematics.robot.LINK_RADIUS): a soft minimum
-    -ln(sum exp(-k d)) / k over the 16 link pairs, shifted for numerical range."""
-    from sixplus3.kinematics.robot import LINK_RADIUS
+def clearance_rows(caps, robot: Robot) -> ca.SX:
+    """(3,) smooth lower bounds on the collision model's clearance [m]
+    (:mod:`sixplus3.kinematics.collision`: same bodies and radii): the bodies of the
+    legs (links and hubs), the platform against the legs and hubs, the platform above
+    the base plate.  Each row is a soft minimum -ln(sum exp(-k d)) / k, shifted for
+    numerical range, over the pairs of its family that come within ``PAIR_MARGIN`` of
+    contact in :func:`~sixplus3.kinematics.collision.near_pairs`'s sample (all 333 make
+    a C file gcc needs 15 GB to optimise); the dense check and the gate measure every
+    pair."""
+    from sixplus3.kinematics.collision import (
+        BASE_BODIES,
+        PAIR_FAMILY,
+        PAIRS,
+        near_pairs,
+        radii,
+    )
 
-    rows = []
+    r = radii(robot)
+    pair_idx, base_idx = near_pairs(robot, PAIR_MARGIN)
+    fams: dict[str, list] = {"legs": [], "platform": [], "base": []}
+    for m in pair_idx:
+        a, b = PAIRS[m]
+        d = segment_distance(*caps[a], *caps[b]) - float(r[a] + r[b])
+        fams["platform" if PAIR_FAMILY[m] == "platform" else "legs"].append(d)
+    top = robot.collision.base_top
+    for m in base_idx:
+        b = BASE_BODIES[m]
+        fams["base"].append(ca.fmin(caps[b][0][2], caps[b][1][2]) - float(r[b]) - top)
     k = CLEARANCE_SHARPNESS
-    for i in range(NUM_LEGS):
-        for j in range(i + 1, NUM_LEGS):
-            dist = [segment_distance(*la, *lb) for la in links[i] for lb in links[j]]
-            dmin = dist[0]
-            for dd in dist[1:]:
-                dmin = ca.fmin(dmin, dd)
-            acc = sum(ca.exp(-k * (dd - dmin)) for dd in dist)
-            rows.append(dmin - ca.log(acc) / k - 2 * LINK_RADIUS)
+    rows = []
+    for dist in fams.values():
+        if not dist:
+            rows.append(ca.SX(FAR))
+            continue
+        dmin = dist[0]
+        for dd in dist[1:]:
+            dmin = ca.fmin(dmin, dd)
+        acc = sum(ca.exp(-k * (dd - dmin)) for dd in dist)
+        rows.append(dmin - ca.log(acc) / k)
     return ca.vertcat(*rows)
 
 
@@ -247,7 +275,7 @@ def structure(robot: Robot) -> Robot:
     from sixplus3.robot_description.physical import MotorModel, Payload, Tool
 
     return Robot(geometry=robot.geometry, mode=robot.mode, masses=robot.masses,
-                 motors=MotorModel(), payload=Payload(), tool=Tool(),
+                 collision=robot.collision, motors=MotorModel(), payload=Payload(), tool=Tool(),
                  home_position=robot.home_position, home_psi=robot.home_psi)
 
 
@@ -379,13 +407,15 @@ def _build(robot: Robot) -> _Core:
         type1.append(leg["type1"])
         type2.append(leg["type2_det"])
         leg_Q.append(Rl @ leg["Q"])
-        # the moving upper links AD, DP, GE, HF (kinematics.robot.leg_segments)
+        # the links AD, DP, BG, GE, CH, HF (kinematics.collision.capsules)
         org = ca.DM(geom.leg_origin(i))
         A = org
+        B = org + ca.DM(geom.leg.l6 * geom.leg_rotation(i)[:, 0])
+        C = org - ca.DM(geom.leg.l7 * geom.leg_rotation(i)[:, 0])
         D, P = org + Rl @ leg["d"], Pi
         G, E = org + Rl @ leg["g"], org + Rl @ leg["e"]
         H, F = org + Rl @ leg["h"], org + Rl @ leg["f"]
-        links.append(((A, D), (D, P), (G, E), (H, F)))
+        links += [(A, D), (D, P), (B, G), (G, E), (C, H), (H, F)]
         for name, val in (("A", leg["theta"][0]), ("Ds2", leg["ts2"]), ("Ds3", leg["ts3"]),
                           ("B", leg["theta"][1]), ("Ga", leg["ga"]), ("Gb", leg["gb"]),
                           ("C", leg["theta"][2]), ("Ha", leg["ha"]), ("Hb", leg["hb"])):
@@ -507,7 +537,15 @@ def _build(robot: Robot) -> _Core:
 
     margins_out = [ca.vertcat(*type1), ca.vertcat(*type2),
                    platform_line_det_normalised(psi, geom)]
-    clear = leg_clearance_rows(links)
+    from sixplus3.kinematics.collision import hub_segments
+
+    hubs = [(ca.DM(h[0]), ca.DM(h[1])) for h in hub_segments(robot)]
+    R_i = [p + R @ ca.DM(geom.crank_axis_position(i)) for i in range(NUM_LEGS)]
+    up = robot.collision.plate_offset * R[:, 2]  # the plate above the cranks' plane
+    plate = ([(p + up, R_i[i] + up) for i in range(NUM_LEGS)]
+             + [(R_i[i] + up, R_i[(i + 1) % NUM_LEGS] + up) for i in range(NUM_LEGS)]
+             + [(R_i[i], links[6 * i + 1][1]) for i in range(NUM_LEGS)])
+    clear = clearance_rows(links + hubs + plate, robot)
     opts = {"cse": True}
     tau_sym = ca.SX.sym("tau", NX)
     node_p = ca.Function(

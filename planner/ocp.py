@@ -51,7 +51,8 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from sixplus3.errors import InfeasibleTaskError, InputError, TaskError
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN, measure_limits, pose_masks
-from sixplus3.kinematics.robot import leg_clearance, robot_ik
+from sixplus3.kinematics.collision import clearance
+from sixplus3.kinematics.robot import robot_ik
 from sixplus3.planner.task import Task, Waypoint, rotvec
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
@@ -292,7 +293,7 @@ class DenseCheck:
     min_margin_platform: float
     theta_range_ok: bool
     max_spherical_tilt: float  # [rad]
-    min_leg_clearance: float  # [m] between links of different legs (capsules)
+    min_clearance: float  # [m] between links of different legs (capsules)
     violations: list[str]
 
 
@@ -303,7 +304,7 @@ def static_checks(robot: Robot, limits: Limits, position, rotation, psis: np.nda
     and margin = the smallest singularity margin where clearance_ok, else -1."""
     cfg = robot_ik(position, rotation, psis, robot)
     theta_ok, sph_ok = pose_masks(cfg, limits)
-    clear_ok = sph_ok & (leg_clearance(cfg) >= 0.0)
+    clear_ok = sph_ok & (clearance(cfg) >= 0.0)
     margin = np.where(clear_ok, cfg.margins.minimum, -1.0)
     return cfg, theta_ok, sph_ok, clear_ok, margin
 
@@ -353,9 +354,14 @@ def choose_static_psi(task: Task, robot: Robot, lim: Limits, locked: bool,
                 "every crank choice", k, "spherical joints",
                 value=wp.position.tolist(), valid=f"<= {math.degrees(lim.spherical):g} deg")
         if not clear_ok.any():
+            from sixplus3.kinematics.collision import closest
+
+            c = clearance(cfg, sph_ok)
+            a, b, d = closest(cfg, int(np.argmax(c)))
             raise InfeasibleTaskError(
-                f"{where}: links of different legs interfere for every crank choice",
-                k, "leg interference", value=wp.position.tolist(), valid="clearance >= 0 m")
+                f"{where}: bodies interfere for every crank choice (at the best one, "
+                f"{a} and {b} overlap by {-d * 1e3:.1f} mm)",
+                k, "interference", value=wp.position.tolist(), valid="clearance >= 0 m")
         # crank angles inside the NLP's range [PSI_MIN, PSI_MAX] first (its platform
         # margin rows hold there only): a waypoint at 145 deg made the NLP's start
         # clip to 135 deg and fail (BENCHMARKS.md); outside it only when nothing inside
@@ -567,12 +573,12 @@ class Problem:
                                                        - reserve["spherical"])
                 reserve["spherical"] += over + math.radians(0.25)
                 fixable = fixable or reserve["spherical"] < math.radians(10.0)
-            if any(v.startswith("leg interference") for v in bad):
+            if any(v.startswith("interference") for v in bad):
                 # ask the OCP for the overlap found plus 0.5 mm of clearance at its points
                 if reserve["clearance"] is None:  # the rows were unbounded: bound them
                     reserve["clearance"] = 0.0
                 else:  # overshoot between the constrained points: ask for more
-                    reserve["clearance"] += -chk.min_leg_clearance + 5e-4
+                    reserve["clearance"] += -chk.min_clearance + 5e-4
                 fixable = fixable or reserve["clearance"] < 0.01
             if not fixable:
                 break
@@ -772,7 +778,7 @@ class Problem:
         wps = self.task.waypoints
         cfg = robot_ik(np.array([wp.position for wp in wps]),
                        np.array([wp.rotation for wp in wps]), psi_wp, self.robot)
-        return bool(leg_clearance(cfg).min() < near)
+        return bool(clearance(cfg).min() < near)
 
     def _solve_once(self, psi_wp: np.ndarray, platform_proxy: float, safety: dict,
                     warm: Solution | None = None, time_scale: float = 1.0,
@@ -1327,7 +1333,7 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
                       min_margin_platform=lm.min_margin_platform,
                       theta_range_ok=lm.theta_range_ok,
                       max_spherical_tilt=lm.max_spherical_tilt,
-                      min_leg_clearance=lm.min_leg_clearance, violations=violations)
+                      min_clearance=lm.min_clearance, violations=violations)
 
 
 __all__ = ["DenseCheck", "InfeasibleTaskError", "PlannerOptions", "Problem", "Solution",

@@ -19,8 +19,9 @@ frames away and knows no loop closures (LIBRARY-NOTES.md).  What is written:
   holding torques as ctrl: :func:`sixplus3.control.simulation.export_mjcf` computes
   them), so that the file starts assembled instead of at MuJoCo's qpos0, where the
   closures are 0.26 m open;
-- gravity from the robot's mounting; contacts off by default (the legs' clearance is a
-  planner and gate constraint), or, with ``contacts``, between the capsules of
+- gravity from the robot's mounting; contacts off by default (the clearance is a
+  planner and gate constraint), or, with ``contacts``, with the collision model's radii
+  (robot.collision) on the leg links, between the capsules of
   different legs (each leg its own ``contype`` bit, colliding with the other legs'
   bits); Newton solver, dense Jacobians.
 
@@ -147,10 +148,18 @@ def build_mjcf(robot: Robot | None = None, timestep: float = TIMESTEP,
         bodies[j] = body
     # capsules from each body to its children's origins: visual, and with ``contacts``
     # the links of different legs collide (leg i: contype bit i, conaffinity the others)
+    cm = robot.collision
+    # with contacts, each leg link's capsule has the collision model's radius
+    sizes = {"A": cm.link_radius, "Ds3": cm.link_radius, "B": cm.crank_radius,
+             "C": cm.crank_radius, "Gb": cm.distal_radius, "Hb": cm.distal_radius}
+
     def capsule(j: int, size: str, t: np.ndarray) -> None:
         leg = _leg_of(m.names[j])
         attrs = {"type": "capsule", "size": size, "fromto": _v(np.r_[np.zeros(3), t])}
         if contacts and leg is not None:
+            r = sizes.get(m.names[j].split("_", 1)[1])
+            if r is not None:
+                attrs["size"] = _f(r)
             attrs.update(contype=str(1 << leg), conaffinity=str(7 & ~(1 << leg)))
         ET.SubElement(bodies[j], "geom", attrs)
 

@@ -31,7 +31,8 @@ import numpy as np
 
 from sixplus3 import fileio
 from sixplus3.errors import GeometryError
-from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
+from sixplus3.robot_description.assembly import AssemblyMode
+from sixplus3.robot_description.collision import CollisionModel
 from sixplus3.robot_description.geometry import GRAVITY, LegGeometry
 from sixplus3.robot_description.limits import RATED_SPEED_RPM, Limits
 from sixplus3.robot_description.physical import MotorModel, Payload, Tool, _vec
@@ -41,6 +42,8 @@ if TYPE_CHECKING:
     from sixplus3.robot_description.model import ClosedLoopModel
 
 NUM_LEGS = 3
+#: The platform phase at which P_i points at leg i at psi = 90 deg (the paper's layout).
+PAPER_PHASE = -math.pi / 4
 
 
 @dataclass(frozen=True)
@@ -56,15 +59,18 @@ class RobotGeometry:
                                    metadata={"doc": "rho, radius of the crank axes [m]"})
     platform_crank: float = field(default=0.0706,
                                   metadata={"doc": "c, crank length R_i -> P_i [m]"})
-    platform_phase: float = field(default=-math.pi / 4,
+    platform_phase: float = field(default=PAPER_PHASE,
                                   metadata={"doc": "beta_i - alpha_i [rad]"})
+    axis_turn: float = field(default=0.0, metadata={
+        "doc": "gamma, turn of every actuated axis about the vertical through its A_i, "
+               "away from the tangent (0: the paper's tangential axes) [rad]"})
 
     def __post_init__(self) -> None:
         for name in ("base_radius", "platform_radius", "platform_crank"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and 0.0 < v <= 2.0):
                 raise GeometryError(name, v, "in (0, 2] m")
-        for name in ("first_leg_angle", "platform_phase"):
+        for name in ("first_leg_angle", "platform_phase", "axis_turn"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v)):
                 raise GeometryError(name, v, "a finite angle [rad]")
@@ -76,7 +82,7 @@ class RobotGeometry:
 
     def leg_yaw(self, i: int) -> float:
         """gamma_i: the leg frame is R_z(gamma_i) in the robot frame [rad]."""
-        return self.leg_angle(i) + math.pi / 2
+        return self.leg_angle(i) + math.pi / 2 + self.axis_turn
 
     def leg_rotation(self, i: int) -> np.ndarray:
         """R_base_leg (3, 3): columns are the leg's x, y, z in the robot frame."""
@@ -169,6 +175,27 @@ class MassModel:
 
 POINT_MASS = MassModel(point_mass=True)
 
+#: The built robot's layout, the winner of the layout study (``sixplus3 design layout``,
+#: docs/design.md "Layout"): every actuated axis turned by 28 deg about the vertical
+#: through its A_i, the platform's crank axes 5 deg further than the paper's -45 deg.
+DEFAULT_AXIS_TURN = math.radians(28.0)
+DEFAULT_PLATFORM_PHASE = PAPER_PHASE + math.radians(5.0)
+#: The built robot's E and F offset [m]: as small as two spherical joints side by side
+#: allow; the type II-free COW shrinks as it grows (docs/design.md, "ey").
+DEFAULT_EY = 0.010
+#: The built robot's assembly mode: the paper's §V assembly (cranks inward).
+DEFAULT_ROBOT_MODE = AssemblyMode.parse("++--")
+#: The built robot's home: the deepest point of its interference-free 2 g COW
+#: (design.cow.deepest_point; tests/test_named_robots.py recomputes it).
+DEFAULT_HOME = (0.0, 0.0, 0.58)
+
+
+def default_geometry() -> RobotGeometry:
+    """The built robot's geometry: the paper's leg with ey = DEFAULT_EY on the layout of
+    the layout study."""
+    return RobotGeometry(leg=LegGeometry(ey=DEFAULT_EY, fy=-DEFAULT_EY),
+                         axis_turn=DEFAULT_AXIS_TURN, platform_phase=DEFAULT_PLATFORM_PHASE)
+
 
 # ----------------------------------------------------------------------------- the robot
 def _vec3(name: str, v: Any, unit: str) -> tuple[float, float, float]:
@@ -190,9 +217,9 @@ class Robot:
     recorded in every trajectory file.  Derive variants with :meth:`replace`.
     """
 
-    geometry: RobotGeometry = field(default_factory=RobotGeometry, metadata={
+    geometry: RobotGeometry = field(default_factory=default_geometry, metadata={
         "doc": "leg geometry, base layout and platform [m, rad]"})
-    mode: AssemblyMode = field(default=DEFAULT_MODE, metadata={
+    mode: AssemblyMode = field(default=DEFAULT_ROBOT_MODE, metadata={
         "doc": "assembly mode: the IK branch of every leg, never switched in a motion"})
     masses: MassModel = field(default_factory=MassModel, metadata={
         "doc": "masses of the moving parts [kg]"})
@@ -204,9 +231,11 @@ class Robot:
         "doc": "rigid load fixed to the platform (mass, centre of mass, inertia)"})
     tool: Tool = field(default_factory=Tool, metadata={
         "doc": "tool centre point in the platform frame"})
+    collision: CollisionModel = field(default_factory=CollisionModel, metadata={
+        "doc": "sizes of the bodies every interference check measures [m]"})
     gravity: tuple[float, float, float] = field(default=MOUNTINGS["floor"], metadata={
         "doc": "gravity in the robot frame [m/s^2] (floor mounting: -z)"})
-    home_position: tuple[float, float, float] = field(default=(0.0, 0.0, 0.30), metadata={
+    home_position: tuple[float, float, float] = field(default=DEFAULT_HOME, metadata={
         "doc": "platform centre at the home pose, in the robot frame [m]"})
     home_psi: tuple[float, float, float] = field(default=(math.pi / 2,) * 3, metadata={
         "doc": "crank angles at the home pose [rad]"})
@@ -215,7 +244,8 @@ class Robot:
     def __post_init__(self) -> None:
         for attr, kind in (("geometry", RobotGeometry), ("masses", MassModel),
                            ("limits", Limits), ("motors", MotorModel),
-                           ("payload", Payload), ("tool", Tool)):
+                           ("payload", Payload), ("tool", Tool),
+                           ("collision", CollisionModel)):
             if not isinstance(getattr(self, attr), kind):
                 raise GeometryError(attr, getattr(self, attr), f"a {kind.__name__}")
         object.__setattr__(self, "mode", AssemblyMode.parse(self.mode))
@@ -237,7 +267,8 @@ class Robot:
     # ------------------------------------------------------------------ construction
     @classmethod
     def default(cls) -> Robot:
-        """The robot of the paper (see docs/conventions.md for the assembly)."""
+        """The built robot: the paper's leg in its §V assembly on the layout of the layout
+        study (docs/robot.md, "Named robots"; the dataclass defaults)."""
         return cls()
 
     @classmethod
@@ -288,6 +319,7 @@ class Robot:
             "payload": {k: list(v) if isinstance(v, tuple) else v
                         for k, v in asdict(self.payload).items()},
             "tool": {k: list(v) for k, v in asdict(self.tool).items()},
+            "collision": self.collision.as_dict(),
             "gravity": list(self.gravity),
             "home_position": list(self.home_position),
             "home_psi": list(self.home_psi),
@@ -319,7 +351,8 @@ class Robot:
             lim = _mapping("limits", doc["limits"])
             _no_unknown("limits", lim, {f.name for f in fields(Limits)})
             kw["limits"] = Limits(**lim)
-        for key, kind in (("motors", MotorModel), ("payload", Payload), ("tool", Tool)):
+        for key, kind in (("motors", MotorModel), ("payload", Payload), ("tool", Tool),
+                          ("collision", CollisionModel)):
             if key in doc:
                 sub = _mapping(key, doc[key])
                 _no_unknown(key, sub, {f.name for f in fields(kind)})
@@ -383,26 +416,41 @@ class Robot:
 
 
 def _paper_assembly(mode: str, name: str) -> Robot:
-    """The paper's leg design in the assembly of its §V study: E = F (ey = 0, the paper's
-    simplifying assumption), cranks on the branch that reproduces its optimum.  Home is the
-    deepest point of its 2 g-capable, singularity-free COW on the central vertical
-    (``design.cow``; tests/test_named_robots.py recomputes it)."""
+    """The paper's leg design in the assembly of its §V study on the layout its text
+    states (tangential axes, gamma = 0, platform phase -45 deg): E = F (ey = 0, the
+    paper's simplifying assumption), cranks on the branch that reproduces its optimum.
+    Home is the deepest point of its 2 g-capable, singularity-free COW on the central
+    vertical (``design.cow``; tests/test_named_robots.py recomputes it).  Its legs
+    intersect: it is kept for the paper's numbers, not for motion."""
     return Robot(geometry=RobotGeometry(leg=LegGeometry(ey=0.0, fy=0.0)),
                  mode=AssemblyMode.parse(mode),
                  home_position=(0.0, 0.0, 0.54), name=name)
 
 
+def _compact() -> Robot:
+    """The robot built before the layout study: the paper's leg in mode ++++ (cranks
+    outward), ey = 0.02 m, on the paper's stated layout, home z = 0.30 m.  Free of
+    interference, with a 2.7 L torque-limited 2 g COW at z 0.18-0.32 m."""
+    return Robot(geometry=RobotGeometry(), mode=AssemblyMode.parse("++++"),
+                 home_position=(0.0, 0.0, 0.30), name="compact")
+
+
 #: Named robots: name -> (constructor, one-line description).  ``--robot NAME`` on the CLI.
 NAMED_ROBOTS: dict[str, tuple[Any, str]] = {
     "default": (Robot.default,
-                "the built robot: paper design, mode ++++ (cranks outward), ey = 0.02 m, "
-                "home z = 0.30 m"),
-    "paper": (lambda: _paper_assembly("++--", "paper"),
-              "the paper's §V assembly: mode ++-- (cranks inward), ey = 0, home z = 0.54 m; "
-              "adjacent legs' distal links intersect at the base corners"),
+                "the built robot: the paper's leg in its §V assembly (mode ++--, cranks "
+                "inward), ey = 0.01 m, actuated axes turned 28 deg (the layout study's "
+                f"winner), home z = {DEFAULT_HOME[2]:.2f} m"),
+    "paper-as-stated": (lambda: _paper_assembly("++--", "paper-as-stated"),
+                        "the paper's §V assembly on the layout its text states: mode ++--, "
+                        "ey = 0, tangential axes, home z = 0.54 m; adjacent legs' distal "
+                        "links intersect at the base corners (kept for the paper's numbers)"),
     "paper-mirror": (lambda: _paper_assembly("-+++", "paper-mirror"),
                      "its theta1 mirror: mode -+++ (elbows inward), ey = 0, home z = 0.54 m; "
                      "the proximal links cross on the central axis"),
+    "compact": (_compact,
+                "the robot built before the layout study: mode ++++ (cranks outward), "
+                "ey = 0.02 m, tangential axes, home z = 0.30 m; a 2.7 L 2 g COW"),
 }
 
 

@@ -99,7 +99,7 @@ class _Builder:
         return el
 
     def rod_link(self, name: str, mass: float, start, end, material: str,
-                 radius: float = ROD_RADIUS, collision: bool = False) -> ET.Element:
+                 radius: float = ROD_RADIUS, collision: float | None = None) -> ET.Element:
         if self.masses.point_mass:
             el = self.link(name)
         else:
@@ -109,10 +109,11 @@ class _Builder:
         return el
 
     def cylinder(self, link: ET.Element, start, end, radius: float, material: str,
-                 collision: bool = False) -> None:
-        """A visual cylinder from ``start`` to ``end``; with ``collision``, also the
-        clearance model's link (radius ``LINK_RADIUS``, kinematics.robot.leg_clearance)
-        as a collision cylinder."""
+                 collision: float | None = None) -> None:
+        """A visual cylinder from ``start`` to ``end``; with ``collision`` (a radius
+        [m]), also the collision model's body (robot.collision, kinematics.collision) as
+        a collision cylinder of that radius (URDF has no capsule: the model's bodies
+        also reach that radius beyond each end)."""
         start, end = np.asarray(start, float), np.asarray(end, float)
         axis = end - start
         length = float(np.linalg.norm(axis))
@@ -125,14 +126,25 @@ class _Builder:
         geo = ET.SubElement(vis, "geometry")
         ET.SubElement(geo, "cylinder", radius=_f(radius), length=_f(length))
         ET.SubElement(vis, "material", name=material)
-        if collision:
-            from sixplus3.kinematics.robot import LINK_RADIUS
-
+        if collision is not None:
             col = ET.SubElement(link, "collision")
             ET.SubElement(col, "origin", xyz=_vec((start + end) / 2),
                           rpy=_vec((0.0, pitch, yaw)))
             ET.SubElement(ET.SubElement(col, "geometry"), "cylinder",
-                          radius=_f(LINK_RADIUS), length=_f(length))
+                          radius=_f(collision), length=_f(length))
+
+    def collision_cylinder(self, link: ET.Element, start, end, radius: float) -> None:
+        """A collision cylinder only (a body of the collision model that has no visual of
+        its own)."""
+        start, end = np.asarray(start, float), np.asarray(end, float)
+        axis = end - start
+        u = axis / float(np.linalg.norm(axis))
+        pitch = math.acos(max(-1.0, min(1.0, u[2])))
+        col = ET.SubElement(link, "collision")
+        ET.SubElement(col, "origin", xyz=_vec((start + end) / 2),
+                      rpy=_vec((0.0, pitch, math.atan2(u[1], u[0]))))
+        ET.SubElement(ET.SubElement(col, "geometry"), "cylinder", radius=_f(radius),
+                      length=_f(float(np.linalg.norm(axis))))
 
     def sphere(self, link: ET.Element, center, radius: float, material: str) -> None:
         vis = ET.SubElement(link, "visual")
@@ -180,6 +192,7 @@ def build_urdf(robot: Robot | None = None) -> str:
     geom: RobotGeometry = robot.geometry
     masses: MassModel = robot.masses
     lim = robot.limits
+    cm = robot.collision
     name = robot.name
     leg = geom.leg
     root = ET.Element("robot", name=name)
@@ -200,9 +213,10 @@ def build_urdf(robot: Robot | None = None) -> str:
         R = geom.leg_rotation(i)
         centre = geom.leg_origin(i) + R @ np.array(
             [(geom.leg.l6 - geom.leg.l7) / 2, BASE_GAP + BASE_WIDTH / 2, BASE_Z])
-        # it stops 2 cm short of the cranks at B and C: at the corners of the base
-        # triangle a neighbour's crank hangs within 1.1 cm of this leg's axis line
-        size = (geom.leg.l6 + geom.leg.l7 - 0.04, BASE_WIDTH, BASE_THICKNESS)
+        # it is 0.10 m long, centred under A: with the axes turned (the default robot's
+        # 28 deg) a neighbour's crank at B or C hangs down beside this leg's axis line
+        # near its ends (tests/test_robot_description.py sweeps every crank)
+        size = (geom.leg.l6 + geom.leg.l7 - 0.16, BASE_WIDTH, BASE_THICKNESS)
         for tag in ("visual", "collision"):
             beam = ET.SubElement(base, tag)
             ET.SubElement(beam, "origin", xyz=_vec(centre),
@@ -223,9 +237,12 @@ def build_urdf(robot: Robot | None = None) -> str:
                "velocity": lim.velocity,
                "dynamics": (robot.motors.viscous, robot.motors.coulomb)}
         b.cylinder(base, A - (leg.l7 + 0.03) * x, A + (leg.l6 + 0.03) * x, 0.012, "motor")
+        # the pulley stack at A (the collision model's hub)
+        half = 0.5 * cm.hub_width * x
+        b.cylinder(base, A - half, A + half, cm.hub_radius, "motor", collision=cm.hub_radius)
         # RU chain
         b.rod_link(f"leg{i}_proximal", masses.proximal, (0, 0, 0), (0, leg.l1, 0), "alu",
-                   collision=True)
+                   collision=cm.link_radius)
         b.joint(f"leg{i}_A", "revolute", "base_link", f"leg{i}_proximal", xyz=A, rpy=yaw,
                 axis=(1, 0, 0), **act)
         ucross_d = b.link(f"leg{i}_ucrossD", 0.0 if pm else masses.ucross, (0, 0, 0),
@@ -239,7 +256,8 @@ def build_urdf(robot: Robot | None = None) -> str:
         else:
             com, inertia = _rod_inertia(masses.body, (0, 0, 0), (leg.dp, 0, 0), ROD_RADIUS)
             body = b.link(f"leg{i}_body", masses.body, com, inertia)
-        b.cylinder(body, (0, 0, 0), (leg.dp, 0, 0), ROD_RADIUS, "alu", collision=True)
+        b.cylinder(body, (0, 0, 0), (leg.dp, 0, 0), ROD_RADIUS, "alu",
+                   collision=cm.link_radius)
         b.cylinder(body, (0, 0, 0), leg.e_b, ROD_RADIUS * 0.8, "alu")
         b.cylinder(body, (0, 0, 0), leg.f_b, ROD_RADIUS * 0.8, "alu")
         for pt in (leg.e_b, leg.f_b, (leg.dp, 0, 0)):
@@ -254,7 +272,8 @@ def build_urdf(robot: Robot | None = None) -> str:
         for side, off, crank, link_len, k in (("B", leg.l6, leg.l2, leg.l4, 3 * i),
                                               ("C", -leg.l7, leg.l3, leg.l5, 3 * i + 1)):
             uj = "G" if side == "B" else "H"
-            b.rod_link(f"leg{i}_crank{side}", masses.crank, (0, 0, 0), (0, crank, 0), "alu")
+            b.rod_link(f"leg{i}_crank{side}", masses.crank, (0, 0, 0), (0, crank, 0), "alu",
+                       collision=cm.crank_radius)
             b.joint(f"leg{i}_{side}", "revolute", "base_link", f"leg{i}_crank{side}",
                     xyz=A + off * x, rpy=yaw, axis=(1, 0, 0), **act)
             ucross = b.link(f"leg{i}_ucross{uj}", 0.0 if pm else masses.ucross, (0, 0, 0),
@@ -263,7 +282,7 @@ def build_urdf(robot: Robot | None = None) -> str:
             b.passive(f"leg{i}_{uj}a", f"leg{i}_crank{side}", f"leg{i}_ucross{uj}", (1, 0, 0),
                       xyz=(0, crank, 0))
             b.rod_link(f"leg{i}_distal{side}", masses.distal, (0, 0, 0), (0, link_len, 0),
-                       "carbon", radius=ROD_RADIUS * 0.75, collision=True)
+                       "carbon", radius=ROD_RADIUS * 0.75, collision=cm.distal_radius)
             b.passive(f"leg{i}_{uj}b", f"leg{i}_ucross{uj}", f"leg{i}_distal{side}", (0, 0, 1))
             b.frame(f"closedloop{k}_B", f"leg{i}_distal{side}", (0, link_len, 0))
 
@@ -284,7 +303,13 @@ def build_urdf(robot: Robot | None = None) -> str:
         beta = geom.crank_axis_angle(i)
         c = geom.platform_crank
         b.rod_link(f"platform_crank{i}_link", masses.platform_crank, (0, 0, 0), (c, 0, 0),
-                   "platform")
+                   "platform", collision=cm.link_radius)
+        # the plate's spoke O -> R_i and edge R_i -> R_{i+1} (collision model)
+        up = np.array([0.0, 0.0, cm.plate_offset])
+        r_i = geom.crank_axis_position(i) + up
+        r_j = geom.crank_axis_position((i + 1) % NUM_LEGS) + up
+        for a_pt, b_pt in ((up, r_i), (r_i, r_j)):
+            b.collision_cylinder(platform, a_pt, b_pt, cm.plate_radius)
         b.passive(f"platform_crank{i}", "platform", f"platform_crank{i}_link", (0, 0, 1),
                   xyz=geom.crank_axis_position(i), rpy=(0, 0, beta))
         b.frame(f"closedloop{3 * i + 2}_B", f"platform_crank{i}_link", (c, 0, 0))

@@ -142,7 +142,10 @@ def _robot() -> Robot:
             _fail(f"--robot {path!r} is neither a named robot (one of "
                   f"{', '.join(NAMED_ROBOTS)}) nor an existing robot file")
         else:
+            from sixplus3.kinematics.collision import check_layout
+
             obj["robot"] = load_robot(path)
+            check_layout(obj["robot"])  # a robot file must describe a buildable robot
     return obj["robot"]
 
 
@@ -228,6 +231,7 @@ def robot_check(as_json: bool) -> None:
 
     from sixplus3.design.cow import home_in_cow
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+    from sixplus3.kinematics import collision
     from sixplus3.kinematics.robot import home, spherical_tilts
     from sixplus3.robot_description.urdf import check as urdf_stale
 
@@ -236,6 +240,14 @@ def robot_check(as_json: bool) -> None:
     clm = dyn.clm
     h = home(robot)
     where = home_in_cow(robot, step=0.02)
+    g = robot.geometry
+    near = collision.closest(h)
+    layout = {"axis_turn_deg": math.degrees(g.axis_turn),
+              "platform_phase_deg": math.degrees(g.platform_phase),
+              "base_radius_m": g.base_radius, "platform_radius_m": g.platform_radius,
+              "platform_crank_m": g.platform_crank,
+              "home_clearance_m": near[2], "home_closest_pair": list(near[:2]),
+              "collision_model_m": robot.collision.as_dict()}
     q = h.q[0]
     residual = float(np.abs(clm.residual(q)).max())
     rank = int(np.linalg.matrix_rank(clm.constraint_jacobian(q), tol=1e-9))
@@ -253,6 +265,7 @@ def robot_check(as_json: bool) -> None:
         "tau_gravity_home": tau, "total_mass_kg": clm.total_mass(),
         "design_m": {"l2": robot.leg.l2, "l4": robot.leg.l4, "ex": robot.leg.ex,
                      "ey": robot.leg.ey},
+        "layout": layout,
         "home_in_cow": {"inside": where.inside, "failing": where.failing,
                         "depth_m": where.depth, "deepest_m": list(where.deepest),
                         "z_range_m": list(where.z_range), "volume_l": where.volume_l,
@@ -270,6 +283,10 @@ def robot_check(as_json: bool) -> None:
     click.echo(f"design    l2 = l3 = {robot.leg.l2:.3f}, l4 = l5 = {robot.leg.l4:.3f}, ex = fx = "
                f"{robot.leg.ex:.3f}, ey = -fy = {robot.leg.ey:.3f} m; assembly mode "
                f"{robot.mode.name}")
+    click.echo(f"layout    actuated axes turned {layout['axis_turn_deg']:.1f} deg from the "
+               f"tangent (|a_j - a_i| = {g.base_radius * math.sqrt(3):.3f} m), platform phase "
+               f"{layout['platform_phase_deg']:.1f} deg; at home the closest bodies are "
+               f"{near[0]} and {near[1]}, {near[2] * 1e3:.1f} mm apart")
     click.echo(f"home      platform at {list(robot.home_position)} m, psi = "
                f"{np.round(np.degrees(robot.home_psi), 2).tolist()} deg; closure residual "
                f"{residual:.2e} m")
@@ -494,6 +511,77 @@ def design_optimize(coarse_step: float, fine_step: float, ws_steps: tuple[float,
             click.echo(f"  ridge      {rg.line()}")
         click.echo(f"  {res.evaluations} designs ({res.feasible_designs} feasible), "
                    f"{res.point_evaluations:,} point evaluations in {res.seconds:.1f} s")
+
+
+@design.command("layout")
+@click.option("--turns", default="0:45:2.5", show_default=True, metavar="START:STOP:STEP",
+              help="Axis turns gamma to sweep [deg].")
+@click.option("--phases", default="-20:20:10", show_default=True, metavar="START:STOP:STEP",
+              help="Platform phase offsets to sweep [deg], from the robot's own phase.")
+@click.option("--step", default=0.02, show_default=True, type=float,
+              help="COW grid pitch, x, y and z [m].")
+@click.option("--legs", type=click.Choice(["both", "paper", "other-basin"]), default="both",
+              show_default=True, help="Which §V legs to study.")
+@click.option("--out", "out_dir", default="layout", show_default=True,
+              type=click.Path(file_okay=False), help="Output directory (table, figure).")
+@click.option("--workers", default=2, show_default=True, type=int,
+              help="LocalCluster worker processes (1-4).")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="A Dask scheduler address (tcp://host:8786), or 'synchronous'.")
+def design_layout(turns: str, phases: str, step: float, legs: str, out_dir: str,
+                  workers: int, scheduler: str | None) -> None:
+    """The whole-robot layout study: the paper's leg in its §V assembly, the
+    interference-free 2 g COW against the axis turn and the platform phase (docs/design.md,
+    "Layout").  The base robot is --robot's (default: the built robot) with its own
+    layout replaced by each of the sweep's."""
+    from pathlib import Path
+
+    from sixplus3 import fileio
+    from sixplus3.design import layout as lay
+    from sixplus3.design.cluster import check_scheduler, check_workers
+
+    st = lay.LayoutSettings(turns_deg=_sweep("--turns", turns),
+                            phases_deg=_sweep("--phases", phases), step=step,
+                            z_step=step).check()
+    check_workers(workers)
+    check_scheduler(scheduler)
+    base = _robot()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    which = ("paper", "other-basin") if legs == "both" else (legs,)
+    n = len(st.turns_deg) * len(st.phases_deg) * len(which)
+    where = f"LocalCluster of {workers} workers" if scheduler is None else scheduler
+    click.echo(f"layout study: {n} layouts, COW grid {step * 100:g} cm; {where}")
+    study = lay.layout_study(base, st, which, scheduler=scheduler, workers=workers,
+                             progress=_bars())
+    click.echo(study.report())
+    table = out / "layout.json"
+    fileio.atomic_write(table, json.dumps(
+        {"robot": base.as_dict(), "settings": {"turns_deg": list(st.turns_deg),
+                                               "phases_deg": list(st.phases_deg),
+                                               "step_m": st.step},
+         "points": [p.as_dict() for p in study.points]}, indent=1,
+        default=lambda x: None).encode() + b"\n")
+    fig = out / "layout_volume.png"
+    lay.plot_study(study, fig)
+    click.echo(f"wrote {table}\nwrote {fig}")
+
+
+def _sweep(name: str, text: str) -> tuple[float, ...]:
+    """START:STOP:STEP (inclusive) or one number [deg], as a tuple; bad text exits 2."""
+    parts = str(text).split(":")
+    try:
+        vals = [float(p) for p in parts]
+    except ValueError:
+        _fail(f"{name} must be START:STOP:STEP or one number [deg], got {text[:40]!r}")
+    if len(vals) == 1:
+        vals = [vals[0], vals[0], 1.0]
+    if len(vals) != 3 or not all(math.isfinite(v) for v in vals) or vals[2] <= 0 \
+            or vals[1] < vals[0] or (vals[1] - vals[0]) / vals[2] > 400:
+        _fail(f"{name} must be START:STOP:STEP with START <= STOP, STEP > 0 and at most "
+              f"400 values [deg], got {text[:40]!r}")
+    n = int(math.floor((vals[1] - vals[0]) / vals[2] + 1e-9)) + 1
+    return tuple(round(vals[0] + k * vals[2], 9) for k in range(n))
 
 
 @design.command("figures")

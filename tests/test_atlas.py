@@ -14,7 +14,8 @@ pytest.importorskip("dask.distributed")
 from sixplus3.cli import main  # noqa: E402
 from sixplus3.design import atlas as at  # noqa: E402
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics  # noqa: E402
-from sixplus3.kinematics.robot import leg_clearance, robot_ik, spherical_tilts  # noqa: E402
+from sixplus3.kinematics.collision import clearance  # noqa: E402
+from sixplus3.kinematics.robot import robot_ik, spherical_tilts  # noqa: E402
 from sixplus3.kinematics.rotations import rotvec_from_matrix  # noqa: E402
 from sixplus3.planner.analysis import largest_tilt, static_feasible  # noqa: E402
 from sixplus3.robot_description.robot import Robot  # noqa: E402
@@ -28,7 +29,7 @@ COARSE = at.AtlasSettings(step=0.08, azimuth_step_deg=60.0, resolution_deg=2.0)
 @pytest.fixture(scope="module")
 def coarse():
     xs, ys, zs = at.position_grid(ROBOT, COARSE.step)
-    zs = zs[(zs > 0.2) & (zs < 0.5)][::2]
+    zs = zs[(zs > 0.5) & (zs < 0.7)]  # the default robot: 0.56 and 0.64 m
     return at.compute_atlas(ROBOT, COARSE, scheduler="synchronous", grid=(xs, ys, zs))
 
 
@@ -40,10 +41,12 @@ def test_agrees_with_largest_tilt_at_home() -> None:
         free = largest_tilt(ROBOT, axis, locked=False, max_deg=180.0)
         # the same candidate (home cranks) and scheme: the same number
         assert res["max_tilt"][1, 0, k, 0] == pytest.approx(locked.tilt_deg, abs=1e-9)
-        # free: a finite leg-wise search, a lower bound of the exhaustive 7.5 deg grid
-        # (measured 3.1 deg below it about y, equal about x)
+        # free: a finite search (leg-wise, then equal cranks), a lower bound of the
+        # exhaustive 7.5 deg grid.  On the default robot it is equal about y and 23.4 deg
+        # below it about x (104.7 against 128.1 deg at cranks (135, 105, 120) deg, which
+        # neither the legs' own best values nor equal cranks reach; docs/atlas.md)
         assert res["max_tilt"][0, 0, k, 0] <= free.tilt_deg + LT.resolution_deg
-        assert res["max_tilt"][0, 0, k, 0] >= free.tilt_deg - 5.0
+        assert res["max_tilt"][0, 0, k, 0] >= free.tilt_deg - (25.0 if axis == "x" else 1.0)
         assert res["max_tilt"][0, 0, k, 0] >= res["max_tilt"][1, 0, k, 0]
 
 
@@ -64,7 +67,7 @@ def _admissible(position, R, psi) -> bool:
     th = cfg.theta[0]
     if np.any(th < lim.theta_min) or np.any(th > lim.theta_max):
         return False
-    if spherical_tilts(cfg).max() > lim.spherical or leg_clearance(cfg)[0] < 0:
+    if spherical_tilts(cfg).max() > lim.spherical or clearance(cfg)[0] < 0:
         return False
     if cfg.margins.minimum[0] < lim.margin:
         return False
@@ -157,13 +160,13 @@ def _random_poses(n: int, seed: int):
 
 def test_compiled_checks_agree_with_the_numpy_robot_functions() -> None:
     """design._atlas_kernel against the public numpy path (robot_ik, spherical_tilts,
-    leg_clearance, platform_margin): the same stage for every pose, every stage seen,
+    clearance, platform_margin): the same stage for every pose, every stage seen,
     and the same margin where all six checks pass."""
     from sixplus3.design import _atlas_kernel as kern
     from sixplus3.kinematics.robot import platform_margin
 
     pos, R, rng = _random_poses(3000, 1)
-    psi = np.radians(rng.uniform(30, 150, (len(pos), 1, 3)))
+    psi = np.radians(rng.uniform(5, 175, (len(pos), 1, 3)))
     packed = kern.pack(ROBOT)
     pm_psi = kern.platform_margins(psi[:, 0], *packed[:2])[:, None]  # psi only (R = I)
     stage, margin = kern.pose_checks(pos, R, psi, pm_psi, *packed)
@@ -173,7 +176,7 @@ def test_compiled_checks_agree_with_the_numpy_robot_functions() -> None:
     sph_ok = th_ok & np.all(spherical_tilts(cfg) <= lim.spherical, axis=(1, 2))
     legm = np.minimum(cfg.margins.leg_type1, cfg.margins.leg_type2).min(axis=1)
     leg_ok = sph_ok & (legm >= lim.margin)
-    clear_ok = leg_ok & (leg_clearance(cfg) >= 0.0)
+    clear_ok = leg_ok & (clearance(cfg) >= 0.0)
     pm = platform_margin(cfg.rotation, cfg.P, cfg.position, ROBOT.geometry)
     plat_ok = clear_ok & (pm >= lim.margin)
     ref = (cfg.ok.astype(int) + th_ok + sph_ok + leg_ok + clear_ok + plat_ok)
@@ -334,10 +337,12 @@ def test_local_cluster_workers_leave_ctrl_c_to_the_command() -> None:
     ignore SIGINT, and this process's own handler is back afterwards."""
     import signal
 
-    from dask.distributed import Client, LocalCluster
+    from dask.distributed import Client
+
+    from sixplus3.design import cluster as dc
 
     before = signal.getsignal(signal.SIGINT)
-    cluster = at._local_cluster(LocalCluster, 1)
+    cluster = dc._local_cluster(1)
     try:
         assert signal.getsignal(signal.SIGINT) is before
         with Client(cluster) as client:

@@ -21,8 +21,8 @@ from sixplus3.robot_description.robot import Robot
 
 ROBOT = Robot.default()
 TASK = {"name": "cert", "nodes_per_segment": 10,
-        "waypoints": [{"position": [0, 0, 0.30]},
-                      {"position": [0.03, 0.0, 0.33], "rpy": [10, 0, 0]}]}
+        "waypoints": [{"position": [0, 0, 0.58]},
+                      {"position": [0.03, 0.0, 0.61], "rpy": [10, 0, 0]}]}
 
 
 @pytest.fixture(scope="module")

@@ -49,7 +49,7 @@ def test_leg_json_contract_and_physics() -> None:
     # Collinear motors: the torques add up to the moment of f about the actuated axis.
     assert abs(sum(out["tau"]) - np.cross(p, f)[0]) < 1e-9
     assert isinstance(out["tau_ext"], float) and out["tau_ext"] > 0
-    no_force = json.loads(run("leg", *map(str, p), "--json").output)
+    no_force = json.loads(run("leg", *map(str, p), "--json", "--mode", "++++").output)
     assert "tau" not in no_force and no_force["theta"] == out["theta"]
 
 
@@ -81,13 +81,13 @@ def test_robot_check_reports_the_model() -> None:
 
 
 def test_robot_ik_with_negative_numbers_and_json() -> None:
-    res = run("robot", "ik", "0.05", "-0.02", "0.30", "-30", "0", "10", "--json")
+    res = run("robot", "ik", "0.05", "-0.02", "0.58", "-30", "0", "10", "--json")
     assert res.exit_code == 0, res.output
     out = json.loads(res.output)
     assert len(out["theta"]) == 9 and len(out["tau_gravity"]) == 9
     assert out["residual"] < 1e-10
     assert set(out["margins"]) >= {"leg_type1", "leg_type2", "platform", "minimum"}
-    red = json.loads(run("robot", "ik", "0.05", "-0.02", "0.30", "-30", "0", "10",
+    red = json.loads(run("robot", "ik", "0.05", "-0.02", "0.58", "-30", "0", "10",
                          "--redundancy", "60", "100", "120", "--json").output)
     assert red["theta"] != out["theta"]  # the redundancy changes the actuated angles
     assert red["margins"]["platform"] != out["margins"]["platform"]

@@ -105,7 +105,7 @@ from sixplus3.planner.codegen import CASADI_OPENBLAS
 from sixplus3.planner.ocp import Problem
 from sixplus3.planner.task import task_from_dict
 task = task_from_dict({"name": "t", "nodes_per_segment": 4, "waypoints": [
-    {"position": [0, 0, 0.30]}, {"position": [0.02, 0, 0.30]}]})
+    {"position": [0, 0, 0.58]}, {"position": [0.02, 0, 0.58]}]})
 Problem(task)._template()  # the NLP is built: IPOPT and MUMPS (and their BLAS) loaded
 lib = ctypes.CDLL(str(pathlib.Path(casadi.__file__).parent / CASADI_OPENBLAS))
 print(lib.openblas_get_num_threads())

@@ -10,9 +10,10 @@ from sixplus3.errors import InputError, SingularityError
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.kinematics.robot import home, robot_fk, robot_ik_pose
 from sixplus3.robot_description.physical import MotorModel
-from sixplus3.robot_description.robot import POINT_MASS, Robot, RobotGeometry
+from sixplus3.robot_description.robot import POINT_MASS, Robot
 
-GEOM = RobotGeometry()
+ROBOT_ = Robot.default()
+GEOM = ROBOT_.geometry
 
 
 @pytest.fixture(scope="module")
@@ -23,17 +24,18 @@ def dyn() -> ClosedLoopDynamics:
 def sample_configs():
     return [
         home().q[0],
-        robot_ik_pose((0.04, -0.03, 0.33), (0.3, -0.2, 0.4), (1.2, 1.8, 1.4)).q[0],
-        robot_ik_pose((-0.05, 0.02, 0.27), (-0.4, 0.1, -0.6), (1.9, 1.3, 1.6)).q[0],
+        robot_ik_pose((0.04, -0.03, 0.61), (0.3, -0.2, 0.4), (1.2, 1.8, 1.4)).q[0],
+        robot_ik_pose((-0.05, 0.02, 0.55), (-0.4, 0.1, -0.6), (1.9, 1.3, 1.6)).q[0],
     ]
 
 
 def test_unactuated_drop_conserves_energy_and_closures() -> None:
     """Without friction the energy (rotor inertia included) is conserved; with the
-    default friction it only decreases."""
+    default friction it only decreases.  (The default robot's 2 s fall reaches 12 J; the
+    drift is 1.6 % at dt = 1 ms, 0.13 % at 0.5 ms and 0.006 % at 0.25 ms: it converges.)"""
     frictionless = Robot.default().replace(motors=MotorModel(viscous=0.0, coulomb=0.0))
     dyn = ClosedLoopDynamics(frictionless)
-    tr = dyn.simulate(home().q[0], np.zeros(dyn.model.nv), duration=2.0, dt=1e-3)
+    tr = dyn.simulate(home().q[0], np.zeros(dyn.model.nv), duration=2.0, dt=5e-4)
     e = tr.energy
     assert tr.kinetic.max() > 1.0  # it really fell and swung (J)
     assert np.abs(e - e[0]).max() <= 0.01 * abs(e[0])
@@ -85,7 +87,7 @@ def test_point_mass_variant_matches_the_leg_jacobian(dyn) -> None:
     for q in sample_configs():
         assert np.abs(pm.clm.residual(q)).max() < 1e-10  # also updates the frames
         P = [pm.clm.frame_position(f"leg{i}_P") for i in range(3)]
-        leg_M = [leg_ik(GEOM.to_leg(i, P[i])).M[0] for i in range(3)]
+        leg_M = [leg_ik(GEOM.to_leg(i, P[i]), GEOM.leg, ROBOT_.mode).M[0] for i in range(3)]
         R = [GEOM.leg_rotation(i) for i in range(3)]
         # gravity: each actuator set holds its own point mass (f = +m g up, at P_i)
         tau_g = pm.gravity_torques(q)
@@ -102,7 +104,7 @@ def test_point_mass_variant_matches_the_leg_jacobian(dyn) -> None:
 
 def test_singular_configuration_raises(dyn) -> None:
     half = np.pi / 2
-    q = robot_ik_pose((0, 0, 0.3), (0, 0, 0), (0.0, half, half)).q[0]
+    q = robot_ik_pose((0, 0, 0.58), (0, 0, 0), (0.0, half, half)).q[0]
     z = np.zeros(dyn.model.nv)
     with pytest.raises(SingularityError, match="parallel singularity"):
         dyn.inverse_dynamics(q, z, z)
@@ -127,7 +129,7 @@ def test_batched_holding_torques_match_the_static_inverse_dynamics() -> None:
                                           gravity=(0.0, 0.0, 9.81))):
         rng = np.random.default_rng(3)
         n = 12
-        pos = np.c_[rng.uniform(-0.05, 0.05, (n, 2)), rng.uniform(0.28, 0.34, n)]
+        pos = np.c_[rng.uniform(-0.05, 0.05, (n, 2)), rng.uniform(0.56, 0.62, n)]
         R = matrix_from_rotvec(np.c_[rng.normal(scale=0.2, size=(n, 2)), np.zeros(n)])
         cfg = robot_ik(pos, R, np.tile(robot.home_psi, (n, 1)), robot)
         q = cfg.q[cfg.ok]

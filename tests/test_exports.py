@@ -28,7 +28,7 @@ ROBOT = Robot.default()
 def planned(tmp_path_factory):
     out = tmp_path_factory.mktemp("exp")
     task = task_from_dict({"name": "exp", "nodes_per_segment": 6, "waypoints": [
-        {"position": [0, 0, 0.30]}, {"position": [0.02, 0, 0.31], "rpy": [8, 0, 0]}]})
+        {"position": [0, 0, 0.58]}, {"position": [0.02, 0, 0.59], "rpy": [8, 0, 0]}]})
     path = run_plan(task, out, ROBOT, html=False, plots=False).csv
     return path, read_trajectory(path, ROBOT)[1]
 

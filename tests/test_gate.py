@@ -41,8 +41,8 @@ from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
 ROBOT = Robot.default()
-SMALL = {"name": "gate", "waypoints": [{"position": [0, 0, 0.30]},
-                                       {"position": [0.03, 0.0, 0.33], "rpy": [10, 0, 0]}],
+SMALL = {"name": "gate", "waypoints": [{"position": [0, 0, 0.58]},
+                                       {"position": [0.03, 0.0, 0.61], "rpy": [10, 0, 0]}],
          "nodes_per_segment": 6}
 IDX = {k: [COLUMNS.index(f"{j}_{k}") for j in JOINTS] for k in ("pos", "vel", "acc", "tau")}
 SETTINGS = settings(max_examples=12, deadline=None, derandomize=True,
@@ -518,14 +518,14 @@ def _run(args, tmp_path):
 
 
 @pytest.mark.parametrize("content,needle", [
-    ("name: t\nwaypoints:\n  - position: [0, 0, .nan]\n  - position: [0, 0, 0.3]\n", "NaN"),
-    ("name: t\nwaypoints:\n  - position: [0, 0, .inf]\n  - position: [0, 0, 0.3]\n", "NaN"),
+    ("name: t\nwaypoints:\n  - position: [0, 0, .nan]\n  - position: [0, 0, 0.58]\n", "NaN"),
+    ("name: t\nwaypoints:\n  - position: [0, 0, .inf]\n  - position: [0, 0, 0.58]\n", "NaN"),
     ("a: &a [1,1,1,1,1,1,1,1,1]\nb: &b [*a,*a,*a,*a,*a,*a,*a,*a,*a]\nc: &c [*b,*b,*b,*b,*b,*b,"
      "*b,*b,*b]\nd: &d [*c,*c,*c,*c,*c,*c,*c,*c,*c]\ne: &e [*d,*d,*d,*d,*d,*d,*d,*d,*d]\n"
      "f: [*e,*e,*e,*e,*e,*e,*e,*e,*e]\n", "aliases"),
     ("waypoints: []\nwaypoints: []\n", "duplicate key"),
     (b"name: caf\xe9\nwaypoints: []\n", "UTF-8"),
-    ("waypoints:\n  - position: [0, 0, 0.3]\n  - position: [0, 0, 0.3]\nlimits:\n"
+    ("waypoints:\n  - position: [0, 0, 0.58]\n  - position: [0, 0, 0.58]\nlimits:\n"
      "  torque: 12\n", "torque"),
 ])
 def test_bad_task_files_exit_2_with_one_line(tmp_path, content, needle) -> None:
@@ -573,7 +573,7 @@ def test_errors_carry_the_value_and_the_valid_range(valid, tmp_path) -> None:
         lambda: robot_fk(np.zeros(8)),
         lambda: ROBOT.limits.tightened(torque=11.0),
         lambda: Robot.from_dict({"geometry": {"leg": {"l2": -1}}}),
-        lambda: task_from_dict({"waypoints": [{"position": [0, 0, 0.3]}]}),
+        lambda: task_from_dict({"waypoints": [{"position": [0, 0, 0.58]}]}),
         lambda: validate_file(bad_file, ROBOT),
         lambda: validate_file(tmp_path / "missing.csv", ROBOT),
         lambda: tf.output_path(tmp_path, ".."),

@@ -21,8 +21,8 @@ from sixplus3.planner.task import move_to_start, task_from_dict
 from sixplus3.robot_description.robot import Robot
 
 ROBOT = Robot.default()
-A = {"position": [0.0, 0.0, 0.30]}
-B = {"position": [0.03, -0.01, 0.31], "rpy": [12, -5, 0]}
+A = {"position": [0.0, 0.0, 0.58]}
+B = {"position": [0.03, -0.01, 0.59], "rpy": [12, -5, 0]}
 
 
 def _plan(doc: dict, out: Path):
@@ -62,7 +62,7 @@ def test_a_chained_plan_is_continuous_at_the_join(a_to_b, tmp_path) -> None:
 
 def test_start_state_is_honoured_with_other_crank_angles(tmp_path) -> None:
     psi = np.radians([105.0, 80.0, 95.0])
-    cfg = robot_ik(np.array([0.01, 0.02, 0.30]), np.eye(3), psi, ROBOT)
+    cfg = robot_ik(np.array([0.01, 0.02, 0.58]), np.eye(3), psi, ROBOT)
     theta = cfg.theta[0]
     doc = {"name": "from_state", "waypoints": [B], "nodes_per_segment": 8,
            "start": {"theta": np.degrees(theta).tolist()}}
@@ -72,11 +72,11 @@ def test_start_state_is_honoured_with_other_crank_angles(tmp_path) -> None:
     np.testing.assert_allclose(res.report.psi[0], psi, atol=1e-8)
     np.testing.assert_allclose(res.report.psi[-1], psi, atol=1e-8)  # end_psi: start
     fk = robot_fk(th[0], ROBOT)
-    np.testing.assert_allclose(fk.position, [0.01, 0.02, 0.30], atol=1e-9)
+    np.testing.assert_allclose(fk.position, [0.01, 0.02, 0.58], atol=1e-9)
 
 
 def test_stop_and_dwell(tmp_path) -> None:
-    C = {"position": [-0.02, 0.02, 0.30], "stop": True}
+    C = {"position": [-0.02, 0.02, 0.58], "stop": True}
     doc = {"name": "stops", "nodes_per_segment": 8,
            "waypoints": [A, {**B, "dwell": 0.05}, C, A]}
     res, data = _plan(doc, tmp_path)
@@ -108,7 +108,7 @@ def test_plans_keep_the_feedback_reserve(a_to_b) -> None:
 
 def test_move_to_start_plans_from_any_state_to_the_task_start(tmp_path) -> None:
     task = task_from_dict({"name": "t", "waypoints": [A, B]})
-    now = robot_ik(np.array([0.02, -0.02, 0.32]), np.eye(3), np.radians([70, 100, 110]),
+    now = robot_ik(np.array([0.02, -0.02, 0.60]), np.eye(3), np.radians([70, 100, 110]),
                    ROBOT).theta[0]
     mv = move_to_start(task, now, ROBOT)
     res = run_plan(mv, tmp_path, ROBOT, html=False, plots=False)

@@ -47,7 +47,7 @@ EXAMPLES = Path(__file__).parents[1] / "examples"
 def planned(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("mj")
     task = task_from_dict({"name": "short", "waypoints": [
-        {"position": [0.0, 0.0, 0.30]}, {"position": [0.01, 0.0, 0.31], "rpy": [15, 0, 0]}],
+        {"position": [0.0, 0.0, 0.58]}, {"position": [0.01, 0.0, 0.59], "rpy": [15, 0, 0]}],
         "nodes_per_segment": 8})
     return run_plan(task, out, ROBOT, html=False, plots=False).csv
 
@@ -80,8 +80,8 @@ def test_mjcf_is_the_robot() -> None:
 def test_mujoco_inverse_dynamics_matches_pinocchio_at_random_states(robot) -> None:
     rng = np.random.default_rng(1)
     dyn = ClosedLoopDynamics(robot)
-    cfgs = [robot_ik_pose((0.03, -0.02, 0.32), (0.2, -0.1, 0.3), (1.4, 1.7, 1.2), robot),
-            robot_ik_pose((-0.04, 0.03, 0.28), (-0.3, 0.2, -0.4), (1.8, 1.3, 1.6), robot)]
+    cfgs = [robot_ik_pose((0.03, -0.02, 0.60), (0.2, -0.1, 0.3), (1.4, 1.7, 1.2), robot),
+            robot_ik_pose((-0.04, 0.03, 0.56), (-0.3, 0.2, -0.4), (1.8, 1.3, 1.6), robot)]
     sim = MujocoRobot(robot)
     for cfg in cfgs:
         q = cfg.q[0]
@@ -228,7 +228,7 @@ def test_mjcf_contacts_see_the_paper_legs_cross_and_the_default_free(tmp_path) -
     with our clearance) finds the paper's stated assembly's legs in contact at home and
     none on the default robot."""
     seen = {}
-    for name in ("default", "paper"):
+    for name in ("default", "paper-as-stated"):
         out = tmp_path / f"{name}.xml"
         res = CliRunner().invoke(main, ["--robot", name, "robot", "export", "mjcf",
                                         "--contacts", "-o", str(out)])
@@ -238,4 +238,4 @@ def test_mjcf_contacts_see_the_paper_legs_cross_and_the_default_free(tmp_path) -
         mujoco.mj_resetDataKeyframe(m, d, 0)
         mujoco.mj_forward(m, d)
         seen[name] = d.ncon
-    assert seen["default"] == 0 and seen["paper"] > 0, seen
+    assert seen["default"] == 0 and seen["paper-as-stated"] > 0, seen

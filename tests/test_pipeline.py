@@ -23,8 +23,8 @@ from sixplus3.planner.ocp import plan
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
-SMALL = {"name": "small", "waypoints": [{"position": [0, 0, 0.30]},
-                                        {"position": [0.03, 0.0, 0.33], "rpy": [10, 0, 0]}],
+SMALL = {"name": "small", "waypoints": [{"position": [0, 0, 0.58]},
+                                        {"position": [0.03, 0.0, 0.61], "rpy": [10, 0, 0]}],
          "nodes_per_segment": 10}  # with 6 the baseline is as fast (tests/test_planner.py)
 
 
@@ -108,7 +108,7 @@ def test_an_invalid_trajectory_is_never_written(planned, tmp_path) -> None:
 
 def test_plan_cli_refuses_a_bad_task(tmp_path) -> None:
     bad = tmp_path / "bad.yaml"
-    bad.write_text("waypoints:\n  - position: [0, 0, 0.3]\n")
+    bad.write_text("waypoints:\n  - position: [0, 0, 0.58]\n")
     r = run("plan", bad, "-o", tmp_path / "out")
     assert r.exit_code == 2 and "waypoints" in r.output
     assert not (tmp_path / "out").exists()

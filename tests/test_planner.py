@@ -10,7 +10,8 @@ from scipy.spatial.transform import Rotation
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InfeasibleTaskError, LimitError
-from sixplus3.kinematics.robot import leg_clearance, robot_ik, spherical_tilts
+from sixplus3.kinematics.collision import PAIR_FAMILY, clearance
+from sixplus3.kinematics.robot import robot_ik, spherical_tilts
 from sixplus3.planner.model import home_x, symbolic_robot
 from sixplus3.planner.ocp import ROW_SCALE, PlannerOptions, Problem, dense_check, plan
 from sixplus3.planner.task import TaskError, load_task, task_from_dict
@@ -117,27 +118,27 @@ def test_casadi_kinematics_agree_with_the_numeric_model() -> None:
 
 def test_bad_task_files_name_the_field(tmp_path) -> None:
     cases = [
-        ({"waypoints": [{"position": [0, 0, 0.3]}]}, "waypoints"),
-        ({"waypoints": [{"position": [0, 0]}, {"position": [0, 0, 0.3]}]},
+        ({"waypoints": [{"position": [0, 0, 0.58]}]}, "waypoints"),
+        ({"waypoints": [{"position": [0, 0]}, {"position": [0, 0, 0.58]}]},
          "waypoints[0].position"),
-        ({"waypoints": [{"position": [0, 0, 0.3], "rpy": [0, 0, 200]},
-                        {"position": [0, 0, 0.3]}]}, "waypoints[0].rpy[2]"),
-        ({"waypoints": [{"position": [0, 0, 0.3]}, {"position": [0, 0, 0.3]}],
+        ({"waypoints": [{"position": [0, 0, 0.58], "rpy": [0, 0, 200]},
+                        {"position": [0, 0, 0.58]}]}, "waypoints[0].rpy[2]"),
+        ({"waypoints": [{"position": [0, 0, 0.58]}, {"position": [0, 0, 0.58]}],
           "speedup": 3}, "(top level)"),
-        ({"waypoints": [{"position": [0, 0, 0.3]}, {"position": [0, 0, 0.3]}],
+        ({"waypoints": [{"position": [0, 0, 0.58]}, {"position": [0, 0, 0.58]}],
           "speed": 3}, "speed"),
-        ({"waypoints": [{"position": [0, 0, 0.3], "quaternion": [0, 0, 0, 2]},
-                        {"position": [0, 0, 0.3]}]}, "waypoints[0].quaternion"),
-        ({"waypoints": [{"position": [0, 0, 0.3], "psi": [0, 90, 90]},
-                        {"position": [0, 0, 0.3]}]}, "waypoints[0].psi"),
+        ({"waypoints": [{"position": [0, 0, 0.58], "quaternion": [0, 0, 0, 2]},
+                        {"position": [0, 0, 0.58]}]}, "waypoints[0].quaternion"),
+        ({"waypoints": [{"position": [0, 0, 0.58], "psi": [0, 90, 90]},
+                        {"position": [0, 0, 0.58]}]}, "waypoints[0].psi"),
     ]
     for doc, field in cases:
         with pytest.raises(TaskError) as err:
             task_from_dict(doc)
         assert field in str(err.value), (field, str(err.value))
     # a limit looser than the robot's hardware limit is refused when planned for it
-    loose = task_from_dict({"waypoints": [{"position": [0, 0, 0.3]},
-                                          {"position": [0, 0, 0.3]}],
+    loose = task_from_dict({"waypoints": [{"position": [0, 0, 0.58]},
+                                          {"position": [0, 0, 0.58]}],
                             "limits": {"torque": 12}})
     with pytest.raises(LimitError) as err:
         loose.limits_for(ROBOT)
@@ -159,8 +160,8 @@ def test_example_tasks_are_valid() -> None:
         assert task.n_segments >= 1
 
 
-SMALL = {"name": "small", "waypoints": [{"position": [0, 0, 0.30]},
-                                        {"position": [0.03, 0.0, 0.33], "rpy": [10, 0, 0]}],
+SMALL = {"name": "small", "waypoints": [{"position": [0, 0, 0.58]},
+                                        {"position": [0.03, 0.0, 0.61], "rpy": [10, 0, 0]}],
          # 10, not fewer: with 6 intervals the NLP's motion (0.0800 s) is no faster than the
          # baseline's (0.0798 s), which the planner then returns (measured)
          "nodes_per_segment": 10}
@@ -187,13 +188,13 @@ def test_small_task_solves_and_passes_a_10x_pinocchio_check(small_solution) -> N
     chk = dense_check(sol, factor=10)  # independent: Pinocchio ID + numeric margins
     assert chk.samples == 10 * (len(sol.t) - 1) + 1
     assert chk.ok and chk.max_torque_ratio <= 1.0 and chk.min_margin >= 0.05
-    assert chk.min_leg_clearance > 0.0
+    assert chk.min_clearance > 0.0
     assert chk.max_torque_ratio > 0.8  # time-optimal: the torque limit is what binds
     assert any(a.startswith(("torque", "acceleration", "velocity"))
                for a in sol.active_limits)
     # at rest at both ends, through the waypoints
     assert np.abs(sol.xd[0]).max() < 1e-9 and np.abs(sol.xd[-1]).max() < 1e-9
-    np.testing.assert_allclose(sol.x[-1, 0:3], [0.03, 0.0, 0.33], atol=1e-9)
+    np.testing.assert_allclose(sol.x[-1, 0:3], [0.03, 0.0, 0.61], atol=1e-9)
     x, xd, _ = sol.sample(np.array([0.0, sol.final_time]))
     np.testing.assert_allclose(x, sol.x[[0, -1]], atol=1e-10)  # cubic evaluated at t = T
 
@@ -204,8 +205,8 @@ def test_node_intervals_are_shorter_next_to_rest() -> None:
     from sixplus3.planner import ocp
 
     task = task_from_dict({"name": "f", "nodes_per_segment": 5, "waypoints": [
-        {"position": [0, 0, 0.30]}, {"position": [0.02, 0, 0.30]},
-        {"position": [0.02, 0.02, 0.30], "stop": True}, {"position": [0, 0, 0.31]}]})
+        {"position": [0, 0, 0.58]}, {"position": [0.02, 0, 0.58]},
+        {"position": [0.02, 0.02, 0.58], "stop": True}, {"position": [0, 0, 0.59]}]})
     prob = Problem(task)
     f = prob.node_fractions()
     r = ocp.REST_INTERVAL
@@ -232,18 +233,18 @@ def test_locking_the_redundancy_is_not_faster() -> None:
 
 
 def test_infeasible_tasks_raise_naming_the_waypoint_or_limit() -> None:
-    far = {"waypoints": [{"position": [0, 0, 0.30]}, {"position": [0, 0, 1.2]}]}
+    far = {"waypoints": [{"position": [0, 0, 0.58]}, {"position": [0, 0, 1.2]}]}
     with pytest.raises(InfeasibleTaskError) as err:
         plan(task_from_dict(far))
     assert err.value.waypoint == 1 and err.value.limit == "reach"
     assert "waypoint 1" in str(err.value) and "RU" in str(err.value)
-    heavy = {"waypoints": [{"position": [0, 0, 0.30]}, {"position": [0, 0, 0.32]}],
+    heavy = {"waypoints": [{"position": [0, 0, 0.58]}, {"position": [0, 0, 0.60]}],
              "limits": {"torque": 0.2}}
     with pytest.raises(InfeasibleTaskError) as err:
         plan(task_from_dict(heavy))
     assert err.value.waypoint == 0 and err.value.limit == "torque"
     assert "0.2 N m" in str(err.value)
-    picky = {"waypoints": [{"position": [0, 0, 0.30]}, {"position": [0.1, 0, 0.45],
+    picky = {"waypoints": [{"position": [0, 0, 0.58]}, {"position": [0.1, 0, 0.45],
                                                           "rpy": [0, 60, 0]}],
              "limits": {"margin": 0.45}}
     with pytest.raises(InfeasibleTaskError) as err:
@@ -251,10 +252,10 @@ def test_infeasible_tasks_raise_naming_the_waypoint_or_limit() -> None:
     assert err.value.limit == "margin" and "margin" in str(err.value)
 
 
-def test_leg_clearance_and_home_x() -> None:
+def test_clearance_and_home_x() -> None:
     from sixplus3.kinematics.robot import home
 
-    assert leg_clearance(home())[0] > 0.05
+    assert clearance(home())[0] > 0.003  # the two 16 mm distal tubes of a leg: 4.0 mm
     np.testing.assert_allclose(np.array(symbolic_robot().q(home_x())).ravel(), home().q[0],
                                atol=1e-12)
     assert Problem(task_from_dict(SMALL)).task.name == "small"
@@ -291,22 +292,23 @@ def test_planner_runs_interpreted_without_a_compiler(monkeypatch) -> None:
     monkeypatch.setenv("SIXPLUS3_NO_CODEGEN", "1")
     monkeypatch.setattr(ocp, "_TEMPLATES", {})
     assert codegen.compiled_functions(ROBOT) == {}
-    tiny = {"waypoints": [{"position": [0, 0, 0.30]}, {"position": [0.02, 0, 0.31]}],
+    tiny = {"waypoints": [{"position": [0, 0, 0.58]}, {"position": [0.02, 0, 0.59]}],
             "nodes_per_segment": 4}
     sol = plan(task_from_dict(tiny), options=PlannerOptions(lock_redundancy=True))
     assert sol.is_feasible() and sol.check.max_torque_ratio > 0.5
 
 
 def test_a_waypoint_with_interfering_legs_is_refused() -> None:
-    """Locked cranks: 170 deg about y makes links of different legs overlap (capsules)."""
-    task = task_from_dict({"waypoints": [{"position": [0, 0, 0.30]},
-                                         {"position": [0, 0, 0.30], "rpy": [0, 170, 0]}]})
+    """Locked cranks: 70 deg about x makes links of different legs overlap (capsules;
+    the locked robot stops at 63 deg about x, planner.analysis.largest_tilt)."""
+    task = task_from_dict({"waypoints": [{"position": [0, 0, 0.58]},
+                                         {"position": [0, 0, 0.58], "rpy": [70, 0, 0]}]})
     with pytest.raises(InfeasibleTaskError) as err:
         plan(task, options=PlannerOptions(lock_redundancy=True))
-    assert err.value.limit == "leg interference" and err.value.waypoint == 1
-    cfg = robot_ik(np.array([0, 0, 0.30]), Rotation.from_euler("y", 170, degrees=True)
+    assert err.value.limit == "interference" and err.value.waypoint == 1
+    cfg = robot_ik(np.array([0, 0, 0.58]), Rotation.from_euler("x", 70, degrees=True)
                    .as_matrix(), np.full((1, 3), math.pi / 2))
-    assert leg_clearance(cfg)[0] < 0.0  # independently: the capsules do overlap
+    assert clearance(cfg)[0] < 0.0  # independently: the capsules do overlap
 
 
 def test_largest_tilt_is_the_edge_of_the_static_feasible_set() -> None:
@@ -316,16 +318,16 @@ def test_largest_tilt_is_the_edge_of_the_static_feasible_set() -> None:
     from sixplus3.planner.analysis import largest_tilt, static_feasible
 
     dyn = ClosedLoopDynamics()
-    home_p = np.array([0.0, 0.0, 0.30])
+    home_p = np.array([0.0, 0.0, 0.58])
 
     def pose(axis, deg):
         return Rotation.from_rotvec(np.radians(deg) * np.eye(3)["xy".index(axis)]).as_matrix()
 
     r = largest_tilt(ROBOT, "y", locked=True, max_deg=179.0, resolution_deg=1.0)
-    assert r.binding == "leg interference" and 90.0 < r.tilt_deg < 179.0
+    assert r.binding == "interference" and 90.0 < r.tilt_deg < 179.0
     assert static_feasible(ROBOT, home_p, pose("y", r.tilt_deg), ROBOT.limits, True)[0]
     beyond = static_feasible(ROBOT, home_p, pose("y", r.tilt_deg + 1.0), ROBOT.limits, True)
-    assert not beyond[0] and beyond[4] == "leg interference"
+    assert not beyond[0] and beyond[4] == "interference"
 
     weak = ROBOT.limits.tightened(torque=1.0)
     locked = largest_tilt(ROBOT, "x", locked=True, limits=weak, max_deg=90.0, resolution_deg=1.0)
@@ -437,10 +439,10 @@ def test_an_overshoot_a_time_stretch_fixes_is_stretched_not_re_solved(
     assert sol.source == "ocp" and sol.time_scale > 0.97
 
 
-def test_symbolic_leg_clearance_is_a_tight_lower_bound_of_the_numeric_one() -> None:
-    """The OCP's clearance rows (a soft minimum over link pairs, CasADi) never exceed the
-    numeric capsule clearance of kinematics.robot and are within ln(16)/k of it, at
-    random poses including interfering ones (large tilts)."""
+def test_symbolic_clearance_is_a_tight_lower_bound_of_the_numeric_one() -> None:
+    """The OCP's clearance rows (a soft minimum per family of body pairs, CasADi) never
+    exceed the numeric capsule clearance of kinematics.collision and are within
+    ln(largest family)/k of it, at random poses including interfering ones (tilts)."""
     from sixplus3.planner.model import CLEARANCE_SHARPNESS
 
     sr = symbolic_robot()
@@ -448,18 +450,19 @@ def test_symbolic_leg_clearance_is_a_tight_lower_bound_of_the_numeric_one() -> N
     pairs = []
     for k in range(120):
         tilt = np.r_[0.0, rng.uniform(1.5, 3.0), 0.0] if k % 2 else rng.uniform(-1, 1, 3)
-        x = np.r_[rng.uniform(-0.04, 0.04, 2), rng.uniform(0.27, 0.34), tilt,
+        x = np.r_[rng.uniform(-0.04, 0.04, 2), rng.uniform(0.55, 0.62), tilt,
                   rng.uniform(0.8, 2.3, 3)]
         cfg = robot_ik(x[0:3], Rotation.from_rotvec(x[3:6]).as_matrix(), x[6:9][None])
         if not cfg.ok[0]:
             continue
         rows = np.array(sr.node(x, np.zeros(9), np.zeros(9), np.zeros(9))).ravel()[67:70]
-        pairs.append((leg_clearance(cfg)[0], rows.min()))
+        pairs.append((clearance(cfg)[0], rows.min()))
     exact, smooth = np.array(pairs).T
     assert len(exact) >= 60 and exact.min() < 0.0 < exact.max()  # both sides sampled
     # sqrt(d^2 + 1e-12) keeps the distance differentiable at contact: <= 1e-6 m above
     assert np.all(smooth <= exact + 1e-6)
-    assert np.all(exact - smooth <= math.log(16) / CLEARANCE_SHARPNESS + 1e-12)
+    largest = max(int((PAIR_FAMILY == "platform").sum()), int((PAIR_FAMILY != "platform").sum()))
+    assert np.all(exact - smooth <= math.log(largest) / CLEARANCE_SHARPNESS + 1e-12)
 
 
 def test_grid_toppra_constraint_equals_toppras_per_point_one(small_solution) -> None:

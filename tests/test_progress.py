@@ -19,8 +19,8 @@ from sixplus3.planner.task import task_from_dict
 from sixplus3.progress import ConsoleProgress
 
 TASK = {"name": "progress_small",
-        "waypoints": [{"position": [0, 0, 0.30]},
-                      {"position": [0.03, 0.0, 0.33], "rpy": [10, 0, 0]}],
+        "waypoints": [{"position": [0, 0, 0.58]},
+                      {"position": [0.03, 0.0, 0.61], "rpy": [10, 0, 0]}],
         "nodes_per_segment": 10}
 
 

@@ -43,7 +43,11 @@ def test_robot_is_a_frozen_validated_value_with_a_stable_hash() -> None:
     assert DEFAULT.replace(name="x").hash == DEFAULT.hash
     assert DEFAULT.replace(gravity=(0, 0, 9.81)).hash != DEFAULT.hash
     assert DEFAULT.replace(limits=Limits(torque=9.0)).hash != DEFAULT.hash
-    assert DEFAULT.replace(mode="++--").hash != DEFAULT.hash
+    assert DEFAULT.replace(mode="++++").hash != DEFAULT.hash
+    assert DEFAULT.replace(geometry=replace(DEFAULT.geometry, axis_turn=0.0)).hash \
+        != DEFAULT.hash
+    assert DEFAULT.replace(collision=replace(DEFAULT.collision, hub_radius=0.02)).hash \
+        != DEFAULT.hash
     # parameters round-trip through plain JSON
     doc = json.loads(json.dumps(OTHER.as_dict()))
     assert Robot.from_dict(doc) == OTHER and Robot.from_dict(doc).hash == OTHER.hash
@@ -125,7 +129,7 @@ def test_a_non_default_robot_reaches_every_part() -> None:
     dyn = ClosedLoopDynamics(OTHER)
     rng = np.random.default_rng(3)
     for _ in range(3):
-        x = np.r_[rng.uniform(-0.04, 0.04, 2), rng.uniform(0.27, 0.34),
+        x = np.r_[rng.uniform(-0.04, 0.04, 2), rng.uniform(0.55, 0.62),
                   rng.uniform(-0.3, 0.3, 3), rng.uniform(1.2, 1.9, 3)]
         xd, xdd = rng.normal(scale=0.5, size=9), rng.normal(scale=5.0, size=9)
         cfg = robot_ik(x[0:3], Rotation.from_rotvec(x[3:6]).as_matrix(), x[6:9], OTHER)
@@ -191,7 +195,7 @@ def test_ceiling_mounting_flips_the_gravity_torques() -> None:
     and in the CasADi model."""
     ceiling = Robot.mounted("ceiling")
     assert ceiling.gravity == (0.0, 0.0, 9.81) and ceiling.hash != DEFAULT.hash
-    q = robot_ik((0.02, -0.01, 0.31), Rotation.from_euler("x", 0.2).as_matrix(),
+    q = robot_ik((0.02, -0.01, 0.59), Rotation.from_euler("x", 0.2).as_matrix(),
                  None, DEFAULT).q[0]
     tau_floor = ClosedLoopDynamics(DEFAULT).gravity_torques(q)
     tau_ceiling = ClosedLoopDynamics(ceiling).gravity_torques(q)

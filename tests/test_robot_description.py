@@ -121,11 +121,11 @@ def test_malformed_closures_file_is_refused(tmp_path) -> None:
 def test_base_plate_is_where_the_cranks_may_not_go_and_links_collide() -> None:
     """The drawn base (three beams, visual = collision) lies in the quadrant the actuated
     range forbids: no crank or proximal link at theta in [0, 270] deg enters it, and the
-    proximal link at 315 or 345 deg (the base-collision quadrant) does.  The clearance
-    links are collision cylinders of the clearance model's radius."""
+    proximal link at 315 or 345 deg (the base-collision quadrant) does.  Every body of
+    the collision model is a collision cylinder of its radius."""
     import xml.etree.ElementTree as ET
 
-    from sixplus3.kinematics.robot import LINK_RADIUS
+    from sixplus3.kinematics.collision import N_BODIES, radii
     from sixplus3.robot_description.robot import Robot
     from sixplus3.robot_description.urdf import ROD_RADIUS
 
@@ -137,7 +137,9 @@ def test_base_plate_is_where_the_cranks_may_not_go_and_links_collide() -> None:
     boxes = []
     for c in base.findall("collision"):
         box = c.find("geometry/box")
-        assert box is not None
+        if box is None:  # the pulley stacks (the collision model's hubs)
+            assert c.find("geometry/cylinder") is not None
+            continue
         size = np.array([float(v) for v in box.get("size").split()])
         xyz = np.array([float(v) for v in c.find("origin").get("xyz").split()])
         yaw = float(c.find("origin").get("rpy").split()[2])
@@ -170,9 +172,9 @@ def test_base_plate_is_where_the_cranks_may_not_go_and_links_collide() -> None:
         # the proximal link (mid-axis) in the forbidden quadrant meets the base
         assert enters(i, 0.0, leg.l1, 315.0) and enters(i, 0.0, leg.l1, 345.0)
     cyl = [c for c in root.iter("collision") if c.find("geometry/cylinder") is not None]
-    radii = sorted({float(c.find("geometry/cylinder").get("radius")) for c in cyl})
-    assert len(cyl) == 3 * 4  # per leg AD, DP, GE, HF
-    assert LINK_RADIUS in radii
+    found = sorted({float(c.find("geometry/cylinder").get("radius")) for c in cyl})
+    assert len(cyl) == N_BODIES  # 6 links and a hub per leg, the platform's 9 bodies
+    assert sorted(set(radii(robot).tolist())) == found
 
 
 def test_yourdfpy_posed_at_a_closed_configuration_closes_the_loops() -> None:
@@ -188,7 +190,7 @@ def test_yourdfpy_posed_at_a_closed_configuration_closes_the_loops() -> None:
     robot = Robot.default()
     clm = robot.closed_loop_model()
     model = yourdfpy.URDF.load(str(gen.URDF_PATH))
-    for pose in (((0.03, -0.02, 0.31), (0.3, -0.2, 0.5)), ((-0.04, 0.02, 0.28), (-0.4, 0.1, 1.0))):
+    for pose in (((0.03, -0.02, 0.59), (0.3, -0.2, 0.5)), ((-0.04, 0.02, 0.56), (-0.4, 0.1, 1.0))):
         q = robot_ik_pose(*pose, robot=robot).q[0]
         pose_yourdfpy(model, clm, q)
         pin.framesForwardKinematics(clm.model, clm.data, q)

@@ -18,9 +18,10 @@ from sixplus3.kinematics.robot import (
     robot_ik_pose,
     spherical_tilts,
 )
-from sixplus3.robot_description.robot import Robot, RobotGeometry
+from sixplus3.robot_description.robot import Robot
 
-GEOM = RobotGeometry()
+ROBOT_ = Robot.default()
+GEOM = ROBOT_.geometry
 
 
 def random_poses(n: int, seed: int, tilt: float = 0.5):
@@ -51,7 +52,7 @@ def test_ik_theta_is_each_legs_ik_of_its_sphere_centre() -> None:
     pos, R, psi = random_poses(40, seed=2)
     cfg = robot_ik(pos, R, psi)
     for i in range(3):
-        s = leg_ik(GEOM.to_leg(i, cfg.P[:, i]))
+        s = leg_ik(GEOM.to_leg(i, cfg.P[:, i]), GEOM.leg, ROBOT_.mode)
         np.testing.assert_array_equal(s.status != 0, cfg.leg_status[:, i] != 0)
         np.testing.assert_allclose(cfg.theta[cfg.ok, 3 * i:3 * i + 3], s.theta[cfg.ok])
 
@@ -63,7 +64,7 @@ def test_unreachable_pose_names_the_leg_and_chain() -> None:
     with pytest.raises(InputError):
         robot_ik_pose((0.0, np.nan, 0.3))
     with pytest.raises(InputError, match="orthonormal"):
-        robot_ik(np.zeros(3) + [0, 0, 0.3], 2 * np.eye(3), Robot.default().home_psi)
+        robot_ik(np.zeros(3) + [0, 0, 0.58], 2 * np.eye(3), Robot.default().home_psi)
 
 
 def test_fk_recovers_pose_from_a_perturbed_hint() -> None:
@@ -91,19 +92,19 @@ def test_fk_raises_when_it_cannot_converge() -> None:
 
 def test_platform_margin_vanishes_with_radial_cranks() -> None:
     psis = np.linspace(0.0, math.pi / 2, 7)
-    m = [robot_ik_pose((0, 0, 0.3), (0, 0, 0), (p, p, p)).margins.platform[0] for p in psis]
+    m = [robot_ik_pose((0, 0, 0.58), (0, 0, 0), (p, p, p)).margins.platform[0] for p in psis]
     assert m[0] < 1e-12
     assert all(np.diff(m) > 0)  # monotone towards the 90 deg cranks
     # One radial crank is singular when the other two sit at 90 deg (their crank lines
     # then cannot stop the remaining in-plane motion), but not for generic crank angles.
     half = math.pi / 2
-    assert robot_ik_pose((0, 0, 0.3), (0, 0, 0), (0, half, half)).margins.platform[0] < 1e-9
-    assert robot_ik_pose((0, 0, 0.3), (0, 0, 0), (0, 1.2, 1.9)).margins.platform[0] > 1e-3
+    assert robot_ik_pose((0, 0, 0.58), (0, 0, 0), (0, half, half)).margins.platform[0] < 1e-9
+    assert robot_ik_pose((0, 0, 0.58), (0, 0, 0), (0, 1.2, 1.9)).margins.platform[0] > 1e-3
 
 
 def test_platform_margin_is_pose_invariant() -> None:
-    a = robot_ik_pose((0, 0, 0.3), (0, 0, 0), (1.2, 1.5, 1.9)).margins.platform[0]
-    b = robot_ik_pose((0.03, -0.02, 0.35), (0.3, -0.2, 0.5), (1.2, 1.5, 1.9)).margins.platform[0]
+    a = robot_ik_pose((0, 0, 0.58), (0, 0, 0), (1.2, 1.5, 1.9)).margins.platform[0]
+    b = robot_ik_pose((0.03, -0.02, 0.63), (0.3, -0.2, 0.5), (1.2, 1.5, 1.9)).margins.platform[0]
     assert a == pytest.approx(b, rel=1e-9)
 
 
@@ -111,7 +112,7 @@ def test_home_and_spherical_joint_tilts() -> None:
     h = home()
     assert h.ok[0] and h.margins.minimum[0] > 0.3
     np.testing.assert_allclose(spherical_tilts(h), 0.0, atol=1e-7)
-    cfg = robot_ik_pose((0, 0, 0.3), (0.5, 0.0, 0.0))
+    cfg = robot_ik_pose((0, 0, 0.58), (0.5, 0.0, 0.0))
     assert 0.05 < spherical_tilts(cfg).max() < math.radians(150)
 
 

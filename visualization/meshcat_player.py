@@ -37,8 +37,9 @@ class Frames:
 #: Times the page and the live viewer replay the animation (MeshCat has no endless loop
 #: through its Python API; at a few seconds per play this is hours).
 REPETITIONS = 10_000
-#: Height the camera orbits around [m] (about the middle of the robot).
-FOCUS_Z = 0.17
+#: The camera orbits a point this fraction of the home height up the robot, from a
+#: distance proportional to it (set for each robot loaded, :func:`_frame_camera`).
+FOCUS_FRACTION = 0.55
 #: The floor: a plate under the base, 1 m square, its top this far below z = 0 [m].
 FLOOR_Z = -0.05
 
@@ -79,13 +80,19 @@ def _server():
     # written, so it is kept quiet here; the live `play` command prints viewer_url()
     with contextlib.redirect_stdout(io.StringIO()):
         vis = meshcat.Visualizer()
-    # the camera orbits a point halfway up the robot (the base is at z = 0, the platform
-    # near 0.3 m), ~0.9 m away (meshcat's camera frame is y-up)
+    return vis
+
+
+def _frame_camera(vis, robot: Robot) -> None:
+    """The camera orbits a point about halfway up the robot (base at z = 0, platform at
+    its home height h), 1.9 h away, a little above it (meshcat's camera frame is y-up)."""
     import meshcat.transformations as tf
 
-    vis["/Cameras/default"].set_transform(tf.translation_matrix([0.0, 0.0, FOCUS_Z]))
-    vis["/Cameras/default/rotated/<object>"].set_property("position", [0.6, 0.35, 0.6])
-    return vis
+    h = max(float(robot.home_position[2]), 0.1)
+    vis["/Cameras/default"].set_transform(
+        tf.translation_matrix([0.0, 0.0, FOCUS_FRACTION * h]))
+    vis["/Cameras/default/rotated/<object>"].set_property(
+        "position", [1.3 * h, 0.45 * h, 1.3 * h])
 
 
 _LOADED: dict[str, object] = {}
@@ -103,6 +110,7 @@ def _viewer(robot: Robot):
         viz = MeshcatVisualizer(model, visual, visual)
         viz.initViewer(viewer=vis)
         viz.loadViewerModel(rootNodeName="sixplus3")
+        _frame_camera(vis, robot)
         _LOADED.update(hash=robot.hash, viz=viz)
     return vis, _LOADED["viz"]
 
