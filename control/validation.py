@@ -41,10 +41,15 @@ from sixplus3.control.trajectory_file import (
     read_bytes,
     samples_fingerprint,
 )
-from sixplus3.errors import InputError, ValidationFailed
+from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.collision import clearance
-from sixplus3.kinematics.robot import robot_fk_batch, spherical_tilts
+from sixplus3.kinematics.robot import (
+    robot_fk_batch,
+    spherical_tilts,
+    tcp_rates,
+    tcp_velocity,
+)
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
@@ -188,6 +193,8 @@ class ValidationReport:
     #: trajectory_file.samples_fingerprint of (t, theta, theta_dot, theta_ddot, rate)
     fingerprint: str | None = field(default=None, repr=False)
     limits: dict | None = None  # the limits judged by (the robot's, or tighter)
+    max_tcp_speed: float = 0.0  # [m/s] the tool centre point (samples and midpoints)
+    max_tcp_acceleration: float = 0.0  # [m/s^2] (samples: finite difference)
 
     @property
     def defects(self) -> list[Finding]:
@@ -214,7 +221,8 @@ class ValidationReport:
                 "max_acceleration_ratio", "max_jerk_ratio", "min_margin_leg_type1",
                 "min_margin_leg_type2", "min_margin_platform", "min_clearance",
                 "max_spherical_tilt_deg", "theta_range_ok", "checked_points", "tolerances",
-                "max_torque_rate", "max_interpolant_jerk_ratio", "rate_hz", "limits")
+                "max_torque_rate", "max_interpolant_jerk_ratio", "rate_hz", "limits",
+                "max_tcp_speed", "max_tcp_acceleration")
         out = {k: getattr(self, k) for k in keys}
         out["exit_code"] = self.exit_code
         out["findings"] = self.messages()
@@ -343,6 +351,8 @@ def _merge(reps: list[ValidationReport], n: int) -> ValidationReport:
         tau=cat("tau"), position=cat("position"), quaternion=cat("quaternion"),
         psi=cat("psi"), feedforward_error=max(ffs) if ffs else None,
         max_torque_rate=max(rates) if rates else None,
+        max_tcp_speed=max(r.max_tcp_speed for r in reps),
+        max_tcp_acceleration=max(r.max_tcp_acceleration for r in reps),
         duration=reps[-1].duration,
         max_interpolant_jerk_ratio=max(r.max_interpolant_jerk_ratio for r in reps))
 
@@ -495,6 +505,18 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
         # ------------------------------------------------------------ limits everywhere
         findings += _limit_findings(lim, cfg_points, tau_all, v_all, a_all, t_all, rcond_all,
                                     jerk, t_int, sph, clear)
+        # the tool centre point: its speed at every point, its acceleration at the
+        # samples (the finite difference of the speed's vector, kinematics.robot.tcp_rates)
+        tcp_v = np.linalg.norm(tcp_velocity(cfg, v), axis=1)
+        if fkm is not None:
+            tcp_v = np.r_[tcp_v, np.linalg.norm(tcp_velocity(fkm.cfg, vm), axis=1)]
+        _, tcp_a = tcp_rates(cfg, v, t)
+        for name, unit, cap, val, tt in (("tcp speed", "m/s", lim.tcp_speed, tcp_v, t_all),
+                                          ("tcp acceleration (samples)", "m/s^2",
+                                           lim.tcp_acceleration, tcp_a, t)):
+            f = _finding(name, "limit", unit, cap, val - cap * (1 + 1e-9), val, tt, ["tcp"])
+            if f:
+                findings.append(f)
         tilt = float(sph.max())
         min_clear = float(clear.min())
         th_all = np.vstack([c.theta for c in cfg_points])
@@ -517,6 +539,8 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
             tau=tau, position=cfg.position.copy(), quaternion=quat, psi=cfg.psi.copy(),
             feedforward_error=ff_err, duration=float(t[-1]),
             max_interpolant_jerk_ratio=between.jerk / (interval.C_JERK * lim.jerk),
+            max_tcp_speed=float(np.nan_to_num(tcp_v, nan=np.inf).max()),
+            max_tcp_acceleration=float(np.nan_to_num(tcp_a, nan=np.inf).max()),
             max_torque_rate=(float(np.nan_to_num(np.abs(np.diff(tau, axis=0)), nan=np.inf).max()
                                    / np.diff(t).min()) if n > 1 else 0.0))
         return rep
@@ -612,6 +636,25 @@ def validate_joint_trajectory(theta: np.ndarray, theta_dot: np.ndarray,
     return validate_motion(t, theta, theta_dot, theta_ddot, robot, rate, x_guess, limits)
 
 
+def _header_limits(header: dict, robot: Robot, name: str) -> Limits:
+    """The limits the file says it was made to, as a tightening of the robot's hardware
+    limits (a task's, e.g. a tool centre point speed): the gate judges the file by them
+    too.  A header can only make the gate stricter: a limit looser than the hardware's,
+    an unknown one or a value of the wrong type is a forged or corrupted file."""
+    from sixplus3.errors import LimitError
+
+    doc = header.get("limits", {})
+    if not isinstance(doc, dict):
+        raise TrajectoryFileError(f"{name}: header limits must be a mapping of numbers",
+                                  value=type(doc).__name__, valid="a mapping")
+    try:
+        return robot.limits.tightened(**doc)
+    except LimitError as exc:
+        raise TrajectoryFileError(f"{name}: header limits: {exc} (a file may only record "
+                                  "limits within the robot's hardware limits)",
+                                  value=exc.value, valid=exc.valid) from None
+
+
 def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory") -> ValidationReport:
     """Validate the bytes of a trajectory file for ``robot``.
 
@@ -622,9 +665,10 @@ def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory") -> Valida
     header, data = parse(raw, name)
     check_robot(header, robot, name)
     rate = float(header["rate_hz"])  # a finite number (parse)
+    limits = _header_limits(header, robot, name)
     x_guess = np.c_[data[:, 37:40], rotvec_of_quaternions(data[:, 40:44]), data[:, 44:47]]
     rep = validate_motion(data[:, 0], columns(data, "pos"), columns(data, "vel"),
-                          columns(data, "acc"), robot, rate, x_guess,
+                          columns(data, "acc"), robot, rate, x_guess, limits=limits,
                           platform=data[:, 37:47], tau_file=columns(data, "tau"))
     rep.header, rep.data = header, data
     return rep

@@ -164,8 +164,10 @@ def make_figures(out_dir: str | Path, reading: Reading | None = None,
 
 
 def cow_robot(reading: Reading, design: tuple[float, float, float] = PAPER_DESIGN) -> Robot:
-    """The whole robot of a design reading: its leg (design, ey = -fy) in its mode."""
-    base = Robot.default()
+    """The whole robot of a design reading: its leg (design, ey = -fy) in its mode, on
+    the layout the paper states (the §V figures are the paper's; the default robot's
+    axes are turned, docs/design.md "Layout")."""
+    base = Robot.named("paper-as-stated")
     leg = LegGeometry.symmetric(*design, ey=reading.ey, fy=-reading.ey)
     return base.replace(geometry=replace(base.geometry, leg=leg), mode=reading.mode,
                         name=f"reading {reading.name}")
@@ -176,7 +178,7 @@ def _cow_figure(plt, cow, path: Path, ratios: dict[str, float], reading: Reading
     from matplotlib.colors import Normalize
 
     fig = plt.figure(figsize=(12, 6.6))
-    pts = Robot.default().geometry.actuated_joint_positions()
+    pts = Robot.named("paper-as-stated").geometry.actuated_joint_positions()
     poly = np.vstack([cow.footprint, cow.footprint[:1]])
     for col, key in enumerate(("reach", "torque")):
         ax = fig.add_subplot(1, 2, col + 1, projection="3d")

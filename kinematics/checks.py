@@ -47,10 +47,13 @@ class LimitMeasures:
     max_spherical_tilt: float  # [rad]
     theta_range_ok: bool
     violations: list[str]
+    max_tcp_speed: float = float("nan")  # [m/s] (NaN: not measured, no times given)
+    max_tcp_acceleration: float = float("nan")  # [m/s^2]
 
 
 def measure_limits(cfg: RobotConfig, tau: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
-                   theta_ddot: np.ndarray, limits: Limits) -> LimitMeasures:
+                   theta_ddot: np.ndarray, limits: Limits,
+                   times: np.ndarray | None = None) -> LimitMeasures:
     """The one rule both independent checks apply (the planner's dense re-check and the
     file validation): torques, actuated rates and accelerations against their limits,
     the numeric singularity margins of ``cfg`` (a batched RobotConfig), the collision
@@ -87,4 +90,16 @@ def measure_limits(cfg: RobotConfig, tau: np.ndarray, theta: np.ndarray, theta_d
     if not theta_ok:
         violations.append(f"an actuated angle leaves [{math.degrees(limits.theta_min):g}, "
                           f"{math.degrees(limits.theta_max):g}] deg")
-    return LimitMeasures(torque, vel, acc, m1, m2, mp, clear, tilt, theta_ok, violations)
+    tcp_v = tcp_a = float("nan")
+    if times is not None:
+        from sixplus3.kinematics.robot import tcp_rates
+
+        sp, ac = tcp_rates(cfg, theta_dot, times)
+        tcp_v, tcp_a = float(sp.max()), float(ac.max())
+        if tcp_v > limits.tcp_speed * (1.0 + 1e-9):
+            violations.append(f"tcp speed {tcp_v:.4f} m/s > {limits.tcp_speed:g} m/s")
+        if tcp_a > limits.tcp_acceleration * (1.0 + 1e-9):
+            violations.append(f"tcp acceleration {tcp_a:.3f} m/s^2 > "
+                              f"{limits.tcp_acceleration:g} m/s^2")
+    return LimitMeasures(torque, vel, acc, m1, m2, mp, clear, tilt, theta_ok, violations,
+                         tcp_v, tcp_a)

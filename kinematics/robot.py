@@ -483,6 +483,38 @@ def ik_jacobian(cfg: RobotConfig) -> np.ndarray:
     return out
 
 
+def tcp_velocity(cfg: RobotConfig, theta_dot: np.ndarray) -> np.ndarray:
+    """(n, 3) velocity of the tool centre point [m/s] (``cfg.robot.tool``), from the
+    actuated rates theta_dot (n, 9) [rad/s] through the inverse of :func:`ik_jacobian`
+    (inf where it is singular)."""
+    J = ik_jacobian(cfg)
+    out = np.full((len(cfg), 3), np.inf)
+    ok = cfg.ok & np.all(np.isfinite(J), axis=(1, 2))
+    if ok.any():
+        try:
+            xd = np.linalg.solve(J[ok], np.asarray(theta_dot, dtype=float)[ok][:, :, None])
+        except np.linalg.LinAlgError:
+            xd = np.einsum("nij,nj->ni", np.linalg.pinv(J[ok]), theta_dot[ok])[:, :, None]
+        xd = xd[:, :, 0]
+        r = np.einsum("nij,j->ni", cfg.rotation[ok], np.asarray(cfg.robot.tool.xyz))
+        out[ok] = xd[:, 0:3] + np.cross(xd[:, 3:6], r)
+    return out
+
+
+def tcp_rates(cfg: RobotConfig, theta_dot: np.ndarray, times: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """(speed (n,) [m/s], acceleration (n,) [m/s^2]) of the tool centre point along a
+    motion sampled at ``times`` (n,) [s], increasing: the speed exactly from the actuated
+    rates (:func:`tcp_velocity`), the acceleration as the second-order finite
+    difference of that velocity (``numpy.gradient``; one-sided at the ends)."""
+    v = tcp_velocity(cfg, theta_dot)
+    t = np.asarray(times, dtype=float)
+    if len(t) < 2:
+        return np.linalg.norm(v, axis=1), np.zeros(len(t))
+    acc = np.gradient(v, t, axis=0, edge_order=2 if len(t) > 2 else 1)
+    return np.linalg.norm(v, axis=1), np.linalg.norm(np.nan_to_num(acc, nan=np.inf), axis=1)
+
+
 def robot_fk_batch(theta: np.ndarray, x_guess: np.ndarray, robot: Robot | None = None,
                    tol: float = 1e-12, max_iter: int = 12, margins: bool = True) -> BatchFK:
     """Forward kinematics of n samples at once: Newton on the closed-form IK.

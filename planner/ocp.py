@@ -293,8 +293,10 @@ class DenseCheck:
     min_margin_platform: float
     theta_range_ok: bool
     max_spherical_tilt: float  # [rad]
-    min_clearance: float  # [m] between links of different legs (capsules)
+    min_clearance: float  # [m] of the collision model (kinematics.collision)
     violations: list[str]
+    max_tcp_speed: float = float("nan")  # [m/s] tool centre point
+    max_tcp_acceleration: float = float("nan")  # [m/s^2]
 
 
 # --------------------------------------------------------------------- static choices
@@ -415,7 +417,10 @@ class Problem:
         # platform poses through that robot's tool
         self.robot = task.robot_for(robot or Robot.default())
         self.task = task.resolved(self.robot)
-        self.limits = task.limits_for(self.robot)
+        #: every limit the plan must meet; the NLP plans to ``limits``, the same without
+        #: the platform-space ones, which a uniform time stretch meets afterwards
+        self.motion_limits = task.limits_for(self.robot)
+        self.limits = self.motion_limits.without_tcp()
         self.options = options or PlannerOptions()
         self.sr = self.robot.symbolic()
         #: a :class:`sixplus3.progress.PlanProgress` (stages and IPOPT iterations) or None
@@ -678,8 +683,40 @@ class Problem:
                 if ratio > 0.99 and not any(a.startswith(name) for a in sol.active_limits):
                     sol.active_limits.append(f"{name} ({ratio:.3f} of the limit in the "
                                              "dense check)")
+        sol = self._tcp_limited(sol)
         sol.baseline_time = base.final_time if base is not None else None
         sol.wall_time = time.perf_counter() - t_wall
+        return sol
+
+    def _tcp_limited(self, sol: Solution, target: float = 0.995) -> Solution:
+        """``sol`` within the platform-space limits (the tool centre point's speed and
+        acceleration): stretched uniformly in time by the smallest factor that brings
+        both within ``target`` of their limits (the speed scales 1/a, the acceleration
+        1/a^2, every joint rate and inertial torque with them), then checked against
+        every limit.  Without such limits: ``sol`` as it is."""
+        lim = self.motion_limits
+        if not lim.has_tcp:
+            return sol
+        times = np.linspace(0.0, sol.t[-1], (len(sol.t) - 1) * 10 + 1)
+        x, xd, xdd = sol.sample(times)
+        cfg = robot_ik(x[:, 0:3], Rotation.from_rotvec(x[:, 3:6]).as_matrix(), x[:, 6:9],
+                       self.robot)
+        from sixplus3.kinematics.robot import tcp_rates
+
+        thd = actuated_profile(self.robot, x, xd, xdd)[0].T
+        speed, acc = tcp_rates(cfg, thd, times)
+        a = max(1.0, float(speed.max()) / (target * lim.tcp_speed),
+                math.sqrt(float(acc.max()) / (target * lim.tcp_acceleration)))
+        if a > 1.0:
+            self._stage(f"stretching time by {a:.3f} for the tool centre point's limits "
+                        f"({lim.tcp_speed:g} m/s, {lim.tcp_acceleration:g} m/s^2)")
+            by_speed = speed.max() / lim.tcp_speed >= math.sqrt(acc.max()
+                                                                / lim.tcp_acceleration)
+            sol = self._stretched(sol, a)
+            sol.active_limits = [f"tcp {'speed' if by_speed else 'acceleration'} (uniform "
+                                 f"stretch {a:.3f})"]
+        sol.limits = lim
+        sol.check = dense_check(sol, factor=10)
         return sol
 
     def _target_duration(self, sol: Solution) -> float | None:
@@ -1321,7 +1358,7 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
     if not np.isfinite(tau).all():
         violations.append(f"no torque defined (singular) at "
                           f"{int((~np.isfinite(tau).all(axis=1)).sum())} samples")
-    lm = measure_limits(cfg, tau, cfg.theta, thd, thdd, sol.limits)
+    lm = measure_limits(cfg, tau, cfg.theta, thd, thdd, sol.limits, times)
     violations += lm.violations
     return DenseCheck(ok=not violations, samples=n, max_torque_ratio=lm.max_torque_ratio,
                       max_velocity_ratio=lm.max_velocity_ratio,
@@ -1333,7 +1370,9 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
                       min_margin_platform=lm.min_margin_platform,
                       theta_range_ok=lm.theta_range_ok,
                       max_spherical_tilt=lm.max_spherical_tilt,
-                      min_clearance=lm.min_clearance, violations=violations)
+                      min_clearance=lm.min_clearance, violations=violations,
+                      max_tcp_speed=lm.max_tcp_speed,
+                      max_tcp_acceleration=lm.max_tcp_acceleration)
 
 
 __all__ = ["DenseCheck", "InfeasibleTaskError", "PlannerOptions", "Problem", "Solution",

@@ -18,6 +18,8 @@ Example (units: m and degrees in the file, SI inside)::
       margin: 0.08                  # every singularity margin (robot: 0.05)
       jerk: 1.0e5                   # |d theta_ddot/dt| [rad/s^3]  (robot: 2e5)
       torque_rate: 1500             # |d tau/dt| [N m/s]           (robot: 2000)
+      tcp_speed: 0.25               # |v| of the tool centre point [m/s]    (robot: none)
+      tcp_acceleration: 19.62       # |a| of the tool centre point [m/s^2]  (robot: none)
     nodes_per_segment: 12           # optional: node intervals per segment (default: 18 for
                                     # one segment, 12 for more; Task.segment_nodes)
     torque_fraction: 0.9            # plan to this share of the torque limit (default 0.9)
@@ -96,6 +98,8 @@ SCHEMA = {
                 "acceleration": {"type": "number", "exclusiveMinimum": 0},
                 "jerk": {"type": "number", "exclusiveMinimum": 0},
                 "torque_rate": {"type": "number", "exclusiveMinimum": 0},
+                "tcp_speed": {"type": "number", "exclusiveMinimum": 0},
+                "tcp_acceleration": {"type": "number", "exclusiveMinimum": 0},
                 "margin": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1},
             },
         },

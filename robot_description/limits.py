@@ -19,6 +19,10 @@ RATED_SPEED_RPM = 300.0
 VELOCITY_LIMIT = RATED_SPEED_RPM * 2.0 * math.pi / 60.0 * 34.0 / 72.0
 
 
+#: The default platform-space limits: none (values no motion of this robot reaches).
+TCP_SPEED_NONE = 10.0
+TCP_ACCELERATION_NONE = 1000.0
+
 #: The smallest fraction of a hardware limit a tightened limit may be.
 MIN_FRACTION = 1e-3
 
@@ -51,10 +55,17 @@ class Limits:
                             "deg hits the base plate (paper §V-A)", "rad")
     spherical: float = _lim(math.radians(150.0), "largest tilt of every spherical joint "
                             "from its mounting axis", "rad")
+    tcp_speed: float = _lim(TCP_SPEED_NONE, "|v| of the tool centre point: none by default "
+                            "(10 m/s binds nothing the motors can do); near people a lab "
+                            "sets e.g. 0.25 m/s, the reduced speed of ISO 10218-1", "m/s")
+    tcp_acceleration: float = _lim(TCP_ACCELERATION_NONE, "|a| of the tool centre point: "
+                                   "none by default (1000 m/s^2); e.g. 19.62 m/s^2, the "
+                                   "paper's 2 g", "m/s^2")
 
     #: limits where a smaller value is tighter (the others: margin larger, theta range
     #: narrower)
-    UPPER = ("torque", "velocity", "acceleration", "jerk", "torque_rate", "spherical")
+    UPPER = ("torque", "velocity", "acceleration", "jerk", "torque_rate", "spherical",
+             "tcp_speed", "tcp_acceleration")
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -109,6 +120,19 @@ class Limits:
                 raise LimitError(name, v, f"<= {hw:g} rad", "only a narrower actuated range")
             new[name] = v
         return Limits(**{**asdict(self), **new})
+
+    def without_tcp(self) -> Limits:
+        """These limits with the platform-space ones at their defaults (none): the
+        planner's NLP does not see them; it meets them by a uniform time stretch
+        afterwards (docs/planner.md, "Platform-space limits")."""
+        return self.replace_upper(tcp_speed=TCP_SPEED_NONE,
+                                  tcp_acceleration=TCP_ACCELERATION_NONE)
+
+    @property
+    def has_tcp(self) -> bool:
+        """Whether a platform-space limit is set (tighter than none)."""
+        return (self.tcp_speed < TCP_SPEED_NONE
+                or self.tcp_acceleration < TCP_ACCELERATION_NONE)
 
     def replace_upper(self, **values: float) -> Limits:
         """These limits with some upper limits replaced (no tightening check: for the

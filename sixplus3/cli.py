@@ -846,8 +846,9 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
              kp: float, kd: float) -> None:
     """Check a trajectory file independently of the planner (exit 0 only if all ok).
 
-    Every check of docs/validation.md, against the robot's hardware limits (never the
-    file's).  Exit codes: 0 a valid motion; 1 a limit is violated; 2 the file is missing,
+    Every check of docs/validation.md, against the robot's hardware limits, tightened by
+    the limits the file records (a header can only make the gate stricter; a looser one
+    is a forged file).  Exit codes: 0 a valid motion; 1 a limit is violated; 2 the file is missing,
     corrupted, made for another robot, or not a consistent motion (time grid, rest at
     the ends, jumps, platform columns, feed-forward torques).
     """
@@ -860,7 +861,9 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
 
     robot = _task_robot(task_file)
     rep = validate_file(csv_file, robot)
-    limits = robot.limits
+    from sixplus3.robot_description.limits import Limits
+
+    limits = Limits(**rep.limits) if rep.limits else robot.limits
     out = {"file": csv_file, "duration_s": rep.duration, **rep.summary(),
            "feedforward_max_error": rep.feedforward_error}
     code = rep.exit_code
@@ -888,7 +891,7 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
                        f"{limits.torque_rate:g} N m/s between its own nodes)")
         lim_txt = ", ".join(f"{k} {v:.6g}" for k, v in limits.as_dict().items())
         click.echo(f"  judged by robot {robot.hash[:12]} at {rep.rate_hz:g} Hz, its hardware "
-                   f"limits: {lim_txt}")
+                   f"limits tightened by the file's: {lim_txt}")
         for msg in rep.messages():
             click.echo(f"  {'defect' if rep.exit_code == 2 else 'violation'}: {msg}")
         if eng is not None:

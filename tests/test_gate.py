@@ -219,7 +219,8 @@ def test_low_rates_are_refused_by_the_planner_and_the_validator(tmp_path) -> Non
 def test_a_faster_consistent_forgery_violates_a_limit_whatever_the_header_says(
         valid, scale, header_torque) -> None:
     """Time compressed (t x s, rates / s, accelerations / s^2), torques recomputed: a
-    consistent motion, beyond the limits.  The header's limits are never used."""
+    consistent motion, beyond the limits.  The header's limits can only tighten the
+    robot's: looser ones are a forged file (refused, exit 2), never a looser gate."""
     _, _, header, data = valid
     fast = data.copy()
     fast[:, IDX["vel"]] /= scale
@@ -229,6 +230,9 @@ def test_a_faster_consistent_forgery_violates_a_limit_whatever_the_header_says(
     lim = dict(header["limits"])
     if header_torque is not None:
         lim.update(torque=header_torque, acceleration=1e6, jerk=1e12)
+        with pytest.raises(TrajectoryFileError, match="header limits"):
+            validate_bytes(forged(header, fast, rate_hz=rate, limits=lim), ROBOT)
+        return
     rep = validate_bytes(forged(header, fast, rate_hz=rate, limits=lim), ROBOT)
     limit_msgs = [f.check for f in rep.findings if f.kind == "limit"]
     assert rep.exit_code in (1, 2) and limit_msgs, rep.messages()

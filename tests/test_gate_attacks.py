@@ -433,13 +433,15 @@ def test_a_long_motion_is_validated_in_windows_with_the_same_verdict(planned,
 
 
 def test_validate_names_the_robot_and_limits_it_judged_by(planned, tmp_path) -> None:
-    _, raw, _, _ = planned
+    _, raw, header, _ = planned
     path = tmp_path / "t.csv"
     path.write_bytes(raw)
     r = CliRunner().invoke(cli, ["validate", str(path)])
-    assert ROBOT.hash[:12] in r.output and "torque 10" in r.output
+    planned = header["limits"]["torque"]  # the plan's 0.9 of the hardware's 10 N m
+    assert planned == pytest.approx(0.9 * ROBOT.limits.torque)
+    assert ROBOT.hash[:12] in r.output and f"torque {planned:g}" in r.output
     js = json.loads(CliRunner().invoke(cli, ["validate", str(path), "--json"]).output)
-    assert js["limits"]["torque"] == ROBOT.limits.torque and js["robot_hash"] == ROBOT.hash
+    assert js["limits"]["torque"] == planned and js["robot_hash"] == ROBOT.hash
 
 
 def test_validate_motion_refuses_malformed_arguments() -> None:
