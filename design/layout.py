@@ -216,6 +216,8 @@ def plot_study(study: LayoutStudy, path) -> None:
         b = study.best(leg)
         ax.annotate(f"{b.volume_clear:.1f} L", (b.turn_deg, b.volume_clear),
                     textcoords="offset points", xytext=(4, 6))
+    top = max(p.volume_clear for p in study.points)
+    ax.set_ylim(bottom=0.0, top=max(1.0, 1.15 * top))
     ax.set_xlabel("axis turn gamma [deg]")
     ax.set_ylabel("interference-free 2 g COW [L]")
     ax.set_title("Layout study (horizontal platform, best platform phase per gamma)")
