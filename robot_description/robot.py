@@ -72,8 +72,9 @@ class RobotGeometry:
                 raise GeometryError(name, v, "in (0, 2] m")
         for name in ("first_leg_angle", "platform_phase", "axis_turn"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v)):
-                raise GeometryError(name, v, "a finite angle [rad]")
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v)
+                                           and abs(v) <= 2.0 * math.pi):
+                raise GeometryError(name, v, "a finite angle in [-2 pi, 2 pi] rad")
 
     # ----------------------------------------------------------------- base layout
     def leg_angle(self, i: int) -> float:
@@ -329,12 +330,21 @@ class Robot:
     def from_dict(cls, doc: object) -> Robot:
         """A robot from :meth:`as_dict`'s structure; missing keys keep their defaults.
 
-        Unknown keys are refused (a typo must not silently give the default robot).
+        Unknown keys are refused (a typo must not silently give the default robot). A
+        ``hash`` (as ``sixplus3 robot show --json`` prints) must be the parameters'.
         """
         if not isinstance(doc, dict):
             raise GeometryError("robot", type(doc).__name__, "a mapping of parameters")
-        known = {f.name for f in fields(cls)} | {"mounting"}
+        known = {f.name for f in fields(cls)} | {"mounting", "hash"}
         _no_unknown("robot", doc, known)
+        if "hash" in doc:  # what `robot show --json` prints: checked, not an input
+            robot = cls.from_dict({k: v for k, v in doc.items() if k != "hash"})
+            if doc["hash"] != robot.hash:
+                raise GeometryError("hash", fileio.short_repr(doc["hash"], 20),
+                                    f"{robot.hash[:12]}..., the hash of the parameters "
+                                    "given", "remove the hash key after editing a "
+                                    "parameter")
+            return robot
         kw: dict[str, Any] = {}
         if "geometry" in doc:
             g = dict(_mapping("geometry", doc["geometry"]))
@@ -342,7 +352,9 @@ class Robot:
             leg = g.pop("leg", {})
             _no_unknown("geometry.leg", _mapping("geometry.leg", leg),
                         {f.name for f in fields(LegGeometry)})
-            kw["geometry"] = RobotGeometry(leg=LegGeometry(**leg), **g)
+            # missing keys keep the default robot's values (its leg and layout)
+            base = default_geometry()
+            kw["geometry"] = replace(base, leg=replace(base.leg, **leg), **g)
         if "masses" in doc:
             m = _mapping("masses", doc["masses"])
             _no_unknown("masses", m, {f.name for f in fields(MassModel)})

@@ -150,6 +150,7 @@ def test_cli_named_robot_and_bad_name() -> None:
 @pytest.mark.parametrize("doc, words", [
     ({"geometry": {"axis_turn": 0.0}}, ["overlap", "leg"]),  # the §V assembly, stated layout
     ({"geometry": {"axis_turn": float("nan")}}, ["axis_turn", "finite"]),
+    ({"geometry": {"axis_turn": 1e9}}, ["axis_turn", "[-2 pi, 2 pi]"]),
     ({"collision": {"link_radius": 0.0}}, ["link_radius", "(0, 0.2]"]),
     ({"collision": {"hub_width": -0.01}}, ["hub_width", "(0, 0.2]"]),
     ({"collision": {"base_top": 0.1}}, ["base_top", "[-0.5, 0)"]),
@@ -165,3 +166,21 @@ def test_bad_layout_values_are_refused_in_one_line(doc, words, tmp_path) -> None
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and "Traceback" not in res.output
     assert all(w in lines[0] for w in words), lines[0]
+
+
+def test_a_robot_file_keeps_the_default_robots_values_and_round_trips(tmp_path) -> None:
+    """`robot show --json` is the robot file format: read back, it is the same robot
+    (its hash checked); a partial geometry keeps the default robot's leg and layout; an
+    edited parameter under the old hash is refused, naming the key."""
+    res = CliRunner().invoke(main, ["robot", "show", "--json"])
+    f = tmp_path / "r.json"
+    f.write_text(res.output)
+    assert Robot.from_dict(json.loads(res.output)) == Robot.default()
+    part = Robot.from_dict({"geometry": {"axis_turn": math.radians(25.0)}})
+    assert part.leg == Robot.default().leg
+    assert part.geometry.platform_phase == Robot.default().geometry.platform_phase
+    doc = json.loads(res.output)
+    doc["limits"]["torque"] = 9.5
+    f.write_text(json.dumps(doc))
+    bad = CliRunner().invoke(main, ["--robot", str(f), "robot", "show"])
+    assert bad.exit_code == 2 and "hash" in bad.output and "Traceback" not in bad.output
