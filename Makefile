@@ -23,17 +23,19 @@ chromium:
 	  echo "installing Debian's chromium for the playback test"; \
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; }
 
-# The planner compiles its constraint functions with gcc (planner/codegen.py); a test
+# The planner compiles its constraint functions with gcc (dynamics/codegen.py); a test
 # checks the compiled library, so make sure a C compiler is there.
 compiler:
 	@command -v gcc >/dev/null 2>&1 || command -v cc >/dev/null 2>&1 || { \
 	  echo "installing Debian's gcc for the planner's compiled functions"; \
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq gcc >/dev/null; }
 
-# ruff and mypy (over the installed namespace, scripts/typecheck.py) run with the tests.
+# ruff, mypy (over the installed namespace, scripts/typecheck.py) and the layers contract
+# (import-linter, scripts/importlint.py) run with the tests.
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/python scripts/typecheck.py
+	$(BIN)/python scripts/importlint.py
 
 test: $(STAMP) chromium compiler lint
 	$(BIN)/python -m pytest -q

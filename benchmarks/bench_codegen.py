@@ -1,4 +1,4 @@
-"""Interpreted (CasADi SX VM) vs compiled (planner.codegen) constraint Jacobian.
+"""Interpreted (CasADi SX VM) vs compiled (dynamics.codegen) constraint Jacobian.
 
     .venv/bin/python benchmarks/bench_codegen.py
 
@@ -20,7 +20,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from sixplus3.planner import codegen
+from sixplus3.dynamics import codegen
+from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.robot_description.robot import Robot
 
 
@@ -35,7 +36,7 @@ def per_call(f, args, repeat: int) -> float:
 def compile_into(directory, robot, flags) -> tuple[str, float]:
     """Generate and compile the planner's node library with ``flags``: (path, seconds)."""
     t0 = time.perf_counter()
-    lib = codegen.compile_library(directory, "node", codegen._source(robot.symbolic().node_p),
+    lib = codegen.compile_library(directory, "node", codegen._source(symbolic_robot(robot).node_p),
                                   flags)
     return str(lib), time.perf_counter() - t0
 
@@ -44,7 +45,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.parse_args()
     robot = Robot.default()
-    sr = robot.symbolic()
+    sr = symbolic_robot(robot)
     n = 41
     rng = np.random.default_rng(0)
     x = np.tile(np.r_[0.0, 0.0, 0.30, 0.1, -0.1, 0.05, 1.5, 1.6, 1.4][:, None], (1, n))

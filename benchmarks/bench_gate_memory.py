@@ -24,7 +24,9 @@ import numpy as np
 
 
 def long_motion(robot, n: int, rate: float):
-    sr = robot.symbolic()
+    from sixplus3.dynamics.symbolic import symbolic_robot
+
+    sr = symbolic_robot(robot)
     t = np.arange(n) / rate
     s = t / t[-1]
     T = t[-1]

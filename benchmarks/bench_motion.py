@@ -23,9 +23,9 @@ import numpy as np
 from sixplus3.control.pipeline import run_plan
 from sixplus3.control.trajectory_file import columns, read_trajectory
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.dynamics.codegen import ensure_optimised
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.rotations import matrix_from_quat
-from sixplus3.planner.codegen import ensure_optimised
 from sixplus3.planner.task import load_task
 from sixplus3.robot_description.robot import Robot
 

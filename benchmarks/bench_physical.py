@@ -22,9 +22,9 @@ from pathlib import Path
 from sixplus3.control.pipeline import run_plan
 from sixplus3.control.simulation import engine_check
 from sixplus3.control.validation import validate_file
+from sixplus3.dynamics.codegen import ensure_optimised
 from sixplus3.errors import Sixplus3Error
 from sixplus3.planner.analysis import largest_tilt
-from sixplus3.planner.codegen import ensure_optimised
 from sixplus3.planner.task import load_task
 from sixplus3.robot_description.physical import NO_MOTORS, Payload
 from sixplus3.robot_description.robot import Robot

@@ -34,8 +34,8 @@ import time
 
 import numpy as np
 
+from sixplus3.dynamics.codegen import ensure_optimised
 from sixplus3.planner.certificate import certify
-from sixplus3.planner.codegen import ensure_optimised
 from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot

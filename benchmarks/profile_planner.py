@@ -24,7 +24,7 @@ import time
 import numpy as np
 from bench_planner_heldout import heldout_task
 
-from sixplus3.planner.codegen import compiled_functions, ensure_optimised
+from sixplus3.dynamics.codegen import compiled_functions, ensure_optimised
 from sixplus3.planner.ocp import Problem
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot

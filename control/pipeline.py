@@ -12,8 +12,8 @@ import numpy as np
 from sixplus3.control.smoothing import Smoothed, check_rate, smooth
 from sixplus3.control.trajectory_file import check_samples, output_path
 from sixplus3.control.validation import ValidationReport, validate_and_write
+from sixplus3.dynamics.codegen import build_kind
 from sixplus3.errors import TrajectoryFileError, ValidationFailed
-from sixplus3.planner.codegen import build_kind
 from sixplus3.planner.ocp import PlannerOptions, Solution, check_plan_arguments, plan
 from sixplus3.planner.task import Task
 from sixplus3.progress import PlanProgress

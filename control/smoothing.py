@@ -38,6 +38,7 @@ from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from sixplus3.control.trajectory_file import check_samples
 from sixplus3.control.validation import RATE_RANGE
+from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InputError, SmoothingError
 from sixplus3.planner.ocp import Solution, actuated_profile
 
@@ -76,7 +77,7 @@ def check_rate(rate: float) -> float:
 def _joint_samples(sol: Solution, times: np.ndarray, a: float, t0: float = 0.0):
     """Actuated (theta, theta_dot, theta_ddot) and x of the plan's piece starting at plan
     time ``t0``, stretched by ``a``, at piece-local output times ``times`` [s]."""
-    sr = sol.robot.symbolic()
+    sr = symbolic_robot(sol.robot)
     x, xd, xdd = sol.sample(t0 + times / a)
     xd, xdd = xd / a, xdd / a**2
     n = len(times)

@@ -10,7 +10,7 @@ the checks before it passed.
 Stages (the number of checks passed, in the atlas's order): 0 none, 1 reach,
 2 actuated range, 3 spherical joints, 4 leg margins; for a whole pose also 5 clearance
 and 6 platform margin.  The holding torque (check 7) is the compiled CasADi statics
-(:func:`planner.model.holding_function`), called by :mod:`design.atlas`.
+(:func:`dynamics.symbolic.holding_function`), called by :mod:`design.atlas`.
 
 Packed inputs (:func:`pack`):
 

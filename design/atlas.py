@@ -53,7 +53,7 @@ Work is split into chunks of positions, each a Dask task (``dask.distributed``: 
 (position, direction, torsion) pairs: checks 1-6 of all its poses at one scan or
 bisection step are one call of the compiled kernel :mod:`design._atlas_kernel` (each
 check only where the ones before it passed), and check 7 one call of the compiled
-symbolic statics (:func:`planner.model.holding_function`, checked against Pinocchio).
+symbolic statics (:func:`dynamics.symbolic.holding_function`, checked against Pinocchio).
 """
 
 from __future__ import annotations
@@ -144,8 +144,8 @@ class _Checker:
     """Admissibility of batches of poses for one robot (module doc)."""
 
     def __init__(self, robot: Robot, psi_step_deg: float, accel_g: float = 0.0):
-        from sixplus3.planner import codegen
-        from sixplus3.planner.model import (
+        from sixplus3.dynamics import codegen
+        from sixplus3.dynamics.symbolic import (
             acceleration_function,
             holding_function,
             setup_parameters,
@@ -214,10 +214,10 @@ class _Checker:
         """(n, 9) |torque| [N m] each motor needs at poses whose IK solves (check 7).
 
         Without ``accel_g``: the static holding torque, from the compiled symbolic statics
-        (:func:`planner.model.holding_function`, with the robot's payload and mounting),
+        (:func:`dynamics.symbolic.holding_function`, with the robot's payload and mounting),
         equal to Pinocchio's to rounding (tested).  With it: at rest the torques are
         tau_0 + A a for a platform-centre acceleration a (no angular or crank
-        acceleration; :func:`planner.model.acceleration_function`), so the largest over
+        acceleration; :func:`dynamics.symbolic.acceleration_function`), so the largest over
         every direction of |a| = accel_g g is |tau_0| + accel_g g |A_j| per motor j.
         """
         x = np.c_[pos, rotvec_from_matrix(R), psi].T
@@ -490,10 +490,14 @@ def compute_atlas(robot: Robot | None = None, settings: AtlasSettings | None = N
 
 def _dataset(robot: Robot, st: AtlasSettings, xs, ys, zs, cat: dict, shape: tuple,
              wall: float, npos: int, workers: int | None) -> xr.Dataset:
+    from importlib.metadata import PackageNotFoundError, version
+
     import xarray as xr
 
-    import sixplus3
-
+    try:
+        software = f"sixplus3 {version('sixplus3')}"
+    except PackageNotFoundError:  # a plain copy of the sources
+        software = "sixplus3"
     dims = ("cranks", "torsion", "azimuth", "x", "y", "z")
     tilt = cat["max_tilt"].reshape(shape).astype(np.float32)
     bind = cat["binding"].reshape(shape).astype(np.int8)
@@ -524,7 +528,7 @@ def _dataset(robot: Robot, st: AtlasSettings, xs, ys, zs, cat: dict, shape: tupl
                                             "height above the base"}),
                 "leg": ("leg", np.arange(3))},
         attrs={"title": "sixplus3 orientation-workspace atlas",
-               "software": f"sixplus3 {getattr(sixplus3, '__version__', '')}".strip(),
+               "software": software,
                "robot_name": robot.name, "robot_hash": robot.hash,
                "robot_mode": robot.mode.name, "home_position_m": list(robot.home_position),
                "home_psi_deg": np.degrees(robot.home_psi).tolist(),

@@ -5,7 +5,7 @@ The sizes are the robot's :class:`~sixplus3.robot_description.collision.Collisio
 this module places the 36 bodies (:data:`BODIES`) and measures the pairs that can touch
 (:data:`PAIRS`): the clearance is the smallest surface distance over those pairs and the
 platform's height above the base plate, negative where bodies overlap.  The planner's
-rows (:mod:`sixplus3.planner.model`), its dense check, the gate, the COW, the atlas and
+rows (:mod:`sixplus3.dynamics.symbolic`), its dense check, the gate, the COW, the atlas and
 the layout study all call this module or its compiled kernel.
 
 Pairs compared, and why the others are not:

@@ -11,7 +11,7 @@ but shorter next to a rest: ``Problem.node_fractions``):
   rows, so that its limit is a bound and the jerk rows are sparse), durations T_s;
 - dynamics: x+ = x + h xd + h^2 (2 u + u+) / 6,  xd+ = xd + h (u + u+) / 2;
 - path constraints, at every node and at every interval's midpoint (the exact cubic
-  state there): (d theta / dx)^T tau = Q(x, xd, u) (planner.model) with
+  state there): (d theta / dx)^T tau = Q(x, xd, u) (dynamics.symbolic) with
   |tau| <= safety * limit, |theta_dot| <= velocity, |theta_ddot| <= acceleration,
   theta in [0, 270] deg, every spherical joint within 150 deg, every chain inside its
   reach, each leg's type I margin and type II margin (through det J-hat >= 3 m, which
@@ -24,7 +24,7 @@ but shorter next to a rest: ``Problem.node_fractions``):
 
 The NLP of a given size is built once per process (:meth:`Problem._template`); every
 task-specific value is a bound or a parameter.  The constraint functions are compiled C
-(:mod:`planner.codegen`) when a compiler is available.
+(:mod:`dynamics.codegen`) when a compiler is available.
 
 Warm start: kinematic interpolation between the waypoints, the free crank angles chosen
 statically at each waypoint to maximise the smallest singularity margin, each segment
@@ -49,6 +49,7 @@ import casadi as ca
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InfeasibleTaskError, InputError, TaskError
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN, measure_limits, pose_masks
 from sixplus3.kinematics.collision import clearance
@@ -252,10 +253,10 @@ def sample_cubic(t: np.ndarray, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray,
 def actuated_profile(robot: Robot, x: np.ndarray, xd: np.ndarray,
                      xdd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(theta_dot, theta_ddot, tau, tau_gravity), each (9, n), of the samples (n, 9) of a
-    motion, with ``robot``'s CasADi model (:func:`planner.model.profile_function`,
+    motion, with ``robot``'s CasADi model (:func:`dynamics.symbolic.profile_function`,
     compiled: ~20x faster than the interpreted functions on 400 samples, the same
     numbers, BENCHMARKS.md)."""
-    from sixplus3.planner.codegen import compiled_profile
+    from sixplus3.dynamics.codegen import compiled_profile
 
     f, p = compiled_profile(robot)
     out = f.map(len(x))(x.T, xd.T, xdd.T, p)
@@ -422,7 +423,7 @@ class Problem:
         self.motion_limits = task.limits_for(self.robot)
         self.limits = self.motion_limits.without_tcp()
         self.options = options or PlannerOptions()
-        self.sr = self.robot.symbolic()
+        self.sr = symbolic_robot(self.robot)
         #: a :class:`sixplus3.progress.PlanProgress` (stages and IPOPT iterations) or None
         self.progress = progress
         #: upper bound [s] of the NLP's total duration (set by solve(): 1.5x the baseline's)
@@ -1091,10 +1092,10 @@ class Problem:
         The structure depends only on (nodes per segment, segments) and the solver
         options: waypoints, locked or given crank angles, limits and margin signs are
         bounds, set per solve.  The node functions are the compiled ones of
-        :mod:`planner.codegen` (mapped over the nodes on two threads) when a C compiler is
+        :mod:`dynamics.codegen` (mapped over the nodes on two threads) when a C compiler is
         available, otherwise CasADi's interpreted SX functions (expanded).
         """
-        from sixplus3.planner.codegen import compiled_functions, single_threaded_solver_blas
+        from sixplus3.dynamics.codegen import compiled_functions, single_threaded_solver_blas
 
         task, opt, sr = self.task, self.options, self.sr
         ns, S = task.segment_nodes, task.n_segments

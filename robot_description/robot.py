@@ -38,7 +38,6 @@ from sixplus3.robot_description.limits import RATED_SPEED_RPM, Limits
 from sixplus3.robot_description.physical import MotorModel, Payload, Tool, _vec
 
 if TYPE_CHECKING:
-    from sixplus3.planner.model import SymbolicRobot
     from sixplus3.robot_description.model import ClosedLoopModel
 
 NUM_LEGS = 3
@@ -411,12 +410,6 @@ class Robot:
         from sixplus3.robot_description.model import closed_loop_model
 
         return closed_loop_model(self)
-
-    def symbolic(self) -> SymbolicRobot:
-        """The CasADi model in minimal coordinates (immutable functions, cached by hash)."""
-        from sixplus3.planner.model import symbolic_robot
-
-        return symbolic_robot(self)
 
     def summary(self) -> str:
         """One line naming the design, the assembly and the mounting."""

@@ -222,7 +222,7 @@ def test_compiled_leg_grid_agrees_leg_by_leg() -> None:
     ((1.5, (0.02, -0.01, 0.06)), (3.0, -2.0, 9.0)),  # a payload, an odd mounting
 ])
 def test_atlas_holding_torque_is_pinocchios(payload, gravity) -> None:
-    """Check 7: the compiled symbolic statics (planner.model.holding_function, CasADi)
+    """Check 7: the compiled symbolic statics (dynamics.symbolic.holding_function, CasADi)
     against Pinocchio's closed-loop statics (dynamics.closed_loop, an independent
     derivation), with the robot's payload and mounting."""
     from sixplus3.robot_description.physical import Payload
@@ -249,7 +249,7 @@ def test_atlas_holding_torque_is_pinocchios(payload, gravity) -> None:
 
 
 def test_acceleration_criterion_is_pinocchios_inverse_dynamics() -> None:
-    """The optional dynamic check: at rest, tau_0 + A a (planner.model.
+    """The optional dynamic check: at rest, tau_0 + A a (dynamics.symbolic.
     acceleration_function, CasADi) against Pinocchio's closed-loop inverse dynamics with
     the actuated accelerations of that platform acceleration (ik_jacobian), motors'
     rotor inertia included; and the worst direction |tau_0| + |a| |A_j| reached."""

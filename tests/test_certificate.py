@@ -10,9 +10,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.dynamics.symbolic import home_x
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.planner.certificate import certify, path_coefficients, plan_grid, retime_path
-from sixplus3.planner.model import home_x
 from sixplus3.planner.ocp import actuated_profile, plan
 from sixplus3.planner.task import task_from_dict
 from sixplus3.planner.toppra_baseline import toppra_time

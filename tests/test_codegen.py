@@ -10,7 +10,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from sixplus3.planner import codegen
+from sixplus3.dynamics import codegen
+from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.robot_description.robot import Robot
 
 pytestmark = pytest.mark.skipif(not codegen.codegen_enabled(), reason="no C compiler")
@@ -19,7 +20,7 @@ pytestmark = pytest.mark.skipif(not codegen.codegen_enabled(), reason="no C comp
 @pytest.fixture(scope="module")
 def source() -> str:
     # a small function of the real model (the margins, with its Jacobian): fast to compile
-    return codegen._source(Robot.default().symbolic().margins)
+    return codegen._source(symbolic_robot(Robot.default()).margins)
 
 
 def _build_with(flags, source: str, directory) -> str:
@@ -101,9 +102,10 @@ def test_a_killed_background_build_is_seen_as_dead_and_cleaned_up(source, tmp_pa
 
 _THREADS_AFTER_PLANNING = """
 import ctypes, pathlib, casadi
-from sixplus3.planner.codegen import CASADI_OPENBLAS
+from sixplus3.dynamics.codegen import CASADI_OPENBLAS
 from sixplus3.planner.ocp import Problem
 from sixplus3.planner.task import task_from_dict
+from sixplus3.dynamics.symbolic import symbolic_robot
 task = task_from_dict({"name": "t", "nodes_per_segment": 4, "waypoints": [
     {"position": [0, 0, 0.58]}, {"position": [0.02, 0, 0.58]}]})
 Problem(task)._template()  # the NLP is built: IPOPT and MUMPS (and their BLAS) loaded

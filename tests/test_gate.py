@@ -36,6 +36,7 @@ from sixplus3.control.validation import (
     validate_file,
     validate_motion,
 )
+from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
@@ -327,7 +328,7 @@ def test_a_file_for_another_robot_or_with_a_forged_robot_is_refused(valid) -> No
 def test_valid_motions_are_accepted(dx, dz, droll, duration, rate) -> None:
     """Rest-to-rest quintic blends in minimal coordinates, sampled at the rate: written
     by write_trajectory and accepted by the file validator (exit 0)."""
-    sr = ROBOT.symbolic()
+    sr = symbolic_robot(ROBOT)
     t = np.arange(0, math.ceil(duration * rate) + 1) / rate
     T = t[-1]
     s = t / T

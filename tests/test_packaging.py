@@ -84,3 +84,24 @@ def test_a_user_project_with_clashing_names_plans_from_any_directory(wheel, tmp_
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     assert r.stdout.startswith("planned")
+
+
+def test_the_layers_contract_holds_and_catches_an_upward_import(tmp_path) -> None:
+    """`make lint`'s import-linter contract (pyproject.toml) holds on the tree, and
+    fails, naming the import, when a lower layer imports a higher one (a lazy import
+    inside a function, as the old upward imports were)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "importlint", Path(__file__).resolve().parents[1] / "scripts" / "importlint.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    tree = mod.build_tree(tmp_path / "tree")
+    ok = mod.run(tree, capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stdout[-2000:]
+    (tree / "sixplus3" / "kinematics" / "_upward.py").write_text(
+        "def f():\n    from sixplus3.planner import ocp\n    return ocp\n")
+    bad = mod.run(tree, capture_output=True, text=True)
+    assert bad.returncode != 0
+    assert "sixplus3.kinematics._upward -> sixplus3.planner.ocp" in bad.stdout

@@ -9,10 +9,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.dynamics.symbolic import home_x, symbolic_robot
 from sixplus3.errors import InfeasibleTaskError, LimitError
 from sixplus3.kinematics.collision import PAIR_FAMILY, clearance
 from sixplus3.kinematics.robot import robot_ik, spherical_tilts
-from sixplus3.planner.model import home_x, symbolic_robot
 from sixplus3.planner.ocp import ROW_SCALE, PlannerOptions, Problem, dense_check, plan
 from sixplus3.planner.task import TaskError, load_task, task_from_dict
 from sixplus3.robot_description.physical import NO_MOTORS, MotorModel, Payload
@@ -262,10 +262,10 @@ def test_clearance_and_home_x() -> None:
 
 
 def test_compiled_node_functions_agree_with_casadi() -> None:
-    """The gcc-compiled constraint function and its Jacobian (planner.codegen) are the
+    """The gcc-compiled constraint function and its Jacobian (dynamics.codegen) are the
     interpreted SX ones, to rounding, at random states (including the Jacobian CasADi
     finds in the library as ``jac_node``)."""
-    from sixplus3.planner.codegen import codegen_enabled, compiled_functions
+    from sixplus3.dynamics.codegen import codegen_enabled, compiled_functions
 
     if not codegen_enabled():
         pytest.fail("no C compiler: the planner would run interpreted (make test needs gcc)")
@@ -287,7 +287,8 @@ def test_compiled_node_functions_agree_with_casadi() -> None:
 
 def test_planner_runs_interpreted_without_a_compiler(monkeypatch) -> None:
     """With code generation off the same NLP is built from the SX functions (slower)."""
-    from sixplus3.planner import codegen, ocp
+    from sixplus3.dynamics import codegen
+    from sixplus3.planner import ocp
 
     monkeypatch.setenv("SIXPLUS3_NO_CODEGEN", "1")
     monkeypatch.setattr(ocp, "_TEMPLATES", {})
@@ -443,7 +444,7 @@ def test_symbolic_clearance_is_a_tight_lower_bound_of_the_numeric_one() -> None:
     """The OCP's clearance rows (a soft minimum per family of body pairs, CasADi) never
     exceed the numeric capsule clearance of kinematics.collision and are within
     ln(largest family)/k of it, at random poses including interfering ones (tilts)."""
-    from sixplus3.planner.model import CLEARANCE_SHARPNESS
+    from sixplus3.dynamics.symbolic import CLEARANCE_SHARPNESS
 
     sr = symbolic_robot()
     rng = np.random.default_rng(5)
@@ -474,7 +475,7 @@ def test_grid_toppra_constraint_equals_toppras_per_point_one(small_solution) -> 
 
     from sixplus3.planner import toppra_baseline as tb
 
-    sr = small_solution.robot.symbolic()
+    sr = symbolic_robot(small_solution.robot)
     x, _, _ = small_solution.sample(np.linspace(0.0, small_solution.final_time, 40))
     ss, xs = tb.arc_length_parameter(x)
     path = ta.SplineInterpolator(ss * tb.PATH_SCALE, xs)

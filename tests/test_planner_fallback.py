@@ -8,6 +8,7 @@ import pytest
 
 from sixplus3.control.pipeline import run_plan
 from sixplus3.control.validation import validate_file
+from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.planner.baseline import baseline_plan, line_check
 from sixplus3.planner.ocp import (
     InfeasibleTaskError,
@@ -60,7 +61,7 @@ def test_baseline_is_a_checked_stop_at_waypoint_plan_on_straight_lines() -> None
         assert np.all(np.diff(s) >= -1e-12)
     # jerk and torque rate within the robot's limits on a fine grid (the planner's
     # smoothness limits, which TOPP-RA alone does not know)
-    sr = base.robot.symbolic()
+    sr = symbolic_robot(base.robot)
     t = np.linspace(0.0, base.final_time, 8001)
     x, xd, xdd = base.sample(t)
     thdd = np.array(sr.theta_ddot.map(len(t))(x.T, xd.T, xdd.T)).T

@@ -20,6 +20,7 @@ from sixplus3.cli import main as cli
 from sixplus3.control.trajectory_file import read_trajectory, write_trajectory
 from sixplus3.control.validation import validate_file, validate_joint_trajectory
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import GeometryError, LimitError, TrajectoryFileError
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.kinematics.robot import home, robot_fk, robot_ik
@@ -79,8 +80,8 @@ def test_limits_validate_themselves_and_only_tighten() -> None:
 
 
 def test_every_cache_is_keyed_by_the_robot() -> None:
-    assert DEFAULT.symbolic() is Robot.default().symbolic()
-    assert OTHER.symbolic() is not DEFAULT.symbolic()
+    assert symbolic_robot(DEFAULT) is symbolic_robot(Robot.default())
+    assert symbolic_robot(OTHER) is not symbolic_robot(DEFAULT)
     assert OTHER.urdf() != DEFAULT.urdf()
     # the committed URDF is the default robot's
     from sixplus3.robot_description.urdf import URDF_PATH
@@ -125,7 +126,7 @@ def test_a_non_default_robot_reaches_every_part() -> None:
     fk = robot_fk(cfg_o.theta[0] + 0.01, OTHER)
     assert fk.residual < 1e-12 and not np.allclose(fk.position, cfg_o.position[0])
     # Pinocchio and CasADi torques agree for this robot, and differ from the default's
-    sr = OTHER.symbolic()
+    sr = symbolic_robot(OTHER)
     dyn = ClosedLoopDynamics(OTHER)
     rng = np.random.default_rng(3)
     for _ in range(3):
@@ -139,14 +140,14 @@ def test_a_non_default_robot_reaches_every_part() -> None:
         tau_pin = dyn.inverse_dynamics(cfg.q[0], v, a)
         tau_cas = np.array(sr.tau(x, xd, xdd)).ravel()
         assert np.abs(tau_pin - tau_cas).max() < 1e-6
-        tau_def = np.array(DEFAULT.symbolic().tau(x, xd, xdd)).ravel()
+        tau_def = np.array(symbolic_robot(DEFAULT).tau(x, xd, xdd)).ravel()
         assert np.abs(tau_def - tau_cas).max() > 1e-3
 
 
 def _slow_motion(robot: Robot, rate: float = 1000.0, duration: float = 0.4):
     """A rest-to-rest quintic from home to a small tilt and back, in minimal coordinates,
     sampled at ``rate``; actuated angles, rates and accelerations from robot's model."""
-    sr = robot.symbolic()
+    sr = symbolic_robot(robot)
     t = np.arange(0.0, duration + 0.5 / rate, 1.0 / rate)
     s = t / duration
     blend = 10 * s**3 - 15 * s**4 + 6 * s**5
@@ -203,8 +204,8 @@ def test_ceiling_mounting_flips_the_gravity_torques() -> None:
     np.testing.assert_allclose(tau_ceiling, -tau_floor, atol=1e-12)
     x = np.r_[0.02, -0.01, 0.31, 0.2, 0, 0, np.array(DEFAULT.home_psi)]
     z = np.zeros(9)
-    np.testing.assert_allclose(np.array(ceiling.symbolic().tau(x, z, z)).ravel(),
-                               -np.array(DEFAULT.symbolic().tau(x, z, z)).ravel(),
+    np.testing.assert_allclose(np.array(symbolic_robot(ceiling).tau(x, z, z)).ravel(),
+                               -np.array(symbolic_robot(DEFAULT).tau(x, z, z)).ravel(),
                                atol=1e-9)
     with pytest.raises(GeometryError):
         Robot.mounted("wall")

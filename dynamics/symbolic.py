@@ -340,7 +340,7 @@ def profile_function(robot: Robot) -> ca.Function:
     actuated rates [rad/s], accelerations [rad/s^2], torques and gravity torques [N m] of
     a state in minimal coordinates, with the setup p (:func:`setup_parameters`).  One
     function for the planner's profiles (time stretches, warm starts, the baseline's
-    TOPP-RA), compiled by :func:`planner.codegen.compiled_small`; the same expressions as
+    TOPP-RA), compiled by :func:`dynamics.codegen.compiled_small`; the same expressions as
     :class:`SymbolicRobot`'s (tests/test_planner.py)."""
     def make() -> ca.Function:
         core = _core(robot)

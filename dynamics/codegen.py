@@ -1,7 +1,7 @@
 """Compiled node functions for the planner (CasADi C code generation + gcc, cached).
 
 The planner's NLP evaluates, at every IPOPT iteration, the Jacobian of the path
-constraints (:attr:`planner.model.SymbolicRobot.node`, with the symbolic dynamics) at
+constraints (:attr:`dynamics.symbolic.SymbolicRobot.node`, with the symbolic dynamics) at
 every node and every interval midpoint.  In CasADi's SX virtual machine that Jacobian
 costs ~1.2 ms per point; compiled with gcc -O1 it is ~6x faster, with -O0 ~3x
 (benchmarks/bench_codegen.py, BENCHMARKS.md).
@@ -293,9 +293,9 @@ def compiled_small(f: ca.Function, key: str) -> ca.Function:
 
 
 def compiled_profile(robot: Robot) -> tuple[ca.Function, ca.DM]:
-    """(f, p): :func:`planner.model.profile_function` compiled (:func:`compiled_small`),
+    """(f, p): :func:`dynamics.symbolic.profile_function` compiled (:func:`compiled_small`),
     and ``robot``'s setup parameters to pass as its last input.  Cached per process."""
-    from sixplus3.planner.model import profile_function, setup_parameters, structure
+    from sixplus3.dynamics.symbolic import profile_function, setup_parameters, structure
 
     def make() -> tuple[ca.Function, ca.DM]:
         return (compiled_small(profile_function(robot), structure(robot).hash),
@@ -343,7 +343,7 @@ def compiled_functions(robot: Robot) -> dict[str, ca.Function]:
     if not codegen_enabled():
         log.info("planner code generation disabled or no C compiler: interpreted functions")
         return {}
-    from sixplus3.planner.model import structure
+    from sixplus3.dynamics.symbolic import structure
 
     libs = _cached(("compiled", structure(robot).hash), lambda: _compiled(robot))
     if not libs:
@@ -354,7 +354,9 @@ def compiled_functions(robot: Robot) -> dict[str, ca.Function]:
 def _with_setup(robot: Robot, libs: dict[str, ca.Function]) -> dict[str, ca.Function]:
     """The libraries with this robot's setup parameters (payload, mounting, motors)
     fixed: one library serves every setup of a structure."""
-    params = ca.DM(robot.symbolic().params)
+    from sixplus3.dynamics.symbolic import symbolic_robot
+
+    params = ca.DM(symbolic_robot(robot).params)
     out = {}
     for name, ext in libs.items():
         ins = [ca.MX.sym(f"in{k}", ext.size1_in(k), ext.size2_in(k))
@@ -368,9 +370,9 @@ _KIND: dict[str, str] = {}
 
 
 def _compiled(robot: Robot, optimised: bool = False) -> dict[str, ca.Function]:
-    from sixplus3.planner.model import structure
+    from sixplus3.dynamics.symbolic import structure, symbolic_robot
 
-    sr = robot.symbolic()
+    sr = symbolic_robot(robot)
     sources = {name: _source(getattr(sr, f"{name}_p")) for name in COMPILED}
     try:
         libs = _build(sources, cache_dir(), optimised)
@@ -391,7 +393,7 @@ def ensure_optimised(robot: Robot) -> bool:
     already loaded the quick build."""
     if not codegen_enabled():
         return False
-    from sixplus3.planner.model import structure
+    from sixplus3.dynamics.symbolic import structure
 
     _cached(("compiled", structure(robot).hash), lambda: _compiled(robot, True))
     compiled_profile(robot)  # the small profile function too (a few seconds, once)
@@ -401,7 +403,7 @@ def ensure_optimised(robot: Robot) -> bool:
 def build_kind(robot: Robot) -> str:
     """"optimised", "quick" or "interpreted": what this process's planner runs for
     ``robot``'s structure (loading it if not yet loaded)."""
-    from sixplus3.planner.model import structure
+    from sixplus3.dynamics.symbolic import structure
 
     if not compiled_functions(robot):
         return "interpreted"
