@@ -12,9 +12,9 @@ cached under ``$SIXPLUS3_CACHE`` (default ``$XDG_CACHE_HOME/sixplus3`` or
 ``~/.cache/sixplus3``), named by the SHA-256 of the generated source and the flags, so a
 changed model never loads a stale library.
 
-Two builds of the same C code: gcc -O1 (the optimised build, ~75 s here: the Jacobian is
+Two builds of the same C code: gcc -O1 (the optimised build, ~2 min here: the Jacobian is
 one 11 MB function and gcc's register allocation dominates) and gcc -O0 (the quick
-build, ~15 s, the same results bit for bit, its Jacobian ~2x slower).  A process that
+build, ~25 s, the same results bit for bit, its Jacobian ~2x slower).  A process that
 finds no optimised library compiles the quick one, plans with it, and starts the
 optimised build in a detached, niced background process that outlives it; the next
 process loads the optimised library.  :func:`ensure_optimised` waits for it instead
@@ -173,9 +173,9 @@ def _build(sources: dict[str, str], directory: Path, optimised: bool = False
            ) -> dict[str, Path]:
     """Name -> library path, building what is missing.
 
-    The optimised library (``CFLAGS``, gcc -O1, ~75 s on this machine) is used when it
+    The optimised library (``CFLAGS``, gcc -O1, ~2 min on this machine) is used when it
     exists.  Otherwise, unless ``optimised``, the quick build (``QUICK_CFLAGS``, -O0,
-    ~15 s; the same C code, the same results bit for bit, its Jacobian ~2x slower) is
+    ~25 s; the same C code, the same results bit for bit, its Jacobian ~2x slower) is
     compiled in the foreground and used, and then the optimised one is built in the
     background for the next process.  With ``optimised`` the optimised library is
     waited for (a running background build) or compiled in the foreground.
@@ -208,7 +208,7 @@ def _build(sources: dict[str, str], directory: Path, optimised: bool = False
     if (jobs or waiting) and progress.level() != progress.QUIET:  # quiet: waits below
         what = "an optimised" if optimised else "a quick"
         print(f"sixplus3: compiling {what} build of the planner's constraint functions "
-              f"(once per machine and robot structure, ~{'75' if optimised else '15'} s) "
+              f"(once per machine and robot structure, ~{'120' if optimised else '25'} s) "
               f"into {directory}", file=sys.stderr, flush=True)
         _wait_with_progress([job[4] for job in jobs], [libs[n] for n in waiting])
     for name in waiting:  # a background build: wait for it, or build here if it failed
