@@ -1,6 +1,7 @@
 """The planner on a held-out random set: wall time, success, duration against the baseline.
 
     .venv/bin/python benchmarks/bench_planner_heldout.py [--n 30] [--seed 2026] [--out r.jsonl]
+    .venv/bin/python benchmarks/bench_planner_heldout.py --broad --seed 1   # the broad set
     .venv/bin/python benchmarks/bench_planner_heldout.py --examples   # the example suite
     .venv/bin/python benchmarks/bench_planner_heldout.py --certify    # + the certificate
     .venv/bin/python benchmarks/bench_planner_heldout.py --tasks 0,1,2 --ipopt mumps_pivtol=1e-8
@@ -54,6 +55,20 @@ def heldout_task(rng: np.random.Generator, k: int) -> dict:
     return {"name": f"heldout_{k}", "waypoints": wps}
 
 
+def broad_task(rng: np.random.Generator, k: int) -> dict:
+    """The broader generator of the planner-speed issue: 2-4 waypoints, x and y within
+    +-9 cm of home, z from 6 cm below it to 10 cm above, roll and pitch within +-55 deg,
+    yaw within +-70 deg."""
+    wps = []
+    for _ in range(int(rng.integers(2, 5))):
+        wps.append({"position": [float(rng.uniform(-0.09, 0.09)),
+                                 float(rng.uniform(-0.09, 0.09)),
+                                 float(HOME_Z + rng.uniform(-0.06, 0.10))],
+                    "rpy": [float(rng.uniform(-55, 55)), float(rng.uniform(-55, 55)),
+                            float(rng.uniform(-70, 70))]})
+    return {"name": f"broad_{k}", "waypoints": wps}
+
+
 def pct(values: list[float], q: float) -> float:
     return float(np.percentile(values, q)) if values else float("nan")
 
@@ -76,6 +91,9 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=30)
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--out", default=None, help="write one JSON line per task")
+    ap.add_argument("--broad", action="store_true",
+                    help="the broader generator (broad_task: +-9 cm, z -6/+10 cm, roll and "
+                    "pitch +-55 deg, yaw +-70 deg) instead of the narrow one")
     ap.add_argument("--examples", action="store_true",
                     help="the example suite (examples/*.yaml) instead of random tasks")
     ap.add_argument("--certify", action="store_true",
@@ -106,7 +124,8 @@ def main() -> None:
         tasks = [load_task(p) for p in sorted(
             (Path(__file__).parents[1] / "examples").glob("*.yaml"))]
     else:
-        tasks = [task_from_dict(heldout_task(rng, k)) for k in range(args.n)]
+        make = broad_task if args.broad else heldout_task
+        tasks = [task_from_dict(make(rng, k)) for k in range(args.n)]
     if args.tasks:
         try:
             picked = [int(k) for k in args.tasks.split(",")]

@@ -14,7 +14,7 @@ from sixplus3.control.validation import validate_file, validate_motion
 from sixplus3.errors import LimitError
 from sixplus3.kinematics.robot import robot_ik, tcp_rates, tcp_velocity
 from sixplus3.planner.task import task_from_dict
-from sixplus3.robot_description import Limits, Robot
+from sixplus3.robot_description import Robot
 from sixplus3.robot_description.physical import Tool
 
 ROBOT = Robot.default()
@@ -76,4 +76,3 @@ def test_a_task_tcp_speed_limit_is_met_and_the_gate_checks_it(tmp_path) -> None:
                           limits=ROBOT.limits.tightened(tcp_speed=0.1))
     assert rep.exit_code == 1 and any("tcp speed" in m for m in rep.messages())
     assert not any("tcp" in m for m in rep_free.messages())
-    assert Limits().tcp_speed == ROBOT.limits.tcp_speed
