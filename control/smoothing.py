@@ -16,7 +16,7 @@ Per rest-to-rest piece of the plan (the whole plan, or the pieces between its st
    (``Smoothed.stretched_segments``, in the file's header); it does not change the
    output: time-synchronising nine joints, Ruckig sometimes needs 1.1 periods where
    the plan itself (jerk-checked on a 4x grid) takes one.  The gate re-checks the jerk.
-   ``intermediate_positions`` is never set (it calls a cloud service, LIBRARY-NOTES).
+   ``intermediate_positions`` is never set (it calls a cloud service, docs/libraries.md).
 
 Why not let Ruckig reshape segments: joining the knots with Ruckig's own profiles,
 segment by segment, departs from the plan (accelerations up to ~100 rad/s^2 off between

@@ -1,6 +1,6 @@
 """Symbolic (CasADi) kinematics and dynamics of the whole robot in minimal coordinates.
 
-pinocchio.casadi is not in the pip wheel (LIBRARY-NOTES.md), so the dynamics are built
+pinocchio.casadi is not in the pip wheel (docs/libraries.md), so the dynamics are built
 here from two ingredients that cannot drift from the numeric model:
 
 1. the closed-form inverse kinematics (docs/conventions.md conventions, same branches as

@@ -7,7 +7,7 @@ actuated velocities, all of the form a(s) s_ddot + b(s) s_dot^2 + c(s) along a p
     inv_dyn(x, xd, xdd) = [tau(x, xd, xdd); theta_ddot(x, xd, xdd); theta_dot(x, xd)^2]
 
 with tau from the same CasADi model as the planner (which agrees with Pinocchio).
-Parametrisation: ParametrizeConstAccel (LIBRARY-NOTES: the spline parametriser violated
+Parametrisation: ParametrizeConstAccel (docs/libraries.md: the spline parametriser violated
 limits by ~14%); callers re-check the result.
 """
 

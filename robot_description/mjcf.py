@@ -1,7 +1,7 @@
 """The robot as MuJoCo MJCF: a second physics engine that shares no code with ours.
 
 Written directly, not through MuJoCo's URDF importer, which merges the massless closure
-frames away and knows no loop closures (LIBRARY-NOTES.md).  What is written:
+frames away and knows no loop closures (docs/libraries.md).  What is written:
 
 - the spanning tree of the URDF, one ``<body>`` per Pinocchio joint, with the joint's
   placement, the body's inertia (``model.inertias``: fixed links such as the payload

@@ -148,9 +148,6 @@ class ClosedLoopModel:
     def q_index(self, joint: str) -> int:
         return int(self.model.joints[self.model.getJointId(joint)].idx_q)
 
-    def v_index(self, joint: str) -> int:
-        return int(self.model.joints[self.model.getJointId(joint)].idx_v)
-
     # ------------------------------------------------------------------ closures
     def residual(self, q: np.ndarray) -> np.ndarray:
         """(27,) o_A - o_B in the world frame [m]."""

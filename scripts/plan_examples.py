@@ -3,7 +3,7 @@
     .venv/bin/python scripts/plan_examples.py [--out out] [--locked] [TASK.yaml ...]
 
 The starting point for a lab's own batch: each task goes through plan -> smooth ->
-validate -> write (planner.pipeline.run_plan); an infeasible task is reported and skipped,
+validate -> write (control.pipeline.run_plan); an infeasible task is reported and skipped,
 nothing is written for it.
 """
 
