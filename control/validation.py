@@ -47,7 +47,7 @@ from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import (
     robot_fk_batch,
     spherical_tilts,
-    tcp_rates,
+    tcp_acceleration,
     tcp_velocity,
 )
 from sixplus3.robot_description.limits import Limits
@@ -507,10 +507,11 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
                                     jerk, t_int, sph, clear)
         # the tool centre point: its speed at every point, its acceleration at the
         # samples (the finite difference of the speed's vector, kinematics.robot.tcp_rates)
-        tcp_v = np.linalg.norm(tcp_velocity(cfg, v), axis=1)
+        v_tcp = tcp_velocity(cfg, v)
+        tcp_a = tcp_acceleration(v_tcp, t)
+        tcp_v = np.linalg.norm(v_tcp, axis=1)
         if fkm is not None:
             tcp_v = np.r_[tcp_v, np.linalg.norm(tcp_velocity(fkm.cfg, vm), axis=1)]
-        _, tcp_a = tcp_rates(cfg, v, t)
         for name, unit, cap, val, tt in (("tcp speed", "m/s", lim.tcp_speed, tcp_v, t_all),
                                           ("tcp acceleration (samples)", "m/s^2",
                                            lim.tcp_acceleration, tcp_a, t)):

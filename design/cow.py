@@ -50,6 +50,8 @@ if TYPE_CHECKING:
 LIMIT_SETS = ("reach", "theta", "singfree", "torque", "clear")
 #: Margin used for "singularity-free" (scale-free, see kinematics.robot).
 SINGFREE_MARGIN = 0.01
+#: Most grid cells of one COW (5 boolean masks: 250 MB at the cap).
+MAX_CELLS = 50_000_000
 #: The paper's ratio of projected COW area to footprint.
 PAPER_RATIO = 5.03
 
@@ -107,6 +109,11 @@ def compute_cow(robot: Robot | None = None, step: float = 0.01, z_step: float = 
     psi = robot.home_psi
     xs = np.arange(-extent + step / 2, extent, step)
     zs = np.arange(z_min, z_max + 1e-9, z_step)
+    cells = len(xs) ** 2 * len(zs)
+    if cells > MAX_CELLS:
+        raise InputError(f"the COW grid would hold {cells:.3g} cells, over the cap of "
+                         f"{MAX_CELLS:.3g} (5 masks of a byte each): use a coarser step "
+                         "or a smaller extent", value=cells, valid=f"<= {MAX_CELLS:.3g}")
     X, Y = np.meshgrid(xs, xs, indexing="ij")
     ref = robot_ik(np.array(robot.home_position), np.eye(3), psi, robot)
     if not ref.ok[0]:

@@ -33,6 +33,9 @@ from sixplus3.kinematics.collision import layout_clearance
 from sixplus3.robot_description.geometry import LegGeometry
 from sixplus3.robot_description.robot import PAPER_PHASE, Robot
 
+#: Most layouts of one sweep (per leg): a COW each, ~0.6 s at the default 2 cm grid.
+MAX_LAYOUTS = 2000
+
 
 @dataclass(frozen=True)
 class LayoutSettings:
@@ -55,6 +58,11 @@ class LayoutSettings:
                 raise InputError(f"{name} must be 1 to 400 finite angles in [-90, 90] deg, "
                                  f"got {str(v)[:80]}", value=str(v)[:80],
                                  valid="1..400 angles in [-90, 90] deg")
+        n = len(self.turns_deg) * len(self.phases_deg)
+        if n > MAX_LAYOUTS:
+            raise InputError(f"the sweep has {n} layouts, over the cap of {MAX_LAYOUTS}: "
+                             "use fewer turns or phases, or run it in parts",
+                             value=n, valid=f"<= {MAX_LAYOUTS}")
         values = (self.step, self.z_step, self.extent, self.z_max)
         if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values) or not (
                 0.005 <= self.step <= 0.1 and 0.005 <= self.z_step <= 0.2

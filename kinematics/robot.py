@@ -501,18 +501,24 @@ def tcp_velocity(cfg: RobotConfig, theta_dot: np.ndarray) -> np.ndarray:
     return out
 
 
+def tcp_acceleration(velocity: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """(n,) |acceleration| of the tool centre point [m/s^2]: the second-order finite
+    difference over ``times`` (n,) [s], increasing, of its velocity (n, 3) [m/s]
+    (``numpy.gradient``; one-sided at the ends; 0 for a single sample)."""
+    t = np.asarray(times, dtype=float)
+    if len(t) < 2:
+        return np.zeros(len(t))
+    acc = np.gradient(velocity, t, axis=0, edge_order=2 if len(t) > 2 else 1)
+    return np.linalg.norm(np.nan_to_num(acc, nan=np.inf), axis=1)
+
+
 def tcp_rates(cfg: RobotConfig, theta_dot: np.ndarray, times: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray]:
     """(speed (n,) [m/s], acceleration (n,) [m/s^2]) of the tool centre point along a
     motion sampled at ``times`` (n,) [s], increasing: the speed exactly from the actuated
-    rates (:func:`tcp_velocity`), the acceleration as the second-order finite
-    difference of that velocity (``numpy.gradient``; one-sided at the ends)."""
+    rates (:func:`tcp_velocity`), the acceleration by :func:`tcp_acceleration`."""
     v = tcp_velocity(cfg, theta_dot)
-    t = np.asarray(times, dtype=float)
-    if len(t) < 2:
-        return np.linalg.norm(v, axis=1), np.zeros(len(t))
-    acc = np.gradient(v, t, axis=0, edge_order=2 if len(t) > 2 else 1)
-    return np.linalg.norm(v, axis=1), np.linalg.norm(np.nan_to_num(acc, nan=np.inf), axis=1)
+    return np.linalg.norm(v, axis=1), tcp_acceleration(v, times)
 
 
 def robot_fk_batch(theta: np.ndarray, x_guess: np.ndarray, robot: Robot | None = None,

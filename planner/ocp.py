@@ -698,21 +698,16 @@ class Problem:
         lim = self.motion_limits
         if not lim.has_tcp:
             return sol
-        times = np.linspace(0.0, sol.t[-1], (len(sol.t) - 1) * 10 + 1)
-        x, xd, xdd = sol.sample(times)
-        cfg = robot_ik(x[:, 0:3], Rotation.from_rotvec(x[:, 3:6]).as_matrix(), x[:, 6:9],
-                       self.robot)
-        from sixplus3.kinematics.robot import tcp_rates
-
-        thd = actuated_profile(self.robot, x, xd, xdd)[0].T
-        speed, acc = tcp_rates(cfg, thd, times)
-        a = max(1.0, float(speed.max()) / (target * lim.tcp_speed),
-                math.sqrt(float(acc.max()) / (target * lim.tcp_acceleration)))
+        if sol.check is None:
+            sol.check = dense_check(sol, factor=10)
+        # the dense check measured the tool centre point on the same samples
+        speed, acc = sol.check.max_tcp_speed, sol.check.max_tcp_acceleration
+        a = max(1.0, speed / (target * lim.tcp_speed),
+                math.sqrt(acc / (target * lim.tcp_acceleration)))
         if a > 1.0:
             self._stage(f"stretching time by {a:.3f} for the tool centre point's limits "
                         f"({lim.tcp_speed:g} m/s, {lim.tcp_acceleration:g} m/s^2)")
-            by_speed = speed.max() / lim.tcp_speed >= math.sqrt(acc.max()
-                                                                / lim.tcp_acceleration)
+            by_speed = speed / lim.tcp_speed >= math.sqrt(acc / lim.tcp_acceleration)
             sol = self._stretched(sol, a)
             sol.active_limits = [f"tcp {'speed' if by_speed else 'acceleration'} (uniform "
                                  f"stretch {a:.3f})"]

@@ -114,37 +114,32 @@ class _Builder:
         [m]), also the collision model's body (robot.collision, kinematics.collision) as
         a collision cylinder of that radius (URDF has no capsule: the model's bodies
         also reach that radius beyond each end)."""
-        start, end = np.asarray(start, float), np.asarray(end, float)
-        axis = end - start
-        length = float(np.linalg.norm(axis))
-        u = axis / length
-        # rotate the URDF cylinder axis (z) onto u: pitch then yaw
-        pitch = math.acos(max(-1.0, min(1.0, u[2])))
-        yaw = math.atan2(u[1], u[0])
-        vis = ET.SubElement(link, "visual")
-        ET.SubElement(vis, "origin", xyz=_vec((start + end) / 2), rpy=_vec((0.0, pitch, yaw)))
-        geo = ET.SubElement(vis, "geometry")
-        ET.SubElement(geo, "cylinder", radius=_f(radius), length=_f(length))
+        vis = self._cylinder_element(link, "visual", start, end, radius)
         ET.SubElement(vis, "material", name=material)
         if collision is not None:
-            col = ET.SubElement(link, "collision")
-            ET.SubElement(col, "origin", xyz=_vec((start + end) / 2),
-                          rpy=_vec((0.0, pitch, yaw)))
-            ET.SubElement(ET.SubElement(col, "geometry"), "cylinder",
-                          radius=_f(collision), length=_f(length))
+            self.collision_cylinder(link, start, end, collision)
 
     def collision_cylinder(self, link: ET.Element, start, end, radius: float) -> None:
         """A collision cylinder only (a body of the collision model that has no visual of
         its own)."""
+        self._cylinder_element(link, "collision", start, end, radius)
+
+    @staticmethod
+    def _cylinder_element(link: ET.Element, tag: str, start, end,
+                          radius: float) -> ET.Element:
+        """A ``tag`` (visual or collision) cylinder of ``radius`` from ``start`` to
+        ``end``: the URDF cylinder's axis (z) rotated onto the segment, pitch then yaw."""
         start, end = np.asarray(start, float), np.asarray(end, float)
         axis = end - start
-        u = axis / float(np.linalg.norm(axis))
+        length = float(np.linalg.norm(axis))
+        u = axis / length
         pitch = math.acos(max(-1.0, min(1.0, u[2])))
-        col = ET.SubElement(link, "collision")
-        ET.SubElement(col, "origin", xyz=_vec((start + end) / 2),
+        el = ET.SubElement(link, tag)
+        ET.SubElement(el, "origin", xyz=_vec((start + end) / 2),
                       rpy=_vec((0.0, pitch, math.atan2(u[1], u[0]))))
-        ET.SubElement(ET.SubElement(col, "geometry"), "cylinder", radius=_f(radius),
-                      length=_f(float(np.linalg.norm(axis))))
+        ET.SubElement(ET.SubElement(el, "geometry"), "cylinder", radius=_f(radius),
+                      length=_f(length))
+        return el
 
     def sphere(self, link: ET.Element, center, radius: float, material: str) -> None:
         vis = ET.SubElement(link, "visual")
