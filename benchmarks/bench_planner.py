@@ -38,7 +38,8 @@ HOME_Z = Robot.default().home_position[2]
 
 def run(task, locked: bool):
     try:
-        return Problem(task, options=PlannerOptions(lock_redundancy=locked)).solve()
+        opts = PlannerOptions(lock_redundancy=locked)
+        return Problem(task, Robot.default(), options=opts).solve()
     except InfeasibleTaskError as exc:
         print(f"  {task.name} locked={locked}: infeasible: {exc}", flush=True)
         return None
@@ -67,7 +68,8 @@ def planned_tilt(axis: str, locked: bool, static_deg: float) -> str:
                                              {"position": [0, 0, HOME_Z], "rpy": angles},
                                              {"position": [0, 0, HOME_Z]}]})
         try:
-            sol = Problem(task, options=PlannerOptions(lock_redundancy=locked)).solve()
+            opts = PlannerOptions(lock_redundancy=locked)
+            sol = Problem(task, Robot.default(), options=opts).solve()
             if sol.is_feasible():
                 return (f"{deg:g} deg in {sol.final_time:.4f} s (solve {sol.solve_time:.2f} s, "
                         f"max|tau|/lim {sol.check.max_torque_ratio:.3f}, margin "

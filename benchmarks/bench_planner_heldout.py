@@ -16,7 +16,7 @@ at the end).  Tasks whose waypoints fail
 the static checks (reach, ranges, margins, holding torque) are refused before any
 optimisation, by design, and counted apart.
 
-Per task: the wall time of ``Problem(task).solve()`` (everything from the task to a
+Per task: the wall time of ``Problem(task, robot).solve()`` (everything from the task to a
 dense-checked Solution; the one-time C compilation of the model is done before the clock
 starts), the NLP solve time, IPOPT iterations, the plan's duration, and the duration of
 the stop-at-waypoints baseline (straight lines, static crank angles, TOPP-RA per segment,
@@ -138,7 +138,7 @@ def main() -> None:
         row: dict = {"name": task.name, "waypoints": len(task.waypoints)}
         t0 = time.perf_counter()
         try:
-            sol = Problem(task, options=opts).solve()
+            sol = Problem(task, Robot.default(), options=opts).solve()
             row["wall"] = time.perf_counter() - t0
             row.update(ok=sol.is_feasible(), T=sol.final_time, solve=sol.solve_time,
                        iterations=sol.iterations, solves=sol.solves, status=sol.status,

@@ -53,7 +53,8 @@ def main() -> None:
         task = task_from_dict(random_task(rng, k))
         t0 = time.perf_counter()
         try:
-            sol = Problem(task, options=PlannerOptions(lock_redundancy=args.locked)).solve()
+            opts = PlannerOptions(lock_redundancy=args.locked)
+            sol = Problem(task, Robot.default(), options=opts).solve()
             if sol.is_feasible():
                 outcome["planned"] += 1
                 solves.append(sol.solve_time)

@@ -18,7 +18,8 @@ import dataclasses
 import numpy as np
 
 from sixplus3 import examples
-from sixplus3.planner.ocp import Problem, actuated_profile
+from sixplus3.planner.ocp import Problem
+from sixplus3.planner.solution import actuated_profile
 from sixplus3.robot_description.robot import Robot
 
 CASES = (("robot's limits", {}), ("acceleration 100 rad/s^2", {"acceleration": 100.0}),

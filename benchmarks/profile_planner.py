@@ -26,6 +26,7 @@ from bench_planner_heldout import heldout_task
 
 from sixplus3.dynamics.codegen import compiled_functions, ensure_optimised
 from sixplus3.planner.ocp import Problem
+from sixplus3.planner.solvers import ipopt_solver
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -53,11 +54,11 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)
     # the generator draws the tasks in turn: task k is the (k+1)-th draw of the seed
     docs = [heldout_task(rng, k) for k in range(args.task + 1)]
-    problem = Problem(task_from_dict(docs[-1]))
+    problem = Problem(task_from_dict(docs[-1]), robot)
     sol = problem.solve()
     print(f"heldout_{args.task}: {len(sol.task.waypoints)} waypoints, {len(sol.t) - 1} "
           f"intervals, {sol.iterations} IPOPT iterations, solve {sol.solve_time:.2f} s")
-    solver = problem._template()["solver"]
+    solver = ipopt_solver(problem).solver
     jac_g, g = solver.get_function("nlp_jac_g"), solver.get_function("nlp_g")
     nx, n_par = jac_g.size1_in(0), jac_g.size1_in(1)
     print(f"NLP: {nx} variables, {jac_g.size1_out(1)} rows, {jac_g.nnz_out(1)} Jacobian "

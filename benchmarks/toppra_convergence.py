@@ -36,7 +36,8 @@ def main() -> None:
     print("| --- | ---: | " + " | ".join("---:" for _ in GRIDS) + " |")
     for name in args.tasks:
         task = load_task(root / f"{name}.yaml")
-        sol = Problem(task, options=PlannerOptions(lock_redundancy=not args.free)).solve()
+        opts = PlannerOptions(lock_redundancy=not args.free)
+        sol = Problem(task, Robot.default(), options=opts).solve()
         speed = np.linalg.norm(sol.xd, axis=1)
         ratios = [sol.final_time / toppra_along(sol, sol.limits, gp) for gp in GRIDS]
         print(f"| {name} {'free' if args.free else 'locked'} | "

@@ -14,7 +14,8 @@ from sixplus3.control.trajectory_file import check_samples, output_path
 from sixplus3.control.validation import ValidationReport, validate_and_write
 from sixplus3.dynamics.codegen import build_kind
 from sixplus3.errors import TrajectoryFileError, ValidationFailed
-from sixplus3.planner.ocp import PlannerOptions, Solution, check_plan_arguments, plan
+from sixplus3.planner.ocp import PlannerOptions, Solution, plan
+from sixplus3.planner.problem import check_plan_arguments
 from sixplus3.planner.task import Task
 from sixplus3.progress import PlanProgress
 from sixplus3.robot_description.robot import Robot
@@ -62,8 +63,9 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
     :class:`InfeasibleTaskError` for an infeasible task and :class:`TrajectoryFileError`
     if the smoothed trajectory fails its validation; in both cases nothing is written.
     """
+    robot = Robot.default() if robot is None else robot
     check_plan_arguments(task, robot, options)
-    robot = task.robot_for(robot or Robot.default())  # with the task's payload/tool/mounting
+    robot = task.robot_for(robot)  # with the task's payload/tool/mounting
     listener: PlanProgress | None = None
     say: Callable[[str], None] = _silent
     if isinstance(progress, PlanProgress):

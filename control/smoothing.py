@@ -40,7 +40,7 @@ from sixplus3.control.trajectory_file import check_samples
 from sixplus3.control.validation import RATE_RANGE
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InputError, SmoothingError
-from sixplus3.planner.ocp import Solution, actuated_profile
+from sixplus3.planner.solution import Solution, actuated_profile
 
 
 @dataclass(frozen=True)

@@ -68,13 +68,14 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
+from sixplus3.cache import cached
 from sixplus3.design import _atlas_kernel as _kernel
 from sixplus3.design.cluster import check_scheduler, check_workers, map_tasks
 from sixplus3.errors import InputError
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
 from sixplus3.kinematics.rotations import matrix_from_rotvec, rotvec_from_matrix
 from sixplus3.robot_description.geometry import GRAVITY
-from sixplus3.robot_description.robot import Robot, _cached
+from sixplus3.robot_description.robot import Robot
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
@@ -163,7 +164,7 @@ class _Checker:
         self.home = np.asarray(robot.home_psi, dtype=float)
         self.packed = _kernel.pack(robot)
         # the platform margin depends on the crank angles only: tabulated on the grid
-        self.platform_grid = _cached(("atlas-platform", f"{robot.hash}:{psi_step_deg}"),
+        self.platform_grid = cached(("atlas-platform", f"{robot.hash}:{psi_step_deg}"),
                                      lambda: self._platform_table())
         self.platform_home = float(_kernel.platform_margins(self.home[None], *self.packed[:2])[0])
         self.evaluations = 0  # poses judged (one per admissible() row)

@@ -44,7 +44,8 @@ from pathlib import Path
 
 import casadi as ca
 
-from sixplus3.robot_description.robot import Robot, _cached
+from sixplus3.cache import cached
+from sixplus3.robot_description.robot import Robot
 
 log = logging.getLogger(__name__)
 
@@ -289,7 +290,7 @@ def compiled_small(f: ca.Function, key: str) -> ca.Function:
             log.warning("compiling %s failed (%s); interpreted", f.name(), exc)
             return f
 
-    return _cached(("compiled-small", f"{f.name()}:{key}"), build)
+    return cached(("compiled-small", f"{f.name()}:{key}"), build)
 
 
 def compiled_profile(robot: Robot) -> tuple[ca.Function, ca.DM]:
@@ -301,7 +302,7 @@ def compiled_profile(robot: Robot) -> tuple[ca.Function, ca.DM]:
         return (compiled_small(profile_function(robot), structure(robot).hash),
                 ca.DM(setup_parameters(robot)))
 
-    return _cached(("compiled-profile", robot.hash), make)
+    return cached(("compiled-profile", robot.hash), make)
 
 
 def _wait_with_progress(procs: list[subprocess.Popen], libs: list[Path]) -> None:
@@ -345,10 +346,10 @@ def compiled_functions(robot: Robot) -> dict[str, ca.Function]:
         return {}
     from sixplus3.dynamics.symbolic import structure
 
-    libs = _cached(("compiled", structure(robot).hash), lambda: _compiled(robot))
+    libs = cached(("compiled", structure(robot).hash), lambda: _compiled(robot))
     if not libs:
         return {}
-    return _cached(("compiled-setup", robot.hash), lambda: _with_setup(robot, libs))
+    return cached(("compiled-setup", robot.hash), lambda: _with_setup(robot, libs))
 
 
 def _with_setup(robot: Robot, libs: dict[str, ca.Function]) -> dict[str, ca.Function]:
@@ -395,7 +396,7 @@ def ensure_optimised(robot: Robot) -> bool:
         return False
     from sixplus3.dynamics.symbolic import structure
 
-    _cached(("compiled", structure(robot).hash), lambda: _compiled(robot, True))
+    cached(("compiled", structure(robot).hash), lambda: _compiled(robot, True))
     compiled_profile(robot)  # the small profile function too (a few seconds, once)
     return build_kind(robot) == "optimised"
 

@@ -27,9 +27,10 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from sixplus3.cache import cached
 from sixplus3.kinematics.robot import spherical_reference
 from sixplus3.robot_description.assembly import AssemblyMode
-from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, _cached
+from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry
 
 NX = 9  # minimal coordinates: p (3), r (3), psi (3)
 
@@ -293,12 +294,12 @@ def symbolic_robot(robot: Robot | None = None) -> SymbolicRobot:
     with the setup (payload, gravity, motors) as parameters; each robot's functions fix
     them to its values (cached by the robot's hash; CasADi functions are immutable)."""
     robot = robot or Robot.default()
-    return _cached(("symbolic", robot.hash), lambda: _specialise(robot))
+    return cached(("symbolic", robot.hash), lambda: _specialise(robot))
 
 
 def _core(robot: Robot) -> _Core:
     """The structure's symbolic model, built once per process."""
-    return _cached(("symbolic-core", structure(robot).hash), lambda: _build(structure(robot)))
+    return cached(("symbolic-core", structure(robot).hash), lambda: _build(structure(robot)))
 
 
 def holding_function(robot: Robot) -> ca.Function:
@@ -313,7 +314,7 @@ def holding_function(robot: Robot) -> ca.Function:
         return ca.Function("hold_p", [x, p], [_core(robot).tau(x, zero, zero, p)],
                            {"cse": True})
 
-    return _cached(("symbolic-hold", structure(robot).hash), make)
+    return cached(("symbolic-hold", structure(robot).hash), make)
 
 
 def acceleration_function(robot: Robot) -> ca.Function:
@@ -332,7 +333,7 @@ def acceleration_function(robot: Robot) -> ca.Function:
                            [tau(x, zero, zero, p), ca.substitute(A, a, ca.SX.zeros(3, 1))],
                            {"cse": True})
 
-    return _cached(("symbolic-accel", structure(robot).hash), make)
+    return cached(("symbolic-accel", structure(robot).hash), make)
 
 
 def profile_function(robot: Robot) -> ca.Function:
@@ -351,7 +352,7 @@ def profile_function(robot: Robot) -> ca.Function:
                             core.tau(x, xd, xdd, p), core.tau(x, zero, zero, p)],
                            {"cse": True})
 
-    return _cached(("symbolic-profile", structure(robot).hash), make)
+    return cached(("symbolic-profile", structure(robot).hash), make)
 
 
 def _specialise(robot: Robot) -> SymbolicRobot:

@@ -1,7 +1,7 @@
 """The one limit rule: the extremes of a sampled motion against a robot's limits.
 
 Both independent checks apply it: the planner's dense re-check
-(:func:`sixplus3.planner.ocp.dense_check`) and the file validation
+(:func:`sixplus3.planner.solution.dense_check`) and the file validation
 (:mod:`sixplus3.control.validation`).
 """
 

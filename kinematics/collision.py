@@ -214,10 +214,10 @@ def near_pairs(robot: Robot, margin: float = 0.02) -> tuple[np.ndarray, np.ndarr
     with every actuated angle and spherical joint in range).  The planner's smooth rows
     measure only these; the dense check and the gate measure every pair.  Cached per
     robot."""
-    from sixplus3.robot_description.robot import _cached
+    from sixplus3.cache import cached
 
-    return _cached(("near-pairs", f"{robot.hash}:{margin!r}"),
-                   lambda: _near_pairs(robot, margin))
+    return cached(("near-pairs", f"{robot.hash}:{margin!r}"),
+                  lambda: _near_pairs(robot, margin))
 
 
 def _near_pairs(robot: Robot, margin: float) -> tuple[np.ndarray, np.ndarray]:

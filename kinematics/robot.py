@@ -22,10 +22,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from sixplus3.cache import cached
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError, as_float_array
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.leg import LegState, failing_chain, leg_ik, status_reason
-from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, _cached
+from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry
 
 if TYPE_CHECKING:
     from sixplus3.robot_description.model import ClosedLoopModel
@@ -104,7 +105,7 @@ def _layout(robot: Robot) -> dict[str, int]:
         out["__nq__"] = int(m.nq)
         return out
 
-    return _cached(("layout", robot.hash), make)
+    return cached(("layout", robot.hash), make)
 
 
 def _u_joint_angles(theta_crank: np.ndarray, link_dir: np.ndarray):
@@ -296,7 +297,7 @@ def spherical_reference(robot: Robot) -> np.ndarray:
     frame, axis in the distal link frame); for P, (axis in the leg body frame, axis in the
     platform crank frame).  The joint is mounted centred at home: tilt 0.
     """
-    return _cached(("spherical_reference", robot.hash), lambda: _spherical_reference(robot))
+    return cached(("spherical_reference", robot.hash), lambda: _spherical_reference(robot))
 
 
 def _spherical_reference(robot: Robot) -> np.ndarray:

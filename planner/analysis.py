@@ -19,7 +19,8 @@ from scipy.spatial.transform import Rotation
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError, SingularityError
-from sixplus3.planner.ocp import PSI_MAX, PSI_MIN, static_checks
+from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
+from sixplus3.planner.statics import static_checks
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 

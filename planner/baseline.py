@@ -1,11 +1,11 @@
 """The stop-at-waypoints baseline: straight lines, static crank angles, TOPP-RA per segment.
 
 What a user would build without the OCP, and the plan the planner must never be slower
-than (it is also its warm start and its fallback, :meth:`planner.ocp.Problem.solve`):
+than (it is also its warm start and its fallback, :func:`planner.strategy.solve`):
 
 1. every segment is the straight line x(s) = x_a + s (x_b - x_a), s in [0, 1], in the
    minimal coordinates (position, rotation vector, crank angles), between the waypoint
-   states with the statically best crank angles (:func:`planner.ocp.choose_static_psi`),
+   states with the statically best crank angles (:func:`planner.statics.choose_static_psi`),
    at rest at both ends;
 2. the line is checked geometrically at 101 points (reach, actuated range, spherical
    joints, leg clearance, singularity margins); a line that fails has no baseline;
@@ -25,7 +25,8 @@ than (it is also its warm start and its fallback, :meth:`planner.ocp.Problem.sol
    (velocity, acceleration, torque, jerk and torque rate on a 4x grid, with the CasADi
    model): under t -> a t the rates scale 1/a, the accelerations and the inertial
    torques 1/a^2, the jerks 1/a^3, exactly;
-7. the result is dense-checked with Pinocchio like every plan (:func:`planner.ocp.dense_check`).
+7. the result is dense-checked with Pinocchio like every plan
+   (:func:`planner.solution.dense_check`).
 
 A baseline that fails the check is not returned.
 """
@@ -41,6 +42,7 @@ from scipy.spatial.transform import Rotation
 from sixplus3.kinematics.checks import pose_masks
 from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import robot_ik
+from sixplus3.planner.solution import Solution, actuated_profile, sample_cubic, stretch_factors
 
 #: node spacing of the baseline plan [s]
 NODE_STEP = 2.5e-3
@@ -104,8 +106,6 @@ def _smoothed_profile(traj, d: np.ndarray, duration: float, width: float, step: 
 def _stretch_needed(robot, limits, xa, d, t, s, v, u, target: float) -> float:
     """Smallest uniform time stretch a bringing the segment within ``target`` of the
     velocity, acceleration, torque, jerk and torque-rate limits (4x grid)."""
-    from sixplus3.planner.ocp import actuated_profile, sample_cubic, stretch_factors
-
     tt = np.linspace(0.0, t[-1], 4 * (len(t) - 1) + 1)
     ss, vv, uu = sample_cubic(t, s[:, None], v[:, None], u[:, None], tt)
     thd, thdd, tau, grav = actuated_profile(robot, xa + ss * d, vv * d, uu * d)
@@ -138,8 +138,7 @@ def _stretch_needed(robot, limits, xa, d, t, s, v, u, target: float) -> float:
 def baseline_plan(problem, psi_wp: np.ndarray, step: float = NODE_STEP,
                   target: float = TARGET):
     """(Solution or None, reason): the baseline plan of ``problem`` (a
-    :class:`planner.ocp.Problem`) with the crank angles ``psi_wp`` at its waypoints."""
-    from sixplus3.planner.ocp import Solution, actuated_profile, dense_check
+    :class:`planner.problem.Problem`) with the crank angles ``psi_wp`` at its waypoints."""
     from sixplus3.planner.toppra_baseline import toppra_trajectory
 
     t_start = time.perf_counter()
@@ -181,13 +180,14 @@ def baseline_plan(problem, psi_wp: np.ndarray, step: float = NODE_STEP,
     n = len(t)
     tau = actuated_profile(robot, x, xd, xdd)[2].T
     theta = np.array(sr.theta.map(n)(x.T)).T
-    sol = Solution(found=True, status="baseline (stop at every waypoint, TOPP-RA per segment)",
+    sol = Solution(status="baseline (stop at every waypoint, TOPP-RA per segment)",
                    final_time=float(t[-1]), solve_time=0.0, iterations=0,
                    segment_times=np.array(seg_T), t=t, x=x, xd=xd, xdd=xdd, tau=tau,
-                   theta=theta, residuals={}, active_limits=[], robot=robot, limits=lim,
+                   theta=theta, residuals={}, active_limits=(), robot=robot, limits=lim,
                    options=problem.options, task=problem.task, solves=0, source="baseline")
-    sol.check = dense_check(sol, factor=4)
-    sol.solve_time = time.perf_counter() - t_start
+    sol = sol.checked(factor=4)
+    sol = sol.replace(solve_time=time.perf_counter() - t_start)
+    assert sol.check is not None
     if not sol.check.ok:
         return None, "the baseline fails its dense check: " + "; ".join(sol.check.violations)
     return sol, ""

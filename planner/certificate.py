@@ -9,7 +9,7 @@ third-order limits, so this module states the like-for-like problem directly, as
 small NLP in the path parameter, and solves it with IPOPT and CasADi's exact Hessian.
 
 **The path** is the plan's own motion x(s), with s the plan's time: x, x' and x'' at
-any s are exact (:meth:`planner.ocp.Solution.sample`).  A re-timing is s(t) with
+any s are exact (:meth:`planner.solution.Solution.sample`).  A re-timing is s(t) with
 v = ds/dt > 0 and a = d2s/dt2; the plan itself is v = 1, a = 0.  At rest (the ends, a
 stop) x' = x'' = 0, so every re-timing starts and ends at rest with zero acceleration,
 as the plan does; no end condition is needed.
@@ -102,8 +102,8 @@ def path_coefficients(robot: Robot, x: np.ndarray, xp: np.ndarray,
                       xpp: np.ndarray) -> PathCoefficients:
     """The exact dependence of the actuated rates and torques on (v, a) along the path
     with samples x(s), x'(s), x''(s), each (n, 9), from the planner's compiled model
-    (:func:`planner.ocp.actuated_profile`, which agrees with Pinocchio)."""
-    from sixplus3.planner.ocp import actuated_profile
+    (:func:`planner.solution.actuated_profile`, which agrees with Pinocchio)."""
+    from sixplus3.planner.solution import actuated_profile
 
     m = robot.motors
     zero = np.zeros_like(x)
@@ -247,7 +247,7 @@ def plan_grid(sol, points: int = GRID) -> np.ndarray:
 
 def certify(sol, limits: Limits | None = None, points: int = GRID,
             jerk: bool = True) -> Retiming:
-    """The fastest re-timing of the plan ``sol`` (a :class:`planner.ocp.Solution`)
+    """The fastest re-timing of the plan ``sol`` (a :class:`planner.solution.Solution`)
     along its own path, under ``limits`` (default: the limits it was planned to).
     ``result.ratio`` = plan duration / re-timed duration; the issue's target is
     ratio <= 1.02."""

@@ -83,8 +83,8 @@ def toppra_trajectory(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: 
 def grid_inv_dyn(robot: Robot):
     """TOPP-RA's inverse dynamics over a grid: (q, qd, qdd), (m, 9) each, to the (m, 27)
     rows [tau; theta_ddot; theta_dot^2], in one mapped call of the planner's compiled
-    profile function (:func:`planner.ocp.actuated_profile`)."""
-    from sixplus3.planner.ocp import actuated_profile
+    profile function (:func:`planner.solution.actuated_profile`)."""
+    from sixplus3.planner.solution import actuated_profile
 
     def inv_dyn(q, qd, qdd):
         thd, thdd, tau, _ = actuated_profile(robot, q, qd, qdd)
@@ -138,7 +138,7 @@ def rest_splits(sol, rel: float = 1e-3) -> np.ndarray:
 def toppra_along(sol, limits: Limits | None = None, gridpoints: int = 800, samples: int = 201,
                  cranks: float | np.ndarray | None = None) -> float:
     """TOPP-RA duration [s] along the geometric path of a planned motion (``sol``: a
-    :class:`planner.ocp.Solution`), summed over its rest-to-rest pieces.
+    :class:`planner.solution.Solution`), summed over its rest-to-rest pieces.
 
     With ``cranks`` (a scalar or (3,), [rad]) the crank angles are replaced by these constants: the
     redundancy-less baseline on the same platform path.  ``limits`` default to the plan's.

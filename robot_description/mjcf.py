@@ -37,7 +37,8 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pinocchio as pin
 
-from sixplus3.robot_description.robot import Robot, _cached
+from sixplus3.cache import cached
+from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import _f, _vec, actuated_joint_names, closure_pairs
 
 #: Simulation time step [s] of the exported model.
@@ -203,4 +204,4 @@ def build_mjcf(robot: Robot | None = None, timestep: float = TIMESTEP,
 def mjcf(robot: Robot | None = None) -> str:
     """:func:`build_mjcf` at the default time step, cached by the robot's hash."""
     robot = robot or Robot.default()
-    return _cached(("mjcf", f"{robot.hash}:{robot.name}"), lambda: build_mjcf(robot))
+    return cached(("mjcf", f"{robot.hash}:{robot.name}"), lambda: build_mjcf(robot))

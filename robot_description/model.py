@@ -18,9 +18,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from sixplus3.cache import cached
 from sixplus3.errors import InputError
 from sixplus3.fileio import read_yaml
-from sixplus3.robot_description.robot import NUM_LEGS, Robot, _cached
+from sixplus3.robot_description.robot import NUM_LEGS, Robot
 from sixplus3.robot_description.urdf import actuated_joint_names, closure_pairs
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -328,7 +329,7 @@ def closed_loop_model(robot: Robot | None = None) -> ClosedLoopModel:
     def parse() -> pin.Model:
         return pin.buildModelFromXML(robot.urdf())
 
-    model = _cached(("pinocchio", f"{robot.hash}:{robot.name}"), parse).copy()
+    model = cached(("pinocchio", f"{robot.hash}:{robot.name}"), parse).copy()
     model.gravity = pin.Motion(np.array(robot.gravity), np.zeros(3))
     pairs, act = closure_pairs(), actuated_joint_names()
     _check_sizes(pairs, act, "robot")

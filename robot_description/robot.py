@@ -22,7 +22,6 @@ import functools
 import hashlib
 import json
 import math
-from collections import OrderedDict
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -30,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from sixplus3 import fileio
+from sixplus3.cache import cached
 from sixplus3.errors import GeometryError
 from sixplus3.robot_description.assembly import AssemblyMode
 from sixplus3.robot_description.collision import CollisionModel
@@ -393,7 +393,7 @@ class Robot:
         """The URDF text of the spanning tree (cached by :attr:`hash`)."""
         from sixplus3.robot_description.urdf import build_urdf
 
-        return _cached(("urdf", f"{self.hash}:{self.name}"), lambda: build_urdf(self))
+        return cached(("urdf", f"{self.hash}:{self.name}"), lambda: build_urdf(self))
 
     def closures_yaml(self) -> str:
         """The loop closures in the Extended URDF schema (Gepetto)."""
@@ -485,24 +485,6 @@ def _no_unknown(where: str, doc: dict[str, Any], known: set[str]) -> None:
     if extra:
         raise GeometryError(f"{where}.{extra[0]}", doc[extra[0]],
                             f"one of the known keys {sorted(known)}", "unknown key")
-
-
-_CACHE: OrderedDict[tuple[str, str], Any] = OrderedDict()
-#: Products kept per process (URDF texts, parsed models, CasADi models, compiled
-#: libraries, layouts): a design sweep over many robots evicts the least recently used.
-CACHE_SIZE = 64
-
-
-def _cached(key: tuple[str, str], make: Any) -> Any:
-    """A per-process LRU cache of immutable products, keyed by (kind, robot hash)."""
-    if key in _CACHE:
-        _CACHE.move_to_end(key)
-        return _CACHE[key]
-    value = make()
-    _CACHE[key] = value
-    while len(_CACHE) > CACHE_SIZE:
-        _CACHE.popitem(last=False)
-    return value
 
 
 def load_robot(path: str | Path) -> Robot:

@@ -13,7 +13,8 @@ from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.symbolic import home_x
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.planner.certificate import certify, path_coefficients, plan_grid, retime_path
-from sixplus3.planner.ocp import actuated_profile, plan
+from sixplus3.planner.ocp import plan
+from sixplus3.planner.solution import actuated_profile
 from sixplus3.planner.task import task_from_dict
 from sixplus3.planner.toppra_baseline import toppra_time
 from sixplus3.robot_description.physical import MotorModel
@@ -115,10 +116,10 @@ def test_the_short_rest_intervals_recover_what_the_certificate_found(monkeypatch
     from rest over a whole interval and the certificate finds the plan slower than its
     path allows; the short intervals next to rest (the default) give a faster plan, closer
     to its certificate."""
-    import sixplus3.planner.ocp as ocp
+    from sixplus3.planner import options
 
-    assert ocp.REST_INTERVAL < 1.0
-    monkeypatch.setattr(ocp, "REST_INTERVAL", 1.0)
+    assert options.REST_INTERVAL < 1.0
+    monkeypatch.setattr(options, "REST_INTERVAL", 1.0)
     uniform = plan(task_from_dict(TASK))
     assert uniform.source == planned.source == "ocp"
     assert np.allclose(np.diff(uniform.t), np.diff(uniform.t)[0])

@@ -104,11 +104,14 @@ _THREADS_AFTER_PLANNING = """
 import ctypes, pathlib, casadi
 from sixplus3.dynamics.codegen import CASADI_OPENBLAS
 from sixplus3.planner.ocp import Problem
+from sixplus3.planner.solvers import ipopt_solver
 from sixplus3.planner.task import task_from_dict
+from sixplus3.robot_description.robot import Robot
 from sixplus3.dynamics.symbolic import symbolic_robot
 task = task_from_dict({"name": "t", "nodes_per_segment": 4, "waypoints": [
     {"position": [0, 0, 0.58]}, {"position": [0.02, 0, 0.58]}]})
-Problem(task)._template()  # the NLP is built: IPOPT and MUMPS (and their BLAS) loaded
+# the NLP is built: IPOPT and MUMPS (and their BLAS) loaded
+ipopt_solver(Problem(task, Robot.default()))
 lib = ctypes.CDLL(str(pathlib.Path(casadi.__file__).parent / CASADI_OPENBLAS))
 print(lib.openblas_get_num_threads())
 """

@@ -17,6 +17,7 @@ from sixplus3.errors import InfeasibleTaskError, TaskError
 from sixplus3.kinematics.robot import robot_fk, robot_ik
 from sixplus3.kinematics.rotations import matrix_from_quat
 from sixplus3.planner.ocp import Problem
+from sixplus3.planner.strategy import stretched
 from sixplus3.planner.task import move_to_start, task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -164,7 +165,7 @@ def test_fixed_duration_and_speed(a_to_b, tmp_path) -> None:
     assert abs(data[-1, 0] - 0.4) <= 1e-3 + 1e-12
     tau = columns(data, "tau")
     prob_sol = res.solution
-    slow = Problem(prob_sol.task, ROBOT)._stretched(res0.solution, 0.4 / t_min)
+    slow = stretched(Problem(prob_sol.task, ROBOT), res0.solution, 0.4 / t_min)
     assert slow.check is not None and slow.check.ok
     assert np.mean(prob_sol.tau ** 2) < np.mean(slow.tau ** 2)
     assert np.abs(tau).max() < 0.5 * ROBOT.limits.torque

@@ -13,7 +13,9 @@ from sixplus3.dynamics.symbolic import home_x, symbolic_robot
 from sixplus3.errors import InfeasibleTaskError, LimitError
 from sixplus3.kinematics.collision import PAIR_FAMILY, clearance
 from sixplus3.kinematics.robot import robot_ik, spherical_tilts
-from sixplus3.planner.ocp import ROW_SCALE, PlannerOptions, Problem, dense_check, plan
+from sixplus3.planner import solution, solvers, strategy
+from sixplus3.planner.ocp import PlannerOptions, Problem, dense_check, plan
+from sixplus3.planner.options import ROW_SCALE
 from sixplus3.planner.task import TaskError, load_task, task_from_dict
 from sixplus3.robot_description.physical import NO_MOTORS, MotorModel, Payload
 from sixplus3.robot_description.robot import Robot
@@ -174,7 +176,7 @@ def small_solution():
 
 def test_small_task_solves_and_passes_a_10x_pinocchio_check(small_solution) -> None:
     sol = small_solution
-    assert sol.found and sol.is_feasible()
+    assert sol.is_feasible()
     assert 0.0 < sol.final_time < 2.0 and sol.iterations > 0 and sol.solve_time > 0
     # the NLP's residuals are within IPOPT's constraint-violation tolerance (for a regular
     # and for an acceptable stop); the torque rows are in units of ROW_SCALE (10 N m), so
@@ -202,14 +204,14 @@ def test_small_task_solves_and_passes_a_10x_pinocchio_check(small_solution) -> N
 def test_node_intervals_are_shorter_next_to_rest() -> None:
     """Node fractions: uniform within a segment except the intervals next to the start,
     the end and a stop waypoint, REST_INTERVAL of a regular one; rows sum to 1."""
-    from sixplus3.planner import ocp
+    from sixplus3.planner import options
 
     task = task_from_dict({"name": "f", "nodes_per_segment": 5, "waypoints": [
         {"position": [0, 0, 0.58]}, {"position": [0.02, 0, 0.58]},
         {"position": [0.02, 0.02, 0.58], "stop": True}, {"position": [0, 0, 0.59]}]})
-    prob = Problem(task)
+    prob = Problem(task, ROBOT)
     f = prob.node_fractions()
-    r = ocp.REST_INTERVAL
+    r = options.REST_INTERVAL
     np.testing.assert_allclose(f.sum(axis=1), 1.0)
     np.testing.assert_allclose(f[0] / f[0, 1], [r, 1, 1, 1, 1])
     np.testing.assert_allclose(f[1] / f[1, 0], [1, 1, 1, 1, r])
@@ -258,7 +260,7 @@ def test_clearance_and_home_x() -> None:
     assert clearance(home())[0] > 0.003  # the two 16 mm distal tubes of a leg: 4.0 mm
     np.testing.assert_allclose(np.array(symbolic_robot().q(home_x())).ravel(), home().q[0],
                                atol=1e-12)
-    assert Problem(task_from_dict(SMALL)).task.name == "small"
+    assert Problem(task_from_dict(SMALL), ROBOT).task.name == "small"
 
 
 def test_compiled_node_functions_agree_with_casadi() -> None:
@@ -287,11 +289,11 @@ def test_compiled_node_functions_agree_with_casadi() -> None:
 
 def test_planner_runs_interpreted_without_a_compiler(monkeypatch) -> None:
     """With code generation off the same NLP is built from the SX functions (slower)."""
+    from sixplus3.cache import BoundedCache
     from sixplus3.dynamics import codegen
-    from sixplus3.planner import ocp
 
     monkeypatch.setenv("SIXPLUS3_NO_CODEGEN", "1")
-    monkeypatch.setattr(ocp, "_TEMPLATES", {})
+    monkeypatch.setattr(solvers, "SOLVERS", BoundedCache(4))
     assert codegen.compiled_functions(ROBOT) == {}
     tiny = {"waypoints": [{"position": [0, 0, 0.58]}, {"position": [0.02, 0, 0.59]}],
             "nodes_per_segment": 4}
@@ -355,8 +357,8 @@ def test_retiming_and_rest_splits(small_solution) -> None:
     slow = dataclasses.replace(sol, t=sol.t * a, final_time=sol.final_time * a,
                                segment_times=sol.segment_times * a, xd=sol.xd / a,
                                xdd=sol.xdd / a**2, tau=tau_g + (sol.tau - tau_g) / a**2)
-    slow.check = dense_check(slow)
-    fast = Problem(sol.task)._retime(slow, platform_proxy=0.5)
+    slow = slow.checked()
+    fast = strategy.retime(Problem(sol.task, ROBOT), slow, platform_proxy=0.5)
     assert fast.time_scale < 1.0 and fast.final_time < slow.final_time
     np.testing.assert_array_equal(fast.x, slow.x)
     worst = max(fast.check.max_torque_ratio, fast.check.max_velocity_ratio,
@@ -368,9 +370,7 @@ def test_retiming_and_rest_splits(small_solution) -> None:
 def test_a_violation_between_nodes_tightens_and_re_solves(monkeypatch) -> None:
     """When the dense check finds a limit exceeded between the constrained points, the
     planner tightens that limit and re-solves (warm-started) until the check passes."""
-    from sixplus3.planner import ocp
-
-    real = ocp.dense_check
+    real = solution.dense_check
     calls = []
 
     def first_fails(sol, factor=10):
@@ -384,16 +384,16 @@ def test_a_violation_between_nodes_tightens_and_re_solves(monkeypatch) -> None:
                                        violations=["torque 10.300 N m > 10 N m"])
         return chk
 
-    monkeypatch.setattr(ocp, "dense_check", first_fails)
-    problem = Problem(task_from_dict(SMALL))
+    monkeypatch.setattr(solution, "dense_check", first_fails)
+    problem = Problem(task_from_dict(SMALL), ROBOT)
     seen = []
-    solve_once = problem._solve_once
+    solve_nlp = strategy.solve_nlp
 
-    def spy(psi_wp, proxy, safety, warm=None, **kw):
-        seen.append((dict(safety), None if warm is None else warm.source))
-        return solve_once(psi_wp, proxy, safety, warm=warm, **kw)
+    def spy(problem, psi_wp, bounds, warm=None, **kw):
+        seen.append((dict(bounds.safety), None if warm is None else warm.source))
+        return solve_nlp(problem, psi_wp, bounds, warm=warm, **kw)
 
-    monkeypatch.setattr(problem, "_solve_once", spy)
+    monkeypatch.setattr(strategy, "solve_nlp", spy)
     sol = problem.solve()
     assert sol.solves == len(seen) >= 2 and sol.check.ok and sol.is_feasible()
     (first, warm1), (second, warm2) = seen[:2]
@@ -409,12 +409,12 @@ def test_an_overshoot_a_time_stretch_fixes_is_stretched_not_re_solved(
     uniform time stretch lowers) is slowed down to 99.5% of them instead of re-solved:
     the path is kept, the check passes, and no second NLP solve happens.  A stretch of
     more than 5% is not taken (the plan is re-solved as before)."""
-    problem = Problem(small_solution.task)
-    fast = problem._stretched(small_solution, 0.97)  # 3% faster: over the limits
+    problem = Problem(small_solution.task, ROBOT)
+    fast = strategy.stretched(problem, small_solution, 0.97)  # 3% faster: over the limits
     assert not fast.check.ok
     assert all(v.startswith(("torque", "velocity", "acceleration"))
                for v in fast.check.violations)
-    fixed = problem._retime(fast, platform_proxy=0.5, max_stretch=1.05)
+    fixed = strategy.retime(problem, fast, platform_proxy=0.5, max_stretch=1.05)
     assert fixed is not fast and fixed.check.ok
     np.testing.assert_array_equal(fixed.x, fast.x)
     worst = max(fixed.check.max_torque_ratio, fixed.check.max_velocity_ratio,
@@ -422,19 +422,19 @@ def test_an_overshoot_a_time_stretch_fixes_is_stretched_not_re_solved(
     assert 0.99 <= worst <= 0.995 + 1e-9
     assert fixed.final_time == pytest.approx(small_solution.final_time, rel=2e-3)
     # beyond the allowed stretch: unchanged
-    too_fast = problem._stretched(small_solution, 0.9)
-    assert problem._retime(too_fast, platform_proxy=0.5, max_stretch=1.05) is too_fast
+    too_fast = strategy.stretched(problem, small_solution, 0.9)
+    assert strategy.retime(problem, too_fast, platform_proxy=0.5, max_stretch=1.05) is too_fast
 
     # inside solve(): the first NLP plan overshoots (made 3% faster); one solve only
     calls = []
-    solve_once = problem._solve_once
+    solve_nlp = strategy.solve_nlp
 
     def overshooting(*args, **kw):
-        sol = solve_once(*args, **kw)
+        sol = solve_nlp(*args, **kw)
         calls.append(sol)
-        return problem._stretched(sol, 0.97) if len(calls) == 1 else sol
+        return strategy.stretched(problem, sol, 0.97) if len(calls) == 1 else sol
 
-    monkeypatch.setattr(problem, "_solve_once", overshooting)
+    monkeypatch.setattr(strategy, "solve_nlp", overshooting)
     sol = problem.solve()
     assert len(calls) == 1 and sol.solves == 1 and sol.is_feasible()
     assert sol.source == "ocp" and sol.time_scale > 0.97
@@ -506,7 +506,7 @@ def test_grid_toppra_constraint_equals_toppras_per_point_one(small_solution) -> 
             np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-9)
     # and the grid function (the compiled profile function) is the per-point one, whose
     # gravity torques are the model's torques at rest
-    from sixplus3.planner.ocp import actuated_profile
+    from sixplus3.planner.solution import actuated_profile
 
     xd = np.gradient(x, axis=0)
     np.testing.assert_allclose(on_grid(x, xd, x), tb.grid_inv_dyn(sr_robot)(x, xd, x),

@@ -9,16 +9,14 @@ import pytest
 from sixplus3.control.pipeline import run_plan
 from sixplus3.control.validation import validate_file
 from sixplus3.dynamics.symbolic import symbolic_robot
+from sixplus3.planner import strategy
 from sixplus3.planner.baseline import baseline_plan, line_check
-from sixplus3.planner.ocp import (
-    InfeasibleTaskError,
-    PlannerOptions,
-    Problem,
-    choose_static_psi,
-    plan,
-)
+from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem, plan
+from sixplus3.planner.statics import check_crank_sides, choose_static_psi, static_candidates
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
+
+ROBOT = Robot.default()
 
 THREE = {"name": "three", "nodes_per_segment": 6,
          "waypoints": [{"position": [0.02, -0.03, 0.57], "rpy": [10, -5, 20]},
@@ -37,7 +35,7 @@ PICK_AND_PLACE = {
 
 
 def _baseline(doc):
-    problem = Problem(task_from_dict(doc))
+    problem = Problem(task_from_dict(doc), ROBOT)
     at_rest = {0, len(problem.task.waypoints) - 1}
     psi = choose_static_psi(problem.task, problem.robot, problem.limits, False, at_rest)
     return problem, psi, *baseline_plan(problem, psi)
@@ -74,7 +72,7 @@ def test_baseline_is_a_checked_stop_at_waypoint_plan_on_straight_lines() -> None
 
 
 def test_a_line_leaving_the_workspace_has_no_baseline() -> None:
-    problem = Problem(task_from_dict(THREE))
+    problem = Problem(task_from_dict(THREE), ROBOT)
     a = problem.waypoint_states(np.full((3, 3), np.pi / 2))[0]
     b = a.copy()
     b[2] = 1.2  # far above the workspace
@@ -108,17 +106,17 @@ def test_without_a_baseline_the_margin_homotopy_is_tried(monkeypatch) -> None:
     from sixplus3.planner import baseline
 
     monkeypatch.setattr(baseline, "baseline_plan", lambda problem, psi: (None, "forced"))
-    problem = Problem(task_from_dict({**THREE, "waypoints": THREE["waypoints"][:2]}))
-    real = problem._solve_once
+    problem = Problem(task_from_dict({**THREE, "waypoints": THREE["waypoints"][:2]}), ROBOT)
+    real = strategy.solve_nlp
     calls = []
 
-    def fail_unless_homotopy(psi_wp, proxy, safety, warm=None, **kw):
-        calls.append((kw.get("margin"), None if warm is None else warm.source))
-        if kw.get("margin") is None and warm is None:
+    def fail_unless_homotopy(problem, psi_wp, bounds, warm=None, **kw):
+        calls.append((bounds.margin, None if warm is None else warm.source))
+        if bounds.margin is None and warm is None:
             raise InfeasibleTaskError("forced", None, "solver: Infeasible_Problem_Detected")
-        return real(psi_wp, proxy, safety, warm=warm, **kw)
+        return real(problem, psi_wp, bounds, warm=warm, **kw)
 
-    monkeypatch.setattr(problem, "_solve_once", fail_unless_homotopy)
+    monkeypatch.setattr(strategy, "solve_nlp", fail_unless_homotopy)
     sol = problem.solve()
     assert sol.is_feasible() and sol.baseline_time is None
     lim = problem.limits.margin
@@ -132,27 +130,28 @@ def test_with_a_baseline_the_homotopy_comes_first_then_the_full_margin(monkeypat
     """With a baseline, the first NLP is the margin homotopy (0.6 x the margin's rows)
     from the baseline; when it fails, the NLP at the task's margin from the baseline
     plans; either way the plan meets the task's margin in the dense check."""
-    lim = Problem(task_from_dict(THREE)).limits.margin
+    lim = Problem(task_from_dict(THREE), ROBOT).limits.margin
+    real = strategy.solve_nlp
     for fail_homotopy in (False, True):
-        problem = Problem(task_from_dict(THREE))
-        real = problem._solve_once
+        problem = Problem(task_from_dict(THREE), ROBOT)
         calls = []
 
-        def record(psi_wp, proxy, safety, warm=None, _fail=fail_homotopy, _calls=calls,
-                   _real=real, **kw):
-            _calls.append((kw.get("margin"), None if warm is None else warm.source))
-            if _fail and kw.get("margin") is not None:
+        def record(problem, psi_wp, bounds, warm=None, _fail=fail_homotopy, _calls=calls,
+                   **kw):
+            _calls.append((bounds.margin, None if warm is None else warm.source))
+            if _fail and bounds.margin is not None:
                 raise InfeasibleTaskError("forced", None, "solver: Infeasible_Problem_Detected")
-            return _real(psi_wp, proxy, safety, warm=warm, **kw)
+            return real(problem, psi_wp, bounds, warm=warm, **kw)
 
-        monkeypatch.setattr(problem, "_solve_once", record)
+        monkeypatch.setattr(strategy, "solve_nlp", record)
         sol = problem.solve()
         assert sol.is_feasible() and sol.source == "ocp" and sol.check.min_margin >= lim
         assert calls[0] == (pytest.approx(0.6 * lim), "baseline")
-        if fail_homotopy:
-            assert calls[1] == (None, "baseline") and problem.margin_rows is None
-        else:
-            assert problem.margin_rows == pytest.approx(0.6 * lim)
+        if fail_homotopy:  # the task's margin from the baseline, and its re-solves too
+            assert calls[1] == (None, "baseline")
+            assert all(margin is None for margin, _ in calls[1:])
+        else:  # the homotopy's plan is kept; re-solves (if any) keep its rows
+            assert all(margin == pytest.approx(0.6 * lim) for margin, _ in calls)
 
 
 def test_pick_and_place_plans_at_margin_005() -> None:
@@ -189,15 +188,13 @@ def test_static_crank_choice_stays_in_the_nlps_crank_range() -> None:
     135 deg and failed, held-out task 20).  Inside the range a choice still meets the
     margin; with the range's candidates removed, the wider grid's best is outside."""
     from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
-    from sixplus3.planner import ocp
-
     doc = {"name": "crank_range", "waypoints": [
         {"position": [0.0, 0.0, 0.30]},
         {"position": [0.0227, -0.0127, 0.2528], "rpy": [23.5002, 5.6536, -37.5938]},
         {"position": [0.0, 0.0, 0.30]}]}
     problem = Problem(task_from_dict(doc), COMPACT)
     wp = problem.task.waypoints[1]
-    psis, _cfg, _t, _s, _c, margin = ocp._static_candidates(
+    psis, _cfg, _t, _s, _c, margin = static_candidates(
         problem.robot, problem.limits, wp, False)
     inside = np.all((psis >= PSI_MIN - 1e-12) & (psis <= PSI_MAX + 1e-12), axis=1)
     assert not inside[np.argmax(margin)]  # the unrestricted best is outside the range
@@ -223,7 +220,7 @@ def test_ctrl_c_inside_ipopt_stops_the_planner() -> None:
                 os.kill(os.getpid(), signal.SIGINT)
 
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-    problem = Problem(task_from_dict(THREE), progress=InterruptAtIteration3())
+    problem = Problem(task_from_dict(THREE), ROBOT, progress=InterruptAtIteration3())
     with pytest.raises(KeyboardInterrupt):
         problem.solve()
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
@@ -260,12 +257,12 @@ def test_a_crank_that_would_pass_zero_is_refused_before_any_solve(monkeypatch) -
     task = task_from_dict({"name": "neg", "waypoints": [
         {"position": [0, 0, 0.58], "rpy": [0, 0, 0]},
         {"position": [0.03, 0.0, 0.58], "rpy": [10, 0, 0], "psi": [-90, 90, 90]}]})
-    problem = Problem(task)
+    problem = Problem(task, ROBOT)
 
     def no_solve(*a, **k):
         raise AssertionError("solved")
 
-    monkeypatch.setattr(problem, "_solve_once", no_solve)
+    monkeypatch.setattr(strategy, "solve_nlp", no_solve)
     with pytest.raises(InfeasibleTaskError, match="crank 0 would have to pass the singular "
                        "0 deg between waypoint 0 at 90.0 deg and waypoint 1 at -90.0 deg") as e:
         problem.solve()
@@ -274,15 +271,15 @@ def test_a_crank_that_would_pass_zero_is_refused_before_any_solve(monkeypatch) -
     ok = task_from_dict({"name": "pos", "waypoints": [
         {"position": [0, 0, 0.58], "rpy": [0, 0, 0]},
         {"position": [0.03, 0.0, 0.58], "rpy": [10, 0, 0], "psi": [60, 90, 120]}]})
-    Problem(ok)._check_crank_sides()
+    check_crank_sides(ok)
 
 
 def test_extra_ipopt_options_reach_ipopt_and_bad_ones_are_named() -> None:
     """``PlannerOptions.ipopt_options`` go to IPOPT over the planner's own: IPOPT capped
     at 2 iterations by them returns the (checked) baseline, as ``max_iter=2`` does.  A
-    malformed pair, a NaN, or an option IPOPT rejects raises ValueError naming it."""
+    malformed pair, a NaN, or an option IPOPT rejects raises InputError (a ValueError) naming it."""
     task = task_from_dict({**THREE, "waypoints": THREE["waypoints"][:2]})
-    capped = Problem(task, options=PlannerOptions(ipopt_options=(("max_iter", 2),))).solve()
+    capped = Problem(task, ROBOT, options=PlannerOptions(ipopt_options=(("max_iter", 2),))).solve()
     assert capped.source == "baseline" and capped.is_feasible()
     assert capped.final_time == pytest.approx(capped.baseline_time)
     for bad, words in (((("tol",),), "not a (name, value) pair"),
@@ -293,4 +290,4 @@ def test_extra_ipopt_options_reach_ipopt_and_bad_ones_are_named() -> None:
         with pytest.raises(ValueError, match=words.replace("(", r"\(").replace(")", r"\)")):
             PlannerOptions(ipopt_options=bad)
     with pytest.raises(ValueError, match="No such IPOPT option: no_such_option"):
-        Problem(task, options=PlannerOptions(ipopt_options={"no_such_option": 1})).solve()
+        Problem(task, ROBOT, options=PlannerOptions(ipopt_options={"no_such_option": 1})).solve()

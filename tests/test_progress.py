@@ -142,17 +142,19 @@ def test_a_starts_iteration_cap_stops_ipopt_there() -> None:
     """The cap of a start that a fallback follows (PlannerOptions.start_max_iter) is
     enforced through the same callback: IPOPT stops after it, reported as exceeded."""
     from sixplus3.errors import InfeasibleTaskError
-    from sixplus3.planner.ocp import Problem, choose_static_psi
+    from sixplus3.planner.nlp import Bounds, solve_nlp
+    from sixplus3.planner.ocp import Problem
+    from sixplus3.planner.statics import choose_static_psi
+    from sixplus3.robot_description.robot import Robot
 
     rec = Recorder()
-    problem = Problem(task_from_dict(TASK), progress=rec)
+    problem = Problem(task_from_dict(TASK), Robot.default(), progress=rec)
     psi = choose_static_psi(problem.task, problem.robot, problem.limits, False, {0, 1})
-    safety = {"torque": 0.98, "velocity": 0.98, "acceleration": 0.98}
     with pytest.raises(InfeasibleTaskError) as err:
-        problem._solve_once(psi, 0.5, safety, max_iter=3)
+        solve_nlp(problem, psi, Bounds(), max_iter=3)
     assert err.value.value == "Maximum_Iterations_Exceeded"
     assert [k for k, _, _ in rec.iterations] == [0, 1, 2, 3]
     # the cap is per solve: the next solve of the same NLP runs to convergence
     rec.iterations.clear()
-    sol = problem._solve_once(psi, 0.5, safety)
-    assert sol.found and len(rec.iterations) - 1 == sol.iterations > 3
+    sol = solve_nlp(problem, psi, Bounds())
+    assert sol.check is not None and len(rec.iterations) - 1 == sol.iterations > 3

@@ -234,13 +234,14 @@ def test_a_plan_for_a_non_default_robot_is_refused_for_the_default(tmp_path,
                                                                     monkeypatch) -> None:
     """Planned end to end for OTHER (interpreted: no compile for a one-off robot), the
     file validates for OTHER and is refused for the default robot."""
+    from sixplus3.cache import BoundedCache
     from sixplus3.control.pipeline import run_plan
-    from sixplus3.planner import ocp
+    from sixplus3.planner import solvers
     from sixplus3.planner.ocp import PlannerOptions
     from sixplus3.planner.task import task_from_dict
 
     monkeypatch.setenv("SIXPLUS3_NO_CODEGEN", "1")
-    monkeypatch.setattr(ocp, "_TEMPLATES", {})
+    monkeypatch.setattr(solvers, "SOLVERS", BoundedCache(4))
     home_p = list(OTHER.home_position)
     task = task_from_dict({"name": "other", "nodes_per_segment": 4, "waypoints": [
         {"position": home_p}, {"position": [home_p[0] + 0.02, home_p[1], home_p[2]]}]})

@@ -1,0 +1,236 @@
+"""A planning problem: one task on one robot, with its limits and its node grid.
+
+:class:`Problem` holds data only and never changes after it is made: ``solve()`` hands it
+to :func:`sixplus3.planner.strategy.solve`, which keeps the state of a solve (tightened
+bounds, the duration cap, the homotopy's margin) to itself.  The node grid (which nodes
+sit at the waypoints, how long each interval is), the kinematic first guess and the
+mapping of any plan onto the grid are here, because every part of the planner reads them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from sixplus3.dynamics.symbolic import SymbolicRobot, symbolic_robot
+from sixplus3.errors import InputError, TaskError
+from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
+from sixplus3.planner import options as planner_options
+from sixplus3.planner.options import PlannerOptions
+from sixplus3.planner.solution import Solution, actuated_profile, stretch_factors
+from sixplus3.planner.task import Task, rotvec
+from sixplus3.robot_description.limits import Limits
+from sixplus3.robot_description.robot import Robot
+
+if TYPE_CHECKING:
+    from sixplus3.progress import PlanProgress
+
+
+class Problem:
+    """A planning problem for one task on one robot (``solve()`` -> :class:`Solution`).
+
+    The limits are the robot's hardware limits tightened by the task's
+    (:meth:`Task.limits_for`: a looser one raises :class:`LimitError`).  Immutable: its
+    attributes are set once here.
+    """
+
+    robot: Robot
+    task: Task
+    #: every limit the plan must meet; the NLP plans to ``limits``, the same without the
+    #: platform-space ones, which a uniform time stretch meets afterwards
+    motion_limits: Limits
+    limits: Limits
+    options: PlannerOptions
+    sr: SymbolicRobot
+    #: a :class:`sixplus3.progress.PlanProgress` (stages and IPOPT iterations) or None
+    progress: PlanProgress | None
+
+    def __init__(self, task: Task, robot: Robot, options: PlannerOptions | None = None,
+                 progress: PlanProgress | None = None) -> None:
+        check_plan_arguments(task, robot, options)
+        # the task's setup (payload, tool, mounting) on the robot; TCP waypoints become
+        # platform poses through that robot's tool
+        setup = task.robot_for(robot)
+        motion = task.limits_for(setup)
+        for name, value in (("robot", setup), ("task", task.resolved(setup)),
+                            ("motion_limits", motion), ("limits", motion.without_tcp()),
+                            ("options", options or PlannerOptions()),
+                            ("sr", symbolic_robot(setup)), ("progress", progress)):
+            object.__setattr__(self, name, value)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"Problem is immutable (tried to set {name!r})")
+
+    def solve(self) -> Solution:
+        """The plan (:func:`sixplus3.planner.strategy.solve`); raises
+        :class:`InfeasibleTaskError` when nothing admissible is found."""
+        from sixplus3.planner.strategy import solve
+
+        return solve(self)
+
+    def stage(self, text: str) -> None:
+        """Tell the progress reporter about a sub-step of the caller's "planning ..."."""
+        if self.progress is not None:
+            self.progress.stage("  " + text)
+
+    # -- the node grid
+    @property
+    def n_intervals(self) -> int:
+        return self.task.segment_nodes * self.task.n_segments
+
+    def rest_waypoints(self) -> set[int]:
+        """Indices of the waypoints where the motion is at rest: the first, the last and
+        every ``stop`` waypoint (zero velocity and acceleration there)."""
+        wps = self.task.waypoints
+        return {0, len(wps) - 1} | {w for w, wp in enumerate(wps) if wp.stop}
+
+    def node_fractions(self) -> np.ndarray:
+        """(S, ns) each node interval's share of its segment's duration (rows sum to 1).
+
+        Uniform, except that the interval next to a rest (the start, the end, a
+        ``stop`` waypoint) is ``REST_INTERVAL`` of a regular one: the acceleration is
+        zero at rest and linear over that interval, and a full-length first interval
+        made the ramp up to the limits take twice what the torque-rate limit needs
+        (the certificate, planner.certificate, found 3 ms of 12 lost at each end of a
+        2-waypoint plan, BENCHMARKS.md)."""
+        ns, S = self.task.segment_nodes, self.task.n_segments
+        rest = self.rest_waypoints()
+        w = np.ones((S, ns))
+        for s in range(S):
+            if s in rest:
+                w[s, 0] = planner_options.REST_INTERVAL
+            if s + 1 in rest:
+                w[s, -1] = planner_options.REST_INTERVAL
+        return w / w.sum(axis=1, keepdims=True)  # type: ignore[no-any-return]
+
+    def node_times(self, T: np.ndarray) -> np.ndarray:
+        """(N+1,) node times [s] for the segment durations T (S,)."""
+        steps = np.asarray(T, dtype=float)[:, None] * self.node_fractions()
+        return np.r_[0.0, np.cumsum(steps.ravel())]
+
+    def crank_range(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi), (3,) [rad]: the NLP's bounds on the crank angles.
+
+        [PSI_MIN, PSI_MAX] = [45, 135] deg, the range the static crank choice searches
+        first, widened per crank to the crank angles a waypoint gives explicitly in
+        (0, 180) deg (the task allows 3-177 deg).  With the bounds not widened, such a
+        waypoint could only be reached by a jump of the crank, so every NLP start ran to
+        its iteration cap before the baseline was returned (40 s, BENCHMARKS.md).
+        """
+        lo, hi = np.full(3, PSI_MIN), np.full(3, PSI_MAX)
+        for wp in self.task.waypoints:
+            if wp.psi is not None and np.all((wp.psi > 0.0) & (wp.psi < math.pi)):
+                lo, hi = np.minimum(lo, wp.psi), np.maximum(hi, wp.psi)
+        return lo, hi
+
+    def waypoint_states(self, psi_wp: np.ndarray) -> np.ndarray:
+        """(W, 9) minimal coordinates of the waypoints with the crank angles ``psi_wp``,
+        the rotation vectors kept continuous (|r| near pi has two forms)."""
+        rv_prev = None
+        rows = []
+        for k, wp in enumerate(self.task.waypoints):
+            rv = rotvec(wp.rotation)
+            if rv_prev is not None and np.linalg.norm(rv - rv_prev) > math.pi:
+                ang = np.linalg.norm(rv)
+                rv = rv - 2 * math.pi * rv / ang
+            rv_prev = rv
+            rows.append(np.r_[wp.position, rv, psi_wp[k]])
+        return np.array(rows)
+
+    # -- motions on the grid
+    def time_stretch(self, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray,
+                     fraction: float) -> np.ndarray:
+        """(n,) smallest a > 0 per sample such that stretching time by a brings it within
+        ``fraction`` of the velocity, acceleration and torque limits.
+
+        Under t -> a t on a fixed path theta_dot scales by 1/a, theta_ddot and the
+        inertial torques (tau - tau_gravity) by 1/a^2, exactly for the links and the
+        rotors; the joint friction scales less (its viscous part by 1/a), which the
+        dense check of the result covers (:func:`strategy.retime` keeps the original
+        plan if it fails).  Samples whose gravity torque alone exceeds the fraction get
+        the largest stretch the formula allows (1e3-fold headroom floor), i.e. they are
+        reported as needing a very slow motion.
+        """
+        return stretch_factors(*actuated_profile(self.robot, x, xd, xdd), self.limits,
+                               fraction)
+
+    def guess(self, psi_wp: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(waypoint states, x, xd, xdd, T): the kinematic first guess on the node grid.
+
+        A rest-to-rest smooth blend between the waypoints (positions and crank angles
+        linear in the blend, rotations by slerp), each segment time-scaled so that it
+        just meets 90% of the velocity, acceleration and torque limits: with time
+        stretched by a, theta_dot scales 1/a and theta_ddot and the inertial torques
+        1/a^2, exactly.
+        """
+        task = self.task
+        ns, S = task.segment_nodes, task.n_segments
+        wp_x = self.waypoint_states(psi_wp)
+        frac = self.node_fractions()
+        xs, seg_T = [], []
+        for s in range(S):
+            a, b = wp_x[s], wp_x[s + 1]
+            rots = Rotation.from_rotvec([a[3:6], b[3:6]])
+            c = np.r_[0.0, np.cumsum(frac[s])]  # the nodes' share of the segment
+            share = c[:-1] if s < S - 1 else c
+            sm = 3 * share**2 - 2 * share**3  # rest-to-rest smooth blend for the guess
+            rv = Slerp([0, 1], rots)(sm).as_rotvec()
+            seg = np.c_[a[:3] + sm[:, None] * (b[:3] - a[:3]), rv,
+                        a[6:] + sm[:, None] * (b[6:] - a[6:])]
+            xs.append(seg)
+            # a first timing: it fixes the finite differences at the segment joints
+            th = np.array(self.sr.theta(a)).ravel()
+            th_b = np.array(self.sr.theta(b)).ravel()
+            dth = np.abs(th_b - th).max()
+            seg_T.append(max(0.15, 2.0 * math.sqrt(2.0 * dth / 40.0), 1.5 * dth / 4.0))
+        x = np.vstack(xs)
+        T = np.array(seg_T)
+        t = self.node_times(T)
+        xd = np.gradient(x, t, axis=0)
+        xd[0] = xd[-1] = 0.0
+        xdd = np.gradient(xd, t, axis=0)
+        stretch = self.time_stretch(x, xd, xdd, 0.9)
+        seg = np.minimum(np.arange(len(x)) // ns, S - 1)
+        scale = np.clip([stretch[seg == s].max() for s in range(S)], 0.05, 50.0)
+        a_ = np.repeat(scale, ns)
+        a_ = np.r_[a_, a_[-1]][:, None]
+        return wp_x, x, xd / a_, xdd / a_**2, T * scale
+
+    def on_nodes(self, sol: Solution) -> tuple[np.ndarray, ...]:
+        """(x, xd, xdd, T) of a plan of this task on this NLP's node grid (its own arrays
+        if it has that grid; else sampled at :meth:`node_times`)."""
+        if sol.source == "ocp" and len(sol.t) == self.n_intervals + 1:
+            return sol.x, sol.xd, sol.xdd, sol.segment_times
+        T = np.asarray(sol.segment_times, dtype=float)
+        x, xd, xdd = sol.sample(self.node_times(T))
+        return x, xd, xdd, T
+
+
+def check_plan_arguments(task: object, robot: object, options: object) -> None:
+    """Named errors for arguments of the wrong kind or out of range (a Task made with
+    ``dataclasses.replace`` skips the task schema)."""
+    if not isinstance(task, Task):
+        raise TaskError("task must be a Task (load_task, task_from_dict)",
+                        value=type(task).__name__, valid="a Task")
+    if not isinstance(robot, Robot):
+        raise InputError("robot must be a Robot (Robot.default(), load_robot)",
+                         value=type(robot).__name__, valid="a Robot")
+    if options is not None and not isinstance(options, PlannerOptions):
+        raise InputError("options must be PlannerOptions or None",
+                         value=type(options).__name__, valid="PlannerOptions or None")
+    n = task.nodes_per_segment
+    if n is not None and (isinstance(n, bool) or not isinstance(n, int) or not 4 <= n <= 60):
+        raise TaskError(f"task field nodes_per_segment must be an integer in [4, 60], got "
+                        f"{n!r}", value=n, valid="[4, 60]")
+    for name, lo, hi in (("duration", 0.0, 600.0), ("speed", 0.0, 1.0)):
+        v = getattr(task, name)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
+                              or not lo < v <= hi):
+            raise TaskError(f"task field {name} must be in ({lo:g}, {hi:g}], got {v!r}",
+                            value=v, valid=f"({lo:g}, {hi:g}]")
+
+
+__all__ = ["Problem", "check_plan_arguments"]

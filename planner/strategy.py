@@ -1,0 +1,344 @@
+"""How a plan is found: static choices, the baseline, NLP starts, re-solves, re-timing.
+
+:func:`solve` is the planner's method, in order:
+
+1. the crank angles at the waypoints (:func:`statics.choose_static_psi`);
+2. the stop-at-waypoints baseline (:func:`baseline.baseline_plan`): the NLP's first warm
+   start, its trust region (the NLP's total duration is capped at 1.5x the baseline's)
+   and the plan returned when the NLP fails or is slower;
+3. NLP starts in a measured order (:func:`first_solve`): a homotopy in the margin from
+   the baseline, the task's margin from the baseline, the kinematic guess twice as slow;
+4. the dense re-check sees between the NLP's points: an overshoot that a uniform time
+   stretch fixes is stretched (:func:`retime`), any other violated limit is tightened
+   and re-solved from the previous primal-dual point (at most 5 times);
+5. the checked plan is compressed uniformly up to 99.5% of its binding limit;
+6. :func:`finish`: the baseline if it is faster, the task's duration or speed (minimum
+   effort), the platform-space limits (a uniform stretch).
+
+Every solve's state is local here; the :class:`Problem` is never changed.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+
+from sixplus3.errors import InfeasibleTaskError
+from sixplus3.planner import baseline
+from sixplus3.planner.nlp import Bounds, active_limits, solve_nlp
+from sixplus3.planner.problem import Problem
+from sixplus3.planner.solution import Solution, actuated_profile
+from sixplus3.planner.statics import check_crank_sides, choose_static_psi, clearance_needed
+
+#: limits that a uniform time stretch lowers
+RATE_LIMITS = ("torque", "velocity", "acceleration")
+
+
+def solve(problem: Problem) -> Solution:
+    """The plan of ``problem`` (see the module's docstring); raises
+    :class:`InfeasibleTaskError` when neither the NLP nor the baseline plans it."""
+    t_wall = time.perf_counter()
+    task, opt = problem.task, problem.options
+    at_rest = problem.rest_waypoints()
+    if not opt.lock_redundancy:
+        check_crank_sides(task)
+    psi_wp = choose_static_psi(task, problem.robot, problem.limits, opt.lock_redundancy,
+                               at_rest)
+    if opt.lock_redundancy:
+        fixed = [wp.psi for wp in task.waypoints if wp.psi is not None]
+        lock = fixed[0] if fixed else np.asarray(problem.robot.home_psi)
+        psi_wp = np.tile(lock, (len(task.waypoints), 1))
+    bounds = Bounds(safety={name: opt.torque_safety for name in RATE_LIMITS},
+                    platform_proxy=max(0.5, 6 * problem.limits.margin),
+                    clearance=0.0 if clearance_needed(problem.robot, task, psi_wp) else None)
+    problem.stage("crank angles at the waypoints chosen; building the stop-at-waypoints "
+                  "baseline (TOPP-RA per segment)")
+    base, note = baseline.baseline_plan(problem, psi_wp)
+    # a plan slower than the baseline is never returned, so the NLP's total duration is
+    # bounded at 1.5x the baseline's: a trust region that stops IPOPT's early
+    # quasi-Newton steps from running the durations up to the 60 s bound, which is how
+    # most failed starts failed (BENCHMARKS.md)
+    if base is not None:
+        bounds = bounds.replace(duration_cap=1.5 * base.final_time)
+    problem.stage(f"baseline: {base.final_time:.4f} s" if base is not None else
+                  f"no admissible baseline ({note})")
+    sol, bounds, first, failed = first_solve(problem, psi_wp, bounds, base)
+    if sol is None:
+        if base is not None:
+            base = base.replace(solve_time=base.solve_time + failed)
+            return finish(problem, base, base, t_wall, psi_wp, bounds)
+        assert first is not None
+        raise first
+    sol, bounds = resolve(problem, psi_wp, bounds, sol)
+    if sol.is_feasible():
+        problem.stage("re-timing the checked plan up to 99.5% of its binding limit")
+        sol = retime(problem, sol, bounds.platform_proxy)
+    return finish(problem, sol, base, t_wall, psi_wp, bounds)
+
+
+def first_solve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
+                base: Solution | None) -> tuple[Solution | None, Bounds,
+                                                InfeasibleTaskError | None, float]:
+    """(Solution or None, the bounds its re-solves keep, the first solver error, seconds
+    spent in failed starts), trying in turn: a homotopy step in the margin from the
+    baseline (the margin rows at 0.6 x the margin; its plan is kept if the dense check,
+    against the task's own margin, passes: the OCP's margin rows are conservative
+    proxies, det J-hat >= 3 m and the platform's line determinant >= max(0.5, 6 m), so a
+    plan can meet the official margin although the NLP at the full margin was declared
+    infeasible; otherwise it is re-solved from there at the task's margin); the NLP at
+    the task's margin from the baseline; the kinematic guess twice as slow.  With no
+    baseline: the kinematic guess, twice as slow, then the homotopy from the guess.
+    Failed starts count in the solve time.
+
+    The order is measured (BENCHMARKS.md, held-out set): the homotopy first planned
+    every task in one solve, its plans met the task's margin in the dense check, and it
+    removed the 4-7 s that a start at the full margin spent before declaring a feasible
+    task infeasible (p95 wall time 4.0 -> 3.1 s); the plain guess never planned where
+    these failed.
+    """
+    opt = problem.options
+    homotopy = {"warm": base, "margin": 0.6 * problem.limits.margin}
+    starts: list[dict[str, Any]] = (
+        [homotopy, {"warm": base}, {"time_scale": 2.0}] if base is not None
+        else [{}, {"time_scale": 2.0}, homotopy])
+    first = None
+    failed = 0.0
+    for i, start in enumerate(starts):
+        t0 = time.perf_counter()
+        start = dict(start)
+        margin = start.pop("margin", None)
+        # a start that a fallback follows stops at start_max_iter (held-out set: no
+        # start that planned needed more, BENCHMARKS.md); the last runs to max_iter
+        if i < len(starts) - 1 and opt.start_max_iter < opt.max_iter:
+            start["max_iter"] = opt.start_max_iter
+        problem.stage("NLP " + ("from the baseline" if start.get("warm") is not None
+                                else "from the kinematic guess")
+                      + (" at 0.6 x the margin (homotopy)" if margin is not None else "")
+                      + (", twice as slow" if "time_scale" in start else ""))
+        try:
+            sol = solve_nlp(problem, psi_wp, bounds.replace(margin=margin), **start)
+            if margin is not None:
+                assert sol.check is not None
+                if any("margin" in v for v in sol.check.violations):
+                    sol = solve_nlp(problem, psi_wp, bounds, warm=sol)
+                else:  # the homotopy's plan meets the task's margin: re-solves keep its rows
+                    bounds = bounds.replace(margin=margin)
+        except InfeasibleTaskError as exc:
+            if exc.limit is None or not exc.limit.startswith("solver"):
+                raise
+            first = first or exc
+            spent = time.perf_counter() - t0
+            failed += spent
+            problem.stage(f"  failed ({exc.value}) after {spent:.1f} s")
+            continue
+        return sol.replace(solve_time=sol.solve_time + failed), bounds, None, failed
+    return None, bounds, first, failed
+
+
+def resolve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
+            sol: Solution) -> tuple[Solution, Bounds]:
+    """The dense re-check sees between the NLP's points: tighten what it found violated
+    and re-solve from the previous solution (at most 5 times).  Only limits that a
+    uniform time stretch fixes: the plan is stretched (up to 5% slower) instead, which
+    saves a whole NLP solve and does not tighten the bounds everywhere."""
+    total, solves = sol.solve_time, 1
+    for _ in range(5):
+        chk = sol.check
+        assert chk is not None  # solve_nlp always re-checks its solution
+        bad = chk.violations
+        if not bad:
+            break
+        if all(v.startswith(RATE_LIMITS) for v in bad):
+            slow = retime(problem, sol, bounds.platform_proxy, max_stretch=1.05)
+            if slow is not sol:
+                problem.stage(f"the dense check found {'; '.join(bad)}: time stretched by "
+                              f"{slow.time_scale / sol.time_scale:.4f} instead of a "
+                              "re-solve")
+                sol = slow
+                break
+        bounds, fixable = tightened(bounds, chk, problem.limits.spherical)
+        if not fixable:
+            break
+        problem.stage(f"re-solve {solves}: the dense check found {'; '.join(bad)}; "
+                      "tightening those limits")
+        try:
+            nxt = solve_nlp(problem, psi_wp, bounds, warm=sol)
+        except InfeasibleTaskError as exc:
+            if exc.limit is None or not exc.limit.startswith("solver"):
+                raise
+            break  # keep the last iterate; the baseline may replace it (finish)
+        total += nxt.solve_time
+        solves += 1
+        sol = nxt
+    return sol.replace(solve_time=total, solves=solves), bounds
+
+
+def tightened(bounds: Bounds, chk: Any, spherical_limit: float) -> tuple[Bounds, bool]:
+    """(the bounds with every limit the dense check ``chk`` found violated tightened,
+    whether a re-solve can fix them)."""
+    bad = chk.violations
+    ratios = {"torque": chk.max_torque_ratio, "velocity": chk.max_velocity_ratio,
+              "acceleration": chk.max_acceleration_ratio}
+    safety = dict(bounds.safety)
+    fixable = False
+    for name in RATE_LIMITS:
+        if any(v.startswith(name) for v in bad):
+            safety[name] *= 0.985 / ratios[name]
+            fixable = True
+    new = bounds.replace(safety=safety)
+    if any(v.startswith("platform") for v in bad):
+        new = new.replace(platform_proxy=min(0.9, bounds.platform_proxy + 0.2))
+        fixable = True
+    if any(v.startswith("spherical") for v in bad):
+        # bound the tilts below the limit by the overshoot found, plus 0.25 deg
+        over = chk.max_spherical_tilt - (spherical_limit - bounds.spherical_reserve)
+        reserve = bounds.spherical_reserve + over + math.radians(0.25)
+        new = new.replace(spherical_reserve=reserve)
+        fixable = fixable or reserve < math.radians(10.0)
+    if any(v.startswith("interference") for v in bad):
+        # ask the NLP for the overlap found plus 0.5 mm of clearance at its points; rows
+        # that were unbounded are bounded first
+        clear = (0.0 if bounds.clearance is None
+                 else bounds.clearance - chk.min_clearance + 5e-4)
+        new = new.replace(clearance=clear)
+        fixable = fixable or clear < 0.01
+    return new, fixable
+
+
+def finish(problem: Problem, sol: Solution, base: Solution | None, t_wall: float,
+           psi_wp: np.ndarray, bounds: Bounds) -> Solution:
+    """The returned plan: the NLP's, or the baseline when the NLP's failed its check or
+    is slower; then the task's duration or speed, if it asks for one; then the
+    platform-space limits."""
+    if base is not None and sol is not base and (
+            not sol.is_feasible() or sol.final_time > base.final_time):
+        sol = base.replace(solve_time=base.solve_time + sol.solve_time, solves=sol.solves)
+        problem.stage("returning the baseline (the NLP's plan failed its check or is "
+                      "slower)")
+    target = target_duration(problem, sol)
+    if target is not None:
+        problem.stage(f"stretching to the task's duration, {target:.4f} s (minimum effort "
+                      "at that duration)")
+        sol = fixed_duration(problem, sol, target, psi_wp, bounds)
+    if sol.check is not None:  # limits that bind between the nodes
+        extra = [f"{name} ({ratio:.3f} of the limit in the dense check)"
+                 for name, ratio in (("torque", sol.check.max_torque_ratio),
+                                     ("velocity", sol.check.max_velocity_ratio),
+                                     ("acceleration", sol.check.max_acceleration_ratio))
+                 if ratio > 0.99 and not any(a.startswith(name) for a in sol.active_limits)]
+        sol = sol.replace(active_limits=(*sol.active_limits, *extra))
+    sol = tcp_limited(problem, sol)
+    return sol.replace(baseline_time=base.final_time if base is not None else None,
+                       wall_time=time.perf_counter() - t_wall)
+
+
+def tcp_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solution:
+    """``sol`` within the platform-space limits (the tool centre point's speed and
+    acceleration): stretched uniformly in time by the smallest factor that brings both
+    within ``target`` of their limits (the speed scales 1/a, the acceleration 1/a^2,
+    every joint rate and inertial torque with them), then checked against every limit.
+    Without such limits: ``sol`` as it is.  Not time-optimal: the NLP has no rows for
+    these limits."""
+    lim = problem.motion_limits
+    if not lim.has_tcp:
+        return sol
+    if sol.check is None:
+        sol = sol.checked()
+    assert sol.check is not None
+    # the dense check measured the tool centre point on the same samples
+    speed, acc = sol.check.max_tcp_speed, sol.check.max_tcp_acceleration
+    a = max(1.0, speed / (target * lim.tcp_speed),
+            math.sqrt(acc / (target * lim.tcp_acceleration)))
+    if a > 1.0:
+        problem.stage(f"stretching time by {a:.3f} for the tool centre point's limits "
+                      f"({lim.tcp_speed:g} m/s, {lim.tcp_acceleration:g} m/s^2)")
+        by_speed = speed / lim.tcp_speed >= math.sqrt(acc / lim.tcp_acceleration)
+        sol = stretched(problem, sol, a).replace(active_limits=(
+            f"tcp {'speed' if by_speed else 'acceleration'} (uniform stretch {a:.3f})",))
+    return sol.replace(limits=lim).checked()
+
+
+def target_duration(problem: Problem, sol: Solution) -> float | None:
+    """The duration the task asks for (None: minimum time); raises if it is shorter than
+    the minimum-time plan."""
+    task = problem.task
+    if task.duration is None and task.speed is None:
+        return None
+    if not sol.is_feasible():
+        return None  # the minimum-time plan failed its check: reported as is
+    t_min = sol.final_time
+    if task.duration is not None:
+        target = task.duration
+    else:
+        assert task.speed is not None
+        target = t_min / task.speed
+    if target < t_min * (1.0 - 1e-9):
+        raise InfeasibleTaskError(
+            f"a duration of {target:.4f} s is shorter than the minimum-time plan "
+            f"({t_min:.4f} s) within the limits", None, "duration", value=target,
+            valid=f">= {t_min:.4f} s")
+    return float(target)
+
+
+def stretched(problem: Problem, sol: Solution, a: float) -> Solution:
+    """``sol`` with time scaled uniformly by ``a`` (slower for a > 1; the path kept,
+    rates / a, accelerations / a^2, torques recomputed with the whole model),
+    dense-checked."""
+    tau = actuated_profile(problem.robot, sol.x, sol.xd / a, sol.xdd / a**2)[2].T
+    return sol.replace(final_time=sol.final_time * a, segment_times=sol.segment_times * a,
+                       t=sol.t * a, xd=sol.xd / a, xdd=sol.xdd / a**2, tau=tau,
+                       active_limits=(), nlp_point=None,
+                       time_scale=sol.time_scale * a).checked()
+
+
+def fixed_duration(problem: Problem, sol: Solution, target: float, psi_wp: np.ndarray,
+                   bounds: Bounds) -> Solution:
+    """A plan of exactly ``target`` seconds that minimises the mean squared torque,
+    warm-started from the minimum-time plan stretched uniformly to that duration (which
+    is the fallback when the effort solve fails its dense check)."""
+    slow = stretched(problem, sol, target / sol.final_time)
+    try:
+        eff: Solution | None = solve_nlp(problem, psi_wp, bounds.replace(margin=None),
+                                         warm=slow, duration=target)
+    except InfeasibleTaskError:
+        eff = None
+    best = eff if eff is not None and eff.is_feasible() else slow
+    best = best.replace(solve_time=sol.solve_time + (eff.solve_time if eff else 0.0),
+                        solves=sol.solves + 1)
+    if not best.is_feasible():
+        return sol  # neither passed: the minimum-time plan and its diagnosis
+    return best
+
+
+def retime(problem: Problem, sol: Solution, platform_proxy: float, target: float = 0.995,
+           max_stretch: float = 1.0) -> Solution:
+    """Compress the verified plan uniformly in time up to ``target`` of its limits (or,
+    with ``max_stretch`` > 1, slow down a plan whose torques, rates or accelerations
+    exceed ``target`` by a stretch 1 < a <= ``max_stretch``).
+
+    The NLP bounds the torques at the nodes and midpoints at a safety fraction of the
+    limit, so the verified plan usually keeps 1-2% in reserve everywhere.  Stretching
+    time by a keeps the path (and every margin) and scales theta_dot by 1/a and
+    theta_ddot and the inertial torques by 1/a^2 exactly, so the smallest a that keeps
+    every dense sample within ``target`` of the limits follows in closed form.  The
+    result is re-checked with Pinocchio; if that check fails, ``sol`` itself is returned.
+    """
+    times = np.linspace(0.0, sol.t[-1], (len(sol.t) - 1) * 10 + 1)
+    x, xd, xdd = sol.sample(times)
+    a = float(problem.time_stretch(x, xd, xdd, target).max())
+    wanted = 1.0 < a <= max_stretch if max_stretch > 1.0 else 0.5 < a < 1.0
+    if not wanted:
+        return sol
+    new = stretched(problem, sol, a)
+    if not new.is_feasible():
+        return sol
+    full = Bounds(safety={name: 1.0 for name in RATE_LIMITS}, platform_proxy=platform_proxy)
+    return new.replace(active_limits=active_limits(problem, new.x, new.xd, new.xdd, new.tau,
+                                                   new.t, full))
+
+
+__all__ = ["RATE_LIMITS", "finish", "first_solve", "fixed_duration", "resolve", "retime",
+           "solve", "stretched", "tcp_limited", "target_duration", "tightened"]

@@ -1,0 +1,139 @@
+"""The planner's structure (issue: planner v2): an immutable Problem, a frozen Solution,
+the transcription's families against the exact cubic motion, and the bounded caches."""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+import time
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from sixplus3.cache import BoundedCache
+from sixplus3.errors import InputError
+from sixplus3.planner import transcription
+from sixplus3.planner.ocp import Problem, plan
+from sixplus3.planner.solution import sample_cubic
+from sixplus3.planner.solvers import ipopt_solver
+from sixplus3.planner.task import task_from_dict
+from sixplus3.robot_description.robot import Robot
+
+ROBOT = Robot.default()
+TWO = {"name": "two", "nodes_per_segment": 6, "waypoints": [
+    {"position": [0, 0, 0.58]}, {"position": [0.02, 0.0, 0.59], "rpy": [5, 0, 0]}]}
+
+
+def test_the_problem_is_immutable_and_unchanged_by_a_solve() -> None:
+    problem = Problem(task_from_dict(TWO), ROBOT)
+    with pytest.raises(AttributeError, match="immutable"):
+        problem.limits = ROBOT.limits  # type: ignore[misc]
+    before = dict(vars(problem))
+    sol = problem.solve()
+    assert sol.is_feasible()
+    after = vars(problem)
+    assert after.keys() == before.keys()
+    assert all(after[k] is before[k] for k in before)
+
+
+def test_the_robot_is_required_below_the_top_level_helper() -> None:
+    with pytest.raises(InputError, match="robot must be a Robot"):
+        Problem(task_from_dict(TWO), None)  # type: ignore[arg-type]
+
+
+def test_a_solution_is_frozen() -> None:
+    sol = plan(task_from_dict(TWO), ROBOT)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        sol.final_time = 0.0  # type: ignore[misc]
+    slower = sol.replace(final_time=2 * sol.final_time)
+    assert slower.final_time == 2 * sol.final_time and slower.x is sol.x
+
+
+def test_the_integration_and_midpoint_rows_are_exact_on_piecewise_cubics() -> None:
+    """A motion whose acceleration is linear between nodes meets the integration rows
+    with zero residual, and the midpoint states are the cubic's at the midpoints; a
+    perturbed node does not."""
+    rng = np.random.default_rng(3)
+    N, n = 7, 9
+    h = rng.uniform(0.005, 0.02, N)
+    t = np.r_[0.0, np.cumsum(h)]
+    u = rng.normal(0, 50, (N + 1, n))
+    x0, v0 = rng.normal(0, 1, n), rng.normal(0, 1, n)
+    x, xd = [x0], [v0]
+    for k in range(N):
+        x.append(x[-1] + h[k] * xd[-1] + h[k] ** 2 * (2 * u[k] + u[k + 1]) / 6)
+        xd.append(xd[-1] + h[k] * (u[k] + u[k + 1]) / 2)
+    # the states so integrated are the cubic's: sampled from each interval's start,
+    # the cubic reaches the next node (the sampler starts every interval afresh)
+    ends = sample_cubic(t, np.array(x), np.array(xd), u, t[1:] - 1e-15)
+    np.testing.assert_allclose(ends[0], np.array(x)[1:], atol=1e-9)
+    np.testing.assert_allclose(ends[1], np.array(xd)[1:], atol=1e-9)
+    X, XD, U = (ca.DM(np.array(a).T) for a in (x, xd, u))
+    Hm = ca.DM(np.tile(h, (n, 1)))
+    res = np.array(transcription.integration_rows(X, XD, U, Hm))
+    assert np.abs(res).max() < 1e-12
+    xm, xdm, um = (np.array(a).T for a in transcription.midpoint_states(X, XD, U, Hm))
+    ref = sample_cubic(t, np.array(x), np.array(xd), u, (t[:-1] + t[1:]) / 2)
+    for a, b in zip((xm, xdm, um), ref, strict=True):
+        np.testing.assert_allclose(a, b, atol=1e-10)
+    bad = np.array(x)
+    bad[3, 0] += 1e-6
+    res = np.array(transcription.integration_rows(ca.DM(bad.T), XD, U, Hm))
+    assert np.abs(res).max() >= 1e-6 - 1e-12
+
+
+def test_a_built_solver_is_shared_by_tasks_of_one_size_only() -> None:
+    a = Problem(task_from_dict(TWO), ROBOT)
+    other = {**TWO, "waypoints": [{"position": [0, 0, 0.58]},
+                                  {"position": [-0.01, 0.01, 0.57]}]}
+    b = Problem(task_from_dict(other), ROBOT)
+    c = Problem(task_from_dict({**TWO, "nodes_per_segment": 7}), ROBOT)
+    assert ipopt_solver(a) is ipopt_solver(b)
+    assert ipopt_solver(c) is not ipopt_solver(a)
+
+
+def test_the_bounded_cache_evicts_the_least_recently_used() -> None:
+    cache: BoundedCache[int] = BoundedCache(2)
+    made: list[str] = []
+
+    def make(key: str) -> int:
+        made.append(key)
+        return len(made)
+
+    assert cache.get("a", lambda: make("a")) == 1
+    assert cache.get("b", lambda: make("b")) == 2
+    assert cache.get("a", lambda: make("a")) == 1  # a hit: "a" is now the newest
+    cache.get("c", lambda: make("c"))  # evicts "b"
+    assert "a" in cache and "c" in cache and "b" not in cache and len(cache) == 2
+    assert made == ["a", "b", "c"]
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(InputError, match="positive integer"):
+            BoundedCache(bad)  # type: ignore[arg-type]
+
+
+def test_the_bounded_cache_builds_a_product_once_under_concurrency() -> None:
+    cache: BoundedCache[object] = BoundedCache(4)
+    calls = []
+
+    def slow() -> object:
+        calls.append(1)
+        time.sleep(0.05)
+        return object()
+
+    out: list[object] = []
+    threads = [threading.Thread(target=lambda: out.append(cache.get("k", slow)))
+               for _ in range(6)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    assert len(calls) == 1 and len(out) == 6 and all(o is out[0] for o in out)
+
+
+def test_no_planner_module_is_over_400_lines() -> None:
+    planner = Path(__file__).resolve().parents[1] / "planner"
+    sizes = {p.name: len(p.read_text().splitlines()) for p in planner.glob("*.py")}
+    assert len(sizes) >= 10
+    assert {k: v for k, v in sizes.items() if v > 400} == {}
