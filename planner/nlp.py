@@ -20,7 +20,12 @@ from sixplus3.errors import InfeasibleTaskError
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import Solution, actuated_profile, sample_cubic, stretch_factors
 from sixplus3.planner.solvers import ipopt_solver, keyboard_interrupts
-from sixplus3.planner.transcription import node_bounds, variable_bounds, variable_scale
+from sixplus3.planner.transcription import (
+    node_bounds,
+    type2_det_bound,
+    variable_bounds,
+    variable_scale,
+)
 
 
 def _safety(value: float) -> dict[str, float]:
@@ -43,6 +48,8 @@ class Bounds:
     margin: float | None = None
     #: upper bound [s] of the total duration (None: 60 s per segment)
     duration_cap: float | None = None
+    #: (lo, hi) (3,) [rad] of the crank angles (None: :meth:`Problem.crank_range`)
+    cranks: tuple[np.ndarray, np.ndarray] | None = None
 
     def replace(self, **changes: Any) -> Bounds:
         return replace(self, **changes)
@@ -97,7 +104,7 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
     T_lo, T_hi = ((0.0, np.inf if cap is None else cap) if duration is None
                   else (duration, duration))
     lbx, ubx = variable_bounds(problem, wp_x, tmax, safety["acceleration"] * lim.acceleration,
-                               T_hi)
+                               T_hi, bounds.cranks)
     lbg = np.r_[np.zeros(18 * N), np.tile(lb, 2 * N + 1), smooth_lo, T_lo]
     ubg = np.r_[np.zeros(18 * N), np.tile(ub, 2 * N + 1), smooth_hi, T_hi]
     _, acc0, tau0, _ = profile  # (9, 2N+1): the nodes, then the midpoints
@@ -116,7 +123,7 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
         args = {"x0": w0 / D}
     weights = (1.0, 0.0) if duration is None else (0.0, 1.0)
     args.update(p=np.r_[D, lim.jerk, lim.torque_rate, weights,
-                        problem.node_fractions().ravel()], lbx=lbx / D,
+                        problem.interval_fractions()], lbx=lbx / D,
                 ubx=ubx / D, lbg=lbg, ubg=ubg)
     with entry.lock:
         relay = entry.relay
@@ -142,13 +149,13 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
         raise InfeasibleTaskError(diagnose(problem, x, xd, u, status), None,
                                   "solver: " + status, value=status, valid="Solve_Succeeded")
     t = problem.node_times(Tv)
-    ns = task.segment_nodes
+    nodes = problem.waypoint_nodes()
     residuals = {
         "dynamics": float(np.abs(
             np.array(sr.node.map(N + 1)(x.T, xd.T, u.T, tau.T))[0:9]).max()),
         "integration": float(np.abs(np.array(res["g"]).ravel()[:18 * N]).max()),
-        "waypoints": float(max(np.abs(x[w_ * ns, 0:6] - wp_x[w_, 0:6]).max()
-                               for w_ in range(len(task.waypoints)))),
+        "waypoints": float(max(np.abs(x[k, 0:6] - wp_x[w_, 0:6]).max()
+                               for w_, k in enumerate(nodes))),
     }
     sol = Solution(status=status, final_time=float(Tv.sum()), solve_time=solve_time,
                    iterations=int(stats.get("iter_count", -1)), segment_times=Tv, t=t, x=x,
@@ -191,13 +198,13 @@ def active_limits(problem: Problem, x: np.ndarray, xd: np.ndarray, u: np.ndarray
     n = len(t)
     thd, thdd, _, _ = (v.T for v in actuated_profile(problem.robot, x, xd, u))
     m1, m2, mp = (np.array(a) for a in sr.margins.map(n)(x.T))
-    crank_lo, crank_hi = problem.crank_range()
+    crank_lo, crank_hi = problem.crank_range() if bounds.cranks is None else bounds.cranks
     checks = [
         ("torque", np.abs(tau).max(axis=1) / tmax),
         ("velocity", np.abs(thd).max(axis=1) / vmax),
         ("acceleration", np.abs(thdd).max(axis=1) / amax),
         ("leg type I margin", lim.margin / np.abs(m1).min(axis=0)),
-        ("leg type II margin", 3 * lim.margin / np.abs(m2).min(axis=0)),
+        ("leg type II margin", type2_det_bound(lim.margin) / np.abs(m2).min(axis=0)),
         ("platform margin", bounds.platform_proxy / mp.ravel()),
         ("crank angle range", np.maximum(crank_lo / x[:, 6:9], x[:, 6:9] / crank_hi)
          .max(axis=1)),
@@ -215,7 +222,6 @@ def diagnose(problem: Problem, x: np.ndarray, xd: np.ndarray, u: np.ndarray,
     """Name the limits most violated by the solver's last iterate."""
     sr, lim = problem.sr, problem.limits
     n = x.shape[0]
-    ns = problem.task.segment_nodes
     tmax = problem.options.torque_safety * lim.torque
     thd, _, dyn_tau, _ = actuated_profile(problem.robot, x, xd, u)
     items = [
@@ -225,12 +231,12 @@ def diagnose(problem: Problem, x: np.ndarray, xd: np.ndarray, u: np.ndarray,
     ]
     m1, m2, mp = (np.array(a) for a in sr.margins.map(n)(x.T))
     items.append(("singularity margin", lim.margin - np.minimum(np.abs(m1).min(axis=0),
-                                                                 np.abs(m2).min(axis=0) / 3),
+                                                                 2 * np.abs(m2).min(axis=0) / 3),
                   f"{lim.margin:g}"))
     worst = sorted(((float(v.max()), name, int(np.argmax(v)), rng)
                     for name, v, rng in items), reverse=True)
     v, name, k, rng = worst[0]
-    seg = min(k // ns, problem.task.n_segments - 1)
+    seg = int(problem.interval_segments()[min(k, n - 2)])
     how = (f"violated by {max(v, 0) * 100:.1f}% at the solver's last iterate"
            if v < 10 else "the solver's last iterate diverged there")
     return (f"planning failed ({status}): the {name} limit ({rng}) binds between "

@@ -8,8 +8,9 @@ from typing import Any
 
 from sixplus3.errors import InputError
 
-#: a node interval next to a rest, as a share of a regular one (Problem.node_fractions)
-REST_INTERVAL = 0.4
+#: the node intervals next to a rest, from the rest outward, as shares of a regular one;
+#: together they replace one regular interval (Problem.interval_fractions)
+REST_GRADING: tuple[float, ...] = (0.15, 0.5)
 #: the scale [(m or rad)/s^2] of the NLP's acceleration variables (u, theta_ddot)
 ACC_SCALE = 100.0
 #: the NLP's torque-balance rows [N, N m] and theta_ddot ties [rad/s^2] are divided by
@@ -61,4 +62,4 @@ class PlannerOptions:
         object.__setattr__(self, "ipopt_options", pairs)
 
 
-__all__ = ["ACC_SCALE", "REST_INTERVAL", "ROW_SCALE", "PlannerOptions"]
+__all__ = ["ACC_SCALE", "REST_GRADING", "ROW_SCALE", "PlannerOptions"]

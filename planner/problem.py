@@ -77,9 +77,27 @@ class Problem:
             self.progress.stage("  " + text)
 
     # -- the node grid
+    def segment_intervals(self) -> np.ndarray:
+        """(S,) node intervals of each segment: ``Task.segment_nodes``, plus
+        ``len(REST_GRADING) - 1`` at each end of the segment where the motion is at rest
+        (the graded intervals there replace one regular interval)."""
+        ns, S = self.task.segment_nodes, self.task.n_segments
+        extra = len(planner_options.REST_GRADING) - 1
+        rest = self.rest_waypoints()
+        return np.array([ns + extra * ((s in rest) + (s + 1 in rest)) for s in range(S)])
+
     @property
     def n_intervals(self) -> int:
-        return self.task.segment_nodes * self.task.n_segments
+        return int(self.segment_intervals().sum())
+
+    def interval_segments(self) -> np.ndarray:
+        """(N,) the segment of every node interval."""
+        n = self.segment_intervals()
+        return np.repeat(np.arange(len(n)), n)
+
+    def waypoint_nodes(self) -> np.ndarray:
+        """(W,) the node index of every waypoint."""
+        return np.r_[0, np.cumsum(self.segment_intervals())]
 
     def rest_waypoints(self) -> set[int]:
         """Indices of the waypoints where the motion is at rest: the first, the last and
@@ -87,29 +105,32 @@ class Problem:
         wps = self.task.waypoints
         return {0, len(wps) - 1} | {w for w, wp in enumerate(wps) if wp.stop}
 
-    def node_fractions(self) -> np.ndarray:
-        """(S, ns) each node interval's share of its segment's duration (rows sum to 1).
+    def interval_fractions(self) -> np.ndarray:
+        """(N,) each node interval's share of its segment's duration (a segment's sum to 1).
 
-        Uniform, except that the interval next to a rest (the start, the end, a
-        ``stop`` waypoint) is ``REST_INTERVAL`` of a regular one: the acceleration is
-        zero at rest and linear over that interval, and a full-length first interval
-        made the ramp up to the limits take twice what the torque-rate limit needs
-        (the certificate, planner.certificate, found 3 ms of 12 lost at each end of a
-        2-waypoint plan, BENCHMARKS.md)."""
-        ns, S = self.task.segment_nodes, self.task.n_segments
+        Uniform, except next to a rest (the start, the end, a ``stop`` waypoint), where
+        the intervals are graded by ``REST_GRADING`` (shares of a regular interval, from
+        the rest outward): the acceleration is zero at rest and linear over each
+        interval, so a long first interval makes the ramp up to the limits slow.  A
+        single interval of 0.4 (before) left plans of two waypoints 1-2% slower than the
+        fastest re-timing of their own path (the certificate, planner.certificate);
+        graded 0.15, 0.5 they are within 1% (BENCHMARKS.md, "Rest ends")."""
+        grading = np.asarray(planner_options.REST_GRADING, dtype=float)
         rest = self.rest_waypoints()
-        w = np.ones((S, ns))
-        for s in range(S):
+        out = []
+        for s, n in enumerate(self.segment_intervals()):
+            w = np.ones(n)
             if s in rest:
-                w[s, 0] = planner_options.REST_INTERVAL
+                w[:len(grading)] = grading
             if s + 1 in rest:
-                w[s, -1] = planner_options.REST_INTERVAL
-        return w / w.sum(axis=1, keepdims=True)  # type: ignore[no-any-return]
+                w[n - len(grading):] = np.minimum(w[n - len(grading):], grading[::-1])
+            out.append(w / w.sum())
+        return np.concatenate(out)
 
     def node_times(self, T: np.ndarray) -> np.ndarray:
         """(N+1,) node times [s] for the segment durations T (S,)."""
-        steps = np.asarray(T, dtype=float)[:, None] * self.node_fractions()
-        return np.r_[0.0, np.cumsum(steps.ravel())]
+        steps = np.asarray(T, dtype=float)[self.interval_segments()] * self.interval_fractions()
+        return np.r_[0.0, np.cumsum(steps)]
 
     def crank_range(self) -> tuple[np.ndarray, np.ndarray]:
         """(lo, hi), (3,) [rad]: the NLP's bounds on the crank angles.
@@ -166,15 +187,14 @@ class Problem:
         stretched by a, theta_dot scales 1/a and theta_ddot and the inertial torques
         1/a^2, exactly.
         """
-        task = self.task
-        ns, S = task.segment_nodes, task.n_segments
+        S = self.task.n_segments
         wp_x = self.waypoint_states(psi_wp)
-        frac = self.node_fractions()
+        frac, segs = self.interval_fractions(), self.interval_segments()
         xs, seg_T = [], []
         for s in range(S):
             a, b = wp_x[s], wp_x[s + 1]
             rots = Rotation.from_rotvec([a[3:6], b[3:6]])
-            c = np.r_[0.0, np.cumsum(frac[s])]  # the nodes' share of the segment
+            c = np.r_[0.0, np.cumsum(frac[segs == s])]  # the nodes' share of the segment
             share = c[:-1] if s < S - 1 else c
             sm = 3 * share**2 - 2 * share**3  # rest-to-rest smooth blend for the guess
             rv = Slerp([0, 1], rots)(sm).as_rotvec()
@@ -193,10 +213,9 @@ class Problem:
         xd[0] = xd[-1] = 0.0
         xdd = np.gradient(xd, t, axis=0)
         stretch = self.time_stretch(x, xd, xdd, 0.9)
-        seg = np.minimum(np.arange(len(x)) // ns, S - 1)
+        seg = np.r_[segs, S - 1]  # the segment of every node (the last: the last's)
         scale = np.clip([stretch[seg == s].max() for s in range(S)], 0.05, 50.0)
-        a_ = np.repeat(scale, ns)
-        a_ = np.r_[a_, a_[-1]][:, None]
+        a_ = scale[seg][:, None]
         return wp_x, x, xd / a_, xdd / a_**2, T * scale
 
     def on_nodes(self, sol: Solution) -> tuple[np.ndarray, ...]:

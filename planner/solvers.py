@@ -153,15 +153,15 @@ def ipopt_solver(problem: Problem, warm_start: bool = False) -> SolverEntry:
 
     The node functions are the compiled ones of :mod:`dynamics.codegen` (mapped over the
     points on two threads) when a C compiler is available, otherwise CasADi's
-    interpreted SX functions (expanded).  The structure depends only on (nodes per
-    segment, segments) and the options: every task-specific value is a bound or a
-    parameter.
+    interpreted SX functions (expanded).  The structure depends only on the intervals
+    of every segment (:meth:`Problem.segment_intervals`) and the options: every
+    task-specific value is a bound or a parameter.
     """
     from sixplus3.dynamics.codegen import compiled_functions
 
-    task, opt = problem.task, problem.options
+    opt = problem.options
     compiled = compiled_functions(problem.robot)
-    key = (problem.robot.hash, task.segment_nodes, task.n_segments, opt.max_iter, opt.tol,
+    key = (problem.robot.hash, tuple(problem.segment_intervals()), opt.max_iter, opt.tol,
            opt.constr_viol_tol, opt.regularisation, opt.verbose, opt.ipopt_options,
            bool(compiled), warm_start)
     return SOLVERS.get(key, lambda: _build(problem, compiled, warm_start))
@@ -171,10 +171,10 @@ def _build(problem: Problem, compiled: dict[str, ca.Function],
            warm_start: bool) -> SolverEntry:
     from sixplus3.dynamics.codegen import single_threaded_solver_blas
 
-    task, opt = problem.task, problem.options
+    opt = problem.options
     node = compiled.get("node", problem.sr.node)
-    tr = build_nlp(node, 2 if compiled else 1, task.segment_nodes, task.n_segments,
-                   opt.regularisation)
+    tr = build_nlp(node, 2 if compiled else 1,
+                   tuple(int(n) for n in problem.segment_intervals()), opt.regularisation)
     relay = IterationRelay(tr.nw, tr.ng)
     settings: dict[str, Any] = {"expand": not compiled, "print_time": False,
                 "ipopt": ipopt_settings(opt, warm_start), "iteration_callback": relay}

@@ -62,7 +62,7 @@ def solve(problem: Problem) -> Solution:
     # quasi-Newton steps from running the durations up to the 60 s bound, which is how
     # most failed starts failed (BENCHMARKS.md)
     if base is not None:
-        bounds = bounds.replace(duration_cap=1.5 * base.final_time)
+        bounds = admitting(problem, bounds, base).replace(duration_cap=1.5 * base.final_time)
     problem.stage(f"baseline: {base.final_time:.4f} s" if base is not None else
                   f"no admissible baseline ({note})")
     sol, bounds, first, failed = first_solve(problem, psi_wp, bounds, base)
@@ -79,6 +79,30 @@ def solve(problem: Problem) -> Solution:
     return finish(problem, sol, base, t_wall, psi_wp, bounds)
 
 
+def admitting(problem: Problem, bounds: Bounds, base: Solution) -> Bounds:
+    """``bounds`` widened so that the NLP's proxy rows admit the baseline, a plan that
+    meets every official limit: the crank bounds ([45, 135] deg by default) widened to
+    the baseline's crank angles, and the platform's line-determinant bound lowered to
+    0.9 of the baseline's smallest.
+
+    Those two rows are proxies of the platform's margin (a 9x9 singular-value ratio with
+    no cheap smooth form), sufficient on the range where they were sampled but not
+    necessary: a static crank choice outside [45, 135] deg (when nothing inside passes)
+    made a baseline that met the official margin but not the rows, and every NLP start
+    failed (broad_10: the line determinant fell to 0.22 < 0.5).  The dense check still
+    measures the official margin on every plan, and raises the proxy for a re-solve when
+    it is violated (:func:`tightened`).
+    """
+    if problem.options.lock_redundancy:
+        return bounds
+    lo, hi = problem.crank_range()
+    cranks = (np.minimum(lo, base.x[:, 6:9].min(axis=0)),
+              np.maximum(hi, base.x[:, 6:9].max(axis=0)))
+    line = float(np.array(problem.sr.margins.map(len(base.x))(base.x.T)[2]).min())
+    return bounds.replace(cranks=cranks,
+                          platform_proxy=min(bounds.platform_proxy, max(0.9 * line, 1e-3)))
+
+
 def first_solve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
                 base: Solution | None) -> tuple[Solution | None, Bounds,
                                                 InfeasibleTaskError | None, float]:
@@ -86,7 +110,8 @@ def first_solve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
     spent in failed starts), trying in turn: a homotopy step in the margin from the
     baseline (the margin rows at 0.6 x the margin; its plan is kept if the dense check,
     against the task's own margin, passes: the OCP's margin rows are conservative
-    proxies, det J-hat >= 3 m and the platform's line determinant >= max(0.5, 6 m), so a
+    proxies, det J-hat >= m (3 - m^2) / 2 and the platform's line determinant >=
+    max(0.5, 6 m), so a
     plan can meet the official margin although the NLP at the full margin was declared
     infeasible; otherwise it is re-solved from there at the task's margin); the NLP at
     the task's margin from the baseline; the kinematic guess twice as slow.  With no
@@ -169,6 +194,7 @@ def resolve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
         except InfeasibleTaskError as exc:
             if exc.limit is None or not exc.limit.startswith("solver"):
                 raise
+            problem.stage(f"  re-solve failed ({exc.value}): keeping the last plan")
             break  # keep the last iterate; the baseline may replace it (finish)
         total += nxt.solve_time
         solves += 1
@@ -340,5 +366,5 @@ def retime(problem: Problem, sol: Solution, platform_proxy: float, target: float
                                                    new.t, full))
 
 
-__all__ = ["RATE_LIMITS", "finish", "first_solve", "fixed_duration", "resolve", "retime",
-           "solve", "stretched", "tcp_limited", "target_duration", "tightened"]
+__all__ = ["RATE_LIMITS", "admitting", "finish", "first_solve", "fixed_duration", "resolve",
+           "retime", "solve", "stretched", "tcp_limited", "target_duration", "tightened"]

@@ -4,8 +4,8 @@ Decision vector ``w`` (:func:`layout`): per node k = 0..N the state z_k = (x, xd
 (minimal coordinates, their rates, the acceleration u = xdd, the actuator torques); then
 the torques at the interval midpoints, the actuated accelerations theta_ddot at the
 nodes and the midpoints, and the segment durations T_s.  IPOPT sees w / D
-(:func:`variable_scale`).  Interval k lasts h_k = T_s * fraction_k
-(:meth:`Problem.node_fractions`).
+(:func:`variable_scale`).  Interval k of segment s lasts h_k = T_s * fraction_k
+(:meth:`Problem.interval_fractions`: graded next to a rest).
 
 Rows, assembled in :func:`build_nlp`:
 
@@ -67,37 +67,54 @@ def variable_scale(N: int, S: int, tmax: float) -> np.ndarray:
 
 
 def variable_bounds(problem: Problem, wp_x: np.ndarray, tmax: float, amax: float,
-                    total: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
+                    total: float = np.inf,
+                    cranks: tuple[np.ndarray, np.ndarray] | None = None,
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """Bounds of the decision vector (:func:`layout`): ``tmax`` [N m] on the torques,
-    ``amax`` [rad/s^2] on theta_ddot, and each segment's duration within [0.02, 60] s
+    ``amax`` [rad/s^2] on theta_ddot, the crank angles in ``cranks`` = (lo, hi) [rad]
+    (default :meth:`Problem.crank_range`), and each segment's duration within [0.02, 60] s
     and at most ``total`` [s] (the bound of the total duration).
 
     Waypoints, the rest conditions and locked or given crank angles are equal bounds
     (IPOPT removes such fixed variables from the problem).
     """
     task, opt = problem.task, problem.options
-    ns, S = task.segment_nodes, task.n_segments
-    N = ns * S
+    S, N = task.n_segments, problem.n_intervals
+    nodes = problem.waypoint_nodes()
     lo = np.full((N + 1, 36), -np.inf)
     hi = np.full((N + 1, 36), np.inf)
     lo[:, 27:36], hi[:, 27:36] = -tmax, tmax
     if opt.lock_redundancy:
         lo[:, 6:9] = hi[:, 6:9] = wp_x[0, 6:9]
     else:
-        lo[:, 6:9], hi[:, 6:9] = problem.crank_range()
+        lo[:, 6:9], hi[:, 6:9] = problem.crank_range() if cranks is None else cranks
     for w, wp in enumerate(task.waypoints):
-        k = w * ns
+        k = nodes[w]
         lo[k, 0:6] = hi[k, 0:6] = wp_x[w, 0:6]
         if wp.psi is not None and not opt.lock_redundancy:
             lo[k, 6:9] = hi[k, 6:9] = wp_x[w, 6:9]
     # at rest (the start, the end, a stop): zero velocity and zero acceleration, so that
     # the torque starts and ends at the holding torque (no step at either end)
     for w in problem.rest_waypoints():
-        lo[w * ns, 9:27] = hi[w * ns, 9:27] = 0.0
+        lo[nodes[w], 9:27] = hi[nodes[w], 9:27] = 0.0
     n_acc = 9 * (2 * N + 1)
     t_lo, t_hi = min(0.02, total), min(60.0, total)
     return (np.r_[lo.ravel(), np.full(9 * N, -tmax), np.full(n_acc, -amax), np.full(S, t_lo)],
             np.r_[hi.ravel(), np.full(9 * N, tmax), np.full(n_acc, amax), np.full(S, t_hi)])
+
+
+def type2_det_bound(margin: float) -> float:
+    """The smallest det J-hat that guarantees a leg's type II margin >= ``margin``.
+
+    J-hat is the leg's Jacobian with unit rows, and its type II margin is sigma_min.  With
+    unit rows, sigma_1^2 + sigma_2^2 + sigma_3^2 = 3, so sigma_1 sigma_2 <= (3 - sigma_3^2)/2
+    and |det| <= g(sigma_3) with g(s) = s (3 - s^2) / 2, increasing on [0, 1].  So
+    |det| >= g(m) implies sigma_3 >= m, and the bound is tight (unit rows with sigma_1 =
+    sigma_2 reach it).  The rows used 3 m before (twice as strict for small m): a held-out
+    task whose stop-at-waypoints baseline passed every official margin had det J-hat =
+    0.077 < 0.15 on its path, and every NLP start was declared infeasible.
+    """
+    return margin * (3.0 - margin**2) / 2.0
 
 
 def node_bounds(lim: Limits, sign1: np.ndarray, sign2: np.ndarray, platform_proxy: float,
@@ -118,7 +135,7 @@ def node_bounds(lim: Limits, sign1: np.ndarray, sign2: np.ndarray, platform_prox
     lb[36:45], ub[36:45] = 0.0, inf
     lb[45:54], ub[45:54] = math.cos(lim.spherical - spherical_reserve), inf
     for rows, sign, m in ((slice(54, 63), sign1, lim.margin),
-                          (slice(63, 66), sign2, 3 * lim.margin)):
+                          (slice(63, 66), sign2, type2_det_bound(lim.margin))):
         lb[rows] = np.where(sign > 0, m, -inf)
         ub[rows] = np.where(sign > 0, inf, -m)
     lb[66], ub[66] = platform_proxy, inf
@@ -206,7 +223,7 @@ class Transcription:
     """A built NLP (CasADi's ``{"x", "p", "f", "g"}``) and its sizes.
 
     Parameters p = [D (nw), jerk limit, torque-rate limit, w_time, w_effort, the N
-    interval fractions]."""
+    interval fractions (:meth:`Problem.interval_fractions`)]."""
 
     nlp: dict[str, Any]
     N: int
@@ -215,11 +232,13 @@ class Transcription:
     ng: int
 
 
-def build_nlp(node: ca.Function, threads: int, ns: int, S: int,
+def build_nlp(node: ca.Function, threads: int, segments: tuple[int, ...],
               regularisation: float) -> Transcription:
-    """The NLP of ``S`` segments of ``ns`` intervals, with ``node`` the path rows'
-    function (compiled, mapped on ``threads``, or CasADi's SX function)."""
-    N = ns * S
+    """The NLP of ``len(segments)`` segments of ``segments[s]`` intervals each, with
+    ``node`` the path rows' function (compiled, mapped on ``threads``, or CasADi's SX
+    function)."""
+    S, N = len(segments), sum(segments)
+    seg = [s for s, n in enumerate(segments) for _ in range(n)]
     o_taum, o_acc, o_T, nw = layout(N, S)
     P = ca.MX.sym("p", nw + 4 + N)
     Ws, D = ca.MX.sym("w", nw), P[0:nw]
@@ -231,7 +250,7 @@ def build_nlp(node: ca.Function, threads: int, ns: int, S: int,
     ACC = ca.reshape(W[o_acc:o_T], 9, 2 * N + 1)  # theta_ddot at the nodes, the midpoints
     T = W[o_T:]
     X, XD, U, TAU = Z[0:9, :], Z[9:18, :], Z[18:27, :], Z[27:36, :]
-    hm = ca.horzcat(*[T[s] * frac[s * ns + i] for s in range(S) for i in range(ns)])
+    hm = ca.horzcat(*[T[seg[k]] * frac[k] for k in range(N)])
     Hm = ca.repmat(hm, 9, 1)
     Xm, XDm, Um = midpoint_states(X, XD, U, Hm)
     G = path_rows(node, threads, (ca.horzcat(X, Xm), ca.horzcat(XD, XDm),
@@ -244,4 +263,4 @@ def build_nlp(node: ca.Function, threads: int, ns: int, S: int,
 
 __all__ = ["NODE_ROWS", "Transcription", "build_nlp", "integration_rows", "layout",
            "midpoint_states", "node_bounds", "objective", "path_rows", "smoothness_rows",
-           "variable_bounds", "variable_scale"]
+           "type2_det_bound", "variable_bounds", "variable_scale"]

@@ -215,6 +215,10 @@ def test_intervals_per_segment_default_to_18_for_one_segment_and_12_for_more() -
                                  "start": {"theta": np.degrees(theta).tolist()}})
     assert from_state.n_segments == 1 and from_state.segment_nodes == 18
     assert move_to_start(three, theta, ROBOT).segment_nodes == 18
-    frac = Problem(one, ROBOT).node_fractions()
-    assert frac.shape == (1, 18)
-    assert Problem(three, ROBOT).node_fractions().shape == (2, 12)
+    # each rest end adds the graded intervals beyond the first (planner.options)
+    from sixplus3.planner.options import REST_GRADING
+
+    extra = len(REST_GRADING) - 1
+    np.testing.assert_array_equal(Problem(one, ROBOT).segment_intervals(), [18 + 2 * extra])
+    np.testing.assert_array_equal(Problem(three, ROBOT).segment_intervals(),
+                                  [12 + extra, 12 + extra])

@@ -201,25 +201,34 @@ def test_small_task_solves_and_passes_a_10x_pinocchio_check(small_solution) -> N
     np.testing.assert_allclose(x, sol.x[[0, -1]], atol=1e-10)  # cubic evaluated at t = T
 
 
-def test_node_intervals_are_shorter_next_to_rest() -> None:
-    """Node fractions: uniform within a segment except the intervals next to the start,
-    the end and a stop waypoint, REST_INTERVAL of a regular one; rows sum to 1."""
+@pytest.mark.parametrize("grading", [(0.15, 0.5), (0.4,), (0.1, 0.3, 0.6)])
+def test_node_intervals_are_graded_next_to_rest(grading, monkeypatch) -> None:
+    """Interval shares: uniform within a segment except next to the start, the end and a
+    stop waypoint, graded by REST_GRADING from the rest outward, which replaces one
+    regular interval there; each segment's shares sum to 1, and the waypoints sit at
+    the nodes where their segments meet."""
     from sixplus3.planner import options
 
+    monkeypatch.setattr(options, "REST_GRADING", grading)
     task = task_from_dict({"name": "f", "nodes_per_segment": 5, "waypoints": [
         {"position": [0, 0, 0.58]}, {"position": [0.02, 0, 0.58]},
         {"position": [0.02, 0.02, 0.58], "stop": True}, {"position": [0, 0, 0.59]}]})
     prob = Problem(task, ROBOT)
-    f = prob.node_fractions()
-    r = options.REST_INTERVAL
-    np.testing.assert_allclose(f.sum(axis=1), 1.0)
-    np.testing.assert_allclose(f[0] / f[0, 1], [r, 1, 1, 1, 1])
-    np.testing.assert_allclose(f[1] / f[1, 0], [1, 1, 1, 1, r])
-    np.testing.assert_allclose(f[2] / f[2, 1], [r, 1, 1, 1, r])
+    g, m = list(grading), len(grading)
+    n = prob.segment_intervals()
+    np.testing.assert_array_equal(n, [5 + m - 1, 5 + m - 1, 5 + 2 * (m - 1)])
+    f, seg = prob.interval_fractions(), prob.interval_segments()
+    np.testing.assert_array_equal(prob.waypoint_nodes(), np.r_[0, np.cumsum(n)])
+    for s in range(3):
+        np.testing.assert_allclose(f[seg == s].sum(), 1.0)
+    regular = [1.0] * 4
+    np.testing.assert_allclose(f[seg == 0] / f[seg == 0].max(), g + regular)
+    np.testing.assert_allclose(f[seg == 1] / f[seg == 1].max(), regular + g[::-1])
+    np.testing.assert_allclose(f[seg == 2] / f[seg == 2].max(), g + [1.0] * 3 + g[::-1])
     t = prob.node_times(np.array([0.1, 0.2, 0.3]))
-    assert len(t) == 16
-    np.testing.assert_allclose(t[[0, 5, 10, 15]], [0.0, 0.1, 0.3, 0.6])
-    np.testing.assert_allclose(t[1], 0.1 * r / (4 + r))
+    assert len(t) == n.sum() + 1
+    np.testing.assert_allclose(t[prob.waypoint_nodes()], [0, 0.1, 0.3, 0.6], atol=1e-15)
+    np.testing.assert_allclose(t[1], 0.1 * g[0] / (sum(g) + 4))  # the first graded step
 
 
 def test_locking_the_redundancy_is_not_faster() -> None:

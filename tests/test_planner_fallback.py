@@ -244,7 +244,7 @@ def test_explicit_cranks_outside_the_search_range_widen_the_nlps_bounds() -> Non
     sol = problem.solve()
     assert sol.is_feasible() and sol.source == "ocp" and sol.solves == 1
     assert sol.final_time < sol.baseline_time
-    k = task.segment_nodes  # the second waypoint's node
+    k = problem.waypoint_nodes()[1]  # the second waypoint's node
     np.testing.assert_allclose(sol.x[k, 6:9], np.radians([150, 90, 90]), atol=1e-9)
     assert sol.x[:, 6].max() <= math.radians(150) + 1e-6  # IPOPT relaxes bounds by ~1e-8
 
@@ -291,3 +291,41 @@ def test_extra_ipopt_options_reach_ipopt_and_bad_ones_are_named() -> None:
             PlannerOptions(ipopt_options=bad)
     with pytest.raises(ValueError, match="No such IPOPT option: no_such_option"):
         Problem(task, ROBOT, options=PlannerOptions(ipopt_options={"no_such_option": 1})).solve()
+
+
+#: broad_10 of ``bench_planner_heldout.py --broad --seed 1`` (rounded): a waypoint whose
+#: best crank angles lie outside [45, 135] deg, so the baseline's line determinant falls
+#: to 0.22, below the NLP's platform row (0.5)
+OUTSIDE = {"name": "broad_10", "waypoints": [
+    {"position": [0.0447, -0.0103, 0.5535], "rpy": [44.5503, -53.149, -27.5088]},
+    {"position": [0.0898, -0.0428, 0.6558], "rpy": [11.6251, 33.6639, 18.2445]},
+    {"position": [-0.0247, 0.0469, 0.5242], "rpy": [-5.8506, -14.096, -3.2096]},
+    {"position": [-0.067, -0.0499, 0.6099], "rpy": [-12.3454, 32.0822, 14.7191]}]}
+
+
+def test_the_nlps_proxy_rows_admit_the_baseline_it_starts_from() -> None:
+    """The platform margin's proxy rows (crank angles in [45, 135] deg, line determinant
+    >= 0.5) are sufficient, not necessary: a baseline that meets every official limit
+    can violate them, and then every NLP start failed and the baseline came back after
+    53 s.  The bounds are widened to admit the baseline (strategy.admitting), and the
+    NLP plans it, faster than the baseline, with the official margin checked densely."""
+    from sixplus3.planner.nlp import Bounds
+    from sixplus3.planner.statics import choose_static_psi
+
+    problem = Problem(task_from_dict(OUTSIDE), ROBOT)
+    psi = choose_static_psi(problem.task, ROBOT, problem.limits, False,
+                            problem.rest_waypoints())
+    assert np.degrees(psi).max() > 135.0  # the static choice leaves the default range
+    base, _ = baseline_plan(problem, psi)
+    assert base is not None and base.is_feasible()
+    line = np.array(problem.sr.margins.map(len(base.x))(base.x.T)[2]).min()
+    assert line < 0.5  # below the default platform row: the baseline is outside the rows
+    wide = strategy.admitting(problem, Bounds(), base)
+    lo, hi = wide.cranks
+    assert np.all(lo <= base.x[:, 6:9].min(axis=0)) and np.all(hi >= base.x[:, 6:9].max(axis=0))
+    assert np.degrees(hi).max() > 135.0
+    assert wide.platform_proxy == pytest.approx(0.9 * line)
+    sol = problem.solve()
+    assert sol.source == "ocp" and sol.is_feasible()
+    assert sol.final_time < 0.9 * sol.baseline_time
+    assert sol.check.min_margin >= problem.limits.margin

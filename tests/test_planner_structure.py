@@ -84,6 +84,47 @@ def test_the_integration_and_midpoint_rows_are_exact_on_piecewise_cubics() -> No
     assert np.abs(res).max() >= 1e-6 - 1e-12
 
 
+def test_the_type2_rows_bound_is_the_weakest_that_guarantees_the_margin() -> None:
+    """det J-hat >= g(m) = m (3 - m^2) / 2 implies sigma_min >= m for every matrix with
+    unit rows, and no weaker bound does (a matrix with sigma_1 = sigma_2 has |det| =
+    g(sigma_min)).  On the robot: the CasADi det J-hat of each leg and the numeric
+    kinematics' type II margin (sigma_min) obey |det| <= g(margin)."""
+    from scipy.spatial.transform import Rotation
+
+    from sixplus3.dynamics.symbolic import symbolic_robot
+    from sixplus3.kinematics.robot import robot_ik
+
+    g = transcription.type2_det_bound
+    rng = np.random.default_rng(7)
+    for _ in range(5000):
+        A = rng.normal(size=(3, 3))
+        A[2] = A[1] + rng.normal(scale=10 ** rng.uniform(-3, 0), size=3)
+        A /= np.linalg.norm(A, axis=1, keepdims=True)
+        s_min = np.linalg.svd(A, compute_uv=False)[-1]
+        assert abs(np.linalg.det(A)) <= g(s_min) + 1e-12
+    for m in (0.02, 0.05, 0.2):
+        # tight: three unit rows at 120 deg about z, each at phi from it, have singular
+        # values sqrt(1.5) sin(phi) (twice) and sqrt(3) cos(phi)
+        phi = np.arccos(m / np.sqrt(3))
+        az = np.radians([0, 120, 240])
+        A = np.c_[np.sin(phi) * np.cos(az), np.sin(phi) * np.sin(az), np.full(3, np.cos(phi))]
+        assert np.linalg.svd(A, compute_uv=False)[-1] == pytest.approx(m)
+        assert abs(np.linalg.det(A)) == pytest.approx(g(m), rel=1e-12)
+    sr = symbolic_robot(ROBOT)
+    n = 200
+    pos = np.asarray(ROBOT.home_position) + rng.uniform(-0.06, 0.06, (n, 3))
+    R = Rotation.from_rotvec(rng.uniform(-0.6, 0.6, (n, 3))).as_matrix()
+    psi = rng.uniform(np.radians(50), np.radians(130), (n, 3))
+    cfg = robot_ik(pos, R, psi, ROBOT)
+    ok = cfg.ok
+    assert ok.sum() > 50
+    x = np.c_[pos, Rotation.from_matrix(R).as_rotvec(), psi][ok]
+    det = np.abs(np.array(sr.margins.map(len(x))(x.T)[1])).T  # (n, 3)
+    margin = cfg.margins.leg_type2[ok]
+    assert np.all(det <= g(margin) + 1e-9)
+    assert np.max(det / g(margin)) > 0.5  # the bound is not loose on the robot either
+
+
 def test_a_built_solver_is_shared_by_tasks_of_one_size_only() -> None:
     a = Problem(task_from_dict(TWO), ROBOT)
     other = {**TWO, "waypoints": [{"position": [0, 0, 0.58]},
