@@ -1,0 +1,128 @@
+"""Where an NLP solve's time goes: iterations, time per iteration, function evaluations
+against IPOPT's own work (linear algebra), for several formulations side by side.
+
+    .venv/bin/python benchmarks/profile_nlp.py [--n 6] [--seed 2026]
+        [--configs compiled-lbfgs,sx-lbfgs]   # sx-exact: see below
+
+Each task of the narrow held-out generator (``bench_planner_heldout.heldout_task``) that
+passes the static checks and has a baseline is solved once per configuration, the way
+the planner's first start does it (from the baseline, the margin homotopy,
+``planner.nlp.solve_nlp``):
+
+- ``compiled-lbfgs``: the planner's default (compiled C node functions, L-BFGS);
+- ``sx-lbfgs``: CasADi's interpreted SX functions, expanded, L-BFGS;
+- ``sx-exact``: the same with IPOPT's exact Hessian of the Lagrangian (CasADi builds it
+  from the SX graph; the compiled C functions have no second derivatives).  Not run by
+  default: on this formulation (the passive angles in closed form inside the torque
+  balance) building it took more than 18 GB within 3 minutes and was stopped
+  (BENCHMARKS.md, "Planner v2, first steps").
+
+Printed per solve: IPOPT's status and iterations, the wall time, the time per iteration,
+and IPOPT's own split (``solver.stats()``): the evaluations of f, g, grad f, jac g and
+the Lagrangian's Hessian, and the rest (IPOPT's linear algebra: MUMPS factorisations and
+back-solves, and its own bookkeeping).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from bench_planner_heldout import heldout_task  # noqa: E402
+
+from sixplus3.dynamics.codegen import ensure_optimised  # noqa: E402
+from sixplus3.errors import InfeasibleTaskError  # noqa: E402
+from sixplus3.planner import baseline, solvers  # noqa: E402
+from sixplus3.planner.nlp import Bounds, solve_nlp  # noqa: E402
+from sixplus3.planner.ocp import PlannerOptions, Problem  # noqa: E402
+from sixplus3.planner.statics import choose_static_psi, clearance_needed  # noqa: E402
+from sixplus3.planner.strategy import admitting  # noqa: E402
+from sixplus3.planner.task import task_from_dict  # noqa: E402
+from sixplus3.robot_description.robot import Robot  # noqa: E402
+
+CONFIGS = {
+    "compiled-lbfgs": (False, ()),
+    "sx-lbfgs": (True, ()),
+    "sx-exact": (True, (("hessian_approximation", "exact"),)),
+}
+EVALS = ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=6)
+    ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--configs", default="compiled-lbfgs,sx-lbfgs")
+    args = ap.parse_args()
+    configs = args.configs.split(",")
+    if args.n < 1 or not all(c in CONFIGS for c in configs):
+        ap.error(f"--n >= 1 and --configs from {', '.join(CONFIGS)}")
+    robot = Robot.default()
+    ensure_optimised(robot)
+    rng = np.random.default_rng(args.seed)
+    starts = []
+    for k in range(40):
+        doc = heldout_task(rng, k)
+        if len(starts) == args.n:
+            break
+        problem = Problem(task_from_dict(doc), robot)
+        try:
+            psi = choose_static_psi(problem.task, robot, problem.limits, False,
+                                    problem.rest_waypoints())
+        except InfeasibleTaskError:
+            continue
+        base, _ = baseline.baseline_plan(problem, psi)
+        if base is None:
+            continue
+        bounds = admitting(problem, Bounds(
+            platform_proxy=max(0.5, 6 * problem.limits.margin),
+            clearance=0.0 if clearance_needed(robot, problem.task, psi) else None,
+            duration_cap=1.5 * base.final_time), base)
+        starts.append((doc, psi, base, bounds))
+    print("| config | task | status | iterations | wall [s] | per iteration [ms] | "
+          + " | ".join(f"{e} [s]" for e in EVALS) + " | IPOPT's own [s] |")
+    print("| --- | --- | --- | ---: | ---: | ---: | " + " | ".join("---:" for _ in EVALS)
+          + " | ---: |")
+    summary: dict[str, list[tuple[float, float, float]]] = {}
+    for name in configs:
+        interpreted, extra = CONFIGS[name]
+        if interpreted:
+            os.environ["SIXPLUS3_NO_CODEGEN"] = "1"
+        else:
+            os.environ.pop("SIXPLUS3_NO_CODEGEN", None)
+        solvers.SOLVERS.clear()
+        opts = PlannerOptions(ipopt_options=extra, max_iter=400)
+        for doc, psi, base, bounds in starts:
+            problem = Problem(task_from_dict(doc), robot, opts)
+            homotopy = bounds.replace(margin=0.6 * problem.limits.margin)
+            solvers.ipopt_solver(problem)  # built outside the clock
+            try:
+                sol = solve_nlp(problem, psi, homotopy, warm=base)
+                status, iters, wall = sol.status, sol.iterations, sol.solve_time
+            except InfeasibleTaskError as exc:
+                status, iters, wall = str(exc.value), -1, float("nan")
+            stats = solvers.ipopt_solver(problem).solver.stats()
+            t_eval = [float(stats.get(f"t_wall_{e}", 0.0)) for e in EVALS]
+            total = float(stats.get("t_wall_total", wall))
+            n_it = max(1, int(stats.get("iter_count", 1)))
+            own = total - sum(t_eval)
+            print(f"| {name} | {doc['name']} | {status} | {iters} | {total:.2f} | "
+                  f"{1e3 * total / n_it:.1f} | " + " | ".join(f"{v:.2f}" for v in t_eval)
+                  + f" | {own:.2f} |", flush=True)
+            summary.setdefault(name, []).append((n_it, total, own / max(total, 1e-12)))
+    for name, rows in summary.items():
+        its, walls, shares = zip(*rows, strict=True)
+        print(f"{name}: iterations median {statistics.median(its):.0f}, wall median "
+              f"{statistics.median(walls):.2f} s, per iteration median "
+              f"{1e3 * statistics.median(w / i for i, w in zip(its, walls, strict=True)):.1f}"
+              f" ms, IPOPT's own share median {statistics.median(shares):.2f}")
+
+
+if __name__ == "__main__":
+    main()
