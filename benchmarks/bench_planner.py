@@ -139,7 +139,7 @@ def main() -> None:
           "clearance):")
     for axis in ("x", "y"):
         for locked in (False, True):
-            r = largest_tilt(None, axis, locked, max_deg=179.0)
+            r = largest_tilt(Robot.default(), axis, locked, max_deg=179.0)
             print(f"  about {axis}, redundancy {'locked' if locked else 'free  '}: "
                   f"{r.tilt_deg:.1f} deg (psi {r.psi_deg} deg, margin {r.min_margin:.3f}, "
                   f"|tau_g| {r.max_gravity_torque:.2f} N m; beyond: "

@@ -22,6 +22,7 @@ import numpy as np
 
 from sixplus3.design import _kernel
 from sixplus3.design.workspace import halfplane_grid
+from sixplus3.errors import InputError
 from sixplus3.kinematics.leg import AssemblyMode
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 
@@ -196,7 +197,8 @@ def check_steps(coarse_step: float, fine_step: float, *ws_steps: float) -> None:
     checks += [("ws_step", v, 1e-4, 0.05) for v in ws_steps]
     for name, v, lo, hi in checks:
         if not (math.isfinite(v) and lo <= v <= hi):
-            raise ValueError(f"{name} must be in [{lo:g}, {hi:g}] m, got {v}")
+            raise InputError(f"{name} must be in [{lo:g}, {hi:g}] m, got {v}", value=v,
+                             valid=f"[{lo:g}, {hi:g}] m")
 
 
 def optimize(coarse_step: float = 0.01, fine_step: float = 0.001, ws_step: float = 0.005,
@@ -214,9 +216,11 @@ def optimize(coarse_step: float = 0.01, fine_step: float = 0.001, ws_step: float
     """
     reading = reading or Reading()
     if not (math.isfinite(seed_tolerance) and 0.0 <= seed_tolerance < 1.0):
-        raise ValueError(f"seed_tolerance must be in [0, 1), got {seed_tolerance}")
+        raise InputError(f"seed_tolerance must be in [0, 1), got {seed_tolerance}",
+                         value=seed_tolerance, valid="[0, 1)")
     if not (isinstance(max_seeds, int) and 1 <= max_seeds <= 100):
-        raise ValueError(f"max_seeds must be an integer in [1, 100], got {max_seeds}")
+        raise InputError(f"max_seeds must be an integer in [1, 100], got {max_seeds}",
+                         value=max_seeds, valid="an integer in [1, 100]")
     check_steps(coarse_step, fine_step, ws_step)
     t0 = time.perf_counter()
     grid = design_grid(ws_step, reading)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sixplus3.errors import InputError
 from sixplus3.kinematics.leg import DEFAULT_MODE, AssemblyMode, LegEval, leg_eval_packed
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 
@@ -27,7 +28,8 @@ def halfplane_grid(geometry: LegGeometry, step: float) -> np.ndarray:
     Returns (n, 3) points (x, y, 0) of the leg frame; each stands for an area step^2.
     """
     if not (math.isfinite(step) and 1e-4 <= step <= 0.1):
-        raise ValueError(f"workspace step must be in [0.0001, 0.1] m, got {step}")
+        raise InputError(f"workspace step must be in [0.0001, 0.1] m, got {step}",
+                         value=step, valid="[0.0001, 0.1] m")
     r = geometry.dp
     xs = np.arange(-r + step / 2, r, step)
     ys = np.arange(step / 2, geometry.l1 + r, step)

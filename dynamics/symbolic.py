@@ -28,6 +28,7 @@ import casadi as ca
 import numpy as np
 
 from sixplus3.cache import cached
+from sixplus3.errors import SingularityError
 from sixplus3.kinematics.robot import spherical_reference
 from sixplus3.robot_description.assembly import AssemblyMode
 from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry
@@ -188,7 +189,9 @@ def platform_line_det_normalised(psi, geom: RobotGeometry):
     reference, computed from its geometry), so that 1 is the nominal platform."""
     ref = float(ca.DM(platform_line_det([math.pi / 2] * NUM_LEGS, geom)))
     if abs(ref) < 1e-12:
-        raise ValueError("the platform's crank lines are singular at psi = 90 deg")
+        raise SingularityError("the platform's crank lines are singular at psi = 90 deg",
+                               value=ref, valid="a platform whose crank lines at 90 deg "
+                               "are not concurrent")
     return platform_line_det(psi, geom) / ref
 
 

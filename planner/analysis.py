@@ -74,12 +74,14 @@ def static_feasible(robot: Robot, position, rotation, limits: Limits, locked: bo
     return False, None, float(margin.max()), best_tau, "torque"
 
 
-def largest_tilt(robot: Robot | None = None, axis: str = "x", locked: bool = False,
+def largest_tilt(robot: Robot, axis: str = "x", locked: bool = False,
                  limits: Limits | None = None, position=None, resolution_deg: float = 0.5,
                  max_deg: float = 120.0) -> TiltResult:
     """Bisection on the tilt angle about ``axis`` ("x" or "y") at ``position`` [m]
     (default: the robot's home), within ``limits`` (default: the robot's)."""
-    robot = robot or Robot.default()
+    if not isinstance(robot, Robot):
+        raise InputError("robot must be a Robot (Robot.default(), load_robot)",
+                         value=type(robot).__name__, valid="a Robot")
     if axis not in ("x", "y"):
         raise InputError(f"axis must be 'x' or 'y', got {axis!r}", value=axis,
                          valid="x or y")

@@ -39,10 +39,12 @@ import time
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from sixplus3.errors import InfeasibleTaskError
 from sixplus3.kinematics.checks import pose_masks
 from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.planner.solution import Solution, actuated_profile, sample_cubic, stretch_factors
+from sixplus3.planner.toppra_baseline import toppra_trajectory
 
 #: node spacing of the baseline plan [s]
 NODE_STEP = 2.5e-3
@@ -139,7 +141,6 @@ def baseline_plan(problem, psi_wp: np.ndarray, step: float = NODE_STEP,
                   target: float = TARGET):
     """(Solution or None, reason): the baseline plan of ``problem`` (a
     :class:`planner.problem.Problem`) with the crank angles ``psi_wp`` at its waypoints."""
-    from sixplus3.planner.toppra_baseline import toppra_trajectory
 
     t_start = time.perf_counter()
     robot, lim, sr = problem.robot, problem.limits, problem.sr
@@ -162,7 +163,7 @@ def baseline_plan(problem, psi_wp: np.ndarray, step: float = NODE_STEP,
                 traj = toppra_trajectory(robot, line, lim.tightened(
                     torque=0.97 * lim.torque, velocity=0.97 * lim.velocity,
                     acceleration=0.97 * lim.acceleration), gridpoints=100)
-            except RuntimeError as exc:
+            except InfeasibleTaskError as exc:  # TOPP-RA found no parametrisation
                 return None, f"segment {k}: {exc}"
             t, s, v, u = _smoothed_profile(traj, d, float(traj.duration), width, step)
             a = _stretch_needed(robot, lim, xa, d, t, s, v, u, target)

@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from sixplus3.errors import InputError
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
@@ -167,7 +168,8 @@ def retime_path(robot: Robot, limits: Limits, s: np.ndarray, path: Callable,
     s = np.asarray(s, dtype=float)
     ds = np.diff(s)
     if s.ndim != 1 or len(s) < 3 or not (ds > 0).all():
-        raise ValueError("the grid s must be increasing with at least 3 points")
+        raise InputError("the grid s must be increasing with at least 3 points",
+                         value=s.shape, valid="an increasing 1-D grid of >= 3 points")
     n = len(s)
     s_all = np.empty(2 * n - 1)  # grid points (even) and midpoints (odd)
     s_all[0::2], s_all[1::2] = s, (s[:-1] + s[1:]) / 2

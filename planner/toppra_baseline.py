@@ -21,6 +21,7 @@ import toppra.algorithm as algo
 import toppra.constraint as constraint
 from toppra.constraint.linear_constraint import canlinear_colloc_to_interpolate
 
+from sixplus3.errors import InfeasibleTaskError, InputError
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
@@ -57,7 +58,8 @@ def toppra_time(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: int = 
 
 def toppra_trajectory(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: int = 400):
     """TOPP-RA's trajectory object (``traj(t, order)``) for the path through the samples
-    xs (m, 9), at rest at both ends; raises RuntimeError if it finds none."""
+    xs (m, 9), at rest at both ends; raises InfeasibleTaskError (limit "toppra") if it
+    finds none."""
     ss, xs = arc_length_parameter(np.asarray(xs, dtype=float))
     # Path parameter in [0, PATH_SCALE] rather than [0, 1]: on a unit path the platform's
     # tiny inertia makes the admissible path accelerations ~1e4 and TOPP-RA's Seidel LP
@@ -76,7 +78,9 @@ def toppra_trajectory(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: 
     inst = algo.TOPPRA([pc], path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
     traj = inst.compute_trajectory(0.0, 0.0)
     if traj is None:
-        raise RuntimeError("TOPP-RA found no feasible parametrisation of the path")
+        raise InfeasibleTaskError("TOPP-RA found no feasible parametrisation of the path",
+                                  None, "toppra", value=None,
+                                  valid="a path with a time parametrisation within the limits")
     return traj
 
 
@@ -113,7 +117,8 @@ class _GridSecondOrderConstraint(constraint.SecondOrderConstraint):
 
     def compute_constraint_params(self, path, gridpoints):
         if path.dof != self.dof:
-            raise ValueError(f"constraint dof {self.dof} != path dof {path.dof}")
+            raise InputError(f"constraint dof {self.dof} != path dof {path.dof}",
+                             value=path.dof, valid=str(self.dof))
         p, ps, pss = path(gridpoints), path(gridpoints, 1), path(gridpoints, 2)
         zero = np.zeros_like(p)
         c = self._grid_inv_dyn(p, zero, zero)

@@ -468,14 +468,10 @@ def design_optimize(coarse_step: float, fine_step: float, ws_steps: tuple[float,
     """Two-stage grid search of (l2 = l3, l4 = l5, ex = fx) maximising the usable area,
     re-run on every workspace grid, with the ridge of near-optimal designs."""
     from sixplus3.design.search import PAPER_DESIGN, check_steps, optimize
-    from sixplus3.errors import InputError
 
     rd = _reading(reading)
-    try:  # every grid before the first search: no partial output for a bad one
-        check_steps(coarse_step, fine_step, *ws_steps)
-    except ValueError as exc:
-        raise InputError(str(exc), value=(coarse_step, fine_step, ws_steps),
-                         valid="positive grid steps [m]") from None
+    # every grid before the first search: no partial output for a bad one (InputError)
+    check_steps(coarse_step, fine_step, *ws_steps)
     if not as_json:
         click.echo(f"reading '{rd.name}': {rd.description}")
         click.echo(f"paper        l2 = {PAPER_DESIGN[0]:.3f}  l4 = {PAPER_DESIGN[1]:.3f}  "

@@ -14,13 +14,15 @@ the commands that plan or search):
 
 The planner reports through a :class:`PlanProgress` (``plan(..., progress=...)``); the
 IPOPT iterations reach it through CasADi's ``iteration_callback`` (see
-:mod:`sixplus3.planner.ocp`).  :class:`ConsoleProgress` is the command line's reporter.
+:mod:`sixplus3.planner.solvers`).  :class:`ConsoleProgress` is the command line's reporter.
 """
 
 from __future__ import annotations
 
 import sys
 from typing import Any, Protocol, TextIO, runtime_checkable
+
+from sixplus3.errors import InputError
 
 QUIET, NORMAL, VERBOSE = 0, 1, 2
 _level = NORMAL
@@ -34,7 +36,8 @@ def level() -> int:
 def set_level(value: int) -> None:
     global _level
     if value not in (QUIET, NORMAL, VERBOSE):
-        raise ValueError(f"reporting level must be 0, 1 or 2, got {value!r}")
+        raise InputError(f"reporting level must be 0, 1 or 2, got {value!r}", value=value,
+                         valid="0, 1 or 2")
     _level = value
 
 

@@ -105,3 +105,26 @@ def test_the_layers_contract_holds_and_catches_an_upward_import(tmp_path) -> Non
     bad = mod.run(tree, capture_output=True, text=True)
     assert bad.returncode != 0
     assert "sixplus3.kinematics._upward -> sixplus3.planner.ocp" in bad.stdout
+
+
+def test_the_curated_api_is_written_once_and_typed() -> None:
+    """The three spellings of the curated API agree: ``__all__`` (a literal, which ruff
+    needs to see the TYPE_CHECKING imports used), the lazy map ``_API``, and the
+    TYPE_CHECKING imports for type checkers; every name resolves to its module's."""
+    import ast
+    import importlib
+
+    import sixplus3
+
+    api = sixplus3._API
+    assert sorted(sixplus3.__all__) == sorted([*api, "__version__"])
+    for name, module in api.items():
+        assert getattr(sixplus3, name) is getattr(importlib.import_module(module), name)
+    tree = ast.parse(Path(sixplus3.__file__).read_text())
+    typed = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            for imp in node.body:
+                assert isinstance(imp, ast.ImportFrom)
+                typed.update({a.name: imp.module for a in imp.names})
+    assert typed == api

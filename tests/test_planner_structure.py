@@ -178,3 +178,61 @@ def test_no_planner_module_is_over_400_lines() -> None:
     sizes = {p.name: len(p.read_text().splitlines()) for p in planner.glob("*.py")}
     assert len(sizes) >= 10
     assert {k: v for k, v in sizes.items() if v > 400} == {}
+
+
+def test_the_projects_errors_leave_these_functions_with_value_and_valid() -> None:
+    """Bad input to these library functions raises the project's errors (an InputError
+    is still a ValueError), naming the value and the valid range."""
+    from sixplus3 import progress
+    from sixplus3.design.search import check_steps, optimize
+    from sixplus3.design.workspace import halfplane_grid
+    from sixplus3.errors import Sixplus3Error
+    from sixplus3.planner.certificate import retime_path
+    from sixplus3.robot_description.geometry import LegGeometry
+
+    calls = [
+        (lambda: check_steps(0.01, 0.001, 0.0), "ws_step"),
+        (lambda: optimize(seed_tolerance=1.5), "seed_tolerance"),
+        (lambda: optimize(max_seeds=0), "max_seeds"),
+        (lambda: halfplane_grid(LegGeometry(), 0.5), "workspace step"),
+        (lambda: retime_path(ROBOT, ROBOT.limits, np.array([0.0, 1.0]), lambda s: s),
+         "increasing"),
+        (lambda: progress.set_level(7), "reporting level"),
+    ]
+    for call, words in calls:
+        with pytest.raises(InputError, match=words) as err:
+            call()
+        assert isinstance(err.value, Sixplus3Error) and err.value.valid is not None
+
+
+def test_toppra_failure_is_named_and_the_baseline_catches_only_it(monkeypatch) -> None:
+    """TOPP-RA with no feasible parametrisation raises InfeasibleTaskError (limit
+    "toppra"), which the baseline turns into "no baseline"; any other error (a bug) is
+    not swallowed."""
+    from sixplus3.errors import InfeasibleTaskError
+    from sixplus3.planner import baseline
+    from sixplus3.planner.statics import choose_static_psi
+    from sixplus3.planner.toppra_baseline import toppra_trajectory
+
+    problem = Problem(task_from_dict(TWO), ROBOT)
+    psi = choose_static_psi(problem.task, ROBOT, problem.limits, False, {0, 1})
+    wx = problem.waypoint_states(psi)
+    line = wx[0] + np.linspace(0.0, 1.0, 11)[:, None] * (wx[1] - wx[0])
+    weak = ROBOT.limits.tightened(torque=0.01)  # below the holding torque
+    with pytest.raises(InfeasibleTaskError, match="TOPP-RA found no") as err:
+        toppra_trajectory(ROBOT, line, weak, gridpoints=50)
+    assert err.value.limit == "toppra"
+
+    def refuse(*args, **kwargs):
+        raise InfeasibleTaskError("TOPP-RA found no feasible parametrisation", None, "toppra")
+
+    monkeypatch.setattr(baseline, "toppra_trajectory", refuse)
+    base, why = baseline.baseline_plan(problem, psi)
+    assert base is None and "TOPP-RA found no" in why
+
+    def bug(*args, **kwargs):
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr(baseline, "toppra_trajectory", bug)
+    with pytest.raises(RuntimeError, match="a bug"):
+        baseline.baseline_plan(problem, psi)
