@@ -20,7 +20,8 @@ import numpy as np
 from sixplus3.design.cow import compute_cow, deepest_point, home_in_cow
 from sixplus3.design.layout import LayoutSettings, layout_study
 from sixplus3.kinematics import collision
-from sixplus3.kinematics.robot import _segment_distance, home, robot_ik
+from sixplus3.kinematics.collision import _segment_distance
+from sixplus3.kinematics.robot import home, robot_ik
 from sixplus3.robot_description.geometry import LegGeometry
 from sixplus3.robot_description.robot import NAMED_ROBOTS, Robot
 

@@ -44,12 +44,9 @@ from sixplus3.control.trajectory_file import (
 from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.collision import clearance
-from sixplus3.kinematics.robot import (
-    robot_fk_batch,
-    spherical_tilts,
-    tcp_acceleration,
-    tcp_velocity,
-)
+from sixplus3.kinematics.robot import robot_fk_batch
+from sixplus3.kinematics.spherical import spherical_tilts
+from sixplus3.kinematics.tcp import tcp_acceleration, tcp_velocity
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
@@ -506,7 +503,7 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
         findings += _limit_findings(lim, cfg_points, tau_all, v_all, a_all, t_all, rcond_all,
                                     jerk, t_int, sph, clear)
         # the tool centre point: its speed at every point, its acceleration at the
-        # samples (the finite difference of the speed's vector, kinematics.robot.tcp_rates)
+        # samples (the finite difference of the speed's vector, kinematics.tcp.tcp_rates)
         v_tcp = tcp_velocity(cfg, v)
         tcp_a = tcp_acceleration(v_tcp, t)
         tcp_v = np.linalg.norm(v_tcp, axis=1)

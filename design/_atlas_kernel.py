@@ -1,7 +1,7 @@
 """Compiled admissibility checks of the orientation atlas (:mod:`design.atlas`).
 
 Scalar code compiled with numba, the same arithmetic as the numpy path it replaces
-(:func:`kinematics.robot.robot_ik`, :func:`~kinematics.robot.spherical_tilts`,
+(:func:`kinematics.robot.robot_ik`, :func:`~kinematics.spherical.spherical_tilts`,
 :func:`~kinematics.collision.clearance`, :func:`~kinematics.robot.platform_margin`;
 ``tests/test_atlas.py`` checks that they agree).  One pose's legs go through the leg
 kernel of :mod:`kinematics._leg_kernel` one at a time, and each check runs only where
@@ -59,7 +59,7 @@ def pack(robot) -> tuple[np.ndarray, ...]:
     """(legc, par, geo, mode, ref, hubs, radii, pairs, base) of a
     :class:`~robot_description.robot.Robot`."""
     from sixplus3.kinematics import collision
-    from sixplus3.kinematics.robot import spherical_reference
+    from sixplus3.kinematics.spherical import spherical_reference
 
     g, lim = robot.geometry, robot.limits
     legc = np.zeros((NL, 16))

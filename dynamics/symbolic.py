@@ -28,8 +28,9 @@ import casadi as ca
 import numpy as np
 
 from sixplus3.cache import cached
-from sixplus3.errors import SingularityError
-from sixplus3.kinematics.robot import spherical_reference
+from sixplus3.dynamics.clearance import clearance_rows
+from sixplus3.dynamics.platform_rows import platform_line_det_normalised
+from sixplus3.kinematics.spherical import spherical_reference
 from sixplus3.robot_description.assembly import AssemblyMode
 from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry
 
@@ -162,108 +163,6 @@ def _leg_symbolic(p_leg, geom: RobotGeometry, mode: AssemblyMode):
                             k33 / (lg.l5 * lg.l3)),
         "type2_det": det_hat, "Q": Q, "d": d, "e": e, "f": f, "g": g, "h": h,
     }
-
-
-def platform_line_det(psi, geom: RobotGeometry):
-    """det of the platform's crank-line matrix B, divided by its value at psi = 90 deg.
-
-    In the platform plane the crank rates eliminate, leaving the three lines along the
-    cranks (through R_i and P_i): rows [s_i, (P_i x s_i)_z / L] with s_i the unit crank
-    direction, L = sqrt(rho^2 + c^2).  B is singular when the lines are concurrent or
-    parallel: the in-plane platform singularity (e.g. psi = (0, 90, 90) deg).  A smooth
-    proxy of the platform margin of :func:`kinematics.robot.platform_margin` (which the
-    planner re-checks on its result).  Works with numbers or CasADi symbols.
-    """
-    L = math.hypot(geom.platform_radius, geom.platform_crank)
-    rows = []
-    for i in range(NUM_LEGS):
-        b = geom.crank_axis_angle(i) + psi[i]
-        sx, sy = ca.cos(b), ca.sin(b)
-        Pi = geom.crank_axis_position(i) + geom.platform_crank * ca.vertcat(sx, sy, 0)
-        rows.append(ca.horzcat(sx, sy, (Pi[0] * sy - Pi[1] * sx) / L))
-    return ca.det(ca.vertcat(*rows))
-
-
-def platform_line_det_normalised(psi, geom: RobotGeometry):
-    """:func:`platform_line_det` divided by its value at psi = 90 deg (this platform's
-    reference, computed from its geometry), so that 1 is the nominal platform."""
-    ref = float(ca.DM(platform_line_det([math.pi / 2] * NUM_LEGS, geom)))
-    if abs(ref) < 1e-12:
-        raise SingularityError("the platform's crank lines are singular at psi = 90 deg",
-                               value=ref, valid="a platform whose crank lines at 90 deg "
-                               "are not concurrent")
-    return platform_line_det(psi, geom) / ref
-
-
-def segment_distance(p1, q1, p2, q2):
-    """Distance between segments [p1, q1] and [p2, q2] with CasADi symbols: the same
-    closest-point formula as :func:`kinematics.robot._segment_distance`."""
-    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
-    a, e = ca.dot(d1, d1), ca.dot(d2, d2)
-    f, c, b = ca.dot(d2, r), ca.dot(d1, r), ca.dot(d1, d2)
-    den = a * e - b * b
-
-    def clip01(v):
-        return ca.fmin(ca.fmax(v, 0), 1)
-
-    s = ca.if_else(den > 1e-14, clip01((b * f - c * e) / ca.fmax(den, 1e-300)), 0)
-    t = (b * s + f) / ca.fmax(e, 1e-300)
-    s = ca.if_else(t < 0, clip01(-c / ca.fmax(a, 1e-300)),
-                   ca.if_else(t > 1, clip01((b - c) / ca.fmax(a, 1e-300)), s))
-    diff = (p1 + d1 * s) - (p2 + d2 * clip01(t))
-    return ca.sqrt(ca.dot(diff, diff) + 1e-12)
-
-
-#: sharpness of the soft minimum over body pairs [1/m]: each row under-estimates the
-#: true minimum of its pairs by at most ln(pairs in the row) / 2000 m (on the safe side)
-CLEARANCE_SHARPNESS = 2000.0
-#: The rows measure the pairs that come within this of contact somewhere in the sample
-#: of :func:`sixplus3.kinematics.collision.near_pairs` [m]
-PAIR_MARGIN = 0.02
-#: The value of a row none of whose pairs comes near in that sample [m]
-FAR = 1.0
-
-
-def clearance_rows(caps, robot: Robot) -> ca.SX:
-    """(3,) smooth lower bounds on the collision model's clearance [m]
-    (:mod:`sixplus3.kinematics.collision`: same bodies and radii): the bodies of the
-    legs (links and hubs), the platform against the legs and hubs, the platform above
-    the base plate.  Each row is a soft minimum -ln(sum exp(-k d)) / k, shifted for
-    numerical range, over the pairs of its family that come within ``PAIR_MARGIN`` of
-    contact in :func:`~sixplus3.kinematics.collision.near_pairs`'s sample (all 333 make
-    a C file gcc needs 15 GB to optimise); the dense check and the gate measure every
-    pair."""
-    from sixplus3.kinematics.collision import (
-        BASE_BODIES,
-        PAIR_FAMILY,
-        PAIRS,
-        near_pairs,
-        radii,
-    )
-
-    r = radii(robot)
-    pair_idx, base_idx = near_pairs(robot, PAIR_MARGIN)
-    fams: dict[str, list] = {"legs": [], "platform": [], "base": []}
-    for m in pair_idx:
-        a, b = PAIRS[m]
-        d = segment_distance(*caps[a], *caps[b]) - float(r[a] + r[b])
-        fams["platform" if PAIR_FAMILY[m] == "platform" else "legs"].append(d)
-    top = robot.collision.base_top
-    for m in base_idx:
-        b = BASE_BODIES[m]
-        fams["base"].append(ca.fmin(caps[b][0][2], caps[b][1][2]) - float(r[b]) - top)
-    k = CLEARANCE_SHARPNESS
-    rows = []
-    for dist in fams.values():
-        if not dist:
-            rows.append(ca.SX(FAR))
-            continue
-        dmin = dist[0]
-        for dd in dist[1:]:
-            dmin = ca.fmin(dmin, dd)
-        acc = sum(ca.exp(-k * (dd - dmin)) for dd in dist)
-        rows.append(dmin - ca.log(acc) / k)
-    return ca.vertcat(*rows)
 
 
 #: Layout of the setup parameters p: gravity (3), payload mass (1), centre of mass (3),
@@ -528,7 +427,7 @@ def _build(robot: Robot) -> _Core:
              + setup[15] * ca.tanh(th_dot / setup[16]))
     tau = ca.solve(Jth.T, Q) + motor
 
-    # Spherical-joint tilt cosines (kinematics.robot.spherical_tilts), 3 per leg: E, F, P.
+    # Spherical-joint tilt cosines (kinematics.spherical.spherical_tilts), 3 per leg: E, F, P.
     ref = spherical_reference(robot)
     sph = []
     for i in range(NUM_LEGS):

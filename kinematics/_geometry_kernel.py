@@ -2,7 +2,7 @@
 between two segments, and the clearance of whole poses.
 
 Scalar code compiled with numba, the same arithmetic as the numpy reference
-:func:`kinematics.robot._segment_distance` (tested to agree): the distance between two
+:func:`kinematics.collision._segment_distance` (tested to agree): the distance between two
 segments is Ericson's closest-point computation, clamped to both segments.
 """
 

@@ -242,3 +242,22 @@ def _near_pairs(robot: Robot, margin: float) -> tuple[np.ndarray, np.ndarray]:
     low = (caps[:, BASE_BODIES][..., 2].min(axis=(0, 2)) - r[BASE_BODIES]
            - robot.collision.base_top)
     return np.flatnonzero(d < margin), np.flatnonzero(low < margin)
+
+
+def _segment_distance(p1, q1, p2, q2):
+    """(n,) distance between segments [p1, q1] and [p2, q2] (batched, (n, 3) each): the
+    numpy reference of the compiled kernel ``_geometry_kernel.segment_distance``."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a = np.sum(d1 * d1, axis=1)
+    e = np.sum(d2 * d2, axis=1)
+    f = np.sum(d2 * r, axis=1)
+    c = np.sum(d1 * r, axis=1)
+    b = np.sum(d1 * d2, axis=1)
+    den = a * e - b * b
+    s = np.where(den > 1e-14, np.clip((b * f - c * e) / np.maximum(den, 1e-300), 0, 1), 0.0)
+    t = (b * s + f) / np.maximum(e, 1e-300)
+    t_c = np.clip(t, 0, 1)
+    s = np.where(t < 0, np.clip(-c / np.maximum(a, 1e-300), 0, 1),
+                 np.where(t > 1, np.clip((b - c) / np.maximum(a, 1e-300), 0, 1), s))
+    diff = (p1 + d1 * s[:, None]) - (p2 + d2 * t_c[:, None])
+    return np.linalg.norm(diff, axis=1)

@@ -96,7 +96,7 @@ class RobotConfig:
 
 
 # --------------------------------------------------------------------- q layout
-def _layout(robot: Robot) -> dict[str, int]:
+def q_layout(robot: Robot) -> dict[str, int]:
     """q index of every joint of the robot's tree (from Pinocchio), and the nq."""
 
     def make() -> dict[str, int]:
@@ -150,7 +150,7 @@ def platform_margin(rotation: np.ndarray, P: np.ndarray, position: np.ndarray,
     return sv[:, -1] / sv[:, 0]
 
 
-def _rot(axis: int, a: np.ndarray) -> np.ndarray:
+def axis_rotations(axis: int, a: np.ndarray) -> np.ndarray:
     """(n, 3, 3) rotations about coordinate axis ``axis`` (0 = x, 2 = z) by angles a [rad]."""
     c, s = np.cos(a), np.sin(a)
     i, j = [(1, 2), (2, 0), (0, 1)][axis]
@@ -220,7 +220,7 @@ def robot_ik(position, rotation, psi=None, robot: Robot | None = None,
                                         robot.home_psi if psi is None else psi)
     geom, mode = robot.geometry, robot.mode
     n = position.shape[0]
-    lay = _layout(robot)
+    lay = q_layout(robot)
     leg = geom.leg
     P = crank_tips(position, rotation, psi, robot)
     q = np.zeros((n, lay["__nq__"]))
@@ -289,74 +289,6 @@ def home(robot: Robot | None = None) -> RobotConfig:
     return robot_ik_pose(robot.home_position, (0.0, 0.0, 0.0), robot.home_psi, robot)
 
 
-# --------------------------------------------------------------------- spherical joints
-def spherical_reference(robot: Robot) -> np.ndarray:
-    """Mounting axes of the S joints, fixed in their bodies, from the home pose.
-
-    Returns (3 legs, 3 joints E/F/P, 2 sides, 3): for E and F, (axis in the leg body
-    frame, axis in the distal link frame); for P, (axis in the leg body frame, axis in the
-    platform crank frame).  The joint is mounted centred at home: tilt 0.
-    """
-    return cached(("spherical_reference", robot.hash), lambda: _spherical_reference(robot))
-
-
-def _spherical_reference(robot: Robot) -> np.ndarray:
-    h = home(robot)
-    ref = np.zeros((NUM_LEGS, 3, 2, 3))
-    frames = _body_frames(h)
-    for i in range(NUM_LEGS):
-        body, dist_b, dist_c, crank = (f[0] for f in frames[i])
-        for j, other in enumerate((dist_b, dist_c)):
-            axis = other[:, 1]  # distal link direction in the world
-            ref[i, j] = (body.T @ axis, other.T @ axis)
-        axis = body[:, 0]  # D -> P
-        ref[i, 2] = (body.T @ axis, crank.T @ axis)
-    return ref
-
-
-def _body_frames(cfg: RobotConfig):
-    """World rotations (n, 3, 3) of leg body, distal B, distal C, platform crank i."""
-    out = []
-    geom = cfg.robot.geometry
-    lay = _layout(cfg.robot)
-    for i in range(NUM_LEGS):
-        Rl = geom.leg_rotation(i)
-        s = cfg.legs[i]
-        q = cfg.q
-        body = Rl @ s.Q
-        distal = []
-        for crank_joint, ua, ub in (("B", "Ga", "Gb"), ("C", "Ha", "Hb")):
-            ang = q[:, lay[f"leg{i}_{crank_joint}"]] + q[:, lay[f"leg{i}_{ua}"]]
-            b = q[:, lay[f"leg{i}_{ub}"]]
-            distal.append(Rl @ _rot(0, ang) @ _rot(2, b))
-        crank = cfg.rotation @ _rot(2, geom.crank_axis_angle(i) + cfg.psi[:, i])
-        out.append((body, distal[0], distal[1], crank))
-    return out
-
-
-def spherical_tilts(cfg: RobotConfig) -> np.ndarray:
-    """(n, 3, 3) tilt [rad] of every spherical joint (leg, E/F/P) from its home axis.
-
-    The range check: each must stay below the robot's ``limits.spherical`` (150 deg).
-    """
-    ref = spherical_reference(cfg.robot)
-    frames = _body_frames(cfg)
-    tilt = np.zeros((len(cfg), NUM_LEGS, 3))
-    for i in range(NUM_LEGS):
-        body, dist_b, dist_c, crank = frames[i]
-        for j, other in enumerate((dist_b, dist_c, crank)):
-            a = body @ ref[i, j, 0]
-            b = other @ ref[i, j, 1]
-            tilt[:, i, j] = np.arccos(np.clip(np.sum(a * b, axis=1), -1.0, 1.0))
-    return np.where(cfg.ok[:, None, None], tilt, 0.0)
-
-
-def spherical_ok(cfg: RobotConfig) -> np.ndarray:
-    """(n,) every spherical joint within the robot's spherical limit (150 deg)."""
-    return np.all(spherical_tilts(cfg) <= cfg.robot.limits.spherical, axis=(1, 2))
-
-
-# --------------------------------------------------------------------- forward kinematics
 @dataclass(frozen=True)
 class RobotFK:
     q: np.ndarray  # (nq,) full tree configuration
@@ -424,27 +356,6 @@ def robot_fk(theta, robot: Robot | None = None, q_hint=None, tol: float = 1e-12,
                    iterations=it)
 
 
-# --------------------------------------------------------------------- interference
-def _segment_distance(p1, q1, p2, q2):
-    """(n,) distance between segments [p1, q1] and [p2, q2] (batched, (n, 3) each): the
-    numpy reference of the compiled kernel ``_geometry_kernel.segment_distance`` (the
-    collision model's, :mod:`kinematics.collision`)."""
-    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
-    a = np.sum(d1 * d1, axis=1)
-    e = np.sum(d2 * d2, axis=1)
-    f = np.sum(d2 * r, axis=1)
-    c = np.sum(d1 * r, axis=1)
-    b = np.sum(d1 * d2, axis=1)
-    den = a * e - b * b
-    s = np.where(den > 1e-14, np.clip((b * f - c * e) / np.maximum(den, 1e-300), 0, 1), 0.0)
-    t = (b * s + f) / np.maximum(e, 1e-300)
-    t_c = np.clip(t, 0, 1)
-    s = np.where(t < 0, np.clip(-c / np.maximum(a, 1e-300), 0, 1),
-                 np.where(t > 1, np.clip((b - c) / np.maximum(a, 1e-300), 0, 1), s))
-    diff = (p1 + d1 * s[:, None]) - (p2 + d2 * t_c[:, None])
-    return np.linalg.norm(diff, axis=1)
-
-
 # --------------------------------------------------------------------- batched FK
 @dataclass(frozen=True)
 class BatchFK:
@@ -482,44 +393,6 @@ def ik_jacobian(cfg: RobotConfig) -> np.ndarray:
         out[:, rows, 3:6] = -D @ rot.skew(r)
         out[:, rows, 6 + i] = np.einsum("nij,nj->ni", D, np.cross(z, cfg.P[:, i] - R_i))
     return out
-
-
-def tcp_velocity(cfg: RobotConfig, theta_dot: np.ndarray) -> np.ndarray:
-    """(n, 3) velocity of the tool centre point [m/s] (``cfg.robot.tool``), from the
-    actuated rates theta_dot (n, 9) [rad/s] through the inverse of :func:`ik_jacobian`
-    (inf where it is singular)."""
-    J = ik_jacobian(cfg)
-    out = np.full((len(cfg), 3), np.inf)
-    ok = cfg.ok & np.all(np.isfinite(J), axis=(1, 2))
-    if ok.any():
-        try:
-            xd = np.linalg.solve(J[ok], np.asarray(theta_dot, dtype=float)[ok][:, :, None])
-        except np.linalg.LinAlgError:
-            xd = np.einsum("nij,nj->ni", np.linalg.pinv(J[ok]), theta_dot[ok])[:, :, None]
-        xd = xd[:, :, 0]
-        r = np.einsum("nij,j->ni", cfg.rotation[ok], np.asarray(cfg.robot.tool.xyz))
-        out[ok] = xd[:, 0:3] + np.cross(xd[:, 3:6], r)
-    return out
-
-
-def tcp_acceleration(velocity: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """(n,) |acceleration| of the tool centre point [m/s^2]: the second-order finite
-    difference over ``times`` (n,) [s], increasing, of its velocity (n, 3) [m/s]
-    (``numpy.gradient``; one-sided at the ends; 0 for a single sample)."""
-    t = np.asarray(times, dtype=float)
-    if len(t) < 2:
-        return np.zeros(len(t))
-    acc = np.gradient(velocity, t, axis=0, edge_order=2 if len(t) > 2 else 1)
-    return np.linalg.norm(np.nan_to_num(acc, nan=np.inf), axis=1)
-
-
-def tcp_rates(cfg: RobotConfig, theta_dot: np.ndarray, times: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray]:
-    """(speed (n,) [m/s], acceleration (n,) [m/s^2]) of the tool centre point along a
-    motion sampled at ``times`` (n,) [s], increasing: the speed exactly from the actuated
-    rates (:func:`tcp_velocity`), the acceleration by :func:`tcp_acceleration`."""
-    v = tcp_velocity(cfg, theta_dot)
-    return np.linalg.norm(v, axis=1), tcp_acceleration(v, times)
 
 
 def robot_fk_batch(theta: np.ndarray, x_guess: np.ndarray, robot: Robot | None = None,

@@ -232,7 +232,8 @@ def robot_check(as_json: bool) -> None:
     from sixplus3.design.cow import home_in_cow
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.kinematics import collision
-    from sixplus3.kinematics.robot import home, spherical_tilts
+    from sixplus3.kinematics.robot import home
+    from sixplus3.kinematics.spherical import spherical_tilts
     from sixplus3.robot_description.urdf import check as urdf_stale
 
     robot = _robot()
@@ -323,7 +324,8 @@ def robot_ik_cmd(x: float, y: float, z: float, roll: float, pitch: float, yaw: f
     import numpy as np
 
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-    from sixplus3.kinematics.robot import robot_ik_pose, spherical_tilts
+    from sixplus3.kinematics.robot import robot_ik_pose
+    from sixplus3.kinematics.spherical import spherical_tilts
 
     values = (x, y, z, roll, pitch, yaw, *redundancy)
     if not all(math.isfinite(v) for v in values):

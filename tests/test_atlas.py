@@ -15,8 +15,9 @@ from sixplus3.cli import main  # noqa: E402
 from sixplus3.design import atlas as at  # noqa: E402
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics  # noqa: E402
 from sixplus3.kinematics.collision import clearance  # noqa: E402
-from sixplus3.kinematics.robot import robot_ik, spherical_tilts  # noqa: E402
+from sixplus3.kinematics.robot import robot_ik  # noqa: E402
 from sixplus3.kinematics.rotations import rotvec_from_matrix  # noqa: E402
+from sixplus3.kinematics.spherical import spherical_tilts  # noqa: E402
 from sixplus3.planner.analysis import largest_tilt, static_feasible  # noqa: E402
 from sixplus3.robot_description.robot import Robot  # noqa: E402
 

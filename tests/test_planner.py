@@ -12,7 +12,8 @@ from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.symbolic import home_x, symbolic_robot
 from sixplus3.errors import InfeasibleTaskError, LimitError
 from sixplus3.kinematics.collision import PAIR_FAMILY, clearance
-from sixplus3.kinematics.robot import robot_ik, spherical_tilts
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.kinematics.spherical import spherical_tilts
 from sixplus3.planner import solution, solvers, strategy
 from sixplus3.planner.ocp import PlannerOptions, Problem, dense_check, plan
 from sixplus3.planner.options import ROW_SCALE
@@ -453,7 +454,7 @@ def test_symbolic_clearance_is_a_tight_lower_bound_of_the_numeric_one() -> None:
     """The OCP's clearance rows (a soft minimum per family of body pairs, CasADi) never
     exceed the numeric capsule clearance of kinematics.collision and are within
     ln(largest family)/k of it, at random poses including interfering ones (tilts)."""
-    from sixplus3.dynamics.symbolic import CLEARANCE_SHARPNESS
+    from sixplus3.dynamics.clearance import CLEARANCE_SHARPNESS
 
     sr = symbolic_robot()
     rng = np.random.default_rng(5)

@@ -11,13 +11,8 @@ from scipy.spatial.transform import Rotation
 
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError
 from sixplus3.kinematics.leg import leg_ik
-from sixplus3.kinematics.robot import (
-    home,
-    robot_fk,
-    robot_ik,
-    robot_ik_pose,
-    spherical_tilts,
-)
+from sixplus3.kinematics.robot import home, robot_fk, robot_ik, robot_ik_pose
+from sixplus3.kinematics.spherical import spherical_tilts
 from sixplus3.robot_description.robot import Robot
 
 ROBOT_ = Robot.default()
@@ -121,7 +116,7 @@ def test_compiled_segment_distance_matches_the_numpy_reference() -> None:
     _segment_distance, on random segments and the degenerate ones: parallel, crossing,
     collinear, zero length, end to end."""
     from sixplus3.kinematics._geometry_kernel import min_link_distance, segment_distance
-    from sixplus3.kinematics.robot import _segment_distance
+    from sixplus3.kinematics.collision import _segment_distance
 
     rng = np.random.default_rng(2)
     n = 400

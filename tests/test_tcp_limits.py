@@ -12,7 +12,8 @@ from sixplus3.control.pipeline import run_plan
 from sixplus3.control.trajectory_file import read_trajectory
 from sixplus3.control.validation import validate_file, validate_motion
 from sixplus3.errors import LimitError
-from sixplus3.kinematics.robot import robot_ik, tcp_rates, tcp_velocity
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.kinematics.tcp import tcp_rates, tcp_velocity
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description import Robot
 from sixplus3.robot_description.physical import Tool
