@@ -39,10 +39,10 @@ from bench_planner_heldout import heldout_task  # noqa: E402
 from sixplus3.dynamics.codegen import ensure_optimised  # noqa: E402
 from sixplus3.errors import InfeasibleTaskError  # noqa: E402
 from sixplus3.planner import baseline, solvers  # noqa: E402
-from sixplus3.planner.nlp import Bounds, solve_nlp  # noqa: E402
+from sixplus3.planner.nlp import solve_nlp  # noqa: E402
 from sixplus3.planner.ocp import PlannerOptions, Problem  # noqa: E402
-from sixplus3.planner.statics import choose_static_psi, clearance_needed  # noqa: E402
-from sixplus3.planner.strategy import admitting  # noqa: E402
+from sixplus3.planner.statics import choose_static_psi  # noqa: E402
+from sixplus3.planner.strategy import initial_bounds  # noqa: E402
 from sixplus3.planner.task import task_from_dict  # noqa: E402
 from sixplus3.robot_description.robot import Robot  # noqa: E402
 
@@ -80,11 +80,7 @@ def main() -> None:
         base, _ = baseline.baseline_plan(problem, psi)
         if base is None:
             continue
-        bounds = admitting(problem, Bounds(
-            platform_proxy=max(0.5, 6 * problem.limits.margin),
-            clearance=0.0 if clearance_needed(robot, problem.task, psi) else None,
-            duration_cap=1.5 * base.final_time), base)
-        starts.append((doc, psi, base, bounds))
+        starts.append((doc, psi, base, initial_bounds(problem, psi, base)))
     print("| config | task | status | iterations | wall [s] | per iteration [ms] | "
           + " | ".join(f"{e} [s]" for e in EVALS) + " | IPOPT's own [s] |")
     print("| --- | --- | --- | ---: | ---: | ---: | " + " | ".join("---:" for _ in EVALS)

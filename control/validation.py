@@ -48,7 +48,7 @@ from sixplus3.kinematics.robot import robot_fk_batch
 from sixplus3.kinematics.spherical import spherical_tilts
 from sixplus3.kinematics.tcp import tcp_acceleration, tcp_velocity
 from sixplus3.robot_description.limits import Limits
-from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Controller rates accepted [Hz].  Below 1 kHz the gate and a sampled drive part: in a
 #: MuJoCo replay of feed-forward held for a tick + PD (300 / 6), plans that pass the
@@ -254,9 +254,7 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
     window shares its last sample with the next, so every interval is checked once), so
     that the memory of the checks does not grow with the length of the motion.
     """
-    if not isinstance(robot, Robot):
-        raise InputError("robot must be a sixplus3 Robot", value=type(robot).__name__,
-                         valid="a Robot")
+    require_robot(robot)
     if limits is not None and not isinstance(limits, Limits):
         raise InputError("limits must be a Limits (or None)", value=type(limits).__name__,
                          valid="Limits or None")

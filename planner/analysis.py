@@ -22,7 +22,7 @@ from sixplus3.errors import InputError, SingularityError
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
 from sixplus3.planner.statics import static_checks
 from sixplus3.robot_description.limits import Limits
-from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot import Robot, require_robot
 
 
 @dataclass(frozen=True)
@@ -79,9 +79,7 @@ def largest_tilt(robot: Robot, axis: str = "x", locked: bool = False,
                  max_deg: float = 120.0) -> TiltResult:
     """Bisection on the tilt angle about ``axis`` ("x" or "y") at ``position`` [m]
     (default: the robot's home), within ``limits`` (default: the robot's)."""
-    if not isinstance(robot, Robot):
-        raise InputError("robot must be a Robot (Robot.default(), load_robot)",
-                         value=type(robot).__name__, valid="a Robot")
+    require_robot(robot)
     if axis not in ("x", "y"):
         raise InputError(f"axis must be 'x' or 'y', got {axis!r}", value=axis,
                          valid="x or y")

@@ -27,9 +27,13 @@ from sixplus3.planner.transcription import (
     variable_scale,
 )
 
+#: limits that a uniform time stretch lowers; the NLP bounds each at a share of its limit
+RATE_LIMITS = ("torque", "velocity", "acceleration")
 
-def _safety(value: float) -> dict[str, float]:
-    return {"torque": value, "velocity": value, "acceleration": value}
+
+def uniform_safety(value: float) -> dict[str, float]:
+    """The same share ``value`` of every limit in :data:`RATE_LIMITS`."""
+    return dict.fromkeys(RATE_LIMITS, value)
 
 
 @dataclass(frozen=True)
@@ -37,7 +41,7 @@ class Bounds:
     """The bounds of one NLP solve that the strategy tightens between solves."""
 
     #: bound of the torque, velocity and acceleration rows, as a share of their limit
-    safety: dict[str, float] = field(default_factory=lambda: _safety(0.98))
+    safety: dict[str, float] = field(default_factory=lambda: uniform_safety(0.98))
     #: lower bound of the platform's line determinant (the proxy of its margin)
     platform_proxy: float = 0.5
     #: [rad] below the spherical joints' limit
@@ -244,4 +248,5 @@ def diagnose(problem: Problem, x: np.ndarray, xd: np.ndarray, u: np.ndarray,
             "waypoints")
 
 
-__all__ = ["Bounds", "active_limits", "diagnose", "iteration_listener", "solve_nlp"]
+__all__ = ["RATE_LIMITS", "Bounds", "active_limits", "diagnose", "iteration_listener", "solve_nlp",
+           "uniform_safety"]

@@ -23,7 +23,7 @@ from sixplus3.planner.options import PlannerOptions
 from sixplus3.planner.solution import Solution, actuated_profile, stretch_factors
 from sixplus3.planner.task import Task, rotvec
 from sixplus3.robot_description.limits import Limits
-from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot import Robot, require_robot
 
 if TYPE_CHECKING:
     from sixplus3.progress import PlanProgress
@@ -234,9 +234,7 @@ def check_plan_arguments(task: object, robot: object, options: object) -> None:
     if not isinstance(task, Task):
         raise TaskError("task must be a Task (load_task, task_from_dict)",
                         value=type(task).__name__, valid="a Task")
-    if not isinstance(robot, Robot):
-        raise InputError("robot must be a Robot (Robot.default(), load_robot)",
-                         value=type(robot).__name__, valid="a Robot")
+    require_robot(robot)
     if options is not None and not isinstance(options, PlannerOptions):
         raise InputError("options must be PlannerOptions or None",
                          value=type(options).__name__, valid="PlannerOptions or None")

@@ -28,13 +28,10 @@ import numpy as np
 
 from sixplus3.errors import InfeasibleTaskError
 from sixplus3.planner import baseline
-from sixplus3.planner.nlp import Bounds, active_limits, solve_nlp
+from sixplus3.planner.nlp import RATE_LIMITS, Bounds, active_limits, solve_nlp, uniform_safety
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import Solution, actuated_profile
 from sixplus3.planner.statics import check_crank_sides, choose_static_psi, clearance_needed
-
-#: limits that a uniform time stretch lowers
-RATE_LIMITS = ("torque", "velocity", "acceleration")
 
 
 def solve(problem: Problem) -> Solution:
@@ -51,18 +48,10 @@ def solve(problem: Problem) -> Solution:
         fixed = [wp.psi for wp in task.waypoints if wp.psi is not None]
         lock = fixed[0] if fixed else np.asarray(problem.robot.home_psi)
         psi_wp = np.tile(lock, (len(task.waypoints), 1))
-    bounds = Bounds(safety={name: opt.torque_safety for name in RATE_LIMITS},
-                    platform_proxy=max(0.5, 6 * problem.limits.margin),
-                    clearance=0.0 if clearance_needed(problem.robot, task, psi_wp) else None)
     problem.stage("crank angles at the waypoints chosen; building the stop-at-waypoints "
                   "baseline (TOPP-RA per segment)")
     base, note = baseline.baseline_plan(problem, psi_wp)
-    # a plan slower than the baseline is never returned, so the NLP's total duration is
-    # bounded at 1.5x the baseline's: a trust region that stops IPOPT's early
-    # quasi-Newton steps from running the durations up to the 60 s bound, which is how
-    # most failed starts failed (BENCHMARKS.md)
-    if base is not None:
-        bounds = admitting(problem, bounds, base).replace(duration_cap=1.5 * base.final_time)
+    bounds = initial_bounds(problem, psi_wp, base)
     problem.stage(f"baseline: {base.final_time:.4f} s" if base is not None else
                   f"no admissible baseline ({note})")
     sol, bounds, first, failed = first_solve(problem, psi_wp, bounds, base)
@@ -77,6 +66,23 @@ def solve(problem: Problem) -> Solution:
         problem.stage("re-timing the checked plan up to 99.5% of its binding limit")
         sol = retime(problem, sol, bounds.platform_proxy)
     return finish(problem, sol, base, t_wall, psi_wp, bounds)
+
+
+def initial_bounds(problem: Problem, psi_wp: np.ndarray, base: Solution | None) -> Bounds:
+    """The bounds of the first NLP solve: the options' safety share of the rate limits,
+    the platform proxy max(0.5, 6 m), the clearance rows bounded only when a waypoint
+    comes near contact (:func:`statics.clearance_needed`), and with a baseline the
+    rows widened to admit it (:func:`admitting`) and the total duration capped at 1.5x
+    its: a plan slower than the baseline is never returned, and the cap is a trust
+    region that stops IPOPT's early quasi-Newton steps from running the durations up to
+    the 60 s bound, which is how most failed starts failed (BENCHMARKS.md)."""
+    bounds = Bounds(safety=uniform_safety(problem.options.torque_safety),
+                    platform_proxy=max(0.5, 6 * problem.limits.margin),
+                    clearance=(0.0 if clearance_needed(problem.robot, problem.task, psi_wp)
+                               else None))
+    if base is None:
+        return bounds
+    return admitting(problem, bounds, base).replace(duration_cap=1.5 * base.final_time)
 
 
 def admitting(problem: Problem, bounds: Bounds, base: Solution) -> Bounds:
@@ -361,10 +367,10 @@ def retime(problem: Problem, sol: Solution, platform_proxy: float, target: float
     new = stretched(problem, sol, a)
     if not new.is_feasible():
         return sol
-    full = Bounds(safety={name: 1.0 for name in RATE_LIMITS}, platform_proxy=platform_proxy)
+    full = Bounds(safety=uniform_safety(1.0), platform_proxy=platform_proxy)
     return new.replace(active_limits=active_limits(problem, new.x, new.xd, new.xdd, new.tau,
                                                    new.t, full))
 
 
-__all__ = ["RATE_LIMITS", "admitting", "finish", "first_solve", "fixed_duration", "resolve",
-           "retime", "solve", "stretched", "tcp_limited", "target_duration", "tightened"]
+__all__ = ["admitting", "finish", "first_solve", "fixed_duration", "initial_bounds",
+           "resolve", "retime", "solve", "stretched", "tcp_limited", "target_duration", "tightened"]

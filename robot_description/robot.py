@@ -487,6 +487,17 @@ def _no_unknown(where: str, doc: dict[str, Any], known: set[str]) -> None:
                             f"one of the known keys {sorted(known)}", "unknown key")
 
 
+def require_robot(robot: object) -> Robot:
+    """``robot`` itself if it is a :class:`Robot`, else an InputError: library functions
+    take their robot explicitly (only the CLI and ``sixplus3.plan`` choose the default)."""
+    if not isinstance(robot, Robot):
+        from sixplus3.errors import InputError
+
+        raise InputError("robot must be a Robot (Robot.default(), load_robot)",
+                         value=type(robot).__name__, valid="a Robot")
+    return robot
+
+
 def load_robot(path: str | Path) -> Robot:
     """A robot from a YAML or JSON file of :meth:`Robot.as_dict`'s structure (missing
     keys keep the defaults; unknown keys are refused)."""
