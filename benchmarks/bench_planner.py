@@ -50,7 +50,7 @@ def locked_path_note(sol, task) -> str:
     t = np.linspace(0, sol.final_time, 201)
     x, _, _ = sol.sample(t)
     cfg = robot_ik(x[:, 0:3], Rotation.from_rotvec(x[:, 3:6]).as_matrix(),
-                   np.full((len(t), 3), np.pi / 2))
+                   np.full((len(t), 3), np.pi / 2), robot=Robot.default())
     worst = cfg.margins.minimum.min() if cfg.ok.all() else -1.0
     return "" if worst >= sol.limits.margin else f" (margin {worst:.3f} on it)"
 

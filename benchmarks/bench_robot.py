@@ -18,6 +18,9 @@ from scipy.spatial.transform import Rotation
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.kinematics.robot import home, robot_fk, robot_ik, robot_ik_pose
+from sixplus3.robot_description.robot import Robot
+
+ROBOT = Robot.default()
 
 
 def per_call(fn, n: int, repeat: int) -> tuple[float, float]:
@@ -35,17 +38,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args()
-    dyn = ClosedLoopDynamics()
-    h = home()
+    dyn = ClosedLoopDynamics(ROBOT)
+    h = home(ROBOT)
     q = h.q[0]
     rng = np.random.default_rng(0)
     v, a = dyn.consistent_state(q, rng.normal(size=9), rng.normal(size=9))
     tau = dyn.inverse_dynamics(q, v, a)
     rows = [
         ("robot IK, one pose (robot_ik_pose)",
-         lambda: robot_ik_pose((0.02, 0.01, 0.59), (0.1, 0.2, 0.3)), 200),
+         lambda: robot_ik_pose((0.02, 0.01, 0.59), (0.1, 0.2, 0.3), robot=ROBOT), 200),
         ("robot FK, Newton from the previous sample",
-         lambda: robot_fk(h.theta[0] + 1e-3, q_hint=q), 50),
+         lambda: robot_fk(h.theta[0] + 1e-3, q_hint=q, robot=ROBOT), 50),
         ("constrained inverse dynamics", lambda: dyn.inverse_dynamics(q, v, a), 500),
         ("constrained forward dynamics (constraintDynamics)",
          lambda: dyn.forward_dynamics(q, v, tau), 500),
@@ -67,7 +70,7 @@ def main() -> None:
     best = []
     for _ in range(args.repeat):
         t0 = time.perf_counter()
-        cfg = robot_ik(pos, rot.as_matrix(), psi)
+        cfg = robot_ik(pos, rot.as_matrix(), psi, robot=ROBOT)
         t1 = time.perf_counter()
         th_d = np.gradient(cfg.theta, t, axis=0)
         th_dd = np.gradient(th_d, t, axis=0)

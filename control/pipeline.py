@@ -18,13 +18,13 @@ from sixplus3.planner.ocp import PlannerOptions, Solution, plan
 from sixplus3.planner.problem import check_plan_arguments
 from sixplus3.planner.task import Task
 from sixplus3.progress import PlanProgress
-from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot import Robot, require_robot
 
 
-def demo_task(robot: Robot | None = None) -> dict:
+def demo_task(robot: Robot) -> dict:
     """The built-in task of ``sixplus3 demo``: tilt 30 deg about x at the robot's home
     and come back."""
-    home = list((robot or Robot.default()).home_position)
+    home = list(require_robot(robot).home_position)
     return {
         "name": "demo_tilt30",
         "description": "Built-in demo: tilt the platform 30 deg about x at home and back.",
@@ -49,11 +49,11 @@ def _silent(text: str) -> None:
     pass
 
 
-def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
+def run_plan(task: Task, out_dir: str | Path, robot: Robot,
              rate: float = 1000.0, html: bool = True, plots: bool = True,
              options: PlannerOptions | None = None,
              progress: Callable[[str], None] | PlanProgress | None = None) -> PlanOutputs:
-    """Plan ``task`` for ``robot`` (default ``Robot.default()``) and write the validated
+    """Plan ``task`` for ``robot`` and write the validated
     trajectory file ``out_dir/<name>.csv`` (and the page and plots beside it).
 
     ``progress``: a :class:`sixplus3.progress.PlanProgress` (every stage, the planner's
@@ -63,7 +63,7 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot | None = None,
     :class:`InfeasibleTaskError` for an infeasible task and :class:`TrajectoryFileError`
     if the smoothed trajectory fails its validation; in both cases nothing is written.
     """
-    robot = Robot.default() if robot is None else robot
+    robot = require_robot(robot)
     check_plan_arguments(task, robot, options)
     robot = task.robot_for(robot)  # with the task's payload/tool/mounting
     listener: PlanProgress | None = None

@@ -30,7 +30,7 @@ import numpy as np
 
 from sixplus3.errors import InputError
 from sixplus3.robot_description.mjcf import TIMESTEP, build_mjcf
-from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot import Robot, require_robot
 from sixplus3.robot_description.urdf import actuated_joint_names, closure_pairs
 
 #: Default PD gains of the replay [N m/rad, N m s/rad]: about 100 rad/s bandwidth,
@@ -50,9 +50,9 @@ def _mujoco():
 class MujocoRobot:
     """A MuJoCo model of ``robot`` and the mapping to Pinocchio's coordinates."""
 
-    def __init__(self, robot: Robot | None = None, timestep: float = TIMESTEP) -> None:
+    def __init__(self, robot: Robot, timestep: float = TIMESTEP) -> None:
         mj = self.mj = _mujoco()
-        self.robot = robot or Robot.default()
+        self.robot = require_robot(robot)
         # unlimited actuators: the replay reports the torque it commands, saturated or not
         self.model = mj.MjModel.from_xml_string(build_mjcf(self.robot, timestep,
                                                            limits=False))
@@ -202,7 +202,7 @@ class SimulationReport:
 DEFAULT_TORQUE_HOLD = "mean"
 
 
-def export_mjcf(robot: Robot | None = None, contacts: bool = False) -> str:
+def export_mjcf(robot: Robot, contacts: bool = False) -> str:
     """The MJCF file of ``robot`` as a user runs it: actuators and actuated joints
     limited by the robot's limits, and a ``home`` keyframe in the assembled home pose
     whose ctrl holds it against gravity (Pinocchio's closed-loop holding torques);
@@ -212,7 +212,7 @@ def export_mjcf(robot: Robot | None = None, contacts: bool = False) -> str:
     from sixplus3.kinematics.robot import home
     from sixplus3.robot_description.mjcf import qpos_from_q
 
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     q = home(robot).q[0]
     ctrl = ClosedLoopDynamics(robot).gravity_torques(q)
     return build_mjcf(robot, keyframe=(qpos_from_q(robot, q), ctrl), limits=True,
@@ -289,7 +289,7 @@ def first_configuration(robot: Robot, rep) -> np.ndarray:
     return np.asarray(cfg.q[0])
 
 
-def simulate_file(path: str | Path, robot: Robot | None = None, kp: float = KP,
+def simulate_file(path: str | Path, robot: Robot, kp: float = KP,
                   kd: float = KD, feedforward_scale: float = 1.0,
                   torque_hold: str = DEFAULT_TORQUE_HOLD):
     """Validate a trajectory file, then replay it in MuJoCo: (validation, simulation).
@@ -302,7 +302,7 @@ def simulate_file(path: str | Path, robot: Robot | None = None, kp: float = KP,
     from sixplus3.control.trajectory_file import columns
     from sixplus3.control.validation import validate_file
 
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     check_torque_hold(torque_hold)  # a bad mode is refused before the work
     rep = validate_file(path, robot)
     if not rep.ok or rep.data is None or rep.position is None:

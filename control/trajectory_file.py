@@ -73,7 +73,7 @@ from sixplus3.control.trajectory_parse import (  # noqa: F401 - re-exported
 from sixplus3.errors import GeometryError, InputError, LimitError, TrajectoryFileError
 from sixplus3.fileio import atomic_write
 from sixplus3.robot_description.limits import Limits
-from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Most samples of a motion this package makes (a plan at a rate, its dwells, a slower
 #: replay): 2 minutes at 1 kHz.  Estimated before anything is allocated.
@@ -379,13 +379,13 @@ class TrajectoryData(NamedTuple):
         return pd.DataFrame(self.data, columns=COLUMNS)
 
 
-def read_trajectory(path: str | Path, robot: Robot | None = None) -> TrajectoryData:
-    """Load, format-check and integrity-check a trajectory made for ``robot`` (default
-    ``Robot.default()``): a :class:`TrajectoryData` (``header, data = ...`` unpacks it;
-    ``traj["leg0_A_pos"]``, ``traj.joints("tau")`` name the columns).  Raises
-    :class:`TrajectoryFileError`.  It checks the format, the digest and the robot, not
-    the motion: :func:`sixplus3.validate_file` is the gate."""
-    robot = robot or Robot.default()
+def read_trajectory(path: str | Path, robot: Robot) -> TrajectoryData:
+    """Load, format-check and integrity-check a trajectory made for ``robot``: a
+    :class:`TrajectoryData` (``header, data = ...`` unpacks it; ``traj["leg0_A_pos"]``
+    and ``traj.joints("tau")`` name the columns).  Raises :class:`TrajectoryFileError`.
+    It checks the format, the digest and the robot, not the motion:
+    :func:`sixplus3.validate_file` is the gate."""
+    robot = require_robot(robot)
     raw = read_bytes(path)  # checks that path is a path
     name = Path(path).name
     header, data = parse(raw, name)

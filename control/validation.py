@@ -729,10 +729,10 @@ def rotvec_of_quaternions(quat: np.ndarray) -> np.ndarray:
     return rot.rotvec_from_quat(q)
 
 
-def validate_file(path: str | Path, robot: Robot | None = None) -> ValidationReport:
-    """Validate a trajectory file for ``robot`` (default ``Robot.default()``): the file
+def validate_file(path: str | Path, robot: Robot) -> ValidationReport:
+    """Validate a trajectory file for ``robot``: the file
     is read once, and ``report.data`` holds exactly the samples validated."""
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     return validate_bytes(read_bytes(path), robot, Path(path).name)
 
 

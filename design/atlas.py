@@ -89,7 +89,7 @@ from sixplus3.design.cluster import check_scheduler, check_workers, map_tasks
 from sixplus3.errors import InputError
 from sixplus3.kinematics.rotations import matrix_from_rotvec, rotvec_from_matrix
 from sixplus3.robot_description.geometry import GRAVITY
-from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot import Robot, require_robot
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
@@ -415,11 +415,11 @@ def check_run(workers: int, chunk: int) -> None:
                          value=chunk, valid="[1, 100000]")
 
 
-def compute_atlas(robot: Robot | None = None, settings: AtlasSettings | None = None,
+def compute_atlas(robot: Robot, settings: AtlasSettings | None = None,
                   scheduler: str | None = None, workers: int = 2, chunk: int = 64,
                   grid: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
                   progress: Callable[[int, int], None] | bool = False) -> xr.Dataset:
-    """The atlas of ``robot`` (default ``Robot.default()``) as an xarray Dataset.
+    """The atlas of ``robot`` as an xarray Dataset.
 
     ``scheduler``: None starts a ``dask.distributed.LocalCluster`` of ``workers``
     single-threaded worker processes; ``"synchronous"`` runs the chunks in this process
@@ -429,7 +429,7 @@ def compute_atlas(robot: Robot | None = None, settings: AtlasSettings | None = N
     """
     import time
 
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     st = (settings or AtlasSettings()).check()
     check_run(workers, chunk)
     check_scheduler(scheduler)

@@ -42,7 +42,7 @@ from sixplus3.design.workspace import theta_within
 from sixplus3.errors import InputError
 from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import robot_ik
-from sixplus3.robot_description.robot import Robot, RobotGeometry
+from sixplus3.robot_description.robot import Robot, RobotGeometry, require_robot
 
 if TYPE_CHECKING:
     from sixplus3.design.search import Reading
@@ -84,10 +84,10 @@ def footprint(geom: RobotGeometry) -> tuple[np.ndarray, float]:
     return pts[hull.vertices], float(hull.volume)  # in 2D, 'volume' is the area
 
 
-def compute_cow(robot: Robot | None = None, step: float = 0.01, z_step: float = 0.025,
+def compute_cow(robot: Robot, step: float = 0.01, z_step: float = 0.025,
                 extent: float = 0.6, z_max: float = 0.75, reading: Reading | None = None,
                 margin: float = SINGFREE_MARGIN, z_min: float | None = None) -> COW:
-    """Evaluate the COW of ``robot`` (default ``Robot.default()``) on a grid of
+    """Evaluate the COW of ``robot`` on a grid of
     platform-centre positions [m], platform horizontal with the cranks at the robot's
     home angles; singularity signs are those at the robot's home pose.
 
@@ -104,7 +104,7 @@ def compute_cow(robot: Robot | None = None, step: float = 0.01, z_step: float = 
         raise InputError(f"step, z_step, extent, z_max, margin, z_min must be in [0.001, 0.1], "
                          f"[0.001, 0.2], (0, 2], (0, 2] m, [0, 1), [-2, z_max] m, got {values}",
                          value=values)
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     geom, mode, lim = robot.geometry, robot.mode.name, robot.limits
     psi = robot.home_psi
     xs = np.arange(-extent + step / 2, extent, step)
@@ -175,7 +175,7 @@ class HomeInCOW:
                 f"({self.deepest_depth * 100:.1f} cm deep)")
 
 
-def home_in_cow(robot: Robot | None = None, step: float = 0.01,
+def home_in_cow(robot: Robot, step: float = 0.01,
                 extent: float = 0.4, z_max: float = 0.8) -> HomeInCOW:
     """Where ``robot``'s home pose sits in its COW with every limit (``clear``): the
     margin at the robot's own limit, the 2 g criterion at its torque limit.
@@ -185,7 +185,7 @@ def home_in_cow(robot: Robot | None = None, step: float = 0.01,
     """
     from scipy import ndimage
 
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     cow = compute_cow(robot, step=step, z_step=step, extent=extent, z_max=z_max,
                       margin=robot.limits.margin, z_min=0.0)
     full = cow.masks["clear"]

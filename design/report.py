@@ -11,12 +11,12 @@ from sixplus3.design.workspace import THETA_MAX, usable_area
 from sixplus3.errors import InputError
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.robot_description.geometry import LegLoad
-from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot import Robot, require_robot
 
 
-def leg_report(robot: Robot | None = None, ws_step: float = 0.005) -> str:
+def leg_report(robot: Robot, ws_step: float = 0.005) -> str:
     """Sample configurations and the usable half-plane area of the robot's leg design."""
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     if not (math.isfinite(ws_step) and 0.0005 <= ws_step <= 0.05):
         raise InputError(f"ws_step must be in [0.0005, 0.05] m, got {ws_step!r}",
                          value=ws_step, valid="[0.0005, 0.05] m")

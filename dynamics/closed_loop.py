@@ -31,7 +31,7 @@ from scipy.linalg import lapack
 
 from sixplus3.errors import InputError, SingularityError
 from sixplus3.robot_description.model import ClosedLoopModel
-from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Parallel-singularity threshold on the reciprocal condition number (1-norm) of J_pas.
 SINGULAR_RCOND = 1e-10
@@ -79,7 +79,7 @@ class ClosedLoopDynamics:
                                  value=model.robot.hash, valid=robot.hash)
             self.clm = model
         else:
-            self.clm = (robot or Robot.default()).closed_loop_model()
+            self.clm = require_robot(robot).closed_loop_model()
         self.robot = self.clm.robot
         self.model = self.clm.model
         self.data = self.model.createData()

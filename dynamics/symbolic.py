@@ -32,7 +32,7 @@ from sixplus3.dynamics.clearance import clearance_rows
 from sixplus3.dynamics.platform_rows import platform_line_det_normalised
 from sixplus3.kinematics.spherical import spherical_reference
 from sixplus3.robot_description.assembly import AssemblyMode
-from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry
+from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, require_robot
 
 NX = 9  # minimal coordinates: p (3), r (3), psi (3)
 
@@ -189,13 +189,13 @@ def setup_parameters(robot: Robot) -> np.ndarray:
                  mot.coulomb, mot.coulomb_velocity].astype(float)
 
 
-def symbolic_robot(robot: Robot | None = None) -> SymbolicRobot:
-    """The CasADi functions of ``robot`` (default ``Robot.default()``).
+def symbolic_robot(robot: Robot) -> SymbolicRobot:
+    """The CasADi functions of ``robot``.
 
     The expressions are built once per process and *structure* (:func:`structure`),
     with the setup (payload, gravity, motors) as parameters; each robot's functions fix
     them to its values (cached by the robot's hash; CasADi functions are immutable)."""
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     return cached(("symbolic", robot.hash), lambda: _specialise(robot))
 
 
@@ -468,7 +468,7 @@ def _build(robot: Robot) -> _Core:
     )
 
 
-def home_x(robot: Robot | None = None) -> np.ndarray:
+def home_x(robot: Robot) -> np.ndarray:
     """Minimal coordinates of the robot's home pose."""
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     return np.r_[robot.home_position, 0.0, 0.0, 0.0, robot.home_psi]

@@ -26,7 +26,7 @@ from sixplus3.cache import cached
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError, as_float_array
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.leg import LegState, failing_chain, leg_ik, status_reason
-from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry
+from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, require_robot
 
 if TYPE_CHECKING:
     from sixplus3.robot_description.model import ClosedLoopModel
@@ -206,8 +206,7 @@ def crank_tips(position, rotation, psi, robot: Robot) -> np.ndarray:
     return P
 
 
-def robot_ik(position, rotation, psi=None, robot: Robot | None = None,
-             platform_margins: bool = True) -> RobotConfig:
+def robot_ik(position, rotation, psi, robot: Robot, platform_margins: bool = True) -> RobotConfig:
     """Batched closed-form IK: platform pose (n, 3) [m], (n, 3, 3) and psi (n, 3) [rad]
     (default: the robot's home crank angles), in the robot's assembly mode.
 
@@ -215,7 +214,7 @@ def robot_ik(position, rotation, psi=None, robot: Robot | None = None,
     ``platform_margins=False`` skips the platform margin (an SVD per sample; NaN then):
     for inner loops that need only the angles.
     """
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     position, rotation, psi = _as_batch(position, rotation,
                                         robot.home_psi if psi is None else psi)
     geom, mode = robot.geometry, robot.mode
@@ -260,11 +259,10 @@ def robot_ik(position, rotation, psi=None, robot: Robot | None = None,
                        margins=margins, robot=robot)
 
 
-def robot_ik_pose(position, rpy=(0.0, 0.0, 0.0), psi=None,
-                  robot: Robot | None = None) -> RobotConfig:
+def robot_ik_pose(position, rpy=(0.0, 0.0, 0.0), psi=None, *, robot: Robot) -> RobotConfig:
     """IK of one pose (position [m], roll/pitch/yaw [rad], crank angles [rad], default
     the robot's home ones); raises :class:`UnreachableError` naming the failing leg."""
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     psi = robot.home_psi if psi is None else psi
     pos = as_float_array(position, "position", "3 numbers [m]")
     if pos.shape != (3,) or as_float_array(rpy, "rpy", "3 angles [rad]").shape != (3,) \
@@ -282,11 +280,11 @@ def robot_ik_pose(position, rpy=(0.0, 0.0, 0.0), psi=None,
     return cfg
 
 
-def home(robot: Robot | None = None) -> RobotConfig:
+def home(robot: Robot) -> RobotConfig:
     """The robot's home pose: platform horizontal at ``robot.home_position``, cranks at
     ``robot.home_psi``."""
-    robot = robot or Robot.default()
-    return robot_ik_pose(robot.home_position, (0.0, 0.0, 0.0), robot.home_psi, robot)
+    robot = require_robot(robot)
+    return robot_ik_pose(robot.home_position, (0.0, 0.0, 0.0), robot.home_psi, robot=robot)
 
 
 @dataclass(frozen=True)
@@ -299,7 +297,7 @@ class RobotFK:
     iterations: int
 
 
-def robot_fk(theta, robot: Robot | None = None, q_hint=None, tol: float = 1e-12,
+def robot_fk(theta, robot: Robot | None, q_hint=None, tol: float = 1e-12,
              max_iter: int = 50, model: ClosedLoopModel | None = None) -> RobotFK:
     """9 actuated angles [rad] -> full configuration, by Newton on the 27 closures.
 
@@ -317,7 +315,7 @@ def robot_fk(theta, robot: Robot | None = None, q_hint=None, tol: float = 1e-12,
             raise InputError("robot_fk: the model given is of another robot",
                              value=model.robot.hash, valid=robot.hash)
         robot = model.robot
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     clm = model or robot.closed_loop_model()
     theta = as_float_array(theta, "theta", "9 actuated angles [rad]")
     if theta.shape != (9,) or not np.all(np.isfinite(theta)):
@@ -395,7 +393,7 @@ def ik_jacobian(cfg: RobotConfig) -> np.ndarray:
     return out
 
 
-def robot_fk_batch(theta: np.ndarray, x_guess: np.ndarray, robot: Robot | None = None,
+def robot_fk_batch(theta: np.ndarray, x_guess: np.ndarray, robot: Robot,
                    tol: float = 1e-12, max_iter: int = 12, margins: bool = True) -> BatchFK:
     """Forward kinematics of n samples at once: Newton on the closed-form IK.
 
@@ -407,7 +405,7 @@ def robot_fk_batch(theta: np.ndarray, x_guess: np.ndarray, robot: Robot | None =
     whose Jacobian is singular keep residual inf.  ``margins=False``: the result's
     platform margins are NaN (not needed, e.g. for a second seed).
     """
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     theta = np.asarray(theta, dtype=float)
     x = np.array(x_guess, dtype=float)
     if theta.ndim != 2 or theta.shape[1] != 9 or x.shape != theta.shape:

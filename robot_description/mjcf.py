@@ -38,7 +38,7 @@ import numpy as np
 import pinocchio as pin
 
 from sixplus3.cache import cached
-from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot import Robot, require_robot
 from sixplus3.robot_description.urdf import _f, _vec, actuated_joint_names, closure_pairs
 
 #: Simulation time step [s] of the exported model.
@@ -75,15 +75,15 @@ def _leg_of(name: str) -> int | None:
     return int(name[3]) if name.startswith("leg") and name[3:4].isdigit() else None
 
 
-def build_mjcf(robot: Robot | None = None, timestep: float = TIMESTEP,
+def build_mjcf(robot: Robot, timestep: float = TIMESTEP,
                keyframe: tuple[np.ndarray, np.ndarray] | None = None,
                limits: bool = True, contacts: bool = False) -> str:
-    """The MJCF text of ``robot`` (default ``Robot.default()``).
+    """The MJCF text of ``robot``.
 
     ``keyframe``: (qpos, ctrl) of a ``home`` keyframe (:func:`qpos_from_q`); ``limits``:
     actuator and actuated-joint ranges from the robot's limits; ``contacts``: contact
     between the links of different legs (module doc)."""
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     if not (math.isfinite(timestep) and 1e-6 <= timestep <= 1e-2):
         from sixplus3.errors import InputError
 
@@ -201,7 +201,7 @@ def build_mjcf(robot: Robot | None = None, timestep: float = TIMESTEP,
             + "\n")
 
 
-def mjcf(robot: Robot | None = None) -> str:
+def mjcf(robot: Robot) -> str:
     """:func:`build_mjcf` at the default time step, cached by the robot's hash."""
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     return cached(("mjcf", f"{robot.hash}:{robot.name}"), lambda: build_mjcf(robot))

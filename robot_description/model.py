@@ -21,7 +21,7 @@ import pinocchio as pin
 from sixplus3.cache import cached
 from sixplus3.errors import InputError
 from sixplus3.fileio import read_yaml
-from sixplus3.robot_description.robot import NUM_LEGS, Robot
+from sixplus3.robot_description.robot import NUM_LEGS, Robot, require_robot
 from sixplus3.robot_description.urdf import actuated_joint_names, closure_pairs
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -317,14 +317,14 @@ def _check_sizes(pairs: list, act: list, where: str) -> None:
                          valid=f"{3 * NUM_LEGS} and {3 * NUM_LEGS}")
 
 
-def closed_loop_model(robot: Robot | None = None) -> ClosedLoopModel:
-    """A new closed-loop model of ``robot`` (default ``Robot.default()``), caller-owned.
+def closed_loop_model(robot: Robot) -> ClosedLoopModel:
+    """A new closed-loop model of ``robot``, caller-owned.
 
     The Pinocchio model parsed from ``robot.urdf()`` is cached by the robot's hash; each
     call returns a copy of it with gravity set from ``robot.gravity`` and its own data and
     constraint models: one object per thread, no shared mutable state.
     """
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
 
     def parse() -> pin.Model:
         return pin.buildModelFromXML(robot.urdf())

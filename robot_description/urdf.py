@@ -32,7 +32,14 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.robot_description.robot import NUM_LEGS, POINT_MASS, MassModel, Robot, RobotGeometry
+from sixplus3.robot_description.robot import (
+    NUM_LEGS,
+    POINT_MASS,
+    MassModel,
+    Robot,
+    RobotGeometry,
+    require_robot,
+)
 
 URDF_DIR = Path(__file__).resolve().parent / "urdf"
 URDF_PATH = URDF_DIR / "sixplus3.urdf"
@@ -174,8 +181,8 @@ class _Builder:
                    limits=(-limit, limit), effort=0.0, velocity=100.0)
 
 
-def build_urdf(robot: Robot | None = None) -> str:
-    """The URDF text of the spanning tree of ``robot`` (default: ``Robot.default()``).
+def build_urdf(robot: Robot) -> str:
+    """The URDF text of the spanning tree of ``robot``.
 
     The actuated joints carry the robot's hardware limits (range, effort, velocity) and
     the joint-side friction (``<dynamics damping friction>``).  The reflected rotor
@@ -183,7 +190,7 @@ def build_urdf(robot: Robot | None = None) -> str:
     (``Robot.motors.armature``), as they set gravity from ``robot.gravity``.  A payload
     is a link fixed to the platform; the tool centre point is the massless frame ``tcp``.
     """
-    robot = robot or Robot.default()
+    robot = require_robot(robot)
     geom: RobotGeometry = robot.geometry
     masses: MassModel = robot.masses
     lim = robot.limits

@@ -333,7 +333,7 @@ def robot_ik_cmd(x: float, y: float, z: float, roll: float, pitch: float, yaw: f
     robot = _robot()
     lim = robot.limits
     cfg = robot_ik_pose((x, y, z), np.radians([roll, pitch, yaw]), np.radians(redundancy),
-                        robot)
+                        robot=robot)
     dyn = ClosedLoopDynamics(robot)
     q = cfg.q[0]
     residual = float(np.abs(dyn.clm.residual(q)).max())

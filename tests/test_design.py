@@ -16,7 +16,7 @@ from sixplus3.design.search import PAPER_DESIGN, Reading, design_grid, evaluate,
 from sixplus3.design.workspace import counted, halfplane_grid, usable_area
 from sixplus3.kinematics.leg import leg_eval, leg_ik
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
-from sixplus3.robot_description.robot import RobotGeometry
+from sixplus3.robot_description.robot import Robot, RobotGeometry
 
 SPEC = Reading()
 
@@ -125,7 +125,7 @@ def test_footprint_is_the_hull_of_the_actuated_joints() -> None:
 
 
 def test_cow_limits_are_nested() -> None:
-    cow = compute_cow(step=0.04, z_step=0.1, extent=0.6)
+    cow = compute_cow(step=0.04, z_step=0.1, extent=0.6, robot=Robot.default())
     r = [cow.ratio(k) for k in ("reach", "theta", "singfree", "torque")]
     assert r[0] > 1.0 and all(a >= b for a, b in zip(r, r[1:], strict=False))
     assert cow.masks["torque"].any()

@@ -18,14 +18,14 @@ GEOM = ROBOT_.geometry
 
 @pytest.fixture(scope="module")
 def dyn() -> ClosedLoopDynamics:
-    return ClosedLoopDynamics()
+    return ClosedLoopDynamics(ROBOT_)
 
 
 def sample_configs():
     return [
-        home().q[0],
-        robot_ik_pose((0.04, -0.03, 0.61), (0.3, -0.2, 0.4), (1.2, 1.8, 1.4)).q[0],
-        robot_ik_pose((-0.05, 0.02, 0.55), (-0.4, 0.1, -0.6), (1.9, 1.3, 1.6)).q[0],
+        home(ROBOT_).q[0],
+        robot_ik_pose((0.04, -0.03, 0.61), (0.3, -0.2, 0.4), (1.2, 1.8, 1.4), robot=ROBOT_).q[0],
+        robot_ik_pose((-0.05, 0.02, 0.55), (-0.4, 0.1, -0.6), (1.9, 1.3, 1.6), robot=ROBOT_).q[0],
     ]
 
 
@@ -35,12 +35,12 @@ def test_unactuated_drop_conserves_energy_and_closures() -> None:
     drift is 1.6 % at dt = 1 ms, 0.13 % at 0.5 ms and 0.006 % at 0.25 ms: it converges.)"""
     frictionless = Robot.default().replace(motors=MotorModel(viscous=0.0, coulomb=0.0))
     dyn = ClosedLoopDynamics(frictionless)
-    tr = dyn.simulate(home().q[0], np.zeros(dyn.model.nv), duration=2.0, dt=5e-4)
+    tr = dyn.simulate(home(ROBOT_).q[0], np.zeros(dyn.model.nv), duration=2.0, dt=5e-4)
     e = tr.energy
     assert tr.kinetic.max() > 1.0  # it really fell and swung (J)
     assert np.abs(e - e[0]).max() <= 0.01 * abs(e[0])
     assert tr.residual.max() < 1e-6
-    lossy = ClosedLoopDynamics(Robot.default()).simulate(home().q[0], np.zeros(36), 0.5, 1e-3)
+    lossy = ClosedLoopDynamics(ROBOT_).simulate(home(ROBOT_).q[0], np.zeros(36), 0.5, 1e-3)
     assert np.all(np.diff(lossy.energy) <= 1e-6 * abs(lossy.energy[0]))
     assert lossy.energy[-1] < lossy.energy[0] - 0.01  # friction took some
 
@@ -57,7 +57,7 @@ def test_gravity_torques_are_the_virtual_work_of_the_potential(dyn) -> None:
             for sgn in (1, -1):
                 th = theta.copy()
                 th[k] += sgn * h
-                qk = robot_fk(th, q_hint=q).q
+                qk = robot_fk(th, q_hint=q, robot=ROBOT_).q
                 u.append(dyn.energy(qk, np.zeros(dyn.model.nv))[1])
             fd[k] = (u[0] - u[1]) / (2 * h)
         np.testing.assert_allclose(tau, fd, rtol=1e-6, atol=1e-7)
@@ -104,7 +104,7 @@ def test_point_mass_variant_matches_the_leg_jacobian(dyn) -> None:
 
 def test_singular_configuration_raises(dyn) -> None:
     half = np.pi / 2
-    q = robot_ik_pose((0, 0, 0.58), (0, 0, 0), (0.0, half, half)).q[0]
+    q = robot_ik_pose((0, 0, 0.58), (0, 0, 0), (0.0, half, half), robot=ROBOT_).q[0]
     z = np.zeros(dyn.model.nv)
     with pytest.raises(SingularityError, match="parallel singularity"):
         dyn.inverse_dynamics(q, z, z)

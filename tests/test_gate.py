@@ -573,9 +573,9 @@ def test_errors_carry_the_value_and_the_valid_range(valid, tmp_path) -> None:
     bad_file = tmp_path / "x.csv"
     bad_file.write_bytes(raw[:-50])
     cases = [
-        lambda: robot_ik_pose((0.0, 0.0, 1.2)),
-        lambda: robot_ik_pose((0.0, math.nan, 0.3)),
-        lambda: robot_fk(np.zeros(8)),
+        lambda: robot_ik_pose((0.0, 0.0, 1.2), robot=ROBOT),
+        lambda: robot_ik_pose((0.0, math.nan, 0.3), robot=ROBOT),
+        lambda: robot_fk(np.zeros(8), robot=ROBOT),
         lambda: ROBOT.limits.tightened(torque=11.0),
         lambda: Robot.from_dict({"geometry": {"leg": {"l2": -1}}}),
         lambda: task_from_dict({"waypoints": [{"position": [0, 0, 0.58]}]}),

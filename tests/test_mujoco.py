@@ -80,8 +80,8 @@ def test_mjcf_is_the_robot() -> None:
 def test_mujoco_inverse_dynamics_matches_pinocchio_at_random_states(robot) -> None:
     rng = np.random.default_rng(1)
     dyn = ClosedLoopDynamics(robot)
-    cfgs = [robot_ik_pose((0.03, -0.02, 0.60), (0.2, -0.1, 0.3), (1.4, 1.7, 1.2), robot),
-            robot_ik_pose((-0.04, 0.03, 0.56), (-0.3, 0.2, -0.4), (1.8, 1.3, 1.6), robot)]
+    cfgs = [robot_ik_pose((0.03, -0.02, 0.60), (0.2, -0.1, 0.3), (1.4, 1.7, 1.2), robot=robot),
+            robot_ik_pose((-0.04, 0.03, 0.56), (-0.3, 0.2, -0.4), (1.8, 1.3, 1.6), robot=robot)]
     sim = MujocoRobot(robot)
     for cfg in cfgs:
         q = cfg.q[0]

@@ -31,7 +31,7 @@ SMALL = {"name": "small", "waypoints": [{"position": [0, 0, 0.58]},
 @pytest.fixture(scope="module")
 def planned(tmp_path_factory):
     out = tmp_path_factory.mktemp("plan")
-    res = run_plan(task_from_dict(SMALL), out)
+    res = run_plan(task_from_dict(SMALL), out, robot=Robot.default())
     return res, out
 
 
@@ -45,7 +45,7 @@ def test_end_to_end_plan_writes_validated_files(planned) -> None:
     assert sorted(Path(p).name for p in res.plots) == [
         "small_joints.png", "small_margins.png", "small_platform.png", "small_rates.png",
         "small_torques.png"]
-    header, data = read_trajectory(res.csv)
+    header, data = read_trajectory(res.csv, robot=Robot.default())
     assert header["columns"] == COLUMNS and header["rate_hz"] == 1000.0
     assert header["validation"]["ok"] and header["planner"]["status"].startswith("Solve")
     assert header["planner"]["source"] == "ocp"

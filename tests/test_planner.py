@@ -101,11 +101,11 @@ def test_motors_and_payload_change_the_torques_in_both_models() -> None:
 
 
 def test_casadi_kinematics_agree_with_the_numeric_model() -> None:
-    sr = symbolic_robot()
+    sr = symbolic_robot(ROBOT)
     from scipy.spatial.transform import Rotation
 
     for x, _, _ in random_states(8, seed=1):
-        cfg = robot_ik(x[0:3], Rotation.from_rotvec(x[3:6]).as_matrix(), x[6:9])
+        cfg = robot_ik(x[0:3], Rotation.from_rotvec(x[3:6]).as_matrix(), x[6:9], robot=ROBOT)
         if not cfg.ok[0]:
             continue
         np.testing.assert_allclose(np.array(sr.q(x)).ravel(), cfg.q[0], atol=1e-12)
@@ -267,8 +267,9 @@ def test_infeasible_tasks_raise_naming_the_waypoint_or_limit() -> None:
 def test_clearance_and_home_x() -> None:
     from sixplus3.kinematics.robot import home
 
-    assert clearance(home())[0] > 0.003  # the two 16 mm distal tubes of a leg: 4.0 mm
-    np.testing.assert_allclose(np.array(symbolic_robot().q(home_x())).ravel(), home().q[0],
+    assert clearance(home(ROBOT))[0] > 0.003  # the two 16 mm distal tubes of a leg: 4.0 mm
+    np.testing.assert_allclose(np.array(symbolic_robot(ROBOT).q(home_x(ROBOT))).ravel(),
+                               home(ROBOT).q[0],
                                atol=1e-12)
     assert Problem(task_from_dict(SMALL), ROBOT).task.name == "small"
 
@@ -281,7 +282,7 @@ def test_compiled_node_functions_agree_with_casadi() -> None:
 
     if not codegen_enabled():
         pytest.fail("no C compiler: the planner would run interpreted (make test needs gcc)")
-    sr = symbolic_robot()
+    sr = symbolic_robot(ROBOT)
     node = compiled_functions(Robot.default())["node"]
     jac_c, jac_sx = node.jacobian(), sr.node.jacobian()
     for x, xd, xdd in random_states(4, seed=3):
@@ -320,7 +321,7 @@ def test_a_waypoint_with_interfering_legs_is_refused() -> None:
         plan(task, options=PlannerOptions(lock_redundancy=True))
     assert err.value.limit == "interference" and err.value.waypoint == 1
     cfg = robot_ik(np.array([0, 0, 0.58]), Rotation.from_euler("x", 70, degrees=True)
-                   .as_matrix(), np.full((1, 3), math.pi / 2))
+                   .as_matrix(), np.full((1, 3), math.pi / 2), robot=ROBOT)
     assert clearance(cfg)[0] < 0.0  # independently: the capsules do overlap
 
 
@@ -330,7 +331,7 @@ def test_largest_tilt_is_the_edge_of_the_static_feasible_set() -> None:
     (checked with Pinocchio's gravity torques) while free cranks tilt much further."""
     from sixplus3.planner.analysis import largest_tilt, static_feasible
 
-    dyn = ClosedLoopDynamics()
+    dyn = ClosedLoopDynamics(ROBOT)
     home_p = np.array([0.0, 0.0, 0.58])
 
     def pose(axis, deg):
@@ -348,7 +349,7 @@ def test_largest_tilt_is_the_edge_of_the_static_feasible_set() -> None:
     assert locked.binding == "torque" and 0.0 < locked.tilt_deg < 89.0
     assert free.tilt_deg >= locked.tilt_deg + 20.0
     for deg, below in ((locked.tilt_deg, True), (locked.tilt_deg + 1.0, False)):
-        cfg = robot_ik(home_p, pose("x", deg), np.full((1, 3), math.pi / 2))
+        cfg = robot_ik(home_p, pose("x", deg), np.full((1, 3), math.pi / 2), robot=ROBOT)
         tau_g = np.abs(dyn.gravity_torques(cfg.q[0])).max()
         assert (tau_g <= 1.0) == below
 
@@ -362,7 +363,7 @@ def test_retiming_and_rest_splits(small_solution) -> None:
     from sixplus3.planner.toppra_baseline import rest_splits
 
     sol, a = small_solution, 1.2
-    tau_g = np.array(symbolic_robot().tau.map(len(sol.t))(
+    tau_g = np.array(symbolic_robot(ROBOT).tau.map(len(sol.t))(
         sol.x.T, 0 * sol.xd.T, 0 * sol.xdd.T)).T
     slow = dataclasses.replace(sol, t=sol.t * a, final_time=sol.final_time * a,
                                segment_times=sol.segment_times * a, xd=sol.xd / a,
@@ -456,14 +457,14 @@ def test_symbolic_clearance_is_a_tight_lower_bound_of_the_numeric_one() -> None:
     ln(largest family)/k of it, at random poses including interfering ones (tilts)."""
     from sixplus3.dynamics.clearance import CLEARANCE_SHARPNESS
 
-    sr = symbolic_robot()
+    sr = symbolic_robot(ROBOT)
     rng = np.random.default_rng(5)
     pairs = []
     for k in range(120):
         tilt = np.r_[0.0, rng.uniform(1.5, 3.0), 0.0] if k % 2 else rng.uniform(-1, 1, 3)
         x = np.r_[rng.uniform(-0.04, 0.04, 2), rng.uniform(0.55, 0.62), tilt,
                   rng.uniform(0.8, 2.3, 3)]
-        cfg = robot_ik(x[0:3], Rotation.from_rotvec(x[3:6]).as_matrix(), x[6:9][None])
+        cfg = robot_ik(x[0:3], Rotation.from_rotvec(x[3:6]).as_matrix(), x[6:9][None], robot=ROBOT)
         if not cfg.ok[0]:
             continue
         rows = np.array(sr.node(x, np.zeros(9), np.zeros(9), np.zeros(9))).ravel()[67:70]

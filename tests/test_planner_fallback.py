@@ -92,11 +92,11 @@ def test_a_failed_nlp_falls_back_to_the_baseline(tmp_path) -> None:
     baseline (checked), not "infeasible", and it passes the gate as a trajectory file."""
     opts = PlannerOptions(max_iter=2)
     task = task_from_dict(THREE)
-    out = run_plan(task, tmp_path, options=opts, html=False, plots=False)
+    out = run_plan(task, tmp_path, options=opts, html=False, plots=False, robot=ROBOT)
     sol = out.solution
     assert sol.source == "baseline" and sol.is_feasible()
     assert sol.final_time == pytest.approx(sol.baseline_time)
-    assert out.report.ok and validate_file(out.csv).ok
+    assert out.report.ok and validate_file(out.csv, robot=ROBOT).ok
 
 
 def test_without_a_baseline_the_margin_homotopy_is_tried(monkeypatch) -> None:

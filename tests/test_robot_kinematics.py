@@ -31,7 +31,7 @@ def random_poses(n: int, seed: int, tilt: float = 0.5):
 def test_ik_closes_all_27_closures_in_pinocchio() -> None:
     clm = Robot.default().closed_loop_model()
     pos, R, psi = random_poses(60, seed=1)
-    cfg = robot_ik(pos, R, psi)
+    cfg = robot_ik(pos, R, psi, robot=ROBOT_)
     assert cfg.ok.sum() >= 50
     for k in np.flatnonzero(cfg.ok):
         assert np.abs(clm.residual(cfg.q[k])).max() < 1e-10
@@ -45,7 +45,7 @@ def test_ik_closes_all_27_closures_in_pinocchio() -> None:
 
 def test_ik_theta_is_each_legs_ik_of_its_sphere_centre() -> None:
     pos, R, psi = random_poses(40, seed=2)
-    cfg = robot_ik(pos, R, psi)
+    cfg = robot_ik(pos, R, psi, robot=ROBOT_)
     for i in range(3):
         s = leg_ik(GEOM.to_leg(i, cfg.P[:, i]), GEOM.leg, ROBOT_.mode)
         np.testing.assert_array_equal(s.status != 0, cfg.leg_status[:, i] != 0)
@@ -54,22 +54,22 @@ def test_ik_theta_is_each_legs_ik_of_its_sphere_centre() -> None:
 
 def test_unreachable_pose_names_the_leg_and_chain() -> None:
     with pytest.raises(UnreachableError) as err:
-        robot_ik_pose((0.0, 0.0, 1.2))
+        robot_ik_pose((0.0, 0.0, 1.2), robot=ROBOT_)
     assert err.value.chain.startswith("leg ") and "RU" in err.value.chain
     with pytest.raises(InputError):
-        robot_ik_pose((0.0, np.nan, 0.3))
+        robot_ik_pose((0.0, np.nan, 0.3), robot=ROBOT_)
     with pytest.raises(InputError, match="orthonormal"):
-        robot_ik(np.zeros(3) + [0, 0, 0.58], 2 * np.eye(3), Robot.default().home_psi)
+        robot_ik(np.zeros(3) + [0, 0, 0.58], 2 * np.eye(3), Robot.default().home_psi, robot=ROBOT_)
 
 
 def test_fk_recovers_pose_from_a_perturbed_hint() -> None:
     clm = Robot.default().closed_loop_model()
     pos, R, psi = random_poses(10, seed=3, tilt=0.3)
-    cfg = robot_ik(pos, R, psi)
+    cfg = robot_ik(pos, R, psi, robot=ROBOT_)
     rng = np.random.default_rng(3)
     for k in np.flatnonzero(cfg.ok & (cfg.margins.minimum > 0.05))[:6]:
         hint = pin.integrate(clm.model, cfg.q[k], rng.normal(scale=0.02, size=clm.model.nv))
-        fk = robot_fk(cfg.theta[k], q_hint=hint)
+        fk = robot_fk(cfg.theta[k], q_hint=hint, robot=ROBOT_)
         assert fk.residual < 1e-12
         np.testing.assert_allclose(fk.position, pos[k], atol=1e-10)
         np.testing.assert_allclose(fk.rotation, R[k], atol=1e-10)
@@ -77,37 +77,42 @@ def test_fk_recovers_pose_from_a_perturbed_hint() -> None:
 
 
 def test_fk_raises_when_it_cannot_converge() -> None:
-    theta = home().theta[0].copy()
+    theta = home(ROBOT_).theta[0].copy()
     theta[0] -= 2.5  # leg 0's proximal link folded far away: no assembly near home
     with pytest.raises(ConvergenceError, match="closure residual"):
-        robot_fk(theta, max_iter=20)
+        robot_fk(theta, max_iter=20, robot=ROBOT_)
     with pytest.raises(InputError):
-        robot_fk(np.zeros(8))
+        robot_fk(np.zeros(8), robot=ROBOT_)
 
 
 def test_platform_margin_vanishes_with_radial_cranks() -> None:
     psis = np.linspace(0.0, math.pi / 2, 7)
-    m = [robot_ik_pose((0, 0, 0.58), (0, 0, 0), (p, p, p)).margins.platform[0] for p in psis]
+    m = [robot_ik_pose((0, 0, 0.58), (0, 0, 0), (p, p, p), robot=ROBOT_).margins.platform[0]
+         for p in psis]
     assert m[0] < 1e-12
     assert all(np.diff(m) > 0)  # monotone towards the 90 deg cranks
     # One radial crank is singular when the other two sit at 90 deg (their crank lines
     # then cannot stop the remaining in-plane motion), but not for generic crank angles.
     half = math.pi / 2
-    assert robot_ik_pose((0, 0, 0.58), (0, 0, 0), (0, half, half)).margins.platform[0] < 1e-9
-    assert robot_ik_pose((0, 0, 0.58), (0, 0, 0), (0, 1.2, 1.9)).margins.platform[0] > 1e-3
+    def platform(psi):
+        return robot_ik_pose((0, 0, 0.58), (0, 0, 0), psi, robot=ROBOT_).margins.platform[0]
+
+    assert platform((0, half, half)) < 1e-9
+    assert platform((0, 1.2, 1.9)) > 1e-3
 
 
 def test_platform_margin_is_pose_invariant() -> None:
-    a = robot_ik_pose((0, 0, 0.58), (0, 0, 0), (1.2, 1.5, 1.9)).margins.platform[0]
-    b = robot_ik_pose((0.03, -0.02, 0.63), (0.3, -0.2, 0.5), (1.2, 1.5, 1.9)).margins.platform[0]
+    a = robot_ik_pose((0, 0, 0.58), (0, 0, 0), (1.2, 1.5, 1.9), robot=ROBOT_).margins.platform[0]
+    b = robot_ik_pose((0.03, -0.02, 0.63), (0.3, -0.2, 0.5), (1.2, 1.5, 1.9),
+                      robot=ROBOT_).margins.platform[0]
     assert a == pytest.approx(b, rel=1e-9)
 
 
 def test_home_and_spherical_joint_tilts() -> None:
-    h = home()
+    h = home(ROBOT_)
     assert h.ok[0] and h.margins.minimum[0] > 0.3
     np.testing.assert_allclose(spherical_tilts(h), 0.0, atol=1e-7)
-    cfg = robot_ik_pose((0, 0, 0.58), (0.5, 0.0, 0.0))
+    cfg = robot_ik_pose((0, 0, 0.58), (0.5, 0.0, 0.0), robot=ROBOT_)
     assert 0.05 < spherical_tilts(cfg).max() < math.radians(150)
 
 
