@@ -132,20 +132,16 @@ def decimate(rep, robot: Robot, rate: float):
     InputError."""
     from sixplus3.control.validation import (
         INTERPOLATED_RATE_RANGE,
+        check_rate,
         resample,
         validate_motion,
     )
-    from sixplus3.errors import InputError
 
     r0 = float(rep.header["rate_hz"])
-    lo = INTERPOLATED_RATE_RANGE[0]
-    ok = isinstance(rate, (int, float)) and not isinstance(rate, bool) \
-        and math.isfinite(rate) and lo <= rate <= r0
-    if not ok:
-        raise InputError(f"--rate must be in [{lo:g}, {r0:g}] Hz (at most the file's rate), "
-                         f"got {rate!r}", value=rate, valid=f"[{lo:g}, {r0:g}] Hz")
-    t, th, v, a, x = resample(rep, float(rate))
-    again = validate_motion(t, th, v, a, robot, float(rate), x,
+    # at most the file's rate
+    rate = check_rate(rate, (INTERPOLATED_RATE_RANGE[0], r0), name="--rate")
+    t, th, v, a, x = resample(rep, rate)
+    again = validate_motion(t, th, v, a, robot, rate, x,
                             rate_range=INTERPOLATED_RATE_RANGE)
     if not again.ok:
         raise ValidationFailed(f"the trajectory resampled at {rate:g} Hz fails validation: "

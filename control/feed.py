@@ -29,11 +29,11 @@ from sixplus3.control.validation import (
     RATE_RANGE,
     ValidationReport,
     resample,
-    rotvec_of_quaternions,
     validate_bytes,
     validate_motion,
 )
 from sixplus3.errors import InputError, ValidationFailed
+from sixplus3.kinematics.rotations import rotvec_from_quat
 from sixplus3.robot_description.robot import Robot
 
 #: Replay speeds accepted (1 = as planned).
@@ -155,7 +155,7 @@ def check_start(rep: ValidationReport, robot: Robot, current_theta: np.ndarray) 
             "move-to-start)", 2, rep)
     x = robot_pose_from_home(robot, cur)
     assert rep.quaternion is not None and rep.psi is not None
-    file_x = np.r_[rep.position[0], rotvec_of_quaternions(rep.quaternion[:1])[0],
+    file_x = np.r_[rep.position[0], rotvec_from_quat(rep.quaternion[:1])[0],
                    rep.psi[0]]
     if x is None or float(np.abs(x - file_x).max()) > START_POSE_TOL:
         what = ("cannot be followed from home to the robot's angles" if x is None else

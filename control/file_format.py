@@ -26,6 +26,16 @@ UNITS = {"t": "s", "pos": "rad", "vel": "rad/s", "acc": "rad/s^2", "tau": "N m",
 #: MAX_SAMPLES).  Validating one this size peaks near 1 GB (benchmarks/bench_gate_memory.py;
 #: about 1.9 kB per sample above a 0.8 GB base, docs/validation.md "Caps").
 MAX_BYTES = 128 << 20
+#: The one column accessor's kinds: the 9 joints' 'pos' | 'vel' | 'acc' | 'tau' (each
+#: (n, 9) in joint order), and the platform's blocks (:func:`columns`).
+JOINT_KINDS = ("pos", "vel", "acc", "tau")
+PLATFORM_BLOCKS = {
+    "position": slice(COLUMNS.index("platform_x"), COLUMNS.index("platform_z") + 1),
+    "quaternion": slice(COLUMNS.index("platform_qx"), COLUMNS.index("platform_qw") + 1),
+    "psi": slice(COLUMNS.index("psi_0"), COLUMNS.index("psi_2") + 1),
+    "platform": slice(COLUMNS.index("platform_x"), COLUMNS.index("psi_2") + 1),
+}
+_JOINT_COLUMNS = {k: [COLUMNS.index(f"{j}_{k}") for j in JOINTS] for k in JOINT_KINDS}
 
 def _canonical(header: dict) -> bytes:
     return json.dumps(header, sort_keys=True, separators=(",", ":"), allow_nan=False,
@@ -66,4 +76,20 @@ def digest(header: dict, body: bytes | memoryview) -> str:
     return sha.hexdigest()
 
 
-__all__ = ["COLUMNS", "FORMAT", "JOINTS", "MAX_BYTES", "SUFFIX", "UNITS", "digest"]
+def columns(data: np.ndarray, kind: str) -> np.ndarray:
+    """The columns of ``kind`` of (n, 47) samples in :data:`COLUMNS` order, the file's one
+    accessor: 'pos' | 'vel' | 'acc' | 'tau' give (n, 9) in joint order; 'position' (n, 3)
+    [m], 'quaternion' (n, 4) (x, y, z, w), 'psi' (n, 3) [rad] and 'platform' (n, 10,
+    the three together) are views of the platform's blocks."""
+    if kind in _JOINT_COLUMNS:
+        return data[:, _JOINT_COLUMNS[kind]]
+    if kind in PLATFORM_BLOCKS:
+        return data[:, PLATFORM_BLOCKS[kind]]
+    from sixplus3.errors import InputError
+
+    raise InputError(f"no column kind {kind!r} in a trajectory file", value=kind,
+                     valid=", ".join([*JOINT_KINDS, *PLATFORM_BLOCKS]))
+
+
+__all__ = ["COLUMNS", "FORMAT", "JOINTS", "JOINT_KINDS", "MAX_BYTES", "PLATFORM_BLOCKS",
+           "SUFFIX", "UNITS", "columns", "digest"]

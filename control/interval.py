@@ -41,9 +41,17 @@ switches inside an interval, its own e can nearly vanish while one half is curve
 
 from __future__ import annotations
 
+import math
 from math import comb
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+from sixplus3.control.file_format import columns
+from sixplus3.kinematics.rotations import rotvec_from_quat
+
+if TYPE_CHECKING:
+    from sixplus3.control.findings import ValidationReport
 
 #: For every motion with |jerk| <= J through the samples, the interpolant's jerk is at
 #: most C_JERK J (Peano kernel, see the module doc; 2.17575... rounded up).
@@ -274,7 +282,38 @@ def held_torque(tau: np.ndarray, hold: str) -> np.ndarray:
     return np.vstack([0.5 * (tau[:-1] + tau[1:]), tau[-1:]])
 
 
+def resample(rep: ValidationReport, rate: float, speed: float = 1.0
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The validated motion of ``rep`` (a report of
+    :func:`~sixplus3.control.validation.validate_file`) at ``rate`` [Hz], replayed at
+    ``speed`` (time x 1/speed, rates x speed, accelerations x speed^2), on the quintic
+    Hermite interpolant of its samples; the resting end is held until the next point of
+    the new grid.  Returns (t, theta, theta_dot, theta_ddot, x_seed), the last the
+    validated platform poses at the nearest samples (to seed the forward kinematics).
+    The caller validates the result again."""
+    data, header = rep.data, rep.header
+    assert data is not None and header is not None and rep.position is not None
+    assert rep.quaternion is not None and rep.psi is not None
+    r0 = float(header["rate_hz"])
+    n = len(data)
+    T = float(data[-1, 0])
+    m = math.ceil(T / speed * rate - 1e-9)
+    t = np.arange(m + 1) / rate
+    u = np.minimum(t * speed, T) * r0  # in sample periods of the file
+    k = np.minimum(np.floor(u + 1e-9).astype(int), n - 2)
+    frac = np.clip(u - k, 0.0, 1.0)
+    th, v, a = hermite(1.0 / r0, columns(data, "pos"), columns(data, "vel"),
+                       columns(data, "acc"), k, frac)
+    v, a = v * speed, a * speed**2
+    v[[0, -1]] = 0.0  # the file starts and ends at rest (checked)
+    a[[0, -1]] = 0.0
+    near = np.minimum(np.rint(u).astype(int), n - 1)
+    x = np.c_[rep.position[near], rotvec_from_quat(rep.quaternion[near]),
+              rep.psi[near]]
+    return t, th, v, a, x
+
+
 __all__ = ["C_ACC", "C_JERK", "TORQUE_HOLDS", "check_torque_hold", "coefficients",
            "derivative", "evaluate",
-           "held_torque", "hermite", "hermite_midpoints", "max_abs", "rate_extremes",
+           "held_torque", "hermite", "hermite_midpoints", "max_abs", "rate_extremes", "resample",
            "torque_bound"]

@@ -237,9 +237,9 @@ def simulate(robot: Robot, q0: np.ndarray, theta: np.ndarray, theta_dot: np.ndar
     kp = _check("kp", kp, 0.0, 1e5)
     kd = _check("kd", kd, 0.0, 1e4)
     s = _check("feedforward_scale", feedforward_scale, 0.0, 2.0)
-    from sixplus3.control.validation import RATE_RANGE
+    from sixplus3.control.validation import check_rate
 
-    rate = _check("rate", rate, *RATE_RANGE)
+    rate = check_rate(rate, name="rate")
     n_sub = round(1.0 / (rate * timestep))
     if n_sub < 1 or abs(n_sub * timestep * rate - 1.0) > 1e-9:
         raise InputError(f"the control period 1/{rate:g} s is not a multiple of the "

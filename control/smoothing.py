@@ -37,7 +37,7 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from sixplus3.control.trajectory_file import check_samples
-from sixplus3.control.validation import RATE_RANGE
+from sixplus3.control.validation import check_rate
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InputError, SmoothingError
 from sixplus3.planner.solution import Solution, actuated_profile
@@ -64,14 +64,6 @@ class Smoothed:
     @property
     def added_fraction(self) -> float:
         return self.duration / self.planned_duration - 1.0
-
-
-def check_rate(rate: float) -> float:
-    lo, hi = RATE_RANGE
-    if not (isinstance(rate, (int, float)) and math.isfinite(rate) and lo <= rate <= hi):
-        raise SmoothingError(f"controller rate must be in [{lo:g}, {hi:g}] Hz, got {rate!r}",
-                             value=rate, valid=f"[{lo:g}, {hi:g}] Hz")
-    return float(rate)
 
 
 def _joint_samples(sol: Solution, times: np.ndarray, a: float, t0: float = 0.0):

@@ -52,15 +52,18 @@ import numpy as np
 
 from sixplus3 import fileio
 from sixplus3.control.file_format import (  # noqa: F401 - the file's names, re-exported
+    _JOINT_COLUMNS,
     COLUMNS,
     FORMAT,
     JOINTS,
     MAX_BYTES,
+    PLATFORM_BLOCKS,
     SUFFIX,
     UNITS,
     _canonical,
     _finite_tree,
     _jsonable,
+    columns,
     digest,
 )
 from sixplus3.control.trajectory_parse import (  # noqa: F401 - re-exported
@@ -127,12 +130,11 @@ def samples_array(t, theta, theta_dot, theta_ddot, tau, position, quaternion,
     n = len(t)
     data = np.zeros((n, len(COLUMNS)))
     data[:, 0] = t
-    for j in range(9):
-        data[:, 1 + 4 * j:5 + 4 * j] = np.c_[theta[:, j], theta_dot[:, j], theta_ddot[:, j],
-                                             tau[:, j]]
-    data[:, 37:40] = position
-    data[:, 40:44] = quaternion
-    data[:, 44:47] = psi
+    for kind, values in (("pos", theta), ("vel", theta_dot), ("acc", theta_ddot),
+                         ("tau", tau)):
+        data[:, _JOINT_COLUMNS[kind]] = values
+    for kind, values in (("position", position), ("quaternion", quaternion), ("psi", psi)):
+        data[:, PLATFORM_BLOCKS[kind]] = values
     return data
 
 
@@ -360,15 +362,15 @@ class TrajectoryData(NamedTuple):
 
     @property
     def platform_position(self) -> np.ndarray:
-        return self.data[:, 37:40]
+        return columns(self.data, "position")
 
     @property
     def platform_quaternion(self) -> np.ndarray:
-        return self.data[:, 40:44]
+        return columns(self.data, "quaternion")
 
     @property
     def psi(self) -> np.ndarray:
-        return self.data[:, 44:47]
+        return columns(self.data, "psi")
 
     def to_pandas(self):  # noqa: ANN201 - pandas is optional
         try:
@@ -393,7 +395,3 @@ def read_trajectory(path: str | Path, robot: Robot) -> TrajectoryData:
     return TrajectoryData(header, data)
 
 
-def columns(data: np.ndarray, kind: str) -> np.ndarray:
-    """(M, 9) of 'pos' | 'vel' | 'acc' | 'tau' for the 9 joints in order."""
-    k = ("pos", "vel", "acc", "tau").index(kind)
-    return data[:, [1 + 4 * j + k for j in range(9)]]

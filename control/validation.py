@@ -24,13 +24,27 @@ first and of the worst violation.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from sixplus3.control import interval
-from sixplus3.control.interval import hermite, hermite_midpoints
+from sixplus3.control.findings import (  # noqa: F401 - Tolerances, Finding, ... re-exported
+    BRANCH_TOL,
+    FEEDFORWARD_TOL,
+    POSE_TOL,
+    REST_ACCELERATION_TOL,
+    REST_VELOCITY_TOL,
+    TIME_TOL,
+    Finding,
+    Tolerances,
+    ValidationReport,
+    failed,
+    finding,
+    interval_findings,
+    limit_findings,
+)
+from sixplus3.control.interval import hermite, hermite_midpoints, resample  # noqa: F401
 from sixplus3.control.offload import OFFLOAD_SHARE, Offload
 from sixplus3.control.trajectory_file import (
     COLUMNS,
@@ -43,6 +57,10 @@ from sixplus3.control.trajectory_file import (
 )
 from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
+from sixplus3.kinematics.checks import (
+    cap_excess,
+    range_excess,
+)
 from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import robot_fk_batch
 from sixplus3.kinematics.spherical import spherical_tilts
@@ -60,175 +78,25 @@ RATE_RANGE = (1000.0, 10000.0)
 #: of holding each (a ROS 2 JointTrajectory controller with positions, velocities and
 #: accelerations): the whole-interval checks prove that interpolated motion, at any rate.
 INTERPOLATED_RATE_RANGE = (10.0, 10000.0)
+
+
+def check_rate(rate: float, rate_range: tuple[float, float] = RATE_RANGE,
+               name: str = "controller rate") -> float:
+    """``rate`` [Hz] as a float if it is a finite number in ``rate_range`` (default
+    :data:`RATE_RANGE`), else an InputError naming the range: the one rate check of the
+    planner's pipeline, the smoothing, the MuJoCo replay and the CLI."""
+    lo, hi = rate_range
+    if not (isinstance(rate, (int, float)) and not isinstance(rate, bool)
+            and math.isfinite(rate) and lo <= rate <= hi):
+        raise InputError(f"{name} must be in [{lo:g}, {hi:g}] Hz, got {rate!r}", value=rate,
+                         valid=f"[{lo:g}, {hi:g}] Hz")
+    return float(rate)
+
 #: Samples checked at once: a longer motion is checked in windows of this many samples
 #: (sharing their end samples), so the checks' memory does not grow with its length.
 WINDOW = 8192
 #: Longest motion accepted [s].
 MAX_DURATION = 3600.0
-#: |t_k - k / rate| allowed [s] (17 significant digits are written).
-TIME_TOL = 1e-9
-#: At rest at both ends: |theta_dot| [rad/s] and |theta_ddot| [rad/s^2] allowed.
-REST_VELOCITY_TOL = 1e-6
-REST_ACCELERATION_TOL = 1e-4
-#: Platform columns against the forward kinematics of the joints [m, rad, rad].
-POSE_TOL = 1e-6
-#: Feed-forward torques against Pinocchio's [N m].
-FEEDFORWARD_TOL = 1e-6
-#: Two forward-kinematics seeds must agree to this [m, rad]: else a branch switch.
-BRANCH_TOL = 1e-7
-#: Rounding slack of the consistency checks (positions [rad], rates [rad/s]).
-ROUND_POS, ROUND_VEL = 1e-10, 1e-9
-
-
-@dataclass(frozen=True)
-class Tolerances:
-    """Consistency tolerances of a motion sampled every ``dt`` [s] whose actuated jerk is
-    bounded by ``jerk`` [rad/s^3] (the robot's limit).  Exact consequences of |jerk| <= J
-    (Taylor's theorem with integral remainder), per joint and interval:
-
-        |theta_{k+1} - theta_k - v_k dt - a_k dt^2/2|        <= J dt^3 / 6   (and backward)
-        |v_{k+1} - v_k - (a_k + a_{k+1}) dt / 2|              <= J dt^2 / 4
-        |a_{k+1} - a_k| / dt                                   <= J            (jerk limit)
-    """
-
-    dt: float
-    jerk: float
-
-    @property
-    def position(self) -> float:
-        return self.jerk * self.dt**3 / 6.0 + ROUND_POS
-
-    @property
-    def velocity(self) -> float:
-        return self.jerk * self.dt**2 / 4.0 + ROUND_VEL
-
-    def as_dict(self) -> dict[str, float]:
-        return {"dt_s": self.dt, "jerk_rad_s3": self.jerk, "position_rad": self.position,
-                "velocity_rad_s": self.velocity, "time_s": TIME_TOL,
-                "rest_velocity_rad_s": REST_VELOCITY_TOL,
-                "rest_acceleration_rad_s2": REST_ACCELERATION_TOL, "pose": POSE_TOL,
-                "feedforward_n_m": FEEDFORWARD_TOL, "branch": BRANCH_TOL}
-
-
-@dataclass(frozen=True)
-class Finding:
-    """One failed check: where it first failed and where it failed worst."""
-
-    check: str  # e.g. "torque", "velocity consistency"
-    kind: str  # "limit" (exit 1) or "defect" (exit 2)
-    unit: str
-    bound: float  # the limit or tolerance
-    count: int  # samples (or intervals) that fail
-    first_t: float
-    first_where: str  # joint or part
-    first_value: float
-    worst_t: float
-    worst_where: str
-    worst_value: float
-    excess: float = 0.0  # how far past the bound the worst is (in the check's own terms)
-
-    def message(self) -> str:
-        u = f" {self.unit}" if self.unit else ""
-        return (f"{self.check}: first at t = {self.first_t:.4f} s on {self.first_where}: "
-                f"{self.first_value:.6g}{u} (bound {self.bound:.6g}{u}); worst at t = "
-                f"{self.worst_t:.4f} s on {self.worst_where}: {self.worst_value:.6g}{u}; "
-                f"{self.count} failing")
-
-
-def _finding(check: str, kind: str, unit: str, bound: float, excess: np.ndarray,
-             value: np.ndarray, times: np.ndarray, names: list[str]) -> Finding | None:
-    """A finding from per-(sample, element) ``excess`` (> 0 fails) and ``value``."""
-    excess = np.atleast_2d(np.asarray(excess, dtype=float).T).T
-    value = np.atleast_2d(np.asarray(value, dtype=float).T).T
-    bad = np.nan_to_num(excess, nan=np.inf) > 0.0
-    if not bad.any():
-        return None
-    rows = np.flatnonzero(bad.any(axis=1))
-    k0 = int(rows[0])
-    j0 = int(np.flatnonzero(bad[k0])[0])
-    flat = np.nan_to_num(excess, nan=np.inf).ravel()
-    kw, jw = divmod(int(np.argmax(flat)), excess.shape[1])
-    return Finding(check, kind, unit, float(bound), int(len(rows)), float(times[k0]),
-                   names[j0], float(value[k0, j0]), float(times[kw]), names[jw],
-                   float(value[kw, jw]), float(flat[kw * excess.shape[1] + jw]))
-
-
-@dataclass
-class ValidationReport:
-    ok: bool
-    samples: int
-    robot_hash: str
-    max_torque_ratio: float  # max |tau| / limit (samples and midpoints)
-    max_velocity_ratio: float
-    max_acceleration_ratio: float
-    max_jerk_ratio: float
-    min_margin_leg_type1: float
-    min_margin_leg_type2: float
-    min_margin_platform: float
-    min_clearance: float  # [m]
-    max_spherical_tilt_deg: float
-    theta_range_ok: bool
-    findings: list[Finding] = field(default_factory=list)
-    tolerances: dict = field(default_factory=dict)
-    checked_points: int = 0  # samples + midpoints evaluated with the full dynamics
-    tau: np.ndarray | None = None  # (M, 9) [N m] on the samples
-    position: np.ndarray | None = None  # (M, 3) platform [m]
-    quaternion: np.ndarray | None = None  # (M, 4) x, y, z, w
-    psi: np.ndarray | None = None  # (M, 3) [rad]
-    feedforward_error: float | None = None  # max |tau_file - tau| [N m]
-    #: max |tau(k+1) - tau(k)| / dt over the samples [N m/s]: reported, not a gate check
-    #: (the planner bounds it between its own points, docs/validation.md)
-    max_torque_rate: float | None = None
-    duration: float | None = None  # [s]
-    #: max |jerk| of the interpolant over the intervals / (C_JERK x the jerk limit): above
-    #: 1 no motion within the jerk limit has these samples (control/interval.py)
-    max_interpolant_jerk_ratio: float = 0.0
-    header: dict | None = field(default=None, repr=False)  # validate_file only
-    #: the samples validated, exactly as read (validate_file): send these
-    data: np.ndarray | None = field(default=None, repr=False)
-    rate_hz: float | None = None  # the rate the samples were judged at [Hz]
-    #: trajectory_file.samples_fingerprint of (t, theta, theta_dot, theta_ddot, rate)
-    fingerprint: str | None = field(default=None, repr=False)
-    limits: dict | None = None  # the limits judged by (the robot's, or tighter)
-    max_tcp_speed: float = 0.0  # [m/s] the tool centre point (samples and midpoints)
-    max_tcp_acceleration: float = 0.0  # [m/s^2] (samples: finite difference)
-
-    @property
-    def defects(self) -> list[Finding]:
-        return [f for f in self.findings if f.kind == "defect"]
-
-    @property
-    def violations(self) -> list[str]:
-        """Messages of every finding (defects first)."""
-        return self.messages()
-
-    def messages(self) -> list[str]:
-        order = sorted(self.findings, key=lambda f: f.kind != "defect")
-        return [f.message() for f in order]
-
-    @property
-    def exit_code(self) -> int:
-        """0 valid; 2 the file is not a consistent motion of this robot; 1 a limit."""
-        if self.defects:
-            return 2
-        return 1 if self.findings else 0
-
-    def summary(self) -> dict:
-        keys = ("ok", "samples", "robot_hash", "max_torque_ratio", "max_velocity_ratio",
-                "max_acceleration_ratio", "max_jerk_ratio", "min_margin_leg_type1",
-                "min_margin_leg_type2", "min_margin_platform", "min_clearance",
-                "max_spherical_tilt_deg", "theta_range_ok", "checked_points", "tolerances",
-                "max_torque_rate", "max_interpolant_jerk_ratio", "rate_hz", "limits",
-                "max_tcp_speed", "max_tcp_acceleration")
-        out = {k: getattr(self, k) for k in keys}
-        out["exit_code"] = self.exit_code
-        out["findings"] = self.messages()
-        return out
-
-
-def _failed(n: int, robot: Robot, findings: list[Finding], tol: dict) -> ValidationReport:
-    return ValidationReport(False, n, robot.hash, math.inf, math.inf, math.inf, math.inf,
-                            0.0, 0.0, 0.0, -math.inf, 180.0, False, findings, tol)
 
 
 def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
@@ -368,29 +236,29 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
     if not (math.isfinite(rate) and lo <= rate <= hi):
         f = Finding("rate", "defect", "Hz", lo, 1, 0.0, "header", float(rate), 0.0, "header",
                     float(rate))
-        return _failed(n, robot, [f], {})
+        return failed(n, robot, [f], {})
     dt = 1.0 / rate
     tol = Tolerances(dt, lim.jerk)
     tol_d = tol.as_dict()
     if n < 2 or not np.all(np.isfinite(np.c_[t, th, v, a])):
         f = Finding("samples", "defect", "", 2, 1, 0.0, "file", float(n), 0.0, "file", n)
-        return _failed(n, robot, [f], tol_d)
+        return failed(n, robot, [f], tol_d)
     grid = (k0 + np.arange(n)) / rate
     if (k0 + (n_total or n) - 1) / rate > MAX_DURATION:
         f = Finding("duration", "defect", "s", MAX_DURATION, 1, float(t[-1]), "file",
                     float(grid[-1]), float(t[-1]), "file", float(grid[-1]))
-        return _failed(n, robot, [f], tol_d)
+        return failed(n, robot, [f], tol_d)
     err = np.abs(t - grid)
-    g = _finding("time grid (t_k = k / rate)", "defect", "s", TIME_TOL,
+    g = finding("time grid (t_k = k / rate)", "defect", "s", TIME_TOL,
                  err - TIME_TOL - 1e-12 * grid, err, t, ["time"])
     if g is not None:
-        return _failed(n, robot, [g], tol_d)
+        return failed(n, robot, [g], tol_d)
     # ------------------------------------------------------------ rest at both ends
     for k, end in [e for e, on in zip(((0, "start"), (n - 1, "end")), rest, strict=True)
                    if on]:
         for arr, bound, what, unit in ((v, REST_VELOCITY_TOL, "velocity", "rad/s"),
                                        (a, REST_ACCELERATION_TOL, "acceleration", "rad/s^2")):
-            f = _finding(f"at rest at the {end} ({what})", "defect", unit, bound,
+            f = finding(f"at rest at the {end} ({what})", "defect", unit, bound,
                          np.abs(arr[k:k + 1]) - bound, arr[k:k + 1], t[k:k + 1], JOINTS)
             if f:
                 findings.append(f)
@@ -404,7 +272,7 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
     for check, e, bound, unit in (
             ("position/velocity consistency", pos_err, tol.position, "rad"),
             ("velocity/acceleration consistency", vel_err, tol.velocity, "rad/s")):
-        f = _finding(check, "defect", unit, bound, e - bound, e, t_int, JOINTS)
+        f = finding(check, "defect", unit, bound, e - bound, e, t_int, JOINTS)
         if f:
             findings.append(f)
     jerk = np.abs(d_a) / dt
@@ -415,11 +283,11 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
         x_guess = np.asarray(x_guess, dtype=float)
         fk = robot_fk_batch(th, x_guess, robot)
         if not fk.converged.all():
-            f = _finding("forward kinematics (no pose reproduces the joints)", "defect", "rad",
+            f = finding("forward kinematics (no pose reproduces the joints)", "defect", "rad",
                          1e-10, fk.residual - 1e-10, fk.residual, t, ["platform"])
             if f:
                 findings.append(f)
-            return _failed(n, robot, findings, tol_d)
+            return failed(n, robot, findings, tol_d)
         cfg = fk.cfg
         offload.q[:n], offload.v[:n], offload.a[:n] = cfg.q, v, a
         offload.submit(0, n)  # the samples' dynamics: in the worker if there is one
@@ -432,7 +300,7 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
             # seed: halfway between the neighbouring samples' poses (small steps)
             fkm = robot_fk_batch(pm, 0.5 * (fk.x[:-1] + fk.x[1:]), robot)
             if not fkm.converged.all():
-                mid_finding = _finding("forward kinematics between samples", "limit", "rad",
+                mid_finding = finding("forward kinematics between samples", "limit", "rad",
                                        1e-10, fkm.residual - 1e-10, fkm.residual, tm,
                                        ["platform"])
                 fkm = None
@@ -453,7 +321,7 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
         fk2 = robot_fk_batch(th, np.r_[fk.x[:1], fk.x[:-1]], robot, margins=False)
         branch = np.abs(fk2.x - fk.x).max(axis=1)
         branch = np.where(fk2.converged, branch, np.inf)
-        f = _finding("forward-kinematics branch continuity", "defect", "", BRANCH_TOL,
+        f = finding("forward-kinematics branch continuity", "defect", "", BRANCH_TOL,
                      branch - BRANCH_TOL, branch, t, ["platform"])
         if f:
             findings.append(f)
@@ -465,7 +333,7 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
             errs = np.c_[np.abs(platform[:, 0:3] - cfg.position).max(axis=1), ang,
                          np.abs(platform[:, 7:10] - cfg.psi).max(axis=1),
                          np.abs(np.linalg.norm(platform[:, 3:7], axis=1) - 1.0)]
-            f = _finding("platform columns vs forward kinematics", "defect", "m or rad",
+            f = finding("platform columns vs forward kinematics", "defect", "m or rad",
                          POSE_TOL, errs - POSE_TOL, errs, t,
                          ["position", "orientation", "psi", "quaternion norm"])
             if f:
@@ -484,21 +352,21 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
         tau = tau_all[:n]
         checked = n_all
         # ------------------------------------------------------------ whole intervals
-        between = _interval_findings(lim, dt, th, v, a, t_int, tau_all, n,
+        between = interval_findings(lim, dt, th, v, a, t_int, tau_all, n,
                                      offload.inertia[:n_all] if fkm is not None else None,
                                      extremes)
         findings += between.findings
         if tau_file is not None:
             ff = np.abs(np.asarray(tau_file, dtype=float) - tau)
             ff_err = float(np.nan_to_num(ff, nan=np.inf).max())
-            f = _finding("feed-forward torque vs Pinocchio", "defect", "N m", FEEDFORWARD_TOL,
+            f = finding("feed-forward torque vs Pinocchio", "defect", "N m", FEEDFORWARD_TOL,
                          ff - FEEDFORWARD_TOL, ff, t, JOINTS)
             if f:
                 findings.append(f)
         else:
             ff_err = None
         # ------------------------------------------------------------ limits everywhere
-        findings += _limit_findings(lim, cfg_points, tau_all, v_all, a_all, t_all, rcond_all,
+        findings += limit_findings(lim, cfg_points, tau_all, v_all, a_all, t_all, rcond_all,
                                     jerk, t_int, sph, clear)
         # the tool centre point: its speed at every point, its acceleration at the
         # samples (the finite difference of the speed's vector, kinematics.tcp.tcp_rates)
@@ -510,14 +378,13 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
         for name, unit, cap, val, tt in (("tcp speed", "m/s", lim.tcp_speed, tcp_v, t_all),
                                           ("tcp acceleration (samples)", "m/s^2",
                                            lim.tcp_acceleration, tcp_a, t)):
-            f = _finding(name, "limit", unit, cap, val - cap * (1 + 1e-9), val, tt, ["tcp"])
+            f = finding(name, "limit", unit, cap, cap_excess(val, cap), val, tt, ["tcp"])
             if f:
                 findings.append(f)
         tilt = float(sph.max())
         min_clear = float(clear.min())
         th_all = np.vstack([c.theta for c in cfg_points])
-        theta_ok = bool(np.all((th_all >= lim.theta_min - 1e-9)
-                               & (th_all <= lim.theta_max + 1e-9)))
+        theta_ok = bool(np.all(range_excess(th_all, lim) <= 0.0))
         m1 = min(float(c.margins.leg_type1.min()) for c in cfg_points)
         m2 = min(float(c.margins.leg_type2.min()) for c in cfg_points)
         mp = min(float(c.margins.platform.min()) for c in cfg_points)
@@ -542,83 +409,6 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
         return rep
     finally:
         offload.close()
-
-
-@dataclass
-class _Between:
-    """What the whole intervals gave: findings and the largest values [SI]."""
-
-    findings: list[Finding]
-    velocity: float
-    acceleration: float
-    jerk: float
-    torque: float
-
-
-def _interval_findings(lim: Limits, dt: float, th: np.ndarray, v: np.ndarray, a: np.ndarray,
-                       t_int: np.ndarray, tau_all: np.ndarray, n: int,
-                       inertia: np.ndarray | None,
-                       ext: dict[str, tuple[np.ndarray, np.ndarray]]) -> _Between:
-    """The interpolant over every whole interval (control/interval.py): its jerk against
-    what a motion within the jerk limit allows (a defect above), its velocity and
-    acceleration exactly (``ext``: :func:`interval.rate_extremes`), and the torque bound
-    (with the midpoints' dynamics)."""
-    out: list[Finding | None] = []
-    jerk = ext["jerk"][0]
-    cap = interval.C_JERK * lim.jerk
-    out.append(_finding("interpolant jerk (no motion within the jerk limit has these "
-                        "samples)", "defect", "rad/s^3", cap, jerk - cap * (1 + 1e-9), jerk,
-                        t_int, JOINTS))
-    vel, acc = ext["velocity"][0], ext["acceleration"][0]
-    out.append(_finding("velocity (between samples)", "limit", "rad/s", lim.velocity,
-                        vel - lim.velocity * (1 + 1e-9), vel, t_int, JOINTS))
-    out.append(_finding("acceleration (between samples)", "limit", "rad/s^2",
-                        lim.acceleration, acc - lim.acceleration * (1 + 1e-9), acc, t_int,
-                        JOINTS))
-    torque = 0.0
-    if inertia is not None and len(tau_all) > n:
-        bound, _ = interval.torque_bound(dt, th, v, a, tau_all[:n], inertia[:n],
-                                         tau_all[n:], inertia[n:])
-        torque = float(bound.max())
-        out.append(_finding("torque (between samples, bound)", "limit", "N m", lim.torque,
-                            bound - lim.torque * (1 + 1e-9), bound, t_int, JOINTS))
-    return _Between([f for f in out if f is not None], float(vel.max()), float(acc.max()),
-                    float(jerk.max()), torque)
-
-
-def _limit_findings(lim: Limits, cfgs: list, tau: np.ndarray, v: np.ndarray, a: np.ndarray,
-                    t: np.ndarray, rcond: np.ndarray, jerk: np.ndarray, t_int: np.ndarray,
-                    sph: np.ndarray, clear: np.ndarray) -> list[Finding]:
-    """Every limit on samples and midpoints (rows of the stacked arrays, in time order
-    of each block), one finding per limit."""
-    out: list[Finding | None] = []
-    atau = np.nan_to_num(np.abs(tau), nan=np.inf)
-    out.append(_finding("torque", "limit", "N m", lim.torque, atau - lim.torque * (1 + 1e-9),
-                        atau, t, JOINTS))
-    out.append(_finding("velocity", "limit", "rad/s", lim.velocity,
-                        np.abs(v) - lim.velocity * (1 + 1e-9), np.abs(v), t, JOINTS))
-    out.append(_finding("acceleration", "limit", "rad/s^2", lim.acceleration,
-                        np.abs(a) - lim.acceleration * (1 + 1e-9), np.abs(a), t, JOINTS))
-    out.append(_finding("jerk (between samples)", "limit", "rad/s^3", lim.jerk,
-                        jerk - lim.jerk * (1 + 1e-9), jerk, t_int, JOINTS))
-    out.append(_finding("parallel singularity (closure Jacobian)", "limit", "rcond", 1e-10,
-                        1e-10 - rcond, rcond, t, ["closures"]))
-    th = np.vstack([c.theta for c in cfgs])
-    below, above = lim.theta_min - th, th - lim.theta_max
-    out.append(_finding("actuated range", "limit", "rad", lim.theta_max,
-                        np.maximum(below, above) - 1e-9, th, t, JOINTS))
-    sph_names = [f"leg{i}_{s}" for i in range(3) for s in ("E", "F", "P")]
-    out.append(_finding("spherical joint tilt", "limit", "rad", lim.spherical,
-                        sph - lim.spherical, sph, t, sph_names))
-    m = np.vstack([np.c_[c.margins.leg_type1, c.margins.leg_type2, c.margins.platform]
-                   for c in cfgs])
-    m_names = ([f"leg{i} type I" for i in range(3)] + [f"leg{i} type II" for i in range(3)]
-               + ["platform"])
-    out.append(_finding("singularity margin", "limit", "", lim.margin, lim.margin - m, m, t,
-                        m_names))
-    out.append(_finding("interference (clearance)", "limit", "m", 0.0, -clear, clear, t,
-                        ["collision model"]))
-    return [f for f in out if f is not None]
 
 
 def validate_joint_trajectory(theta: np.ndarray, theta_dot: np.ndarray,
@@ -662,10 +452,11 @@ def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory") -> Valida
     check_robot(header, robot, name)
     rate = float(header["rate_hz"])  # a finite number (parse)
     limits = _header_limits(header, robot, name)
-    x_guess = np.c_[data[:, 37:40], rotvec_of_quaternions(data[:, 40:44]), data[:, 44:47]]
+    x_guess = np.c_[columns(data, "position"),
+                    rot.rotvec_from_quat(columns(data, "quaternion")), columns(data, "psi")]
     rep = validate_motion(data[:, 0], columns(data, "pos"), columns(data, "vel"),
                           columns(data, "acc"), robot, rate, x_guess, limits=limits,
-                          platform=data[:, 37:47], tau_file=columns(data, "tau"))
+                          platform=columns(data, "platform"), tau_file=columns(data, "tau"))
     rep.header, rep.data = header, data
     return rep
 
@@ -689,44 +480,6 @@ def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
     out = write_trajectory(path, t, theta, theta_dot, theta_ddot, rep, robot, lim,
                            meta or {})
     return out, rep
-
-
-def resample(rep: ValidationReport, rate: float, speed: float = 1.0
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The validated motion of ``rep`` (a report of :func:`validate_file`) at ``rate``
-    [Hz], replayed at ``speed`` (time x 1/speed, rates x speed, accelerations x speed^2),
-    on the quintic Hermite interpolant of its samples; the resting end is held until the
-    next point of the new grid.  Returns (t, theta, theta_dot, theta_ddot, x_seed), the
-    last the validated platform poses at the nearest samples (to seed the forward
-    kinematics).  The caller validates the result again."""
-    data, header = rep.data, rep.header
-    assert data is not None and header is not None and rep.position is not None
-    assert rep.quaternion is not None and rep.psi is not None
-    r0 = float(header["rate_hz"])
-    n = len(data)
-    T = float(data[-1, 0])
-    m = math.ceil(T / speed * rate - 1e-9)
-    t = np.arange(m + 1) / rate
-    u = np.minimum(t * speed, T) * r0  # in sample periods of the file
-    k = np.minimum(np.floor(u + 1e-9).astype(int), n - 2)
-    frac = np.clip(u - k, 0.0, 1.0)
-    th, v, a = hermite(1.0 / r0, columns(data, "pos"), columns(data, "vel"),
-                       columns(data, "acc"), k, frac)
-    v, a = v * speed, a * speed**2
-    v[[0, -1]] = 0.0  # the file starts and ends at rest (checked)
-    a[[0, -1]] = 0.0
-    near = np.minimum(np.rint(u).astype(int), n - 1)
-    x = np.c_[rep.position[near], rotvec_of_quaternions(rep.quaternion[near]),
-              rep.psi[near]]
-    return t, th, v, a, x
-
-
-def rotvec_of_quaternions(quat: np.ndarray) -> np.ndarray:
-    """Rotation vectors of (possibly non-unit) quaternions; garbage in, a guess out."""
-    q = np.array(quat, dtype=float)
-    norm = np.linalg.norm(q, axis=1, keepdims=True)
-    q = np.where(norm > 1e-9, q / np.maximum(norm, 1e-300), [0.0, 0.0, 0.0, 1.0])
-    return rot.rotvec_from_quat(q)
 
 
 def validate_file(path: str | Path, robot: Robot) -> ValidationReport:

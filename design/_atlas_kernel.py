@@ -68,8 +68,10 @@ def pack(robot) -> tuple[np.ndarray, ...]:
         legc[i, 9:12] = g.leg_origin(i)
         legc[i, 12:15] = g.crank_axis_position(i)
         legc[i, 15] = g.crank_axis_angle(i)
+    from sixplus3.kinematics.checks import actuated_bounds
+
     par = np.array([g.platform_crank, math.hypot(g.platform_radius, g.platform_crank),
-                    lim.theta_min, lim.theta_max, math.cos(lim.spherical), lim.margin,
+                    *actuated_bounds(lim), math.cos(lim.spherical), lim.margin,
                     robot.collision.base_top, robot.collision.plate_offset])
     assert collision.N_BODIES == _NBODY
     return (legc, par, g.leg.packed(), robot.mode.array(),

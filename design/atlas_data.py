@@ -37,10 +37,21 @@ THRESHOLDS_DEG = (30.0, 45.0, 60.0, 90.0)
 
 
 # --------------------------------------------------------------------- the grid
-def position_grid(robot: Robot, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def position_grid(robot: Robot, step: float,
+                  z_range: tuple[float, float] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(xs, ys, zs) [m] of a grid covering the robot's reachable region: the box around
     every position where some leg-wise crank choice reaches the level platform, from
-    the leg reach on a coarse grid, plus one step of margin."""
+    the leg reach on a coarse grid, plus one step of margin.  ``z_range`` (zmin, zmax)
+    [m] keeps the heights within it (an InputError if it is not 0 < zmin <= zmax <= 3
+    or holds no height of the grid)."""
+    if z_range is not None:
+        ok = (len(z_range) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v)
+                                         for v in z_range)
+              and 0 < z_range[0] <= z_range[1] <= 3)
+        if not ok:
+            raise InputError(f"z range must be 0 < ZMIN <= ZMAX <= 3 m, got {z_range!r}",
+                             value=z_range, valid="0 < ZMIN <= ZMAX <= 3 m")
     g = robot.geometry
     # no leg reaches further than base radius + |D - A| + |P - D| from the centre
     extent = min(2.0, g.base_radius + g.leg.l1 + g.leg.dp + g.platform_radius
@@ -70,7 +81,15 @@ def position_grid(robot: Robot, step: float) -> tuple[np.ndarray, np.ndarray, np
         # symmetric about 0 in x and y so the home position's column is on the grid
         return np.round(np.arange(math.floor(a / step), math.ceil(b / step) + 1) * step, 9)
 
-    return ax(lo[0], hi[0]), ax(lo[1], hi[1]), ax(lo[2], hi[2])
+    xs, ys, zs = ax(lo[0], hi[0]), ax(lo[1], hi[1]), ax(lo[2], hi[2])
+    if z_range is not None:
+        zmin, zmax = z_range
+        zs = zs[(zs >= zmin - 1e-9) & (zs <= zmax + 1e-9)]
+        if not len(zs):
+            raise InputError(f"z range [{zmin}, {zmax}] m holds no grid height (the grid "
+                             f"has {ax(lo[2], hi[2])[[0, -1]].round(3).tolist()} m)",
+                             value=z_range, valid="a range over the grid's heights")
+    return xs, ys, zs
 
 
 def build_dataset(robot: Robot, st: AtlasSettings, xs, ys, zs, cat: dict, shape: tuple,

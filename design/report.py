@@ -1,8 +1,10 @@
-"""Text report of a robot's leg design: sample configurations and the usable area."""
+"""Reports of a robot: its whole-robot check (:func:`robot_check`, ``sixplus3 robot check``)
+and its leg design (:func:`leg_report`, ``sixplus3 report``)."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -65,3 +67,89 @@ def leg_report(robot: Robot, ws_step: float = 0.005) -> str:
         "  (the paper's design objective)",
     ]
     return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class RobotCheck:
+    """The whole-robot check: ``doc`` (the JSON document of ``sixplus3 robot check
+    --json``), ``lines`` (its text report), ``inside`` (home is inside the robot's
+    constant-orientation workspace) and ``cow_line`` (that verdict in one line)."""
+
+    doc: dict
+    lines: tuple[str, ...]
+    inside: bool
+    cow_line: str
+
+
+def robot_check(robot: Robot) -> RobotCheck:
+    """Build the robot's URDF + closures model and check its home pose: the closures'
+    rank and mobility, the residual, margins, tilts, gravity torques, mass, layout and
+    clearance at home, and whether home lies in the robot's COW (2 cm grid)."""
+    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+    from sixplus3.kinematics import collision
+    from sixplus3.kinematics.robot import home
+    from sixplus3.kinematics.spherical import spherical_tilts
+    from sixplus3.robot_description.urdf import check as urdf_stale
+
+    robot = require_robot(robot)
+    dyn = ClosedLoopDynamics(robot)
+    clm = dyn.clm
+    h = home(robot)
+    where = home_in_cow(robot, step=0.02)
+    g = robot.geometry
+    near = collision.closest(h)
+    layout = {"axis_turn_deg": math.degrees(g.axis_turn),
+              "platform_phase_deg": math.degrees(g.platform_phase),
+              "base_radius_m": g.base_radius, "platform_radius_m": g.platform_radius,
+              "platform_crank_m": g.platform_crank,
+              "home_clearance_m": near[2], "home_closest_pair": list(near[:2]),
+              "collision_model_m": robot.collision.as_dict()}
+    q = h.q[0]
+    residual = float(np.abs(clm.residual(q)).max())
+    rank = int(np.linalg.matrix_rank(clm.constraint_jacobian(q), tol=1e-9))
+    tau = dyn.gravity_torques(q)
+    out = {
+        "robot": robot.summary(), "robot_hash": robot.hash, "assembly_mode": robot.mode.name,
+        "committed_urdf_fresh": not urdf_stale(),
+        "nq": clm.model.nq, "nv": clm.model.nv, "actuated": len(clm.actuated_names),
+        "closures": len(clm.pairs), "constraint_rows": clm.n_constraints,
+        "constraint_rank_home": rank, "mobility": clm.model.nv - rank,
+        "home_position_m": list(robot.home_position),
+        "home_psi_deg": np.degrees(robot.home_psi), "home_residual_m": residual,
+        "margins": h.margins.as_dict(),
+        "max_spherical_tilt_deg": float(np.degrees(spherical_tilts(h).max())),
+        "tau_gravity_home": tau, "total_mass_kg": clm.total_mass(),
+        "design_m": {"l2": robot.leg.l2, "l4": robot.leg.l4, "ex": robot.leg.ex,
+                     "ey": robot.leg.ey},
+        "layout": layout,
+        "home_in_cow": {"inside": where.inside, "failing": where.failing,
+                        "depth_m": where.depth, "deepest_m": list(where.deepest),
+                        "z_range_m": list(where.z_range), "volume_l": where.volume_l,
+                        "grid_m": where.step},
+    }
+    m = out["margins"]
+    lines = (
+        f"robot     {out['robot']}",
+        f"gravity   {list(robot.gravity)} m/s^2; committed URDF of the default robot fresh: "
+        f"{out['committed_urdf_fresh']}",
+        f"tree DoF  nq = {out['nq']}, nv = {out['nv']}; {out['actuated']} actuated joints",
+        f"closures  {out['closures']} spherical, {out['constraint_rows']} rows, rank {rank} "
+        f"at home -> mobility {out['mobility']}",
+        f"design    l2 = l3 = {robot.leg.l2:.3f}, l4 = l5 = {robot.leg.l4:.3f}, ex = fx = "
+        f"{robot.leg.ex:.3f}, ey = -fy = {robot.leg.ey:.3f} m; assembly mode "
+        f"{robot.mode.name}",
+        f"layout    actuated axes turned {layout['axis_turn_deg']:.1f} deg from the tangent "
+        f"(|a_j - a_i| = {g.base_radius * math.sqrt(3):.3f} m), platform phase "
+        f"{layout['platform_phase_deg']:.1f} deg; at home the closest bodies are "
+        f"{near[0]} and {near[1]}, {near[2] * 1e3:.1f} mm apart",
+        f"home      platform at {list(robot.home_position)} m, psi = "
+        f"{np.round(np.degrees(robot.home_psi), 2).tolist()} deg; closure residual "
+        f"{residual:.2e} m",
+        f"COW       {where.line()} (grid {where.step * 100:g} cm)",
+        "margins   leg type I " + " ".join(f"{v:.3f}" for v in m["leg_type1"])
+        + " | leg type II " + " ".join(f"{v:.3f}" for v in m["leg_type2"])
+        + f" | platform {m['platform']:.3f}",
+        "tau_g     " + " ".join(f"{v:+.3f}" for v in tau) + "  N m (home)",
+        f"mass      {out['total_mass_kg']:.3f} kg",
+    )
+    return RobotCheck(out, lines, where.inside, where.line())

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError, as_float_array
+from sixplus3.kinematics import _leg_fk_kernel as fk_kern
 from sixplus3.kinematics import _leg_kernel as kern
 from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
@@ -295,7 +296,7 @@ def leg_fk(
         seeds = np.concatenate([hint[:, None, :], np.broadcast_to(base, (n, *base.shape))],
                                axis=1)
     mg, ag = _mass_terms(load)
-    rows = kern.fk_batch(th, geometry.packed(), mode.array(), np.ascontiguousarray(seeds),
+    rows = fk_kern.fk_batch(th, geometry.packed(), mode.array(), np.ascontiguousarray(seeds),
                          mg, ag)
     return LegState._from_rows(rows)
 

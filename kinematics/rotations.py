@@ -86,9 +86,15 @@ def matrix_from_quat(q: np.ndarray) -> np.ndarray:
 
 
 def rotvec_from_quat(q: np.ndarray) -> np.ndarray:
-    """(n, 3) rotation vectors, |r| <= pi, of quaternions (n, 4) (x, y, z, w)."""
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    """(n, 3) rotation vectors, |r| <= pi, of quaternions (n, 4) (x, y, z, w), the
+    package's one rotation-vector function.  Quaternions need not be unit: each is
+    normalised, and one of norm <= 1e-9 or with a non-finite entry gives the zero vector
+    (such a vector only seeds a Newton solve, e.g. from an untrusted file's columns; a
+    caller that needs a valid rotation checks the quaternion itself)."""
+    q = np.array(np.atleast_2d(q), dtype=float)
+    norm = np.linalg.norm(q, axis=1, keepdims=True)
+    good = np.isfinite(norm) & (norm > 1e-9)
+    q = np.where(good, q / np.where(good, norm, 1.0), [0.0, 0.0, 0.0, 1.0])
     q = np.where(q[:, 3:4] < 0, -q, q)
     v = q[:, :3]
     s = np.linalg.norm(v, axis=1)

@@ -18,10 +18,11 @@ from scipy.spatial.transform import Rotation, Slerp
 from sixplus3.dynamics.symbolic import SymbolicRobot, symbolic_robot
 from sixplus3.errors import InputError, TaskError
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
+from sixplus3.kinematics.rotations import rotvec_from_matrix
 from sixplus3.planner import options as planner_options
 from sixplus3.planner.options import PlannerOptions
 from sixplus3.planner.solution import Solution, actuated_profile, stretch_factors
-from sixplus3.planner.task import Task, rotvec
+from sixplus3.planner.task import Task
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -153,7 +154,7 @@ class Problem:
         rv_prev = None
         rows = []
         for k, wp in enumerate(self.task.waypoints):
-            rv = rotvec(wp.rotation)
+            rv = rotvec_from_matrix(wp.rotation[None])[0]
             if rv_prev is not None and np.linalg.norm(rv - rv_prev) > math.pi:
                 ang = np.linalg.norm(rv)
                 rv = rv - 2 * math.pi * rv / ang

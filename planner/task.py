@@ -362,10 +362,6 @@ def load_task(path: str | Path) -> Task:
     return task_from_dict(doc, name=Path(path).stem)
 
 
-def rotvec(R: np.ndarray) -> np.ndarray:
-    return Rotation.from_matrix(R).as_rotvec()
-
-
 def move_to_start(task: Task, theta: np.ndarray, robot: Robot) -> Task:
     """A task from the robot's current actuated angles ``theta`` [rad] to ``task``'s start
     state (its first waypoint with its crank angles, at rest), for ``robot``."""

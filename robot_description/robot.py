@@ -395,12 +395,6 @@ class Robot:
 
         return cached(("urdf", f"{self.hash}:{self.name}"), lambda: build_urdf(self))
 
-    def closures_yaml(self) -> str:
-        """The loop closures in the Extended URDF schema (Gepetto)."""
-        from sixplus3.robot_description.urdf import build_closures_yaml
-
-        return build_closures_yaml()
-
     def closed_loop_model(self) -> ClosedLoopModel:
         """A new Pinocchio closed-loop model of this robot, owned by the caller.
 

@@ -141,7 +141,7 @@ def test_design_cli(tmp_path) -> None:
             "seconds"} <= set(out)
     bad = runner.invoke(main, ["design", "optimize", "--reading", "nope"])
     assert bad.exit_code == 2
-    from sixplus3.cli import _reading_names
+    from sixplus3.cli.design import _reading_names
 
     assert _reading_names() == list(READINGS)
 

@@ -223,7 +223,7 @@ def test_export_urdf_writes_its_closures_and_a_ros2_control_block(tmp_path) -> N
                                     str(out)])
     assert res.exit_code == 0, res.output
     closures = tmp_path / "sixplus3_closures.yaml"
-    assert closures.read_text() == robot.closures_yaml()
+    assert closures.read_text() == gen.build_closures_yaml()
     clm = load_model_from(out, closures)
     ref = robot.closed_loop_model()
     assert clm.model.nq == ref.model.nq and clm.n_constraints == ref.n_constraints == 27

@@ -1,0 +1,192 @@
+"""The ``sixplus3`` command line: the root group, its error handling and the helpers
+every command group shares (the command groups are the other modules of this package).
+
+Thin wiring only: every command imports the library (numpy, numba, pinocchio, ...) inside
+its body, so that ``sixplus3 --help`` answers without loading them.  Every command works
+on one robot: ``Robot.default()``, a named robot (``--robot paper``, see
+``Robot.named``), or the one in ``--robot FILE`` (YAML/JSON, see
+``sixplus3 robot show --json``).
+
+Exit codes: 0 ok; 1 a limit is violated (``validate``); 2 bad input, an unreachable pose,
+an infeasible task, or a missing, corrupted, forged or mismatched file: one line on
+stderr naming what was wrong and the valid range; 3 an internal error (a bug: one line,
+the traceback only with ``SIXPLUS3_DEBUG=1``).  The root error
+:class:`~sixplus3.errors.Sixplus3Error` is caught once, here.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from typing import TYPE_CHECKING, Any
+
+import click
+
+if TYPE_CHECKING:
+    from sixplus3.robot_description.robot import Robot
+
+# Negative numbers are positional values here (``sixplus3 leg -0.1 0.4 0.2``): let click
+# pass tokens such as ``-0.1`` through instead of treating them as unknown options.
+NUMERIC_ARGS = {"ignore_unknown_options": True, "help_option_names": ["-h", "--help"]}
+
+
+def fail(message: str) -> None:
+    """One-line error on stderr, exit code 2."""
+    click.echo(f"error: {message}", err=True)
+    sys.exit(2)
+
+
+def json_default(obj: Any) -> Any:
+    import numpy as np
+
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    raise TypeError(type(obj))
+
+
+def finite_json(value: float) -> float | None:
+    """JSON has no inf/NaN: a singular tau_ext is reported as null."""
+    return value if math.isfinite(value) else None
+
+
+class _Group(click.Group):
+    """Catches the root error once: one line, exit 2 (and an internal error: exit 3)."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        from sixplus3.errors import Sixplus3Error, ValidationFailed
+
+        try:
+            return super().invoke(ctx)
+        except ValidationFailed as exc:
+            click.echo(f"refused: {' '.join(str(exc).split())[:2000]}", err=True)
+            sys.exit(exc.exit_code)
+        except Sixplus3Error as exc:
+            fail(" ".join(str(exc).split())[:2000])
+        except OSError as exc:  # an output path that cannot be written, a full disk
+            fail(f"{exc.strerror or exc}: {exc.filename or ''}"[:2000])
+        except (click.exceptions.Exit, click.ClickException, click.Abort, SystemExit):
+            raise
+        except KeyboardInterrupt:
+            click.echo("interrupted", err=True)
+            sys.exit(130)
+        except Exception as exc:  # noqa: BLE001 - the CLI never shows a traceback
+            if os.environ.get("SIXPLUS3_DEBUG"):
+                raise
+            click.echo(f"internal error (a bug, please report; SIXPLUS3_DEBUG=1 shows the "
+                       f"traceback): {type(exc).__name__}: {str(exc)[:300]}", err=True)
+            sys.exit(3)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="sixplus3")
+@click.option("--robot", "robot_file", default=None, metavar="NAME|FILE",
+              help="A named robot (default, paper, paper-mirror: 'sixplus3 robot list') or a "
+              "file of robot parameters (YAML/JSON, keys as in 'sixplus3 robot show --json'; "
+              "missing keys keep the defaults). Default: the built robot ('default').")
+@click.pass_context
+def main(ctx: click.Context, robot_file: str | None) -> None:
+    """sixplus3: kinematics, dynamics, design and planning for the (6+3)-DoF robot."""
+    from sixplus3 import progress
+
+    progress.set_level(progress.NORMAL)  # before a subcommand's --quiet / --verbose
+    ctx.obj = {"robot_file": robot_file}
+
+
+def bars() -> bool:
+    """Progress (bars, stages) unless ``--quiet``."""
+    from sixplus3 import progress
+
+    return progress.level() != progress.QUIET
+
+
+def _set_level(ctx: click.Context, param: click.Parameter, value: bool) -> bool:
+    from sixplus3 import progress
+
+    if not value:
+        return value
+    want = progress.QUIET if param.name == "quiet" else progress.VERBOSE
+    seen = ctx.meta.setdefault("sixplus3_level", want)
+    if seen != want:
+        raise click.UsageError("--quiet and --verbose exclude each other")
+    progress.set_level(want)
+    return value
+
+
+def verbosity(f):
+    """``--quiet`` / ``--verbose`` (:mod:`sixplus3.progress`) on a long-running command."""
+    f = click.option("-v", "--verbose", is_flag=True, expose_value=False, is_eager=True,
+                     callback=_set_level,
+                     help="Also one line per IPOPT iteration (duration, violation).")(f)
+    return click.option("-q", "--quiet", is_flag=True, expose_value=False, is_eager=True,
+                        callback=_set_level,
+                        help="No progress: no compile notice, stages or bars; only results "
+                             "and errors.")(f)
+
+
+def emit(text: str, out_file: str | None) -> None:
+    """``text`` to stdout, or atomically to ``out_file``."""
+    if out_file is None:
+        click.echo(text, nl=False)
+        return
+    from sixplus3.fileio import atomic_write
+
+    atomic_write(out_file, text.encode())
+    click.echo(f"wrote {out_file}", err=True)
+
+
+def current_robot() -> Robot:
+    """The robot of this invocation (``--robot FILE`` or the default), loaded once."""
+    ctx = click.get_current_context()
+    obj = ctx.find_root().obj or {}
+    if "robot" not in obj:
+        from sixplus3.robot_description.robot import NAMED_ROBOTS, Robot, load_robot
+
+        path = obj.get("robot_file")
+        if not path:
+            obj["robot"] = Robot.default()
+        elif path.strip().lower() in NAMED_ROBOTS and not os.path.exists(path):
+            obj["robot"] = Robot.named(path)
+        elif not os.path.exists(path):
+            fail(f"--robot {path!r} is neither a named robot (one of "
+                 f"{', '.join(NAMED_ROBOTS)}) nor an existing robot file")
+        else:
+            from sixplus3.kinematics.collision import check_layout
+
+            obj["robot"] = load_robot(path)
+            check_layout(obj["robot"])  # a robot file must describe a buildable robot
+    return obj["robot"]
+
+
+#: Set by a command whose process may end without the interpreter's teardown.
+_FAST_EXIT = False
+
+
+def request_fast_exit() -> None:
+    """Let :func:`run` end this process with ``os._exit`` after the command (a command
+    that writes nothing and leaves no child or thread behind: ``validate``)."""
+    global _FAST_EXIT
+    _FAST_EXIT = True
+
+
+def run() -> None:
+    """The ``sixplus3`` program (console entry point and ``python -m sixplus3.cli``).
+
+    ``main`` with one difference: after a command that sets ``_FAST_EXIT`` (``validate``:
+    it writes nothing and leaves no child or thread behind), the output is flushed and the
+    process ends with ``os._exit``.  The interpreter's teardown of numba and LLVM would
+    otherwise add ~0.08 s to every validation (measured in BENCHMARKS.md, "The gate").
+    Tests that drive ``main`` in-process (click's CliRunner) never get here.
+    """
+    try:
+        main()
+    except SystemExit as exc:
+        if not _FAST_EXIT:
+            raise
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+

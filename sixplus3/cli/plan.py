@@ -1,0 +1,99 @@
+"""The ``sixplus3`` commands of plan, move-to-start and demo."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import click
+
+from sixplus3.cli.app import NUMERIC_ARGS, bars, current_robot, fail, main, verbosity
+
+if TYPE_CHECKING:
+    pass
+
+
+def _check_rate(rate: float) -> None:
+    from sixplus3.control.validation import check_rate
+
+    check_rate(rate, name="--rate")
+
+
+def _load_task_or_example(task_file: str):
+    """A task file, or the name of an installed example (when no such file exists)."""
+    from pathlib import Path
+
+    from sixplus3 import examples
+    from sixplus3.planner.task import load_task
+
+    if not Path(task_file).exists() and task_file in examples.names():
+        return examples.load(task_file)
+    return load_task(task_file)
+
+
+def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None:
+    from sixplus3.control.pipeline import run_plan
+    from sixplus3.planner.ocp import PlannerOptions
+    from sixplus3.progress import ConsoleProgress
+
+    # quiet: no reporter at all, so the planner computes nothing for one
+    reporter = ConsoleProgress() if bars() else None
+    try:
+        res = run_plan(task, out_dir, current_robot(), rate=rate, html=html,
+                       options=PlannerOptions(lock_redundancy=locked), progress=reporter)
+    finally:
+        if reporter is not None:
+            reporter.close()
+    click.echo(f"done in {res.seconds['total']:.1f} s: {res.csv}")
+
+
+@main.command()
+@click.argument("task_file", type=click.Path(dir_okay=False))
+@click.option("-o", "--out", "out_dir", default="out", show_default=True,
+              type=click.Path(file_okay=False), help="Output directory.")
+@click.option("--rate", default=1000.0, show_default=True, help="Controller rate [Hz].")
+@click.option("--no-html", is_flag=True, help="Skip the MeshCat page.")
+@click.option("--locked", is_flag=True, help="Lock the crank angles at their home angles.")
+@verbosity
+def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool) -> None:
+    """Plan TASK_FILE (YAML, or the name of an installed example such as tilt60_x):
+    plan -> smooth -> validate -> the trajectory file, its MeshCat page and plots."""
+
+    _check_rate(rate)
+    task = _load_task_or_example(task_file)
+    task.limits_for(current_robot())  # a looser limit than the robot's: refused before solving
+    _run_plan(task, out_dir, rate, not no_html, locked)
+
+
+@main.command("move-to-start", context_settings=NUMERIC_ARGS)
+@click.argument("task_file", type=click.Path(dir_okay=False))
+@click.option("--theta", nargs=9, type=float, required=True, metavar="A0 B0 C0 ... C2",
+              help="The robot's current actuated angles [deg], legs 0..2 each A, B, C.")
+@click.option("-o", "--out", "out_dir", default="out", show_default=True,
+              help="Output directory.")
+@click.option("--rate", default=1000.0, show_default=True, help="Controller rate [Hz].")
+@verbosity
+def move_to_start_cmd(task_file: str, theta: tuple[float, ...], out_dir: str,
+                      rate: float) -> None:
+    """Plan from the robot's current state to a task's start state (at rest)."""
+    import numpy as np
+
+    from sixplus3.planner.task import move_to_start
+
+    _check_rate(rate)
+    if not all(math.isfinite(v) for v in theta):
+        fail(f"--theta must be 9 finite angles [deg], got {list(theta)}")
+    task = move_to_start(_load_task_or_example(task_file), np.radians(theta), current_robot())
+    _run_plan(task, out_dir, rate, False, False)
+
+
+@main.command()
+@click.option("-o", "--out", "out_dir", default="out", show_default=True,
+              type=click.Path(file_okay=False), help="Output directory.")
+@verbosity
+def demo(out_dir: str) -> None:
+    """Main job on built-in defaults: plan, smooth, validate and show a 30 deg tilt."""
+    from sixplus3.control.pipeline import demo_task
+    from sixplus3.planner.task import task_from_dict
+
+    _run_plan(task_from_dict(demo_task(current_robot())), out_dir, 1000.0, True, False)

@@ -1,0 +1,288 @@
+"""The ``sixplus3`` commands that read a trajectory file: validate, simulate, export,
+feed and play."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+from typing import TYPE_CHECKING
+
+import click
+
+from sixplus3.cli.app import current_robot, emit, fail, json_default, main, request_fast_exit
+
+if TYPE_CHECKING:
+    from sixplus3.robot_description.robot import Robot
+
+
+def _task_robot(task_file: str | None) -> Robot:
+    """The invocation's robot with a task file's setup (payload, tool, mounting)."""
+    robot = current_robot()
+    if task_file is None:
+        return robot
+    from sixplus3.planner.task import load_task
+
+    return load_task(task_file).robot_for(robot)
+
+
+_gain_options = [
+    click.option("--kp", default=300.0, show_default=True, type=float,
+                 help="PD stiffness of the replay [N m/rad]."),
+    click.option("--kd", default=6.0, show_default=True, type=float,
+                 help="PD damping of the replay [N m s/rad]."),
+]
+
+
+def _gains(f):
+    for opt in reversed(_gain_options):
+        f = opt(f)
+    return f
+
+
+@main.command()
+@click.argument("csv_file", type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@click.option("--task", "task_file", default=None, type=click.Path(dir_okay=False),
+              help="Apply this task file's setup (payload, tool, mounting) to the robot.")
+@click.option("--simulate", "with_sim", is_flag=True,
+              help="Also check in MuJoCo: its inverse dynamics against the file's torques, "
+                   "and feed-forward + PD replay against the torque limit.")
+@_gains
+def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool,
+             kp: float, kd: float) -> None:
+    """Check a trajectory file independently of the planner (exit 0 only if all ok).
+
+    Every check of docs/validation.md, against the robot's hardware limits, tightened by
+    the limits the file records (a header can only make the gate stricter; a looser one
+    is a forged file).  Exit codes: 0 a valid motion; 1 a limit is violated; 2 the file is missing,
+    corrupted, made for another robot, or not a consistent motion (time grid, rest at
+    the ends, jumps, platform columns, feed-forward torques).
+    """
+    # numba's OpenMP threads sleep between the forward kinematics' parallel loops instead
+    # of spinning on the core the dynamics worker needs (0.95 -> 0.86 s, BENCHMARKS.md).
+    # Read once, when numba first starts its threads: that is later, in validate_file.
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    from sixplus3.control.validation import validate_file
+
+    robot = _task_robot(task_file)
+    rep = validate_file(csv_file, robot)
+    from sixplus3.robot_description.limits import Limits
+
+    limits = Limits(**rep.limits) if rep.limits else robot.limits
+    out = {"file": csv_file, "duration_s": rep.duration, **rep.summary(),
+           "feedforward_max_error": rep.feedforward_error}
+    code = rep.exit_code
+    eng = None
+    if with_sim and code != 2:
+        from sixplus3.control.simulation import engine_check
+
+        eng = engine_check(robot, rep, kp, kd)
+        out["mujoco"] = eng.summary()
+        code = 2 if 2 in (code, eng.exit_code) else max(code, eng.exit_code)
+    if as_json:
+        click.echo(json.dumps(out, default=json_default))
+    else:
+        verdict = {0: "OK", 1: "LIMIT VIOLATED", 2: "NOT A VALID MOTION"}[rep.exit_code]
+        click.echo(f"{csv_file}: {rep.samples} samples + "
+                   f"{max(0, rep.checked_points - rep.samples)} midpoints checked, "
+                   f"{rep.duration or 0.0:.4f} s; max |tau| "
+                   f"{rep.max_torque_ratio * limits.torque:.3f} N m (limit "
+                   f"{limits.torque:g}); margins {rep.min_margin_leg_type1:.3f} / "
+                   f"{rep.min_margin_leg_type2:.3f} / {rep.min_margin_platform:.3f} "
+                   f"(>= {limits.margin:g}); {verdict}")
+        if rep.max_torque_rate is not None:
+            click.echo(f"  torque rate between samples: max {rep.max_torque_rate:.0f} N m/s "
+                       f"(reported, not a gate limit: the planner bounds it at "
+                       f"{limits.torque_rate:g} N m/s between its own nodes)")
+        lim_txt = ", ".join(f"{k} {v:.6g}" for k, v in limits.as_dict().items())
+        click.echo(f"  judged by robot {robot.hash[:12]} at {rep.rate_hz:g} Hz, its hardware "
+                   f"limits tightened by the file's: {lim_txt}")
+        for msg in rep.messages():
+            click.echo(f"  {'defect' if rep.exit_code == 2 else 'violation'}: {msg}")
+        if eng is not None:
+            sm = eng.simulation
+            click.echo(f"  MuJoCo: inverse dynamics vs the file {eng.feedforward_error:.2e} "
+                       f"N m; replay at {sm.rate_hz:g} Hz with Kp {kp:g}, Kd {kd:g}: "
+                       f"tracking error max {math.degrees(sm.max_tracking_error_rad):.3f} "
+                       f"deg, PD share {100 * sm.pd_share:.1f}%, peak |tau| "
+                       f"{sm.peak_total_torque:.3f} N m")
+            for msg in eng.messages:
+                click.echo(f"  MuJoCo: {msg}")
+    request_fast_exit()
+    sys.exit(code)
+
+
+@main.command()
+@click.argument("csv_file", type=click.Path(dir_okay=False))
+@click.option("--task", "task_file", default=None, type=click.Path(dir_okay=False),
+              help="Apply this task file's setup (payload, tool, mounting) to the robot.")
+@click.option("--ff-scale", default=1.0, show_default=True, type=float,
+              help="Scale the feed-forward torques by this factor, in [0, 2].")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@click.option("--torque-hold", type=click.Choice(["sample", "mean"]), default="mean",
+              show_default=True,
+              help="Feed-forward held over each tick: the 'mean' of both ends' torques, "
+                   "or the 'sample''s own.")
+@_gains
+def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: bool,
+             torque_hold: str, kp: float, kd: float) -> None:
+    """Replay a trajectory file in MuJoCo at its rate: feed-forward + PD.
+
+    The file is validated first (a defective file is not simulated: exit 2).  Reports
+    the tracking error, the PD share of the torque and the peak total torque; exit 1 if
+    that peak is over the hardware limit.
+    """
+    from sixplus3.control.simulation import simulate_file
+
+    robot = _task_robot(task_file)
+    rep, sim = simulate_file(csv_file, robot, kp, kd, ff_scale, torque_hold)
+    if sim is None:
+        what = "is not a valid motion" if rep.exit_code == 2 else "violates a limit"
+        click.echo(f"refused: {csv_file} {what} (the gate's verdict; nothing simulated): "
+                   + "; ".join(rep.messages())[:1500], err=True)
+        sys.exit(rep.exit_code or 2)
+    assert sim is not None
+    if as_json:
+        click.echo(json.dumps(sim.summary()))
+    else:
+        click.echo(f"{csv_file}: {sim.samples} ticks at {sim.rate_hz:g} Hz, Kp {kp:g}, "
+                   f"Kd {kd:g}, feed-forward x{ff_scale:g} held per tick as "
+                   f"'{sim.torque_hold}'; MuJoCo step {sim.timestep_s * 1e3:g} ms "
+                   "(implicitfast)")
+        click.echo(f"  tracking error: max {math.degrees(sim.max_tracking_error_rad):.4f} "
+                   f"deg, rms {math.degrees(sim.rms_tracking_error_rad):.4f} deg, final "
+                   f"{math.degrees(sim.final_tracking_error_rad):.4f} deg")
+        click.echo(f"  PD share {100 * sim.pd_share:.2f}% (max |tau_PD| "
+                   f"{sim.max_pd_torque:.3f} N m); peak |tau| commanded at the ticks "
+                   f"{sim.peak_total_torque:.3f} N m "
+                   f"(limit {sim.torque_limit:g}); closure residual "
+                   f"{sim.max_closure_residual_m:.1e} m")
+    sys.exit(0 if sim.within_torque_limit else 1)
+
+
+@main.command("export")
+@click.argument("csv_file", type=click.Path(dir_okay=False))
+@click.option("--format", "fmt", required=True,
+              type=click.Choice(["ros2-yaml", "ros2-json", "drive-csv", "rosbag2"]),
+              help="ROS 2 trajectory_msgs/JointTrajectory, a servo-drive table "
+                   "(encoder counts, counts/s, torque in 0.1 % of rated), or a ROS 2 bag "
+                   "(MCAP directory: /joint_states of every joint, /tf, the trajectory; "
+                   "needs -o).")
+@click.option("-o", "--out", "out_file", default=None, type=click.Path(dir_okay=False),
+              help="Write to this file (atomically) instead of stdout.")
+@click.option("--task", "task_file", default=None, type=click.Path(dir_okay=False),
+              help="Apply this task file's setup (payload, tool, mounting) to the robot.")
+@click.option("--torque-hold", type=click.Choice(["sample", "mean"]), default=None,
+              help="Torque per sample: 'mean' of it and the next (for a drive that holds "
+                   "it over the tick; drive-csv's default) or the 'sample''s own (the "
+                   "ROS 2 forms' default).")
+@click.option("--rate", "rate", default=None, type=float,
+              help="ROS 2 forms: resample at this lower rate [Hz] (>= 10) on the gate's "
+                   "quintic interpolant, validated again as an interpolated motion.")
+@click.option("--goal", is_flag=True,
+              help="ROS 2 forms: a control_msgs/action/FollowJointTrajectory goal "
+                   "(for 'ros2 action send_goal').")
+def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | None,
+               torque_hold: str | None, rate: float | None, goal: bool) -> None:
+    """Export a trajectory file for the controller side, after validating it (exit 1
+    for a violated limit, 2 for a bad file: nothing is written)."""
+    from sixplus3.control.exports import export_file
+
+    if fmt == "rosbag2":
+        from sixplus3.control.rosbag import write_rosbag2
+
+        if out_file is None:
+            fail("--format rosbag2 writes a directory: give it with -o DIR")
+            return
+        bag = write_rosbag2(csv_file, _task_robot(task_file), out_file)
+        click.echo(f"wrote {bag} (ros2 bag play {bag})", err=True)
+        return
+    text = export_file(csv_file, _task_robot(task_file), fmt, torque_hold, rate, goal)
+    emit(text, out_file)
+
+
+@main.command()
+@click.argument("csv_file", type=click.Path(dir_okay=False))
+@click.option("--udp", default="127.0.0.1:9870", show_default=True,
+              help="IPv4:PORT of the controller.")
+@click.option("--speed", default=1.0, show_default=True, type=float,
+              help="Replay speed in [0.01, 1]: < 1 is a real retiming, validated again.")
+@click.option("--dry-run", is_flag=True, help="Print the datagrams instead of sending.")
+@click.option("--start-theta", nargs=9, type=float, default=None, metavar="A0 B0 C0 ... C2",
+              help="The robot's current actuated angles [deg], legs 0..2 each A, B, C: the "
+                   "file must start there, on the robot's assembly branch.")
+@click.option("--torque-hold", type=click.Choice(["sample", "mean"]), default="mean",
+              show_default=True,
+              help="Feed-forward per tick: the 'mean' of the torques at both ends of the "
+                   "tick the drive holds it over, or the 'sample''s own.")
+def feed(csv_file: str, udp: str, speed: float, dry_run: bool,
+         start_theta: tuple[float, ...] | None, torque_hold: str) -> None:
+    """Send a trajectory file to the controller: read once, validate, send those samples.
+
+    Exit codes: 0 sent; 1 a limit is violated; 2 bad input, a bad file, or a file that
+    does not start at --start-theta (nothing sent).
+    """
+    from sixplus3.control.feed import check_speed, parse_address, prepare_feed, send, udp_sender
+
+    address = parse_address(udp)
+    check_speed(speed)
+    current = None
+    if start_theta is not None:
+        if not all(math.isfinite(v) for v in start_theta):
+            fail(f"--start-theta must be 9 finite angles [deg], got {list(start_theta)}")
+        import numpy as np
+
+        current = np.radians(start_theta)
+    plan = prepare_feed(csv_file, current_robot(), speed, current_theta=current,
+                        torque_hold=torque_hold)
+    if current is None:
+        click.echo("note: the robot's start state was not checked (--start-theta)", err=True)
+    emit = (lambda m: click.echo(m.decode())) if dry_run else udp_sender(address)
+    n = send(plan, emit)
+    verb = "printed (dry run, nothing sent)" if dry_run else "sent"
+    click.echo(f"{verb} {n} samples of {plan.t[-1]:.4f} s at {plan.rate:g} Hz "
+               f"(speed {plan.speed:g}, torque hold {plan.torque_hold})", err=True)
+
+
+@main.command()
+@click.argument("csv_file", type=click.Path(dir_okay=False))
+@click.option("--html", "html_out", default=None, type=click.Path(dir_okay=False),
+              help="Write a standalone page with the animation instead of serving it.")
+@click.option("--no-wait", is_flag=True, help="Do not wait for Ctrl-C after loading.")
+def play(csv_file: str, html_out: str | None, no_wait: bool) -> None:
+    """Animate a trajectory file in MeshCat (live; the URL is printed) or as HTML."""
+    from pathlib import Path
+
+    from sixplus3.control.trajectory_file import read_trajectory
+    from sixplus3.visualization.meshcat_player import (
+        animate,
+        frames_from_samples,
+        viewer_url,
+        write_html,
+    )
+
+    robot = current_robot()
+    traj = read_trajectory(csv_file, robot)
+    frames = frames_from_samples(robot, traj.t, traj.platform_position,
+                                 traj.platform_quaternion, traj.psi,
+                                 title=f"sixplus3: {Path(csv_file).stem}",
+                                 theta_dot=traj.joints("vel"))
+    if html_out:
+        path = write_html(frames, html_out)
+        click.echo(f"wrote {path} ({len(frames.q)} frames, slowed down "
+                   f"{frames.slowdown:.0f}x)")
+        return
+    animate(frames)
+    click.echo(f"MeshCat viewer: {viewer_url()}  ({len(frames.q)} frames, slowed down "
+               f"{frames.slowdown:.0f}x)")
+    if not no_wait:
+        import time
+
+        click.echo("Ctrl-C to stop the viewer")
+        try:
+            while True:
+                time.sleep(1)
+        except KeyboardInterrupt:
+            pass

@@ -1,0 +1,200 @@
+"""The architecture's rules: one limit rule, one column accessor, one rotation-vector
+function, one rate check, an explicit robot in the library, and small modules."""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from sixplus3.control import validation
+from sixplus3.control.trajectory_file import COLUMNS, columns, samples_array
+from sixplus3.errors import InputError
+from sixplus3.kinematics import checks
+from sixplus3.kinematics.robot import home, robot_fk_batch
+from sixplus3.kinematics.rotations import rotvec_from_quat
+from sixplus3.robot_description.robot import Robot
+
+ROOT = Path(__file__).resolve().parents[1]
+ROBOT = Robot.default()
+#: The package's folders (pyproject's package-dir).
+PACKAGE = ["sixplus3", "robot_description", "kinematics", "dynamics", "planner", "design",
+           "control", "visualization", "examples"]
+
+
+def _modules():
+    for folder in PACKAGE:
+        yield from sorted((ROOT / folder).rglob("*.py"))
+
+
+@pytest.fixture(scope="module")
+def motion():
+    """A rest-to-rest quintic of the actuated joints from home at 1 kHz: small enough for
+    the forward kinematics from the home pose, monotone in every joint."""
+    h = home(ROBOT)
+    T, rate = 0.3, 1000.0
+    t = np.arange(round(T * rate) + 1) / rate
+    s = t / T
+    p = 10 * s**3 - 15 * s**4 + 6 * s**5
+    dp = (30 * s**2 - 60 * s**3 + 30 * s**4) / T
+    ddp = (60 * s - 180 * s**2 + 120 * s**3) / T**2
+    d = 0.2 * np.array([0.2, -0.1, 0.15, 0.1, 0.2, -0.2, -0.15, 0.1, 0.05])
+    th, v, a = h.theta[0] + p[:, None] * d, dp[:, None] * d, ddp[:, None] * d
+    x = np.tile(np.r_[ROBOT.home_position, 0.0, 0.0, 0.0, ROBOT.home_psi], (len(t), 1))
+    rep = validation.validate_motion(t, th, v, a, ROBOT, rate, x)
+    assert rep.ok, rep.messages()
+    cfg = robot_fk_batch(th, x, ROBOT).cfg
+    return t, th, v, a, x, rep.tau, cfg, rate
+
+
+def _verdicts(motion, limits):
+    """(the gate's limit findings, the dense check's violated limits) on one motion."""
+    t, th, v, a, x, tau, cfg, rate = motion
+    rep = validation.validate_motion(t, th, v, a, ROBOT, rate, x, limits=limits)
+    gate = {f.check for f in rep.findings}
+    dense = {m.split(" ")[0] for m in checks.measure_limits(cfg, tau, th, v, a, limits)
+             .violations}
+    return gate, dense
+
+
+def test_the_gate_and_the_dense_check_apply_one_rule(motion, monkeypatch) -> None:
+    """Both checks read the rule's tolerances (kinematics.checks): a limit set 30 %
+    below the motion's torque peak fails both; with the cap tolerance widened to 50 %
+    it fails neither.  Likewise the actuated range with its tolerance.  A check with
+    its own tolerance would disagree with the other here."""
+    t, th, v, a, x, tau, cfg, rate = motion
+    peak = float(np.abs(tau).max())
+    low = dataclasses.replace(ROBOT.limits, torque=peak / 1.3)
+    gate, dense = _verdicts(motion, low)
+    assert "torque" in gate and "torque" in dense
+    monkeypatch.setattr(checks, "CAP_RTOL", 0.5)
+    gate, dense = _verdicts(motion, low)
+    assert "torque" not in gate and "torque (between samples, bound)" not in gate
+    assert "torque" not in dense
+    monkeypatch.undo()
+    narrow = dataclasses.replace(ROBOT.limits, theta_max=float(th.max()) - 1e-4)
+    gate, dense = _verdicts(motion, narrow)
+    assert "actuated range" in gate and "an" in dense  # "an actuated angle leaves ..."
+    monkeypatch.setattr(checks, "RANGE_ATOL", 1e-3)
+    gate, dense = _verdicts(motion, narrow)
+    assert "actuated range" not in gate and "an" not in dense
+    # the static checks (planner.statics, the baseline) apply it too
+    theta_ok, _ = checks.pose_masks(cfg, narrow)
+    assert theta_ok.all()
+
+
+def test_one_column_accessor_round_trips_every_block() -> None:
+    rng = np.random.default_rng(0)
+    n = 5
+    blocks = {k: rng.normal(size=(n, 9)) for k in ("pos", "vel", "acc", "tau")}
+    plat = {"position": rng.normal(size=(n, 3)), "quaternion": rng.normal(size=(n, 4)),
+            "psi": rng.normal(size=(n, 3))}
+    t = np.arange(n) / 1e3
+    data = samples_array(t, blocks["pos"], blocks["vel"], blocks["acc"], blocks["tau"],
+                         plat["position"], plat["quaternion"], plat["psi"])
+    for kind, want in {**blocks, **plat}.items():
+        np.testing.assert_array_equal(columns(data, kind), want)
+    np.testing.assert_array_equal(columns(data, "platform"),
+                                  np.c_[plat["position"], plat["quaternion"], plat["psi"]])
+    assert columns(data, "position")[0, 0] == data[0, COLUMNS.index("platform_x")]
+    assert columns(data, "tau")[0, 4] == data[0, COLUMNS.index("leg1_B_tau")]
+    with pytest.raises(InputError, match="no column kind 'speed'"):
+        columns(data, "speed")
+
+
+def test_one_rotation_vector_function() -> None:
+    """It agrees with SciPy on unit and non-unit quaternions, in either sign, and turns a
+    quaternion that is no rotation into the zero vector (a seed), never NaN."""
+    rng = np.random.default_rng(1)
+    q = rng.normal(size=(200, 4))
+    want = Rotation.from_quat(q).as_rotvec()
+    np.testing.assert_allclose(rotvec_from_quat(q), want, atol=1e-12)
+    np.testing.assert_allclose(rotvec_from_quat(-3.0 * q), want, atol=1e-12)
+    bad = np.array([[0.0, 0.0, 0.0, 0.0], [np.nan, 0.0, 0.0, 1.0], [1e-12, 0.0, 0.0, 0.0]])
+    np.testing.assert_array_equal(rotvec_from_quat(bad), np.zeros((3, 3)))
+
+
+@pytest.mark.parametrize("rate", [999.9, 10000.1, float("nan"), True, "1000"])
+def test_one_rate_check_names_its_range(rate) -> None:
+    with pytest.raises(InputError, match=r"must be in \[1000, 10000\] Hz"):
+        validation.check_rate(rate)
+    assert validation.check_rate(1000) == 1000.0
+
+
+def _default_robot_calls() -> list[str]:
+    """Where the library calls ``Robot.default()`` (module:function)."""
+    out = []
+    for path in _modules():
+        tree = ast.parse(path.read_text())
+        for fn in ast.walk(tree):
+            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            for node in ast.walk(fn):
+                if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                        and node.func.attr == "default"
+                        and isinstance(node.func.value, ast.Name)
+                        and node.func.value.id == "Robot"):
+                    out.append(f"{path.relative_to(ROOT)}:{fn.name}")
+    return sorted(set(out))
+
+
+def test_only_the_cli_and_plan_choose_the_default_robot() -> None:
+    """The library takes its robot explicitly; the CLI, ``sixplus3.plan`` (the documented
+    helper) and the committed default files are the only places that choose it."""
+    allowed = {"planner/ocp.py:plan", "robot_description/urdf.py:generated_files"}
+    found = {c for c in _default_robot_calls() if not c.startswith("sixplus3/cli/")}
+    assert found <= allowed, found - allowed
+    assert any(c.startswith("sixplus3/cli/") for c in _default_robot_calls())
+
+
+@pytest.mark.parametrize("call", [
+    lambda: home(None),
+    lambda: robot_fk_batch(np.zeros((1, 9)), np.zeros((1, 9)), None),
+    lambda: validation.validate_file("x.csv", None),
+])
+def test_a_library_function_without_its_robot_says_so(call) -> None:
+    with pytest.raises(InputError, match="robot must be a Robot"):
+        call()
+
+
+def test_no_module_is_over_500_lines() -> None:
+    sizes = {str(p.relative_to(ROOT)): len(p.read_text().splitlines()) for p in _modules()}
+    assert {k: v for k, v in sizes.items() if v > 500} == {}
+
+
+def test_robot_check_is_a_library_function_the_cli_prints() -> None:
+    """``sixplus3 robot check --json`` prints :func:`design.report.robot_check`'s
+    document, and exits 1 exactly when home is outside the COW."""
+    import json
+
+    from click.testing import CliRunner
+
+    from sixplus3.cli import main
+    from sixplus3.design.report import robot_check
+
+    rep = robot_check(ROBOT)
+    assert rep.inside and rep.doc["mobility"] == 9 and rep.doc["constraint_rank_home"] == 27
+    assert rep.lines[0].startswith("robot ") and "inside" in rep.cow_line
+    res = CliRunner().invoke(main, ["robot", "check", "--json"])
+    assert res.exit_code == 0
+    doc = json.loads(res.output)
+    assert doc["robot_hash"] == rep.doc["robot_hash"] and doc["mobility"] == 9
+    assert doc["home_in_cow"]["volume_l"] == pytest.approx(rep.doc["home_in_cow"]["volume_l"])
+
+
+def test_the_atlas_grid_takes_its_height_range() -> None:
+    from sixplus3.design.atlas_data import position_grid
+
+    xs, ys, zs = position_grid(ROBOT, 0.05)
+    _, _, kept = position_grid(ROBOT, 0.05, (0.5, 0.6))
+    assert len(kept) and kept.min() >= 0.5 - 1e-9 and kept.max() <= 0.6 + 1e-9
+    assert set(np.round(kept, 9)) == {z for z in np.round(zs, 9) if 0.5 - 1e-9 <= z <= 0.6 + 1e-9}
+    for bad in [(0.0, 0.5), (0.6, 0.5), (float("nan"), 0.5), (0.5, 4.0)]:
+        with pytest.raises(InputError, match="z range must be"):
+            position_grid(ROBOT, 0.05, bad)
+    with pytest.raises(InputError, match="holds no grid height"):
+        position_grid(ROBOT, 0.05, (0.001, 0.002))
