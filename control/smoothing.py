@@ -66,7 +66,8 @@ class Smoothed:
         return self.duration / self.planned_duration - 1.0
 
 
-def _joint_samples(sol: Solution, times: np.ndarray, a: float, t0: float = 0.0):
+def _joint_samples(sol: Solution, times: np.ndarray, a: float, t0: float = 0.0
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Actuated (theta, theta_dot, theta_ddot) and x of the plan's piece starting at plan
     time ``t0``, stretched by ``a``, at piece-local output times ``times`` [s]."""
     sr = symbolic_robot(sol.robot)

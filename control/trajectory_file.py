@@ -46,7 +46,7 @@ import re
 import stat
 from collections.abc import Iterator
 from pathlib import Path
-from typing import NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -77,6 +77,11 @@ from sixplus3.errors import GeometryError, InputError, LimitError, TrajectoryFil
 from sixplus3.fileio import atomic_write
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from sixplus3.control.findings import ValidationReport
 
 #: Most samples of a motion this package makes (a plan at a rate, its dwells, a slower
 #: replay): 2 minutes at 1 kHz.  Estimated before anything is allocated.
@@ -124,8 +129,9 @@ def encode(header: dict, data: np.ndarray) -> bytes:
     return first + body
 
 
-def samples_array(t, theta, theta_dot, theta_ddot, tau, position, quaternion,
-                  psi) -> np.ndarray:
+def samples_array(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
+                  theta_ddot: np.ndarray, tau: np.ndarray, position: np.ndarray,
+                  quaternion: np.ndarray, psi: np.ndarray) -> np.ndarray:
     """(n, 47) rows in :data:`COLUMNS` order."""
     n = len(t)
     data = np.zeros((n, len(COLUMNS)))
@@ -201,7 +207,8 @@ def check_samples(duration: float, rate: float, what: str) -> int:
     return int(n)
 
 
-def samples_fingerprint(t, theta, theta_dot, theta_ddot, rate: float) -> str:
+def samples_fingerprint(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
+                        theta_ddot: np.ndarray, rate: float) -> str:
     """SHA-256 of a motion's samples (as float64) and its rate: what a validation report
     records of the motion it judged, and what :func:`write_trajectory` checks."""
     sha = hashlib.sha256(repr(float(rate)).encode())
@@ -217,8 +224,10 @@ RESERVED = ("format", "rate_hz", "samples", "duration_s", "columns", "units",
             "joint_names", "robot", "limits", "validation", "integrity")
 
 
-def write_trajectory(path: str | Path, t, theta, theta_dot, theta_ddot, report,
-                     robot: Robot, limits: Limits, meta: dict) -> Path:
+def write_trajectory(path: str | Path, t: np.ndarray, theta: np.ndarray,
+                     theta_dot: np.ndarray, theta_ddot: np.ndarray,
+                     report: ValidationReport, robot: Robot, limits: Limits,
+                     meta: dict) -> Path:
     """Write the validated trajectory of ``robot`` to ``path`` (one atomic file).
 
     ``report`` must be the passed :class:`~sixplus3.control.validation.ValidationReport`
@@ -237,6 +246,11 @@ def write_trajectory(path: str | Path, t, theta, theta_dot, theta_ddot, report,
         raise TrajectoryFileError("refusing to write: the validation report is for another "
                                   "robot", value=report.robot_hash, valid=robot.hash)
     rate = report.rate_hz
+    tau, position, quaternion, psi = report.tau, report.position, report.quaternion, report.psi
+    if rate is None or tau is None or position is None or quaternion is None or psi is None:
+        raise TrajectoryFileError("refusing to write: the validation report has no rate, "
+                                  "torques or platform poses of its samples", value=None,
+                                  valid="a report of validate_motion")
     if not isinstance(meta, dict):
         raise InputError("meta must be a mapping of extra header fields",
                          value=type(meta).__name__, valid="a dict")
@@ -250,7 +264,7 @@ def write_trajectory(path: str | Path, t, theta, theta_dot, theta_ddot, report,
     except (TypeError, ValueError) as exc:
         raise InputError(f"the samples are not numeric arrays: {exc}", value=None,
                          valid="(n,) times and (n, 9) arrays") from None
-    if rate is None or mine != report.fingerprint:
+    if mine != report.fingerprint:
         raise TrajectoryFileError("refusing to write: the validation report is of other "
                                   "samples or another rate than these",
                                   value=report.fingerprint, valid=mine)
@@ -259,8 +273,7 @@ def write_trajectory(path: str | Path, t, theta, theta_dot, theta_ddot, report,
         raise TrajectoryFileError(f"trajectory files end in {SUFFIX}, got {path.name}",
                                   value=path.name, valid=f"*{SUFFIX}")
     output_path(path.parent, path.stem)  # the name is safe and stays in its directory
-    data = samples_array(t, theta, theta_dot, theta_ddot, report.tau, report.position,
-                         report.quaternion, report.psi)
+    data = samples_array(t, theta, theta_dot, theta_ddot, tau, position, quaternion, psi)
     header = {
         "format": FORMAT, "rate_hz": float(rate), "samples": len(t),
         "duration_s": float(t[-1]), "columns": COLUMNS, "units": UNITS,
@@ -345,7 +358,7 @@ class TrajectoryData(NamedTuple):
     header: dict
     data: np.ndarray
 
-    def __getitem__(self, key):  # type: ignore[override]
+    def __getitem__(self, key: str | int) -> Any:  # type: ignore[override]
         if isinstance(key, str):
             if key not in COLUMNS:
                 raise InputError(f"no column {key!r} in a trajectory file", value=key,
@@ -372,7 +385,7 @@ class TrajectoryData(NamedTuple):
     def psi(self) -> np.ndarray:
         return columns(self.data, "psi")
 
-    def to_pandas(self):  # noqa: ANN201 - pandas is optional
+    def to_pandas(self) -> pd.DataFrame:
         try:
             import pandas as pd
         except ImportError:

@@ -23,6 +23,7 @@ columns split by actuated / passive coordinates).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -112,7 +113,7 @@ class ClosedLoopDynamics:
         """(nv, 9) dv/dtheta_dot; raises SingularityError at a parallel singularity."""
         return self._G_from(self.clm.constraint_jacobian(q))
 
-    def _lu(self, Jc: np.ndarray):
+    def _lu(self, Jc: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """(lu, piv, rcond) of J_pas: LU, then LAPACK's 1-norm reciprocal condition
         estimate, O(n^2) on top of the factorisation (an SVD would cost ~4x the solve);
         rcond 0 when singular."""
@@ -168,7 +169,8 @@ class ClosedLoopDynamics:
             h = h - self._external_generalized_force(q, f_ext)
         return G.T @ h + self._friction(v[self._act])
 
-    def _external_generalized_force(self, q: np.ndarray, f_ext: dict[str, np.ndarray]):
+    def _external_generalized_force(self, q: np.ndarray,
+                                    f_ext: dict[str, np.ndarray]) -> np.ndarray:
         m, d = self.model, self.data
         pin.computeJointJacobians(m, d, q)
         pin.updateFramePlacements(m, d)
@@ -320,7 +322,7 @@ class ClosedLoopDynamics:
         return ForwardResult(a=a.copy(), forces=self.data.lambda_c.copy())
 
     def step(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
-             method: str = "rk4", project: bool = True):
+             method: str = "rk4", project: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """One step of length dt [s] under constant tau: (q+, v+).
 
         ``method``: "rk4" (classical Runge-Kutta on the configuration Lie group, default)
@@ -330,7 +332,7 @@ class ClosedLoopDynamics:
         """
         m = self.model
 
-        def acc(qq, vv):
+        def acc(qq: np.ndarray, vv: np.ndarray) -> np.ndarray:
             return self.forward_dynamics(qq, vv, tau).a
 
         if method == "euler":
@@ -353,7 +355,8 @@ class ClosedLoopDynamics:
             q_next, v_next = self.project(q_next, v_next)
         return q_next, v_next
 
-    def project(self, q: np.ndarray, v: np.ndarray, tol: float = 1e-12, max_iter: int = 5):
+    def project(self, q: np.ndarray, v: np.ndarray, tol: float = 1e-12,
+                max_iter: int = 5) -> tuple[np.ndarray, np.ndarray]:
         """Closest consistent state: r(q) = 0 by Gauss-Newton, then Jc v = 0 [m, m/s]."""
         m = self.model
         for _ in range(max_iter):
@@ -375,7 +378,8 @@ class ClosedLoopDynamics:
         return float(k), float(u)
 
     def simulate(self, q0: np.ndarray, v0: np.ndarray, duration: float, dt: float,
-                 tau=None, method: str = "rk4", project: bool = True) -> Trajectory:
+                 tau: np.ndarray | Callable[[float, np.ndarray, np.ndarray], np.ndarray] | None
+                 = None, method: str = "rk4", project: bool = True) -> Trajectory:
         """Integrate from (q0, v0) for ``duration`` [s] at step ``dt`` [s].
 
         ``tau`` is None (unactuated), a (9,) constant or a callable (t, q, v) -> (9,).

@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import RobotConfig
@@ -39,7 +40,7 @@ RANGE_ATOL = 1e-9
 RCOND_MIN = 1e-10
 
 
-def cap_excess(values: np.ndarray, cap: float) -> np.ndarray:
+def cap_excess(values: ArrayLike, cap: float) -> np.ndarray:
     """How far ``values`` (magnitudes) are above ``cap`` (> 0: violated)."""
     return np.asarray(values) - cap * (1.0 + CAP_RTOL)
 
@@ -55,12 +56,12 @@ def range_excess(theta: np.ndarray, limits: Limits) -> np.ndarray:
     return np.maximum(lo - theta, theta - hi)
 
 
-def floor_excess(values: np.ndarray, floor: float) -> np.ndarray:
+def floor_excess(values: ArrayLike, floor: float) -> np.ndarray:
     """How far ``values`` are below ``floor`` (> 0: violated; exact)."""
     return floor - np.asarray(values)
 
 
-def tilt_excess(tilt: np.ndarray, limits: Limits) -> np.ndarray:
+def tilt_excess(tilt: ArrayLike, limits: Limits) -> np.ndarray:
     """How far spherical-joint tilts [rad] are above their limit (> 0: violated)."""
     return np.asarray(tilt) - limits.spherical
 

@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from sixplus3.cache import cached
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError, as_float_array
@@ -84,7 +85,7 @@ class RobotConfig:
         only the surviving rows need)."""
         from dataclasses import fields, replace
 
-        def cut(obj):
+        def cut(obj: Any) -> Any:
             return replace(obj, **{f.name: getattr(obj, f.name)[mask] for f in fields(obj)
                                    if isinstance(getattr(obj, f.name), np.ndarray)
                                    and getattr(obj, f.name).shape[:1] == mask.shape})
@@ -108,7 +109,8 @@ def q_layout(robot: Robot) -> dict[str, int]:
     return cached(("layout", robot.hash), make)
 
 
-def _u_joint_angles(theta_crank: np.ndarray, link_dir: np.ndarray):
+def _u_joint_angles(theta_crank: np.ndarray, link_dir: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """U joint (about x, then z) angles so that R_x(theta + a) R_z(b) y = link_dir.
 
     R_x(a) R_z(b) y = (-sin b, cos b cos a, cos b sin a) in the crank frame; the branch
@@ -160,7 +162,8 @@ def axis_rotations(axis: int, a: np.ndarray) -> np.ndarray:
     return R
 
 
-def _as_batch(position, rotation, psi):
+def _as_batch(position: ArrayLike, rotation: ArrayLike, psi: ArrayLike
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     position = np.atleast_2d(as_float_array(position, "position", "(n, 3) [m]"))
     rotation = as_float_array(rotation, "rotation", "(n, 3, 3)")
     if rotation.ndim == 2:
@@ -193,7 +196,8 @@ def _as_batch(position, rotation, psi):
     return np.ascontiguousarray(position), np.ascontiguousarray(rotation), np.array(psi)
 
 
-def crank_tips(position, rotation, psi, robot: Robot) -> np.ndarray:
+def crank_tips(position: np.ndarray, rotation: np.ndarray, psi: np.ndarray,
+               robot: Robot) -> np.ndarray:
     """(n, 3, 3) P_i in the robot frame for platform poses and crank angles [m]."""
     geom = robot.geometry
     n = position.shape[0]
@@ -206,7 +210,8 @@ def crank_tips(position, rotation, psi, robot: Robot) -> np.ndarray:
     return P
 
 
-def robot_ik(position, rotation, psi, robot: Robot, platform_margins: bool = True) -> RobotConfig:
+def robot_ik(position: ArrayLike, rotation: ArrayLike, psi: ArrayLike | None, robot: Robot,
+             platform_margins: bool = True) -> RobotConfig:
     """Batched closed-form IK: platform pose (n, 3) [m], (n, 3, 3) and psi (n, 3) [rad]
     (default: the robot's home crank angles), in the robot's assembly mode.
 
@@ -259,7 +264,8 @@ def robot_ik(position, rotation, psi, robot: Robot, platform_margins: bool = Tru
                        margins=margins, robot=robot)
 
 
-def robot_ik_pose(position, rpy=(0.0, 0.0, 0.0), psi=None, *, robot: Robot) -> RobotConfig:
+def robot_ik_pose(position: ArrayLike, rpy: ArrayLike = (0.0, 0.0, 0.0),
+                  psi: ArrayLike | None = None, *, robot: Robot) -> RobotConfig:
     """IK of one pose (position [m], roll/pitch/yaw [rad], crank angles [rad], default
     the robot's home ones); raises :class:`UnreachableError` naming the failing leg."""
     robot = require_robot(robot)
@@ -269,7 +275,8 @@ def robot_ik_pose(position, rpy=(0.0, 0.0, 0.0), psi=None, *, robot: Robot) -> R
             or as_float_array(psi, "psi", "3 angles [rad]").shape != (3,):
         raise InputError("position, rpy and psi must each be 3 numbers",
                          value=(pos.shape, np.shape(rpy), np.shape(psi)), valid="(3,) each")
-    cfg = robot_ik(pos, rpy_matrix(*rpy), psi, robot)
+    roll, pitch, yaw = as_float_array(rpy, "rpy", "3 angles [rad]")
+    cfg = robot_ik(pos, rpy_matrix(roll, pitch, yaw), psi, robot)
     if cfg.status[0]:
         for i in range(NUM_LEGS):
             st = int(cfg.leg_status[0, i])
@@ -297,7 +304,8 @@ class RobotFK:
     iterations: int
 
 
-def robot_fk(theta, robot: Robot | None, q_hint=None, tol: float = 1e-12,
+def robot_fk(theta: ArrayLike, robot: Robot | None, q_hint: ArrayLike | None = None,
+             tol: float = 1e-12,
              max_iter: int = 50, model: ClosedLoopModel | None = None) -> RobotFK:
     """9 actuated angles [rad] -> full configuration, by Newton on the 27 closures.
 

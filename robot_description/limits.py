@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, fields
+from typing import Any
 
 from sixplus3.errors import LimitError
 
@@ -27,7 +28,7 @@ TCP_ACCELERATION_NONE = 1000.0
 MIN_FRACTION = 1e-3
 
 
-def _lim(default: float, doc: str, unit: str):
+def _lim(default: float, doc: str, unit: str) -> Any:
     return field(default=default, metadata={"doc": doc, "unit": unit})
 
 

@@ -10,7 +10,10 @@ a limit is reported by ``sixplus3 validate`` with exit code 1.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 class Sixplus3Error(Exception):
@@ -114,7 +117,7 @@ class ValidationFailed(Sixplus3Error):
         super().__init__(message)
 
 
-def as_float_array(value: object, name: str, valid: str) -> Any:
+def as_float_array(value: object, name: str, valid: str) -> np.ndarray:
     """``numpy.asarray(value, dtype=float)``, or an :class:`InputError` naming ``name``
     and ``valid`` for anything that is not numbers (None, text, a mapping, ragged lists)."""
     import numpy as np

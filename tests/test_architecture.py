@@ -198,3 +198,17 @@ def test_the_atlas_grid_takes_its_height_range() -> None:
             position_grid(ROBOT, 0.05, bad)
     with pytest.raises(InputError, match="holds no grid height"):
         position_grid(ROBOT, 0.05, (0.001, 0.002))
+
+
+def test_strict_types_cover_every_module_the_curated_api_exports_from() -> None:
+    """pyproject's strict mypy override (disallow_untyped_defs, run by `make lint`) lists
+    exactly the modules ``sixplus3.__all__`` exports from."""
+    import tomllib
+
+    import sixplus3
+
+    cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["mypy"]
+    strict = [o for o in cfg["overrides"] if o.get("disallow_untyped_defs")]
+    assert len(strict) == 1
+    assert sorted(strict[0]["module"]) == sorted(set(sixplus3._API.values()))
+    assert cfg.get("check_untyped_defs") is True
