@@ -71,8 +71,17 @@ def test_optimised_on_demand_and_stale_markers(source, tmp_path) -> None:
     assert not any(p.name.endswith((".c", ".part")) for p in tmp_path.iterdir())
 
 
-def test_the_loaded_build_is_reported() -> None:
-    assert codegen.build_kind(Robot.default()) in ("optimised", "quick")
+def test_the_loaded_build_is_reported(monkeypatch) -> None:
+    """build_kind names the library this process loaded: the file of that build (its
+    flags in the name's hash) is in the cache; with code generation off, "interpreted"."""
+    robot = Robot.default()
+    kind = codegen.build_kind(robot)
+    assert kind in ("optimised", "quick")
+    src = codegen._source(symbolic_robot(robot).node_p)
+    flags = codegen.CFLAGS if kind == "optimised" else codegen.QUICK_CFLAGS
+    assert codegen._lib_path(codegen.cache_dir(), "node", src, flags).exists()
+    monkeypatch.setenv("SIXPLUS3_NO_CODEGEN", "1")
+    assert codegen.build_kind(robot) == "interpreted"
 
 
 def test_a_killed_background_build_is_seen_as_dead_and_cleaned_up(source, tmp_path) -> None:

@@ -156,11 +156,18 @@ def test_bad_task_files_name_the_field(tmp_path) -> None:
         load_task(tmp_path / "missing.yaml")
 
 
-def test_example_tasks_are_valid() -> None:
-    assert len(EXAMPLES) >= 6
-    for path in EXAMPLES:
-        task = load_task(path)
-        assert task.n_segments >= 1
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
+def test_every_example_plans_within_its_limits(path) -> None:
+    """Each installed example is solved: by the NLP, within every limit at 10x the node
+    density, and never slower than the stop-at-waypoints baseline of the same task.
+    (tests/test_gate_attacks.py replays each at the lowest rate in MuJoCo.)"""
+    task = load_task(path)
+    sol = plan(task, ROBOT)
+    assert sol.is_feasible(), sol.check.violations if sol.check else "not checked"
+    assert sol.source == "ocp"
+    assert sol.baseline_time is None or sol.final_time <= sol.baseline_time * (1 + 1e-9)
+    assert sol.final_time == pytest.approx(float(sol.t[-1]))
+    assert len(sol.segment_times) == task.n_segments
 
 
 SMALL = {"name": "small", "waypoints": [{"position": [0, 0, 0.58]},
@@ -265,13 +272,27 @@ def test_infeasible_tasks_raise_naming_the_waypoint_or_limit() -> None:
 
 
 def test_clearance_and_home_x() -> None:
+    """At home the collision model's clearance is that of each leg's two distal tubes
+    (16 mm, robot check: 4.0 mm): here by sampling one tube's axis at 20001 points
+    against the other's segment (exact point-to-segment distances: an upper bound within
+    half the pitch, 9 um); and the CasADi model's home configuration is Pinocchio's."""
     from sixplus3.kinematics.robot import home
 
-    assert clearance(home(ROBOT))[0] > 0.003  # the two 16 mm distal tubes of a leg: 4.0 mm
+    h = home(ROBOT)
+    g, r = ROBOT.geometry, ROBOT.collision.distal_radius
+    u = np.linspace(0.0, 1.0, 20001)[:, None]
+    sampled = np.inf
+    for i in range(3):
+        s = h.legs[i]
+        G, E, H, F = (g.leg_rotation(i) @ getattr(s, k)[0] + g.leg_origin(i) for k in "gehf")
+        pts = G + u * (E - G)
+        w = np.clip((pts - H) @ (F - H) / ((F - H) @ (F - H)), 0.0, 1.0)
+        dist = np.linalg.norm(pts - (H + w[:, None] * (F - H)), axis=1).min()
+        sampled = min(sampled, dist - 2 * r)
+    assert sampled - 1e-5 <= clearance(h)[0] <= sampled + 1e-12
+    assert 0.003 < sampled < 0.005
     np.testing.assert_allclose(np.array(symbolic_robot(ROBOT).q(home_x(ROBOT))).ravel(),
-                               home(ROBOT).q[0],
-                               atol=1e-12)
-    assert Problem(task_from_dict(SMALL), ROBOT).task.name == "small"
+                               h.q[0], atol=1e-12)
 
 
 def test_compiled_node_functions_agree_with_casadi() -> None:

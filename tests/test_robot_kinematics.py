@@ -16,6 +16,11 @@ from sixplus3.kinematics.spherical import spherical_tilts
 from sixplus3.robot_description.robot import Robot
 
 ROBOT_ = Robot.default()
+
+
+def rot_z(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 GEOM = ROBOT_.geometry
 
 
@@ -112,8 +117,36 @@ def test_home_and_spherical_joint_tilts() -> None:
     h = home(ROBOT_)
     assert h.ok[0] and h.margins.minimum[0] > 0.3
     np.testing.assert_allclose(spherical_tilts(h), 0.0, atol=1e-7)
-    cfg = robot_ik_pose((0, 0, 0.58), (0.5, 0.0, 0.0), robot=ROBOT_)
-    assert 0.05 < spherical_tilts(cfg).max() < math.radians(150)
+    # every tilt again from the joints' points: P's axis is D -> P in the body and turns
+    # with the platform in the crank; E's (F's) is G -> E (H -> F) along the distal link
+    # and turns with the body's frame Q in the leg body (the joint angles are not used)
+    g = ROBOT_.geometry
+
+    def unit(v):
+        return v / np.linalg.norm(v)
+
+    def angle(a, b):
+        return math.acos(min(1.0, max(-1.0, float(unit(a) @ unit(b)))))
+
+    for rpy, psi in (((0.5, 0.0, 0.0), ROBOT_.home_psi), ((0.2, -0.3, 0.4), (1.3, 1.8, 1.5)),
+                     ((-0.4, 0.1, -0.7), (1.9, 1.2, 1.6))):
+        cfg = robot_ik_pose((0.02, -0.01, 0.57), rpy, psi, robot=ROBOT_)
+        R = cfg.rotation[0]
+        want = np.zeros((3, 3))
+        for i in range(3):
+            Rl, o, hs, s = g.leg_rotation(i), g.leg_origin(i), h.legs[i], cfg.legs[i]
+            turn = Rl @ s.Q[0] @ hs.Q[0].T @ Rl.T  # the body's rotation from home
+
+            def w(leg, k, i=i, Rl=Rl, o=o):
+                return Rl @ getattr(leg, k)[0] + o
+
+            for j, (a, b) in enumerate((("g", "e"), ("h", "f"))):
+                want[i, j] = angle(w(s, b) - w(s, a), turn @ (w(hs, b) - w(hs, a)))
+            crank = (R @ rot_z(g.crank_axis_angle(i) + psi[i])
+                     @ rot_z(g.crank_axis_angle(i) + ROBOT_.home_psi[i]).T)
+            want[i, 2] = angle(w(s, "p") - w(s, "d"), crank @ (w(hs, "p") - w(hs, "d")))
+        np.testing.assert_allclose(spherical_tilts(cfg)[0], want, atol=1e-9)
+        assert want.max() > 0.1
 
 
 def test_compiled_segment_distance_matches_the_numpy_reference() -> None:
