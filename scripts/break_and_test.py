@@ -38,21 +38,21 @@ BREAKS: dict[str, tuple[str, str, str, list[str]]] = {
     "the paper design's area taken on another design": (
         "design/search.py",
         "    paper_area = float(evaluate(np.array([PAPER_DESIGN]), reading, grid)[0][0])",
-        "    paper_area = float(evaluate(np.array([(0.15, 0.35, 0.1)]), reading, grid)[0][0])",
+        "    paper_area = float(evaluate(np.array([(0.30, 0.35, 0.20)]), reading, grid)[0][0])",
         ["tests/test_design.py::test_optimize_finds_the_best_design_of_its_grids"]),
-    "the figure's counted area without the disk": (
+    "the figure's counted area in the default reading": (
         "design/figures.py",
         "    cnt = counted_reading(s, load, reading).reshape(X.shape) & inside",
-        "    cnt = counted_reading(s, load, reading).reshape(X.shape)",
+        "    cnt = counted_reading(s, load, Reading()).reshape(X.shape) & inside",
         ["tests/test_design.py::test_figures_are_written"]),
     "a spherical joint's tilt measured against its own side": (
         "kinematics/spherical.py", "            b = other @ ref[i, j, 1]",
         "            b = body @ ref[i, j, 1]",
         ["tests/test_robot_kinematics.py::test_home_and_spherical_joint_tilts"]),
     "the COW of robot check ignores the torque limit": (
-        "design/cow.py", "    cow = compute_cow(robot, step=step, z_step=step,",
-        "    robot = robot.replace(limits=type(robot.limits)())\n"
-        "    cow = compute_cow(robot, step=step, z_step=step,",
+        "design/cow.py", "    robot = require_robot(robot)\n    cow = compute_cow(robot, ",
+        "    robot = require_robot(robot).replace(limits=type(robot.limits)())\n"
+        "    cow = compute_cow(robot, ",
         ["tests/test_robot.py::test_robot_show_output_is_the_robot_file_format"]),
     "the mirrored assembly's mode swapped": (
         "robot_description/robot.py",
