@@ -88,6 +88,7 @@ def run(name: str) -> bool:
     if original.count(text) != 1:
         raise SystemExit(f"{name}: the text to break is not in {rel} exactly once")
     caught = True
+    why = ""
     t0 = time.perf_counter()
     try:
         path.write_text(original.replace(text, broken))
@@ -96,10 +97,12 @@ def run(name: str) -> bool:
                                   "-p", "no:cacheprovider", test], cwd=ROOT,
                                  capture_output=True, text=True)
             caught &= res.returncode == 1
+            why = why or next((ln[1:].strip() for ln in res.stdout.splitlines()
+                               if ln.startswith("E ")), "")
     finally:
         path.write_text(original)
     print(f"{'caught' if caught else 'MISSED'}  {name} ({rel}; "
-          f"{time.perf_counter() - t0:.0f} s)", flush=True)
+          f"{time.perf_counter() - t0:.0f} s)\n        {why[:150]}", flush=True)
     return caught
 
 
