@@ -9,6 +9,7 @@ and its iteration relay hold per-solve state.
 from __future__ import annotations
 
 import contextlib
+import logging
 import signal
 import threading
 from collections.abc import Callable, Iterator
@@ -25,6 +26,8 @@ from sixplus3.planner.transcription import build_nlp
 
 if TYPE_CHECKING:
     from sixplus3.planner.problem import Problem
+
+log = logging.getLogger(__name__)
 
 
 class IterationRelay(ca.Callback):
@@ -73,7 +76,9 @@ class IterationRelay(ca.Callback):
         if self.listener is not None:
             try:
                 self.listener(k, np.array(arg[0]).ravel(), np.array(arg[2]).ravel())
-            except Exception:  # a reporter's bug must not change the plan
+            except Exception as exc:  # noqa: BLE001 - a reporter's bug must not change the plan
+                log.warning("the iteration listener raised %s: %s; it gets no more "
+                            "iterations of this solve", type(exc).__name__, exc)
                 self.listener = None
         return [1 if self.limit is not None and k >= self.limit else 0]
 

@@ -1,17 +1,14 @@
-"""The ``sixplus3`` commands of the design group (optimize, layout, figures), report and atlas."""
+"""The ``sixplus3`` design commands: ``design optimize | layout | figures``, ``report`` and
+``atlas``."""
 
 from __future__ import annotations
 
 import json
 import math
-from typing import TYPE_CHECKING
 
 import click
 
 from sixplus3.cli.app import bars, current_robot, fail, main, verbosity
-
-if TYPE_CHECKING:
-    pass
 
 
 @main.group()

@@ -1,16 +1,12 @@
-"""The ``sixplus3`` commands of plan, move-to-start and demo."""
+"""The ``sixplus3`` planning commands: ``plan``, ``move-to-start`` and ``demo``."""
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import click
 
 from sixplus3.cli.app import NUMERIC_ARGS, bars, current_robot, fail, main, verbosity
-
-if TYPE_CHECKING:
-    pass
 
 
 def _check_rate(rate: float) -> None:

@@ -1,11 +1,12 @@
-"""The ``sixplus3`` commands of leg and the robot group: robot check, ik, list, show, export."""
+"""The ``sixplus3`` commands of one leg and the whole robot: ``leg``, and ``robot check |
+ik | list | show | export``."""
 
 from __future__ import annotations
 
 import json
 import math
 import sys
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import click
 
@@ -18,9 +19,6 @@ from sixplus3.cli.app import (
     json_default,
     main,
 )
-
-if TYPE_CHECKING:
-    pass
 
 
 @main.command(context_settings=NUMERIC_ARGS)
