@@ -21,6 +21,8 @@ from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import Solution, actuated_profile, sample_cubic, stretch_factors
 from sixplus3.planner.solvers import ipopt_solver, keyboard_interrupts
 from sixplus3.planner.transcription import (
+    CLEARANCE_ROWS,
+    NODE_ROWS,
     node_bounds,
     type2_det_bound,
     variable_bounds,
@@ -48,6 +50,9 @@ class Bounds:
     spherical_reserve: float = 0.0
     #: [m] of clearance asked between the bodies (None: those rows unbounded)
     clearance: float | None = None
+    #: [m] asked at the waypoints' nodes instead (None: ``clearance``): a waypoint's
+    #: pose is given, and near contact it may not have the reserve asked elsewhere
+    clearance_waypoints: float | None = None
     #: the singularity margin of the rows (None: the task's; a homotopy step)
     margin: float | None = None
     #: upper bound [s] of the total duration (None: 60 s per segment)
@@ -110,6 +115,11 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
     lbx, ubx = variable_bounds(problem, wp_x, tmax, safety["acceleration"] * lim.acceleration,
                                T_hi, bounds.cranks)
     lbg = np.r_[np.zeros(18 * N), np.tile(lb, 2 * N + 1), smooth_lo, T_lo]
+    if bounds.clearance is not None and bounds.clearance_waypoints is not None:
+        for k in problem.waypoint_nodes():  # the nodes' rows come first, point by point
+            first = 18 * N + NODE_ROWS * k
+            lbg[first + CLEARANCE_ROWS.start:first + CLEARANCE_ROWS.stop] = \
+                bounds.clearance_waypoints
     ubg = np.r_[np.zeros(18 * N), np.tile(ub, 2 * N + 1), smooth_hi, T_hi]
     _, acc0, tau0, _ = profile  # (9, 2N+1): the nodes, then the midpoints
     z0 = np.vstack([x0.T, xd0.T, xdd0.T, tau0[:, :N + 1]])

@@ -33,6 +33,13 @@ from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import Solution, actuated_profile
 from sixplus3.planner.statics import check_crank_sides, choose_static_psi, clearance_needed
 
+#: [m] of clearance a re-solve asks beyond the overlap the dense check found.  Plans
+#: that slide along contact dip between their points by some hundredths of a mm
+#: (broad_11 of `--broad --seed 2`: 0.05 mm); 0.5 mm made that re-solve hit the iteration
+#: cap and the baseline come back after 52 s, 0.1 mm re-solves it in 19 iterations
+#: (BENCHMARKS.md, "Planner v2").
+CLEARANCE_RESERVE = 1e-4
+
 
 def solve(problem: Problem) -> Solution:
     """The plan of ``problem`` (see the module's docstring); raises
@@ -231,12 +238,18 @@ def tightened(bounds: Bounds, chk: Any, spherical_limit: float) -> tuple[Bounds,
         new = new.replace(spherical_reserve=reserve)
         fixable = fixable or reserve < math.radians(10.0)
     if any(v.startswith("interference") for v in bad):
-        # ask the NLP for the overlap found plus 0.5 mm of clearance at its points; rows
-        # that were unbounded are bounded first
-        clear = (0.0 if bounds.clearance is None
-                 else bounds.clearance - chk.min_clearance + 5e-4)
-        new = new.replace(clearance=clear)
-        fixable = fixable or clear < 0.01
+        # ask the NLP for the overlap found plus CLEARANCE_RESERVE at its points, except
+        # at the waypoints' nodes, which keep the bound they had (a given pose near
+        # contact may have less than the reserve: heldout_20's has 0.1 mm at most);
+        # rows that were unbounded are bounded first
+        if bounds.clearance is None:
+            new = new.replace(clearance=0.0)
+        else:
+            at_wp = (bounds.clearance if bounds.clearance_waypoints is None
+                     else bounds.clearance_waypoints)
+            new = new.replace(clearance=bounds.clearance - chk.min_clearance
+                              + CLEARANCE_RESERVE, clearance_waypoints=at_wp)
+        fixable = fixable or (new.clearance or 0.0) < 0.01
     return new, fixable
 
 

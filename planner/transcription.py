@@ -41,6 +41,8 @@ if TYPE_CHECKING:
 
 #: rows of ``SymbolicRobot.node`` per point
 NODE_ROWS = 70
+#: the clearance rows among them
+CLEARANCE_ROWS = slice(67, 70)
 
 
 def layout(N: int, S: int) -> tuple[int, int, int, int]:
@@ -139,7 +141,8 @@ def node_bounds(lim: Limits, sign1: np.ndarray, sign2: np.ndarray, platform_prox
         lb[rows] = np.where(sign > 0, m, -inf)
         ub[rows] = np.where(sign > 0, inf, -m)
     lb[66], ub[66] = platform_proxy, inf
-    lb[67:70], ub[67:70] = -inf if clearance is None else clearance, inf
+    lb[CLEARANCE_ROWS] = -inf if clearance is None else clearance
+    ub[CLEARANCE_ROWS] = inf
     return lb, ub
 
 
@@ -261,6 +264,6 @@ def build_nlp(node: ca.Function, threads: int, segments: tuple[int, ...],
     return Transcription({"x": Ws, "p": P, "f": f, "g": g}, N, S, nw, int(g.numel()))
 
 
-__all__ = ["NODE_ROWS", "Transcription", "build_nlp", "integration_rows", "layout",
-           "midpoint_states", "node_bounds", "objective", "path_rows", "smoothness_rows",
-           "type2_det_bound", "variable_bounds", "variable_scale"]
+__all__ = ["CLEARANCE_ROWS", "NODE_ROWS", "Transcription", "build_nlp", "integration_rows",
+           "layout", "midpoint_states", "node_bounds", "objective", "path_rows",
+           "smoothness_rows", "type2_det_bound", "variable_bounds", "variable_scale"]
