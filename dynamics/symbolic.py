@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -30,6 +31,7 @@ import numpy as np
 from sixplus3.cache import cached
 from sixplus3.dynamics.clearance import clearance_rows
 from sixplus3.dynamics.platform_rows import platform_line_det_normalised
+from sixplus3.dynamics.tree import revolute_joints, tree_forces, tree_placements
 from sixplus3.kinematics.spherical import spherical_reference
 from sixplus3.robot_description.assembly import AssemblyMode
 from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, require_robot
@@ -45,16 +47,6 @@ def rotvec_matrix(r):
     B = ca.if_else(a < 1e-8, 0.5 - a / 24 + a * a / 720, (1 - ca.cos(th)) / (th * th + 1e-300))
     K = ca.skew(r)
     return ca.SX.eye(3) + A * K + B * (K @ K)
-
-
-def _rx(q):
-    c, s = ca.cos(q), ca.sin(q)
-    return ca.vertcat(ca.horzcat(1, 0, 0), ca.horzcat(0, c, -s), ca.horzcat(0, s, c))
-
-
-def _rz(q):
-    c, s = ca.cos(q), ca.sin(q)
-    return ca.vertcat(ca.horzcat(c, -s, 0), ca.horzcat(s, c, 0), ca.horzcat(0, 0, 1))
 
 
 def _solve_rus(rx, ry, rz, crank, link, sign):
@@ -285,14 +277,13 @@ class _Core:
     node_p: ca.Function  # (x, xd, u, tau, p)
 
 
-def _build(robot: Robot) -> _Core:
-    model = robot.closed_loop_model().model
-    setup = ca.SX.sym("p", N_SETUP)
-    geom = robot.geometry
-    mode: AssemblyMode = robot.mode
-    x = ca.SX.sym("x", NX)
-    xd = ca.SX.sym("xd", NX)
-    xdd = ca.SX.sym("xdd", NX)
+def ik_expressions(geom: RobotGeometry, mode: AssemblyMode, x: ca.SX) -> dict[str, Any]:
+    """The whole robot's closed-form inverse kinematics in minimal coordinates ``x``,
+    symbolically: the platform rotation ``R``, every revolute joint's value by name
+    (``joint_val``: the legs' nine joints each, and the cranks ``platform_crank{i}`` =
+    psi_i), the actuated angles ``theta`` (9,), and per leg its reach measures, type I
+    margins, type II determinant, body frame ``leg_Q`` and links (A-D, D-P, B-G, G-E,
+    C-H, H-F)."""
     p, r, psi = x[0:3], x[3:6], x[6:9]
     R = rotvec_matrix(r)
     joint_val: dict[str, ca.SX] = {}
@@ -324,100 +315,37 @@ def _build(robot: Robot) -> _Core:
                           ("C", leg["theta"][2]), ("Ha", leg["ha"]), ("Hb", leg["hb"])):
             joint_val[f"leg{i}_{name}"] = val
         joint_val[f"platform_crank{i}"] = psi[i]
-    theta = ca.vertcat(*thetas)
+    return {"R": R, "joint_val": joint_val, "theta": ca.vertcat(*thetas), "reach": reach,
+            "type1": type1, "type2": type2, "leg_Q": leg_Q, "links": links}
 
-    # Symbolic tree forward kinematics from the Pinocchio model.
-    oR = [ca.SX.eye(3)] * model.njoints
-    ot = [ca.SX.zeros(3, 1)] * model.njoints
-    qvec = [ca.SX(0)] * model.nq
-    for j in range(1, model.njoints):
-        name = model.names[j]
-        jm = model.joints[j]
-        par = model.parents[j]
-        M = model.jointPlacements[j]
-        Rp = oR[par] @ ca.DM(M.rotation)
-        tp = ot[par] + oR[par] @ ca.DM(M.translation)
-        kind = jm.shortname()
-        if kind == "JointModelFreeFlyer":
-            oR[j], ot[j] = R, p
-            # q of the free-flyer: position and quaternion (x, y, z, w) of R
-            qvec[jm.idx_q:jm.idx_q + 3] = [p[0], p[1], p[2]]
-            th_r = ca.sqrt(ca.dot(r, r) + 1e-30)
-            sinc = ca.if_else(ca.dot(r, r) < 1e-8, 0.5 - ca.dot(r, r) / 48,
-                              ca.sin(th_r / 2) / th_r)
-            qvec[jm.idx_q + 3:jm.idx_q + 7] = [r[0] * sinc, r[1] * sinc, r[2] * sinc,
-                                               ca.cos(th_r / 2)]
-            continue
-        val = joint_val[name]
-        qvec[jm.idx_q] = val
-        if kind == "JointModelRX":
-            oR[j] = Rp @ _rx(val)
-        elif kind == "JointModelRZ":
-            oR[j] = Rp @ _rz(val)
-        else:  # pragma: no cover - the generator only makes RX / RZ / free-flyer
-            raise NotImplementedError(kind)
-        ot[j] = tp
+
+def _build(robot: Robot) -> _Core:
+    model = robot.closed_loop_model().model
+    setup = ca.SX.sym("p", N_SETUP)
+    geom = robot.geometry
+    mode: AssemblyMode = robot.mode
+    x = ca.SX.sym("x", NX)
+    xd = ca.SX.sym("xd", NX)
+    xdd = ca.SX.sym("xdd", NX)
+    p, r, psi = x[0:3], x[3:6], x[6:9]
+    ik = ik_expressions(geom, mode, x)
+    R, joint_val, theta = ik["R"], ik["joint_val"], ik["theta"]
+    reach, type1, type2, leg_Q, links = (ik[k] for k in ("reach", "type1", "type2", "leg_Q",
+                                                         "links"))
+
+    oR, ot, qvec = tree_placements(model, joint_val, p, R, r)
 
     # Generalized forces by a symbolic recursive Newton-Euler pass over the tree, in the
     # world frame, with joint rates from the IK: qd = Jq xd, qdd = Jq xdd + (dJq/dt) xd.
-    rev = [j for j in range(1, model.njoints)
-           if model.joints[j].shortname() != "JointModelFreeFlyer"]
+    rev = revolute_joints(model)
     qv = ca.vertcat(*[joint_val[model.names[j]] for j in rev])
     Jq = ca.jacobian(qv, x)
     qd_all = Jq @ xd
     qdd_all = Jq @ xdd + ca.jtimes(qd_all, x, xd)
     qd = {j: qd_all[k] for k, j in enumerate(rev)}
     qdd = {j: qdd_all[k] for k, j in enumerate(rev)}
-    rd, rdd = xd[3:6], xdd[3:6]
-    Rdot = ca.reshape(ca.jtimes(ca.reshape(R, 9, 1), r, rd), 3, 3)
-    W = Rdot @ R.T
-    w_plat = ca.vertcat(W[2, 1], W[0, 2], W[1, 0])
-    E = ca.jacobian(w_plat, rd)  # omega = E(r) r_dot
-    a_plat = ca.jtimes(w_plat, r, rd) + E @ rdd
-    grav = setup[0:3]
-    zero = ca.SX.zeros(3, 1)
-    om, al, acc = [zero] * model.njoints, [zero] * model.njoints, [zero] * model.njoints
-    axes = {}
-    com, F, N = {}, {}, {}
-    for j in range(1, model.njoints):
-        par = model.parents[j]
-        kind = model.joints[j].shortname()
-        if kind == "JointModelFreeFlyer":
-            om[j], al[j], acc[j] = w_plat, a_plat, xdd[0:3]
-        else:
-            ax = oR[j][:, 0] if kind == "JointModelRX" else oR[j][:, 2]
-            axes[j] = ax
-            d = ot[j] - ot[par]
-            om[j] = om[par] + ax * qd[j]
-            al[j] = al[par] + ax * qdd[j] + ca.cross(om[par], ax * qd[j])
-            acc[j] = acc[par] + ca.cross(al[par], d) + ca.cross(om[par], ca.cross(om[par], d))
-        Y = model.inertias[j]
-        lever = oR[j] @ ca.DM(Y.lever)
-        com[j] = lever
-        ac = acc[j] + ca.cross(al[j], lever) + ca.cross(om[j], ca.cross(om[j], lever))
-        Iw = oR[j] @ ca.DM(Y.inertia) @ oR[j].T
-        F[j] = Y.mass * (ac - grav)
-        N[j] = Iw @ al[j] + ca.cross(om[j], Iw @ om[j])
-    f = {j: F[j] for j in range(1, model.njoints)}
-    n = {j: N[j] + ca.cross(com[j], F[j]) for j in range(1, model.njoints)}  # about t_j
-    # the payload: a rigid body on the platform, from the parameters
-    ff = next(j for j in range(1, model.njoints)
-              if model.joints[j].shortname() == "JointModelFreeFlyer")
-    m_pl, c_pl, i6 = setup[3], R @ setup[4:7], setup[7:13]
-    I_pl = ca.vertcat(ca.horzcat(i6[0], i6[3], i6[4]), ca.horzcat(i6[3], i6[1], i6[5]),
-                      ca.horzcat(i6[4], i6[5], i6[2]))
-    Iw_pl = R @ I_pl @ R.T
-    a_pl = acc[ff] + ca.cross(al[ff], c_pl) + ca.cross(om[ff], ca.cross(om[ff], c_pl))
-    F_pl = m_pl * (a_pl - grav)
-    f[ff] = f[ff] + F_pl
-    n[ff] = n[ff] + Iw_pl @ al[ff] + ca.cross(om[ff], Iw_pl @ om[ff]) + ca.cross(c_pl, F_pl)
-    for j in range(model.njoints - 1, 0, -1):
-        par = model.parents[j]
-        if par > 0:
-            f[par] = f[par] + f[j]
-            n[par] = n[par] + n[j] + ca.cross(ot[j] - ot[par], f[j])
-    tau_tree = ca.vertcat(*[ca.dot(axes[j], n[j]) for j in rev])
-    Q = Jq.T @ tau_tree + ca.vertcat(f[ff], E.T @ n[ff], ca.SX.zeros(3, 1))
+    tau_tree, f_ff, n_ff, E = tree_forces(model, oR, ot, qd, qdd, xd, xdd, R, r, setup)
+    Q = Jq.T @ tau_tree + ca.vertcat(f_ff, E.T @ n_ff, ca.SX.zeros(3, 1))
     Jth = ca.jacobian(theta, x)
     th_dot = Jth @ xd
     th_ddot = ca.jtimes(th_dot, x, xd) + Jth @ xdd

@@ -236,3 +236,29 @@ def test_toppra_failure_is_named_and_the_baseline_catches_only_it(monkeypatch) -
     monkeypatch.setattr(baseline, "toppra_trajectory", bug)
     with pytest.raises(RuntimeError, match="a bug"):
         baseline.baseline_plan(problem, psi)
+
+
+def test_the_lifted_torque_balance_is_todays_where_its_closures_hold() -> None:
+    """dynamics.lifted (the planner-v2 study): with the legs' joint values, rates and
+    accelerations from the closed forms, the closure rows vanish and the lifted balance
+    equals today's torque rows (node_p rows 0-9) to rounding; a lifted value off its
+    closed form shows in its closure row."""
+    from sixplus3.dynamics.lifted import lifted_functions
+    from sixplus3.dynamics.symbolic import home_x, setup_parameters, symbolic_robot
+    from sixplus3.robot_description.robot import Robot
+
+    robot = Robot.default()
+    F, sr, p = lifted_functions(robot), symbolic_robot(robot), setup_parameters(robot)
+    rng = np.random.default_rng(3)
+    for _ in range(4):
+        x = home_x(robot) + np.r_[rng.normal(0, 0.02, 3), rng.normal(0, 0.2, 6)]
+        xd, xdd, tau = rng.normal(0, 0.5, 9), rng.normal(0, 20, 9), rng.normal(0, 3, 9)
+        qv, qd, qdd = (np.array(v).ravel() for v in F["lift"](x, xd, xdd))
+        assert np.abs(np.array(F["closure"](x, xd, xdd, qv, qd, qdd))).max() < 1e-12
+        lifted = np.array(F["balance"](x, xd, xdd, tau, qv, qd, qdd, p)).ravel()
+        today = np.array(sr.node_p(x, xd, xdd, tau, p)).ravel()[0:9]
+        np.testing.assert_allclose(lifted, today, atol=1e-9 * max(1.0, np.abs(today).max()))
+        off = qd.copy()
+        off[4] += 1e-3
+        rows = np.array(F["closure"](x, xd, xdd, qv, off, qdd)).ravel()
+        assert rows[27 + 4] == pytest.approx(1e-3) and np.abs(np.delete(rows, 31)).max() == 0
