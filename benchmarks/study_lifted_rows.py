@@ -3,9 +3,12 @@
     .venv/bin/python benchmarks/study_lifted_rows.py
 
 Today's 9 torque-balance rows (rows 0-9 of ``SymbolicRobot.node_p``: the closed-form
-inverse kinematics composed with the tree's Newton-Euler pass) against the lifted form
-of :mod:`sixplus3.dynamics.lifted` (the legs' 27 joint values, rates and accelerations
-as variables, 81 closure rows and the 9 balance rows), on the default robot.  For each:
+inverse kinematics composed with the tree's Newton-Euler pass) against two lifted forms
+of :mod:`sixplus3.dynamics.lifted`, with the legs' 27 joint values, rates and
+accelerations as variables: tied by the closed forms (81 closure rows and the 9 balance
+rows), or implicitly (the 27 loop-closure rows of the tree and their velocity and
+acceleration forms, and the tree's 36 equations of motion with 27 closure forces as
+variables), on the default robot.  For each:
 the rows' function, its Jacobian and the Hessian of a multiplier-weighted sum of its rows
 (what IPOPT or FATROP would evaluate at every iteration), as CasADi SX functions with
 common subexpressions eliminated: their instruction counts, the Jacobian's and the
@@ -22,7 +25,7 @@ import time
 import casadi as ca
 import numpy as np
 
-from sixplus3.dynamics.lifted import NQ, lifted_functions
+from sixplus3.dynamics.lifted import NQ, implicit_functions, lifted_functions
 from sixplus3.dynamics.symbolic import N_SETUP, NX, home_x, setup_parameters, symbolic_robot
 from sixplus3.robot_description.robot import Robot
 
@@ -86,6 +89,18 @@ def main() -> None:
         args = [x0, xd0, xdd0, *( [tau0] if "balance" in part else []),
                 *(np.array(v).ravel() for v in F["lift"](x0, xd0, xdd0))]
         measure(part, rows, vars_, [setup], [*args, p])
+    G = implicit_functions(robot)
+    lam = ca.SX.sym("lam", NQ)
+    lam0 = rng.normal(0, 10, NQ)
+    q0 = [np.array(v).ravel() for v in F["lift"](x0, xd0, xdd0)]
+    closure = G["closure"](x, xd, xdd, qv, qd, qdd)
+    dynamics = G["dynamics"](x, xd, xdd, tau, qv, qd, qdd, lam, setup)
+    measure("implicit: 81 closure + 36 dynamics rows", ca.vertcat(closure, dynamics),
+            [x, xd, xdd, tau, qv, qd, qdd, lam], [setup], [x0, xd0, xdd0, tau0, *q0, lam0, p])
+    measure("implicit: the 81 loop-closure rows", closure, [x, xd, xdd, qv, qd, qdd], [setup],
+            [x0, xd0, xdd0, *q0, p])
+    measure("implicit: the 36 dynamics rows", dynamics, [x, xd, xdd, tau, qv, qd, qdd, lam],
+            [setup], [x0, xd0, xdd0, tau0, *q0, lam0, p])
 
 
 if __name__ == "__main__":

@@ -25,7 +25,7 @@ from typing import Any
 
 import casadi as ca
 
-from sixplus3.dynamics.symbolic import N_SETUP, NX, ik_expressions
+from sixplus3.dynamics.symbolic import N_SETUP, NX, ik_expressions, rotvec_matrix
 from sixplus3.dynamics.tree import revolute_joints, tree_forces, tree_placements
 from sixplus3.robot_description.robot import NUM_LEGS, Robot, require_robot
 
@@ -91,4 +91,76 @@ def lifted_functions(robot: Robot) -> dict[str, ca.Function]:
     }
 
 
-__all__ = ["ACTUATED", "LEG_JOINTS", "NQ", "lifted_functions"]
+def implicit_functions(robot: Robot) -> dict[str, ca.Function]:
+    """The lifted variables tied without the closed forms: the 27 loop-closure rows of the
+    tree (each spherical joint's centre from both of its bodies, the closed-loop model's
+    constraints) with their velocity and acceleration forms, and the tree's 36 equations
+    of motion with the closures' forces ``lam`` (27,):
+
+        tau_tree(qv, qd, qdd) - S^T (tau - motor) - dc/dq^T lam = 0   (30 joints),
+        platform wrench - dc/d(p, r)^T lam = 0                         (6).
+
+    ``closure``: (x, xd, xdd, qv, qd, qdd) -> 81 rows; ``dynamics``: (x, xd, xdd, tau,
+    qv, qd, qdd, lam, p) -> 36 rows [N m, N].  At a state whose closures hold, the 36 rows
+    are linear in (tau, lam) with a unique solution, whose tau is today's
+    (tests/test_planner_structure.py)."""
+    robot = require_robot(robot)
+    clm = robot.closed_loop_model()
+    model = clm.model
+    x, xd, xdd = (ca.SX.sym(n, NX) for n in ("x", "xd", "xdd"))
+    tau, setup = ca.SX.sym("tau", NX), ca.SX.sym("p", N_SETUP)
+    qv, qd, qdd = (ca.SX.sym(n, NQ) for n in ("qv", "qd", "qdd"))
+    lam = ca.SX.sym("lam", NQ)
+    names = [f"leg{i}_{j}" for i in range(NUM_LEGS) for j in LEG_JOINTS]
+    values = {n: qv[k] for k, n in enumerate(names)}
+    rates, accels = {}, {}
+    rev = revolute_joints(model)
+    for j in rev:
+        name = model.names[j]
+        if name in names:
+            rates[j], accels[j] = qd[names.index(name)], qdd[names.index(name)]
+        else:  # platform_crank{i}: the minimal coordinate psi_i
+            i = int(name[-1])
+            values[name] = x[6 + i]
+            rates[j], accels[j] = xd[6 + i], xdd[6 + i]
+    r = x[3:6]
+    R = rotvec_matrix(r)
+    oR, ot, _ = tree_placements(model, values, x[0:3], R, r)
+    def centre(joint: int, placement: Any) -> Any:
+        return ot[joint] + oR[joint] @ ca.DM(placement.translation)
+
+    c = ca.vertcat(*[centre(cm.joint1_id, cm.joint1_placement)
+                     - centre(cm.joint2_id, cm.joint2_placement)
+                     for cm in clm.constraint_models])
+    q_all, v_all, a_all = ca.vertcat(qv, x), ca.vertcat(qd, xd), ca.vertcat(qdd, xdd)
+    c_dot = ca.jtimes(c, q_all, v_all)
+    c_ddot = ca.jtimes(c_dot, q_all, v_all) + ca.jtimes(c, q_all, a_all)
+    tau_tree, f_ff, n_ff, E = tree_forces(model, oR, ot, rates, accels, xd, xdd, R, r, setup)
+    Cq, Cx = ca.jacobian(c, qv), ca.jacobian(c, x)
+    th_dot, th_ddot = qd[ACTUATED], qdd[ACTUATED]
+    motor = (setup[13] * th_ddot + setup[14] * th_dot
+             + setup[15] * ca.tanh(th_dot / setup[16]))
+    act = ca.SX.zeros(NQ, 1)
+    act[ACTUATED] = tau - motor
+    joint_rows, crank_rows = [], []
+    for k, j in enumerate(rev):
+        name = model.names[j]
+        if name in names:
+            m = names.index(name)
+            joint_rows.append((m, tau_tree[k] - act[m] - ca.dot(Cq[:, m], lam)))
+        else:
+            i = int(name[-1])
+            crank_rows.append(tau_tree[k] - ca.dot(Cx[:, 6 + i], lam))
+    joint_rows.sort(key=lambda kv: kv[0])
+    platform = ca.vertcat(f_ff, E.T @ n_ff) - Cx[:, 0:6].T @ lam
+    dynamics = ca.vertcat(*[row for _, row in joint_rows], *crank_rows, platform)
+    opts: dict[str, Any] = {"cse": True}
+    return {
+        "closure": ca.Function("closure", [x, xd, xdd, qv, qd, qdd],
+                               [ca.vertcat(c, c_dot, c_ddot)], opts),
+        "dynamics": ca.Function("dynamics", [x, xd, xdd, tau, qv, qd, qdd, lam, setup],
+                                [dynamics], opts),
+    }
+
+
+__all__ = ["ACTUATED", "LEG_JOINTS", "NQ", "implicit_functions", "lifted_functions"]

@@ -262,3 +262,32 @@ def test_the_lifted_torque_balance_is_todays_where_its_closures_hold() -> None:
         off[4] += 1e-3
         rows = np.array(F["closure"](x, xd, xdd, qv, off, qdd)).ravel()
         assert rows[27 + 4] == pytest.approx(1e-3) and np.abs(np.delete(rows, 31)).max() == 0
+
+
+def test_the_implicit_closures_reproduce_todays_torques() -> None:
+    """dynamics.lifted.implicit_functions: at a state from the closed forms, the tree's 27
+    loop-closure rows and their rates vanish, and its 36 equations of motion (linear in
+    the torques and the 27 closure forces) give today's torques; a joint value off the
+    closed form breaks a closure."""
+    from sixplus3.dynamics.lifted import NQ, implicit_functions, lifted_functions
+    from sixplus3.dynamics.symbolic import home_x, setup_parameters, symbolic_robot
+    from sixplus3.robot_description.robot import Robot
+
+    robot = Robot.default()
+    L, G = lifted_functions(robot), implicit_functions(robot)
+    sr, p = symbolic_robot(robot), setup_parameters(robot)
+    rng = np.random.default_rng(4)
+    for _ in range(3):
+        x = home_x(robot) + np.r_[rng.normal(0, 0.02, 3), rng.normal(0, 0.2, 6)]
+        xd, xdd = rng.normal(0, 0.5, 9), rng.normal(0, 20, 9)
+        qv, qd, qdd = (np.array(v).ravel() for v in L["lift"](x, xd, xdd))
+        assert np.abs(np.array(G["closure"](x, xd, xdd, qv, qd, qdd))).max() < 1e-12
+        f0 = np.array(G["dynamics"](x, xd, xdd, np.zeros(9), qv, qd, qdd, np.zeros(NQ), p))
+        A = np.hstack([np.array(G["dynamics"](x, xd, xdd, e[:9], qv, qd, qdd, e[9:], p)) - f0
+                       for e in np.eye(36)])
+        tau_lam = np.linalg.solve(A, -f0.ravel())
+        np.testing.assert_allclose(tau_lam[:9], np.array(sr.tau(x, xd, xdd)).ravel(),
+                                   atol=1e-10)
+        off = qv.copy()
+        off[1] += 1e-3  # leg 0's theta_s2
+        assert np.abs(np.array(G["closure"](x, xd, xdd, off, qd, qdd))[:27]).max() > 1e-5
