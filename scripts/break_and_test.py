@@ -71,6 +71,16 @@ BREAKS: dict[str, tuple[str, str, str, list[str]]] = {
         "    if False:",
         ["tests/test_planner_fallback.py::"
          "test_an_overlap_next_to_a_near_contact_waypoint_is_re_solved_not_given_up"]),
+    "the implicit form's platform rows without the closure forces' sign": (
+        "dynamics/lifted.py",
+        "    platform = ca.vertcat(f_ff, E.T @ n_ff) - Cx[:, 0:6].T @ lam",
+        "    platform = ca.vertcat(f_ff, E.T @ n_ff) + Cx[:, 0:6].T @ lam",
+        ["tests/test_planner_structure.py::test_the_implicit_closures_reproduce_todays_torques"]),
+    "the lifted balance without the motors": (
+        "dynamics/lifted.py", "    balance = Jth.T @ (tau - motor) - Q",
+        "    balance = Jth.T @ tau - Q",
+        ["tests/test_planner_structure.py::"
+         "test_the_lifted_torque_balance_is_todays_where_its_closures_hold"]),
     "the gate's torque cap with its own tolerance": (
         "control/findings.py",
         '    out.append(finding("torque", "limit", "N m", lim.torque, '
