@@ -69,6 +69,31 @@ def broad_task(rng: np.random.Generator, k: int) -> dict:
     return {"name": f"broad_{k}", "waypoints": wps}
 
 
+def first_starts(n: int, robot: Robot, seed: int = 2026) -> list[tuple[dict, np.ndarray, object]]:
+    """(task document, static crank angles, baseline) of the first ``n`` tasks of the
+    narrow held-out set that pass the static checks and have a baseline: the planner's
+    first start, for the studies of one solve (profile_nlp.py, study_implicit_nlp.py)."""
+    from sixplus3.planner import baseline
+    from sixplus3.planner.statics import choose_static_psi
+
+    rng = np.random.default_rng(seed)
+    starts = []
+    for k in range(40):
+        doc = heldout_task(rng, k)
+        if len(starts) == n:
+            break
+        problem = Problem(task_from_dict(doc), robot)
+        try:
+            psi = choose_static_psi(problem.task, robot, problem.limits, False,
+                                    problem.rest_waypoints())
+        except InfeasibleTaskError:
+            continue
+        base, _ = baseline.baseline_plan(problem, psi)
+        if base is not None:
+            starts.append((doc, psi, base))
+    return starts
+
+
 def pct(values: list[float], q: float) -> float:
     return float(np.percentile(values, q)) if values else float("nan")
 

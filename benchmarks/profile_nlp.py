@@ -38,17 +38,14 @@ import statistics
 import sys
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).parent))
-from bench_planner_heldout import heldout_task  # noqa: E402
+from bench_planner_heldout import first_starts  # noqa: E402
 
 from sixplus3.dynamics.codegen import ensure_optimised  # noqa: E402
 from sixplus3.errors import InfeasibleTaskError  # noqa: E402
-from sixplus3.planner import baseline, solvers  # noqa: E402
+from sixplus3.planner import solvers  # noqa: E402
 from sixplus3.planner.nlp import solve_nlp  # noqa: E402
 from sixplus3.planner.ocp import PlannerOptions, Problem  # noqa: E402
-from sixplus3.planner.statics import choose_static_psi  # noqa: E402
 from sixplus3.planner.strategy import initial_bounds  # noqa: E402
 from sixplus3.planner.task import task_from_dict  # noqa: E402
 from sixplus3.robot_description.robot import Robot  # noqa: E402
@@ -91,21 +88,9 @@ def main() -> None:
         ap.error(f"--n >= 1 and --configs from {', '.join(CONFIGS)}")
     robot = Robot.default()
     ensure_optimised(robot)
-    rng = np.random.default_rng(args.seed)
     starts = []
-    for k in range(40):
-        doc = heldout_task(rng, k)
-        if len(starts) == args.n:
-            break
+    for doc, psi, base in first_starts(args.n, robot, args.seed):
         problem = Problem(task_from_dict(doc), robot)
-        try:
-            psi = choose_static_psi(problem.task, robot, problem.limits, False,
-                                    problem.rest_waypoints())
-        except InfeasibleTaskError:
-            continue
-        base, _ = baseline.baseline_plan(problem, psi)
-        if base is None:
-            continue
         starts.append((doc, psi, base, initial_bounds(problem, psi, base)))
     print("| config | task | status | iterations | wall [s] | per iteration [ms] | "
           + " | ".join(f"{e} [s]" for e in EVALS) + " | IPOPT's own [s] |")

@@ -30,24 +30,21 @@ import casadi as ca  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).parent))
-from bench_planner_heldout import heldout_task  # noqa: E402
+from bench_planner_heldout import first_starts  # noqa: E402
 
 from sixplus3.dynamics.lifted import NQ, implicit_functions, lifted_functions  # noqa: E402
 from sixplus3.dynamics.symbolic import setup_parameters  # noqa: E402
-from sixplus3.errors import InfeasibleTaskError  # noqa: E402
-from sixplus3.planner import baseline, solvers  # noqa: E402
-from sixplus3.planner.nlp import solve_nlp  # noqa: E402
+from sixplus3.planner import solvers  # noqa: E402
+from sixplus3.planner.nlp import point_bounds, solve_nlp  # noqa: E402
 from sixplus3.planner.ocp import PlannerOptions, Problem  # noqa: E402
 from sixplus3.planner.options import ACC_SCALE, ROW_SCALE  # noqa: E402
 from sixplus3.planner.solution import actuated_profile, sample_cubic  # noqa: E402
-from sixplus3.planner.statics import choose_static_psi  # noqa: E402
 from sixplus3.planner.strategy import initial_bounds  # noqa: E402
 from sixplus3.planner.task import task_from_dict  # noqa: E402
 from sixplus3.planner.transcription import (  # noqa: E402
     integration_rows,
     layout,
     midpoint_states,
-    node_bounds,
     objective,
     smoothness_rows,
     variable_bounds,
@@ -114,7 +111,7 @@ def solve_implicit(problem: Problem, psi: np.ndarray, bounds, base, hessian: str
     """Today's first start (from the baseline, the homotopy's margin) on the implicit NLP."""
     import dataclasses
 
-    sr, lim = problem.sr, dataclasses.replace(problem.limits, margin=bounds.margin)
+    lim = dataclasses.replace(problem.limits, margin=bounds.margin)
     S, N = problem.task.n_segments, problem.n_intervals
     wp_x, *_ = problem.guess(psi)
     x0, xd0, xdd0, T0 = problem.on_nodes(base)
@@ -130,12 +127,8 @@ def solve_implicit(problem: Problem, psi: np.ndarray, bounds, base, hessian: str
         T0, xd0, xdd0 = T0 * a, xd0 / a, xdd0 / a**2
         pts = (pts[0], pts[1] / a, pts[2] / a**2)
         profile = actuated_profile(problem.robot, *pts)
-    m1, m2, _ = sr.margins.map(N + 1)(x0.T)
-    sign1 = np.sign(np.median(np.array(m1), axis=1))
-    sign2 = np.sign(np.median(np.array(m2), axis=1))
     tmax = safety["torque"] * lim.torque
-    lb, ub = node_bounds(lim, sign1, sign2, bounds.platform_proxy, safety["velocity"],
-                         bounds.spherical_reserve, bounds.clearance)
+    lb, ub = point_bounds(problem, x0, lim, bounds)
     lbx, ubx = variable_bounds(problem, wp_x, tmax, safety["acceleration"] * lim.acceleration,
                                bounds.duration_cap or np.inf, bounds.cranks)
     P_pts = 2 * N + 1
@@ -187,24 +180,11 @@ def main() -> None:
                     help="IPOPT's tol for the implicit NLP (the planner's: 1e-4)")
     args = ap.parse_args()
     robot = Robot.default()
-    rng = np.random.default_rng(2026)
-    done = 0
     print("| task | form | status | iterations | T [s] | wall [s] | per iteration [ms] | "
           "jac g / Hessian [s] | variables / rows |")
     print("| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | --- |")
-    for k in range(40):
-        if done == args.n:
-            break
-        doc = heldout_task(rng, k)
+    for doc, psi, base in first_starts(args.n, robot):
         problem = Problem(task_from_dict(doc), robot, PlannerOptions(max_iter=300))
-        try:
-            psi = choose_static_psi(problem.task, robot, problem.limits, False,
-                                    problem.rest_waypoints())
-        except InfeasibleTaskError:
-            continue
-        base, _ = baseline.baseline_plan(problem, psi)
-        if base is None:
-            continue
         bounds = initial_bounds(problem, psi, base).replace(
             margin=0.6 * problem.limits.margin)
         solvers.ipopt_solver(problem)
@@ -219,7 +199,6 @@ def main() -> None:
               f"{r['iterations']} | {r['T']:.4f} | {r['wall']:.1f} | "
               f"{1e3 * r['wall'] / max(r['iterations'], 1):.0f} | {r['nlp_jac_g']:.1f} / "
               f"{r['nlp_hess_l']:.1f} | {r['variables']} / {r['rows']} |", flush=True)
-        done += 1
 
 
 if __name__ == "__main__":

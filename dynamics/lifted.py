@@ -38,6 +38,24 @@ ACTUATED = [len(LEG_JOINTS) * i + LEG_JOINTS.index(j) for i in range(NUM_LEGS)
             for j in ("A", "B", "C")]
 
 
+def _tree_motion(model: Any, qv: Any, qd: Any, qdd: Any, x: Any, xd: Any, xdd: Any
+                 ) -> tuple[dict[str, Any], dict[int, Any], dict[int, Any]]:
+    """The tree's joint values (by name), rates and accelerations (by index): the legs'
+    joints from the lifted variables, the cranks from the minimal coordinates psi."""
+    names = [f"leg{i}_{j}" for i in range(NUM_LEGS) for j in LEG_JOINTS]
+    values = {n: qv[k] for k, n in enumerate(names)}
+    rates, accels = {}, {}
+    for j in revolute_joints(model):
+        name = model.names[j]
+        if name in names:
+            rates[j], accels[j] = qd[names.index(name)], qdd[names.index(name)]
+        else:  # platform_crank{i}: the minimal coordinate psi_i
+            i = int(name[-1])
+            values[name] = x[6 + i]
+            rates[j], accels[j] = xd[6 + i], xdd[6 + i]
+    return values, rates, accels
+
+
 def lifted_functions(robot: Robot) -> dict[str, ca.Function]:
     """``closure``: (x, xd, xdd, qv, qd, qdd) -> the 81 closure rows; ``balance``:
     (x, xd, xdd, tau, qv, qd, qdd, p) -> the 9 torque-balance rows [N m] with the setup
@@ -56,18 +74,8 @@ def lifted_functions(robot: Robot) -> dict[str, ca.Function]:
     qdd_ik = Jq @ xdd + ca.jtimes(qd_ik, x, xd)
     closure = ca.vertcat(qv - q_ik, qd - qd_ik, qdd - qdd_ik)
     # the tree sees the lifted legs' joints; the cranks are the minimal coordinates psi
-    values = {n: qv[k] for k, n in enumerate(names)}
-    rates, accels = {}, {}
+    values, rates, accels = _tree_motion(model, qv, qd, qdd, x, xd, xdd)
     rev = revolute_joints(model)
-    for j in rev:
-        name = model.names[j]
-        if name in values:
-            k = names.index(name)
-            rates[j], accels[j] = qd[k], qdd[k]
-        else:  # platform_crank{i}
-            i = int(name[-1])
-            values[name] = x[6 + i]
-            rates[j], accels[j] = xd[6 + i], xdd[6 + i]
     R, r = ik["R"], x[3:6]
     oR, ot, _ = tree_placements(model, values, x[0:3], R, r)
     tau_tree, f_ff, n_ff, E = tree_forces(model, oR, ot, rates, accels, xd, xdd, R, r,
@@ -112,17 +120,8 @@ def implicit_functions(robot: Robot) -> dict[str, ca.Function]:
     qv, qd, qdd = (ca.SX.sym(n, NQ) for n in ("qv", "qd", "qdd"))
     lam = ca.SX.sym("lam", NQ)
     names = [f"leg{i}_{j}" for i in range(NUM_LEGS) for j in LEG_JOINTS]
-    values = {n: qv[k] for k, n in enumerate(names)}
-    rates, accels = {}, {}
+    values, rates, accels = _tree_motion(model, qv, qd, qdd, x, xd, xdd)
     rev = revolute_joints(model)
-    for j in rev:
-        name = model.names[j]
-        if name in names:
-            rates[j], accels[j] = qd[names.index(name)], qdd[names.index(name)]
-        else:  # platform_crank{i}: the minimal coordinate psi_i
-            i = int(name[-1])
-            values[name] = x[6 + i]
-            rates[j], accels[j] = xd[6 + i], xdd[6 + i]
     r = x[3:6]
     R = rotvec_matrix(r)
     oR, ot, _ = tree_placements(model, values, x[0:3], R, r)

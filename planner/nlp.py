@@ -28,6 +28,7 @@ from sixplus3.planner.transcription import (
     variable_bounds,
     variable_scale,
 )
+from sixplus3.robot_description.limits import Limits
 
 #: limits that a uniform time stretch lowers; the NLP bounds each at a share of its limit
 RATE_LIMITS = ("torque", "velocity", "acceleration")
@@ -62,6 +63,18 @@ class Bounds:
 
     def replace(self, **changes: Any) -> Bounds:
         return replace(self, **changes)
+
+
+def point_bounds(problem: Problem, x0: np.ndarray, lim: Limits, bounds: Bounds
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(lb, ub) of one point's path rows (:func:`transcription.node_bounds`) for the
+    start ``x0`` (N+1, 9) on the nodes: each margin row keeps the side of zero its
+    median over the start has (a margin keeps its sign inside a free region)."""
+    m1, m2, _ = problem.sr.margins.map(len(x0))(x0.T)
+    sign1 = np.sign(np.median(np.array(m1), axis=1))
+    sign2 = np.sign(np.median(np.array(m2), axis=1))
+    return node_bounds(lim, sign1, sign2, bounds.platform_proxy, bounds.safety["velocity"],
+                       bounds.spherical_reserve, bounds.clearance)
 
 
 def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
@@ -99,14 +112,8 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
             T0, xd0, xdd0 = T0 * a, xd0 / a, xdd0 / a**2
             pts = (pts[0], pts[1] / a, pts[2] / a**2)  # the same cubics, slower
             profile = actuated_profile(problem.robot, *pts)
-    # Constraint signs from the guess (a margin keeps its sign inside a free region).
-    m1, m2, _ = sr.margins.map(N + 1)(x0.T)
-    sign1 = np.sign(np.median(np.array(m1), axis=1))
-    sign2 = np.sign(np.median(np.array(m2), axis=1))
-
     tmax = safety["torque"] * lim.torque
-    lb, ub = node_bounds(lim, sign1, sign2, bounds.platform_proxy, safety["velocity"],
-                         bounds.spherical_reserve, bounds.clearance)
+    lb, ub = point_bounds(problem, x0, lim, bounds)
     # smoothness rows (transcription.smoothness_rows): per limit, 2 x 9N rows in [-1, 1]
     smooth_lo, smooth_hi = np.full(36 * N, -1.0), np.full(36 * N, 1.0)
     cap = bounds.duration_cap
@@ -258,5 +265,5 @@ def diagnose(problem: Problem, x: np.ndarray, xd: np.ndarray, u: np.ndarray,
             "waypoints")
 
 
-__all__ = ["RATE_LIMITS", "Bounds", "active_limits", "diagnose", "iteration_listener", "solve_nlp",
-           "uniform_safety"]
+__all__ = ["RATE_LIMITS", "Bounds", "active_limits", "diagnose", "iteration_listener",
+           "point_bounds", "solve_nlp", "uniform_safety"]
