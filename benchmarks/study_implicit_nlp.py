@@ -35,10 +35,9 @@ from bench_planner_heldout import first_starts  # noqa: E402
 from sixplus3.dynamics.lifted import NQ, implicit_functions, lifted_functions  # noqa: E402
 from sixplus3.dynamics.symbolic import setup_parameters  # noqa: E402
 from sixplus3.planner import solvers  # noqa: E402
-from sixplus3.planner.nlp import point_bounds, solve_nlp  # noqa: E402
+from sixplus3.planner.nlp import point_bounds, solve_nlp, start_point  # noqa: E402
 from sixplus3.planner.ocp import PlannerOptions, Problem  # noqa: E402
 from sixplus3.planner.options import ACC_SCALE, ROW_SCALE  # noqa: E402
-from sixplus3.planner.solution import actuated_profile, sample_cubic  # noqa: E402
 from sixplus3.planner.strategy import initial_bounds  # noqa: E402
 from sixplus3.planner.task import task_from_dict  # noqa: E402
 from sixplus3.planner.transcription import (  # noqa: E402
@@ -113,20 +112,8 @@ def solve_implicit(problem: Problem, psi: np.ndarray, bounds, base, hessian: str
 
     lim = dataclasses.replace(problem.limits, margin=bounds.margin)
     S, N = problem.task.n_segments, problem.n_intervals
-    wp_x, *_ = problem.guess(psi)
-    x0, xd0, xdd0, T0 = problem.on_nodes(base)
-    t0 = problem.node_times(T0)
-    xm, xdm, um = sample_cubic(t0, x0, xd0, xdd0, (t0[:-1] + t0[1:]) / 2)
-    pts = (np.r_[x0, xm], np.r_[xd0, xdm], np.r_[xdd0, um])
+    wp_x, x0, xd0, xdd0, T0, pts, profile = start_point(problem, psi, bounds, base)
     safety = bounds.safety
-    from sixplus3.planner.solution import stretch_factors
-
-    profile = actuated_profile(problem.robot, *pts)
-    a = float(stretch_factors(*profile, problem.limits, 0.99 * min(safety.values())).max())
-    if 1.0 < a < 2.0:
-        T0, xd0, xdd0 = T0 * a, xd0 / a, xdd0 / a**2
-        pts = (pts[0], pts[1] / a, pts[2] / a**2)
-        profile = actuated_profile(problem.robot, *pts)
     tmax = safety["torque"] * lim.torque
     lb, ub = point_bounds(problem, x0, lim, bounds)
     lbx, ubx = variable_bounds(problem, wp_x, tmax, safety["acceleration"] * lim.acceleration,

@@ -25,7 +25,13 @@ from typing import Any
 
 import casadi as ca
 
-from sixplus3.dynamics.symbolic import N_SETUP, NX, ik_expressions, rotvec_matrix
+from sixplus3.dynamics.symbolic import (
+    N_SETUP,
+    NX,
+    ik_expressions,
+    motor_torques,
+    rotvec_matrix,
+)
 from sixplus3.dynamics.tree import revolute_joints, tree_forces, tree_placements
 from sixplus3.robot_description.robot import NUM_LEGS, Robot, require_robot
 
@@ -87,8 +93,7 @@ def lifted_functions(robot: Robot) -> dict[str, ca.Function]:
     Q = J_rev.T @ tau_tree + ca.vertcat(f_ff, E.T @ n_ff, ca.SX.zeros(3, 1))
     Jth = Jq[ACTUATED, :]
     th_dot, th_ddot = qd[ACTUATED], qdd[ACTUATED]
-    motor = (setup[13] * th_ddot + setup[14] * th_dot
-             + setup[15] * ca.tanh(th_dot / setup[16]))
+    motor = motor_torques(setup, th_dot, th_ddot)
     balance = Jth.T @ (tau - motor) - Q
     opts: dict[str, Any] = {"cse": True}
     return {
@@ -137,8 +142,7 @@ def implicit_functions(robot: Robot) -> dict[str, ca.Function]:
     tau_tree, f_ff, n_ff, E = tree_forces(model, oR, ot, rates, accels, xd, xdd, R, r, setup)
     Cq, Cx = ca.jacobian(c, qv), ca.jacobian(c, x)
     th_dot, th_ddot = qd[ACTUATED], qdd[ACTUATED]
-    motor = (setup[13] * th_ddot + setup[14] * th_dot
-             + setup[15] * ca.tanh(th_dot / setup[16]))
+    motor = motor_torques(setup, th_dot, th_ddot)
     act = ca.SX.zeros(NQ, 1)
     act[ACTUATED] = tau - motor
     joint_rows, crank_rows = [], []

@@ -277,6 +277,14 @@ class _Core:
     node_p: ca.Function  # (x, xd, u, tau, p)
 
 
+def motor_torques(setup: Any, th_dot: Any, th_ddot: Any) -> Any:
+    """The motors' own torques at the joints (robot_description.physical): reflected
+    rotor inertia and joint friction, from the setup parameters (Robot.motors; not read
+    back from the Pinocchio armature)."""
+    return (setup[13] * th_ddot + setup[14] * th_dot
+            + setup[15] * ca.tanh(th_dot / setup[16]))
+
+
 def ik_expressions(geom: RobotGeometry, mode: AssemblyMode, x: ca.SX) -> dict[str, Any]:
     """The whole robot's closed-form inverse kinematics in minimal coordinates ``x``,
     symbolically: the platform rotation ``R``, every revolute joint's value by name
@@ -349,10 +357,7 @@ def _build(robot: Robot) -> _Core:
     Jth = ca.jacobian(theta, x)
     th_dot = Jth @ xd
     th_ddot = ca.jtimes(th_dot, x, xd) + Jth @ xdd
-    # the motors (robot_description.physical): reflected rotor inertia and joint friction,
-    # from the parameters (Robot.motors; not read back from the Pinocchio armature)
-    motor = (setup[13] * th_ddot + setup[14] * th_dot
-             + setup[15] * ca.tanh(th_dot / setup[16]))
+    motor = motor_torques(setup, th_dot, th_ddot)
     tau = ca.solve(Jth.T, Q) + motor
 
     # Spherical-joint tilt cosines (kinematics.spherical.spherical_tilts), 3 per leg: E, F, P.

@@ -77,18 +77,14 @@ def point_bounds(problem: Problem, x0: np.ndarray, lim: Limits, bounds: Bounds
                        bounds.spherical_reserve, bounds.clearance)
 
 
-def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
-              warm: Solution | None = None, time_scale: float = 1.0,
-              duration: float | None = None, max_iter: int | None = None) -> Solution:
-    """One NLP solve from the kinematic guess (stretched by ``time_scale``) or from
-    ``warm`` (a plan of this task: its primal-dual point if it has one, else its motion
-    on this NLP's nodes); ``duration`` fixes the total duration (minimum effort);
-    ``max_iter`` stops the solve earlier than ``options.max_iter`` (a failed start)."""
-    task, opt, sr = problem.task, problem.options, problem.sr
-    lim = problem.limits if bounds.margin is None else replace(problem.limits,
-                                                               margin=bounds.margin)
+def start_point(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
+                warm: Solution | None = None, time_scale: float = 1.0,
+                duration: float | None = None) -> tuple[Any, ...]:
+    """(waypoints' x, x, xd, xdd on the nodes, segment durations, (x, xd, xdd) at the
+    nodes then the midpoints, the actuated profile there) of a solve's start: the
+    kinematic guess stretched by ``time_scale``, or ``warm``'s motion (slowed inside the
+    bounds' safety share when it is a plan without an NLP point, e.g. the baseline)."""
     safety = bounds.safety
-    S, N = task.n_segments, problem.n_intervals
     wp_x, x0, xd0, xdd0, T0 = problem.guess(psi_wp)
     if time_scale != 1.0:
         T0, xd0, xdd0 = T0 * time_scale, xd0 / time_scale, xdd0 / time_scale**2
@@ -112,6 +108,23 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
             T0, xd0, xdd0 = T0 * a, xd0 / a, xdd0 / a**2
             pts = (pts[0], pts[1] / a, pts[2] / a**2)  # the same cubics, slower
             profile = actuated_profile(problem.robot, *pts)
+    return wp_x, x0, xd0, xdd0, T0, pts, profile
+
+
+def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
+              warm: Solution | None = None, time_scale: float = 1.0,
+              duration: float | None = None, max_iter: int | None = None) -> Solution:
+    """One NLP solve from the kinematic guess (stretched by ``time_scale``) or from
+    ``warm`` (a plan of this task: its primal-dual point if it has one, else its motion
+    on this NLP's nodes); ``duration`` fixes the total duration (minimum effort);
+    ``max_iter`` stops the solve earlier than ``options.max_iter`` (a failed start)."""
+    task, opt, sr = problem.task, problem.options, problem.sr
+    lim = problem.limits if bounds.margin is None else replace(problem.limits,
+                                                               margin=bounds.margin)
+    safety = bounds.safety
+    S, N = task.n_segments, problem.n_intervals
+    wp_x, x0, xd0, xdd0, T0, _, profile = start_point(problem, psi_wp, bounds, warm,
+                                                       time_scale, duration)
     tmax = safety["torque"] * lim.torque
     lb, ub = point_bounds(problem, x0, lim, bounds)
     # smoothness rows (transcription.smoothness_rows): per limit, 2 x 9N rows in [-1, 1]
@@ -266,4 +279,4 @@ def diagnose(problem: Problem, x: np.ndarray, xd: np.ndarray, u: np.ndarray,
 
 
 __all__ = ["RATE_LIMITS", "Bounds", "active_limits", "diagnose", "iteration_listener",
-           "point_bounds", "solve_nlp", "uniform_safety"]
+           "point_bounds", "solve_nlp", "start_point", "uniform_safety"]
