@@ -94,6 +94,23 @@ def first_starts(n: int, robot: Robot, seed: int = 2026) -> list[tuple[dict, np.
     return starts
 
 
+def first_solve(doc: dict, psi: np.ndarray, base: object, robot: Robot
+                ) -> tuple[Problem, object, object, dict]:
+    """(problem, bounds, solution, IPOPT's stats) of the planner's first solve of a
+    :func:`first_starts` entry: from the baseline at 0.6 x the task's margin (the
+    homotopy's first step), as ``planner.strategy.first_solve`` does it."""
+    from sixplus3.planner import solvers
+    from sixplus3.planner.nlp import solve_nlp
+    from sixplus3.planner.ocp import PlannerOptions
+    from sixplus3.planner.strategy import initial_bounds
+
+    problem = Problem(task_from_dict(doc), robot, PlannerOptions(max_iter=300))
+    bounds = initial_bounds(problem, psi, base).replace(margin=0.6 * problem.limits.margin)
+    solvers.ipopt_solver(problem)
+    sol = solve_nlp(problem, psi, bounds, warm=base)
+    return problem, bounds, sol, solvers.ipopt_solver(problem).solver.stats()
+
+
 def pct(values: list[float], q: float) -> float:
     return float(np.percentile(values, q)) if values else float("nan")
 

@@ -45,14 +45,12 @@ import casadi as ca  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).parent))
-from bench_planner_heldout import first_starts  # noqa: E402
+from bench_planner_heldout import first_solve, first_starts  # noqa: E402
 
 from sixplus3.planner import solvers  # noqa: E402
-from sixplus3.planner.nlp import point_bounds, solve_nlp, start_point  # noqa: E402
-from sixplus3.planner.ocp import PlannerOptions, Problem  # noqa: E402
+from sixplus3.planner.nlp import point_bounds, start_point  # noqa: E402
+from sixplus3.planner.ocp import Problem  # noqa: E402
 from sixplus3.planner.options import ROW_SCALE  # noqa: E402
-from sixplus3.planner.strategy import initial_bounds  # noqa: E402
-from sixplus3.planner.task import task_from_dict  # noqa: E402
 from sixplus3.planner.transcription import (  # noqa: E402
     CLEARANCE_ROWS,
     NODE_ROWS,
@@ -243,12 +241,7 @@ def main() -> None:
           "[s] | solver's own per iteration [ms] |")
     print("| --- | --- | --- | ---: | ---: | ---: | ---: | ---: |")
     for doc, psi, base in first_starts(args.n, robot):
-        problem = Problem(task_from_dict(doc), robot, PlannerOptions(max_iter=300))
-        bounds = initial_bounds(problem, psi, base).replace(
-            margin=0.6 * problem.limits.margin)
-        solvers.ipopt_solver(problem)
-        sol = solve_nlp(problem, psi, bounds, warm=base)
-        st = solvers.ipopt_solver(problem).solver.stats()
+        problem, bounds, sol, st = first_solve(doc, psi, base, robot)
         fe = sum(float(v) for k, v in st.items()
                  if k.startswith("t_wall_nlp_") and isinstance(v, float))
         print(f"| {doc['name']} | today: IPOPT, L-BFGS | {sol.status} | "

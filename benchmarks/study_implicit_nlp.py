@@ -30,16 +30,14 @@ import casadi as ca  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).parent))
-from bench_planner_heldout import first_starts  # noqa: E402
+from bench_planner_heldout import first_solve, first_starts  # noqa: E402
 
 from sixplus3.dynamics.lifted import NQ, implicit_functions, lifted_functions  # noqa: E402
 from sixplus3.dynamics.symbolic import setup_parameters  # noqa: E402
 from sixplus3.planner import solvers  # noqa: E402
-from sixplus3.planner.nlp import point_bounds, solve_nlp, start_point  # noqa: E402
-from sixplus3.planner.ocp import PlannerOptions, Problem  # noqa: E402
+from sixplus3.planner.nlp import point_bounds, start_point  # noqa: E402
+from sixplus3.planner.ocp import Problem  # noqa: E402
 from sixplus3.planner.options import ACC_SCALE, ROW_SCALE  # noqa: E402
-from sixplus3.planner.strategy import initial_bounds  # noqa: E402
-from sixplus3.planner.task import task_from_dict  # noqa: E402
 from sixplus3.planner.transcription import (  # noqa: E402
     integration_rows,
     layout,
@@ -171,12 +169,7 @@ def main() -> None:
           "jac g / Hessian [s] | variables / rows |")
     print("| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | --- |")
     for doc, psi, base in first_starts(args.n, robot):
-        problem = Problem(task_from_dict(doc), robot, PlannerOptions(max_iter=300))
-        bounds = initial_bounds(problem, psi, base).replace(
-            margin=0.6 * problem.limits.margin)
-        solvers.ipopt_solver(problem)
-        sol = solve_nlp(problem, psi, bounds, warm=base)
-        st = solvers.ipopt_solver(problem).solver.stats()
+        problem, bounds, sol, st = first_solve(doc, psi, base, robot)
         print(f"| {doc['name']} | today, L-BFGS | {sol.status} | {sol.iterations} | "
               f"{sol.final_time:.4f} | {sol.solve_time:.1f} | "
               f"{1e3 * sol.solve_time / max(sol.iterations, 1):.0f} | "
