@@ -4,6 +4,8 @@
     .venv/bin/python benchmarks/bench_planner_heldout.py --broad --seed 1   # the broad set
     .venv/bin/python benchmarks/bench_planner_heldout.py --examples   # the example suite
     .venv/bin/python benchmarks/bench_planner_heldout.py --certify    # + the certificate
+    .venv/bin/python benchmarks/bench_planner_heldout.py --multi-nodes 16
+        # 16 node intervals per segment on the tasks of 3-4 waypoints (default 12)
     .venv/bin/python benchmarks/bench_planner_heldout.py --tasks 0,1,2 --ipopt mumps_pivtol=1e-8
         # a subset of the tasks, with IPOPT options over the planner's (PlannerOptions)
 
@@ -145,6 +147,9 @@ def main() -> None:
     ap.add_argument("--ipopt", type=ipopt_pair, action="append", default=[],
                     metavar="NAME=VALUE",
                     help="an IPOPT option over the planner's (repeatable)")
+    ap.add_argument("--multi-nodes", type=int, default=None, metavar="N",
+                    help="node intervals per segment on random tasks of more than one segment "
+                    "(default: the task's, planner.task.AUTO_NODES)")
     ap.add_argument("--regularisation", type=float, default=None,
                     help="the NLP's acceleration regularisation (PlannerOptions)")
     args = ap.parse_args()
@@ -167,7 +172,14 @@ def main() -> None:
             (Path(__file__).parents[1] / "examples").glob("*.yaml"))]
     else:
         make = broad_task if args.broad else heldout_task
-        tasks = [task_from_dict(make(rng, k)) for k in range(args.n)]
+        docs = [make(rng, k) for k in range(args.n)]
+        if args.multi_nodes is not None:
+            if not 4 <= args.multi_nodes <= 60:
+                ap.error(f"--multi-nodes {args.multi_nodes}: valid: 4-60")
+            for doc in docs:
+                if len(doc["waypoints"]) > 2:
+                    doc["nodes_per_segment"] = args.multi_nodes
+        tasks = [task_from_dict(doc) for doc in docs]
     if args.tasks:
         try:
             picked = [int(k) for k in args.tasks.split(",")]
