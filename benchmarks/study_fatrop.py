@@ -50,11 +50,14 @@ from bench_planner_heldout import first_solve, first_starts  # noqa: E402
 from sixplus3.planner import solvers  # noqa: E402
 from sixplus3.planner.nlp import point_bounds, start_point  # noqa: E402
 from sixplus3.planner.ocp import Problem  # noqa: E402
-from sixplus3.planner.options import ROW_SCALE  # noqa: E402
 from sixplus3.planner.transcription import (  # noqa: E402
     CLEARANCE_ROWS,
     NODE_ROWS,
     layout,
+    midpoint_states,
+    objective,
+    path_rows,
+    smoothness_rows,
     variable_bounds,
     variable_scale,
 )
@@ -93,7 +96,7 @@ def build(problem: Problem, equality: list[bool] | None = None,
     nv = (N + 1) * nx + N * nu
     P = ca.MX.sym("p", nv + 4 + N)
     Vs, Dv = ca.MX.sym("v", nv), P[0:nv]
-    jerk_lim, rate_lim, w_time = P[nv], P[nv + 1], P[nv + 2]
+    jerk_lim, rate_lim, w_time = P[nv], P[nv + 1], P[nv + 2]  # P[nv + 3]: w_effort
     frac = P[nv + 4:]
     V = Vs * Dv
     st = [V[k * (nx + nu):k * (nx + nu) + nx] for k in range(N + 1)]
@@ -107,19 +110,14 @@ def build(problem: Problem, equality: list[bool] | None = None,
     TAUM = ca.horzcat(*[c[9:18] for c in ct])
     ACCm = ca.horzcat(*[c[18:27] for c in ct])
     h = [st[k][45 + seg[k]] * frac[k] for k in range(N)]
-    # midpoint states from stage k's own values (u at node k+1 is the control c_k[0:9])
-    mids = []
-    for k in range(N):
-        x, xd, u, up = st[k][0:9], st[k][9:18], st[k][18:27], ct[k][0:9]
-        half, jerk = h[k] / 2, (up - u) / h[k]
-        mids.append((x + half * xd + half**2 / 2 * u + half**3 / 6 * jerk,
-                     xd + half * u + half**2 / 2 * jerk, (u + up) / 2))
+    # today's row families, each on stage k's own values (node k+1's u, tau and
+    # theta_ddot are the control's copies c_k[0:9], c_k[27:36], c_k[36:45])
+    mids = [midpoint_states(ca.horzcat(st[k][0:9], st[k][0:9]),
+                            ca.horzcat(st[k][9:18], st[k][9:18]),
+                            ca.horzcat(st[k][18:27], ct[k][0:9]), h[k]) for k in range(N)]
     pts = (ca.horzcat(X, *[m[0] for m in mids]), ca.horzcat(XD, *[m[1] for m in mids]),
            ca.horzcat(U, *[m[2] for m in mids]), ca.horzcat(TAU, TAUM))
-    Gm = sr.node.map(2 * N + 1)(*pts)
-    ACC = ca.horzcat(ACCn, ACCm)
-    G = ca.vertcat(Gm[0:9, :] / ROW_SCALE["torque"], Gm[9:18, :],
-                   (Gm[18:27, :] - ACC) / ROW_SCALE["acceleration"], Gm[27:, :])
+    G = path_rows(sr.node, 1, pts, ca.horzcat(ACCn, ACCm))
     g = []
     for k in range(N):
         s, c, sn = st[k], ct[k], Vs[(k + 1) * (nx + nu):(k + 1) * (nx + nu) + nx]
@@ -127,16 +125,15 @@ def build(problem: Problem, equality: list[bool] | None = None,
         F = ca.vertcat(x + h[k] * xd + h[k]**2 * (2 * u + up) / 6, xd + h[k] * (u + up) / 2,
                        up, c[27:36], c[36:45], s[45:45 + S])
         g.append(sn - F / Ds[k + 1])  # the next state, scaled: identity in the gap rows
-        room_j, room_r = jerk_lim * h[k] / 2, rate_lim * h[k] / 2
-        smooth = ca.vertcat((c[18:27] - s[36:45]) / room_j, (c[36:45] - c[18:27]) / room_j,
-                            (c[9:18] - s[27:36]) / room_r, (c[27:36] - c[9:18]) / room_r)
+        smooth = smoothness_rows(ca.horzcat(s[36:45], c[36:45], c[18:27]),
+                                 ca.horzcat(s[27:36], c[27:36]), c[9:18], h[k] / 2,
+                                 jerk_lim, rate_lim)
         g += [G[:, k], G[:, N + 1 + k], smooth]
         if k == 0:
             g.append(ca.sum1(s[45:45 + S]))
     g.append(G[:, N])
-    T = st[0][45:45 + S]
-    reg = problem.options.regularisation
-    f = w_time * (ca.sum1(T) + reg * ca.sumsqr(U / 100.0) / (N + 1) * ca.sum1(T))
+    f = objective(st[0][45:45 + S], U, TAU, TAUM, w_time, P[nv + 3],
+                  problem.options.regularisation)
     nlp = {"x": Vs, "p": P, "f": f, "g": ca.vertcat(*g)}
     if equality is None:  # the gap rows, the torque balance and the theta_ddot ties
         point = [True] * 9 + [False] * 9 + [True] * 9 + [False] * (NODE_ROWS - 27)
