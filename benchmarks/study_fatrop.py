@@ -233,6 +233,8 @@ def main() -> None:
     args = ap.parse_args()
     if args.n < 1 or args.max_iter < 1 or not args.tol > 0:
         ap.error("valid: --n >= 1, --max-iter >= 1, --tol > 0")
+    if not set(args.solvers.split(",")) <= {"ipopt", "fatrop"}:
+        ap.error(f"--solvers {args.solvers!r}: valid: ipopt, fatrop, or both, comma-separated")
     robot = Robot.default()
     print("| task | solver | status | iterations | T [s] | wall [s] | function evaluations "
           "[s] | solver's own per iteration [ms] |")
