@@ -92,8 +92,9 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
     base = (f"baseline {sol.baseline_time:.4f} s" if sol.baseline_time is not None
             else "no admissible baseline")
     say(f"  planned: {sol.final_time:.4f} s motion from {how} ({base}), {sol.solves} NLP "
-        f"solve(s), IPOPT {sol.iterations} iterations in the last, {sol.solve_time:.2f} s "
-        f"solving, {sol.wall_time:.2f} s in all; dense re-check: "
+        f"solve(s), IPOPT {sol.total_iterations} iterations ({sol.iterations} in the last), "
+        f"{sol.solve_time:.2f} s solving ({sol.function_time:.2f} s of it evaluating the "
+        f"NLP's functions), {sol.wall_time:.2f} s in all; dense re-check: "
         f"max|tau| {sol.check.max_torque_ratio:.3f} of the limit, min margin "
         f"{sol.check.min_margin:.3f}")
     t1 = time.perf_counter()
@@ -120,6 +121,8 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
                     "baseline_time_s": sol.baseline_time, "wall_time_s": sol.wall_time,
                     "final_time_s": sol.final_time,
                     "solve_time_s": sol.solve_time, "iterations": sol.iterations,
+                    "total_iterations": sol.total_iterations,
+                    "function_time_s": sol.function_time,
                     "solves": sol.solves, "time_scale": sol.time_scale,
                     "segment_times_s": sol.segment_times, "residuals": sol.residuals,
                     "active_limits": sol.active_limits,

@@ -173,6 +173,8 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
         solve_time = time.perf_counter() - t_start
         stats = entry.solver.stats()
     status = str(stats.get("return_status", "unknown"))
+    iterations = int(stats.get("iter_count", 0))
+    function_time = float(sum(v for k, v in stats.items() if k.startswith("t_wall_nlp_")))
     if status == "User_Requested_Stop" and max_iter is not None:
         status = "Maximum_Iterations_Exceeded"  # the relay's cap (a start's)
     w = np.array(res["x"]).ravel() * D
@@ -180,8 +182,10 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
     x, xd, u, tau = Z[:, 0:9], Z[:, 9:18], Z[:, 18:27], Z[:, 27:36]
     Tv = w[-S:]
     if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
-        raise InfeasibleTaskError(diagnose(problem, x, xd, u, status), None,
+        exc = InfeasibleTaskError(diagnose(problem, x, xd, u, status), None,
                                   "solver: " + status, value=status, valid="Solve_Succeeded")
+        exc.nlp_work = (solve_time, iterations, function_time)  # counted by the strategy
+        raise exc
     t = problem.node_times(Tv)
     nodes = problem.waypoint_nodes()
     residuals = {
@@ -192,7 +196,8 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
                                for w_, k in enumerate(nodes))),
     }
     sol = Solution(status=status, final_time=float(Tv.sum()), solve_time=solve_time,
-                   iterations=int(stats.get("iter_count", -1)), segment_times=Tv, t=t, x=x,
+                   iterations=iterations, total_iterations=iterations,
+                   function_time=function_time, segment_times=Tv, t=t, x=x,
                    xd=xd, xdd=u, tau=tau,
                    theta=np.array(sr.theta.map(N + 1)(x.T)).T, residuals=residuals,
                    active_limits=active_limits(problem, x, xd, u, tau, t, bounds),

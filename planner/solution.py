@@ -84,10 +84,29 @@ class Solution:
     baseline_time: float | None = None
     #: wall clock [s] of the whole solve (static choices, baseline, NLPs, checks)
     wall_time: float = 0.0
+    #: IPOPT iterations of every NLP solve behind this plan (``solve_time``'s solves:
+    #: failed starts, the homotopy's steps and the re-solves included)
+    total_iterations: int = 0
+    #: [s] of ``solve_time`` spent evaluating the NLP's functions and derivatives
+    #: (CasADi's ``t_wall_nlp_*``); the rest is the solver's own work (IPOPT's linear
+    #: algebra, line search and bookkeeping)
+    function_time: float = 0.0
 
     def replace(self, **changes: Any) -> Solution:
         """A copy with ``changes`` (``dataclasses.replace``)."""
         return replace(self, **changes)
+
+    def work(self) -> tuple[float, int, float]:
+        """(``solve_time``, ``total_iterations``, ``function_time``): the NLP work behind
+        this plan, for :meth:`plus_work`."""
+        return self.solve_time, self.total_iterations, self.function_time
+
+    def plus_work(self, seconds: float, iterations: int, function_time: float) -> Solution:
+        """A copy that also counts the NLP work of other solves (a failed start, an
+        earlier step) in its solve time, iterations and function time."""
+        return replace(self, solve_time=self.solve_time + seconds,
+                       total_iterations=self.total_iterations + iterations,
+                       function_time=self.function_time + function_time)
 
     def checked(self, factor: int = 10) -> Solution:
         """A copy with its :func:`dense_check` at ``factor`` x the node density."""

@@ -64,7 +64,7 @@ def solve(problem: Problem) -> Solution:
     sol, bounds, first, failed = first_solve(problem, psi_wp, bounds, base)
     if sol is None:
         if base is not None:
-            base = base.replace(solve_time=base.solve_time + failed)
+            base = base.plus_work(*failed)
             return finish(problem, base, base, t_wall, psi_wp, bounds)
         assert first is not None
         raise first
@@ -118,9 +118,11 @@ def admitting(problem: Problem, bounds: Bounds, base: Solution) -> Bounds:
 
 def first_solve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
                 base: Solution | None) -> tuple[Solution | None, Bounds,
-                                                InfeasibleTaskError | None, float]:
-    """(Solution or None, the bounds its re-solves keep, the first solver error, seconds
-    spent in failed starts), trying in turn: a homotopy step in the margin from the
+                                                InfeasibleTaskError | None,
+                                                tuple[float, int, float]]:
+    """(Solution or None, the bounds its re-solves keep, the first solver error, the
+    work of the failed starts (seconds, iterations, function seconds:
+    :meth:`Solution.plus_work`)), trying in turn: a homotopy step in the margin from the
     baseline (the margin rows at 0.6 x the margin; its plan is kept if the dense check,
     against the task's own margin, passes: the OCP's margin rows are conservative
     proxies, det J-hat >= m (3 - m^2) / 2 and the platform's line determinant >=
@@ -143,7 +145,7 @@ def first_solve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
         [homotopy, {"warm": base}, {"time_scale": 2.0}] if base is not None
         else [{}, {"time_scale": 2.0}, homotopy])
     first = None
-    failed = 0.0
+    failed = (0.0, 0, 0.0)
     for i, start in enumerate(starts):
         t0 = time.perf_counter()
         start = dict(start)
@@ -156,12 +158,14 @@ def first_solve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
                                 else "from the kinematic guess")
                       + (" at 0.6 x the margin (homotopy)" if margin is not None else "")
                       + (", twice as slow" if "time_scale" in start else ""))
+        step = (0.0, 0, 0.0)  # the work of the homotopy's first step, once it succeeded
         try:
             sol = solve_nlp(problem, psi_wp, bounds.replace(margin=margin), **start)
             if margin is not None:
                 assert sol.check is not None
                 if any("margin" in v for v in sol.check.violations):
-                    sol = solve_nlp(problem, psi_wp, bounds, warm=sol)
+                    step = sol.work()
+                    sol = solve_nlp(problem, psi_wp, bounds, warm=sol).plus_work(*step)
                 else:  # the homotopy's plan meets the task's margin: re-solves keep its rows
                     bounds = bounds.replace(margin=margin)
         except InfeasibleTaskError as exc:
@@ -169,10 +173,12 @@ def first_solve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
                 raise
             first = first or exc
             spent = time.perf_counter() - t0
-            failed += spent
+            _, its, fn = exc.nlp_work or (0.0, 0, 0.0)
+            # the start's wall time, and the iterations of its failed and earlier steps
+            failed = (failed[0] + spent, failed[1] + its + step[1], failed[2] + fn + step[2])
             problem.stage(f"  failed ({exc.value}) after {spent:.1f} s")
             continue
-        return sol.replace(solve_time=sol.solve_time + failed), bounds, None, failed
+        return sol.plus_work(*failed), bounds, None, failed
     return None, bounds, first, failed
 
 
@@ -182,7 +188,7 @@ def resolve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
     and re-solve from the previous solution (at most 5 times).  Only limits that a
     uniform time stretch fixes: the plan is stretched (up to 5% slower) instead, which
     saves a whole NLP solve and does not tighten the bounds everywhere."""
-    total, solves = sol.solve_time, 1
+    solves = 1
     for _ in range(5):
         chk = sol.check
         assert chk is not None  # solve_nlp always re-checks its solution
@@ -209,10 +215,9 @@ def resolve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
                 raise
             problem.stage(f"  re-solve failed ({exc.value}): keeping the last plan")
             break  # keep the last iterate; the baseline may replace it (finish)
-        total += nxt.solve_time
         solves += 1
-        sol = nxt
-    return sol.replace(solve_time=total, solves=solves), bounds
+        sol = nxt.plus_work(*sol.work())
+    return sol.replace(solves=solves), bounds
 
 
 def tightened(bounds: Bounds, chk: Any, spherical_limit: float) -> tuple[Bounds, bool]:
@@ -260,7 +265,7 @@ def finish(problem: Problem, sol: Solution, base: Solution | None, t_wall: float
     platform-space limits."""
     if base is not None and sol is not base and (
             not sol.is_feasible() or sol.final_time > base.final_time):
-        sol = base.replace(solve_time=base.solve_time + sol.solve_time, solves=sol.solves)
+        sol = base.plus_work(*sol.work()).replace(solves=sol.solves)
         problem.stage("returning the baseline (the NLP's plan failed its check or is "
                       "slower)")
     target = target_duration(problem, sol)
@@ -345,14 +350,20 @@ def fixed_duration(problem: Problem, sol: Solution, target: float, psi_wp: np.nd
     warm-started from the minimum-time plan stretched uniformly to that duration (which
     is the fallback when the effort solve fails its dense check)."""
     slow = stretched(problem, sol, target / sol.final_time)
+    eff_work = (0.0, 0, 0.0)
     try:
         eff: Solution | None = solve_nlp(problem, psi_wp, bounds.replace(margin=None),
                                          warm=slow, duration=target)
-    except InfeasibleTaskError:
+        assert eff is not None
+        eff_work = eff.work()
+    except InfeasibleTaskError as exc:
         eff = None
-    best = eff if eff is not None and eff.is_feasible() else slow
-    best = best.replace(solve_time=sol.solve_time + (eff.solve_time if eff else 0.0),
-                        solves=sol.solves + 1)
+        eff_work = exc.nlp_work or eff_work
+    if eff is not None and eff.is_feasible():
+        best = eff.plus_work(*sol.work())  # its own work plus the minimum-time plan's
+    else:
+        best = slow.plus_work(*eff_work)  # slow carries the minimum-time plan's work
+    best = best.replace(solves=sol.solves + 1)
     if not best.is_feasible():
         return sol  # neither passed: the minimum-time plan and its diagnosis
     return best

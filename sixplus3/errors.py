@@ -96,6 +96,9 @@ class InfeasibleTaskError(Sixplus3Error):
                  *, value: object = None, valid: object = None) -> None:
         self.waypoint = waypoint
         self.limit = limit
+        #: a failed NLP solve's work, (seconds, IPOPT iterations, seconds of function
+        #: evaluations): the planner counts it in the plan it returns
+        self.nlp_work: tuple[float, int, float] | None = None
         super().__init__(message, value=value, valid=valid)
 
 

@@ -186,6 +186,9 @@ def test_small_task_solves_and_passes_a_10x_pinocchio_check(small_solution) -> N
     sol = small_solution
     assert sol.is_feasible()
     assert 0.0 < sol.final_time < 2.0 and sol.iterations > 0 and sol.solve_time > 0
+    # IPOPT's function evaluations are a part of the solve time, never all of it
+    assert sol.total_iterations >= sol.iterations
+    assert 0.0 < sol.function_time < sol.solve_time
     # the NLP's residuals are within IPOPT's constraint-violation tolerance (for a regular
     # and for an acceptable stop); the torque rows are in units of ROW_SCALE (10 N m), so
     # [N m]: at most 1e-4 of the 10 N m limit; the dense check below (Pinocchio) is the
@@ -421,13 +424,21 @@ def test_a_violation_between_nodes_tightens_and_re_solves(monkeypatch) -> None:
     seen = []
     solve_nlp = strategy.solve_nlp
 
+    solved = []
+
     def spy(problem, psi_wp, bounds, warm=None, **kw):
         seen.append((dict(bounds.safety), None if warm is None else warm.source))
-        return solve_nlp(problem, psi_wp, bounds, warm=warm, **kw)
+        solved.append(solve_nlp(problem, psi_wp, bounds, warm=warm, **kw))
+        return solved[-1]
 
     monkeypatch.setattr(strategy, "solve_nlp", spy)
     sol = problem.solve()
     assert sol.solves == len(seen) >= 2 and sol.check.ok and sol.is_feasible()
+    # the plan counts the work of every solve behind it, not only the last one's
+    assert sol.iterations == solved[-1].iterations
+    assert sol.total_iterations == sum(s.iterations for s in solved) > sol.iterations
+    assert sol.function_time == pytest.approx(sum(s.function_time for s in solved))
+    assert sol.solve_time == pytest.approx(sum(s.solve_time for s in solved))
     (first, warm1), (second, warm2) = seen[:2]
     # the first solve starts from the baseline, the re-solve from the first solution
     assert warm1 == "baseline" and warm2 == "ocp"

@@ -140,13 +140,23 @@ def test_with_a_baseline_the_homotopy_comes_first_then_the_full_margin(monkeypat
                    **kw):
             _calls.append((bounds.margin, None if warm is None else warm.source))
             if _fail and bounds.margin is not None:
-                raise InfeasibleTaskError("forced", None, "solver: Infeasible_Problem_Detected")
-            return real(problem, psi_wp, bounds, warm=warm, **kw)
+                exc = InfeasibleTaskError("forced", None, "solver: Infeasible_Problem_Detected")
+                exc.nlp_work = (0.0, 1000, 100.0)  # a failed start's work: counted
+                raise exc
+            out = real(problem, psi_wp, bounds, warm=warm, **kw)
+            _calls.append(out)
+            return out
 
         monkeypatch.setattr(strategy, "solve_nlp", record)
         sol = problem.solve()
+        solved = [c for c in calls if not isinstance(c, tuple)]
+        calls = [c for c in calls if isinstance(c, tuple)]
         assert sol.is_feasible() and sol.source == "ocp" and sol.check.min_margin >= lim
         assert calls[0] == (pytest.approx(0.6 * lim), "baseline")
+        assert sol.total_iterations == (1000 * fail_homotopy
+                                        + sum(s.iterations for s in solved))
+        assert sol.function_time == pytest.approx(100.0 * fail_homotopy
+                                                  + sum(s.function_time for s in solved))
         if fail_homotopy:  # the task's margin from the baseline, and its re-solves too
             assert calls[1] == (None, "baseline")
             assert all(margin is None for margin, _ in calls[1:])
