@@ -34,6 +34,7 @@ import collections
 import json
 import statistics
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -130,6 +131,31 @@ def ipopt_pair(text: str) -> tuple[str, object]:
     return name, value
 
 
+def split(planned: list[dict]) -> None:
+    """Where the planned tasks' wall time goes: the NLP solves' iterations (every solve
+    of a plan), the time per iteration in function evaluations (CasADi's t_wall_nlp_*)
+    and in IPOPT's own work (the rest of the solve time: linear algebra, line search),
+    the time outside the NLP (static choices, baseline, dense checks), and two bounds:
+    the wall time if IPOPT's own work took nothing, and if the function evaluations
+    took nothing."""
+    its = [r["total_iterations"] for r in planned]
+    fn = [r["functions"] for r in planned]
+    own = [r["solve"] - r["functions"] for r in planned]
+    outside = [r["wall"] - r["solve"] for r in planned]
+    per_fn = [1e3 * f / max(i, 1) for f, i in zip(fn, its, strict=True)]
+    per_own = [1e3 * o / max(i, 1) for o, i in zip(own, its, strict=True)]
+    no_own = [r["wall"] - o for r, o in zip(planned, own, strict=True)]
+    no_fn = [r["wall"] - f for r, f in zip(planned, fn, strict=True)]
+    med = statistics.median
+    print(f"NLP work over {len(planned)} plans (every solve): iterations median "
+          f"{med(its):g}, range {min(its)}-{max(its)}; per iteration median "
+          f"{med(per_fn):.1f} ms of function evaluations + {med(per_own):.1f} ms of IPOPT's "
+          f"own work; outside the NLP median {med(outside):.2f} s")
+    print(f"wall [s] with IPOPT's own work taken out: median {med(no_own):.2f}, p95 "
+          f"{pct(no_own, 95):.2f}; with the function evaluations taken out: median "
+          f"{med(no_fn):.2f}, p95 {pct(no_fn, 95):.2f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=30)
@@ -150,6 +176,10 @@ def main() -> None:
     ap.add_argument("--multi-nodes", type=int, default=None, metavar="N",
                     help="node intervals per segment on random tasks of more than one segment "
                     "(default: the task's, planner.task.AUTO_NODES)")
+    ap.add_argument("--midpoint-rows", action="append", choices=("all", "motion"),
+                    default=None, help="the path rows at the interval midpoints "
+                    "(PlannerOptions.midpoint_rows); given twice, both run back to back on "
+                    "every task and are compared")
     ap.add_argument("--regularisation", type=float, default=None,
                     help="the NLP's acceleration regularisation (PlannerOptions)")
     args = ap.parse_args()
@@ -161,7 +191,6 @@ def main() -> None:
     # time the planner as it runs after its first use: with the optimised build
     ensure_optimised(Robot.default())  # the one-time compile, outside the clock
     rng = np.random.default_rng(args.seed)
-    rows, outcome = [], collections.Counter()
     out = open(args.out, "w") if args.out else None  # noqa: SIM115
     if args.examples:
         from pathlib import Path
@@ -188,38 +217,58 @@ def main() -> None:
         if not all(0 <= k < len(tasks) for k in picked):
             ap.error(f"--tasks {args.tasks}: valid indices are 0-{len(tasks) - 1}")
         tasks = [tasks[k] for k in picked]
+    configs = list(dict.fromkeys(args.midpoint_rows or [opts.midpoint_rows]))
+    runs: dict[str, list[dict]] = {c: [] for c in configs}
     for task in tasks:
-        row: dict = {"name": task.name, "waypoints": len(task.waypoints)}
-        t0 = time.perf_counter()
-        try:
-            sol = Problem(task, Robot.default(), options=opts).solve()
-            row["wall"] = time.perf_counter() - t0
-            row.update(ok=sol.is_feasible(), T=sol.final_time, solve=sol.solve_time,
-                       iterations=sol.iterations, solves=sol.solves, status=sol.status,
-                       baseline=getattr(sol, "baseline_time", None),
-                       source=getattr(sol, "source", "ocp"))
-            kind = "planned" if row["ok"] else "refused by the dense check"
-            if args.certify and row["ok"]:
-                cert = certify(sol)
-                row.update(cert_T=cert.duration, cert_ratio=cert.ratio,
-                           cert_status=cert.status)
-        except InfeasibleTaskError as exc:
-            row["wall"] = time.perf_counter() - t0
-            kind = ("reported infeasible after optimising"
-                    if exc.limit and (exc.limit.startswith("solver")
-                                      or exc.limit == "dense check")
-                    else f"waypoint refused ({exc.limit})")
-            row.update(ok=False, error=str(exc)[:160])
-        row["outcome"] = kind
-        outcome[kind.split(" (")[0]] += 1
-        rows.append(row)
-        if out:
-            out.write(json.dumps(row) + "\n")
-            out.flush()
-        print(json.dumps(row), flush=True)
+        for config in configs:  # back to back on each task
+            row = run_task(task, replace(opts, midpoint_rows=config), args.certify)
+            row["midpoint_rows"] = config
+            runs[config].append(row)
+            if out:
+                out.write(json.dumps(row) + "\n")
+                out.flush()
+            print(json.dumps(row), flush=True)
+    for config, rows in runs.items():
+        print(f"\n== midpoint rows: {config}")
+        summary(rows)
+    if len(configs) == 2:
+        compare(*runs.values(), *configs)
+
+
+def run_task(task: object, opts: PlannerOptions, certify_plans: bool) -> dict:
+    """One task's row: wall time, outcome, the plan's figures (and its certificate)."""
+    row: dict = {"name": task.name, "waypoints": len(task.waypoints)}
+    t0 = time.perf_counter()
+    try:
+        sol = Problem(task, Robot.default(), options=opts).solve()
+        row["wall"] = time.perf_counter() - t0
+        row.update(ok=sol.is_feasible(), T=sol.final_time, solve=sol.solve_time,
+                   iterations=sol.iterations, solves=sol.solves, status=sol.status,
+                   total_iterations=sol.total_iterations, functions=sol.function_time,
+                   baseline=getattr(sol, "baseline_time", None),
+                   source=getattr(sol, "source", "ocp"))
+        kind = "planned" if row["ok"] else "refused by the dense check"
+        if certify_plans and row["ok"]:
+            cert = certify(sol)
+            row.update(cert_T=cert.duration, cert_ratio=cert.ratio,
+                       cert_status=cert.status)
+    except InfeasibleTaskError as exc:
+        row["wall"] = time.perf_counter() - t0
+        kind = ("reported infeasible after optimising"
+                if exc.limit and (exc.limit.startswith("solver")
+                                  or exc.limit == "dense check")
+                else f"waypoint refused ({exc.limit})")
+        row.update(ok=False, error=str(exc)[:160])
+    row["outcome"] = kind
+    return row
+
+
+def summary(rows: list[dict]) -> None:
+    """The set's outcomes, wall and solve times, the NLP work, and the plans' figures."""
+    outcome = collections.Counter(r["outcome"].split(" (")[0] for r in rows)
     planned = [r for r in rows if r.get("ok")]
     tried = [r for r in rows if not r["outcome"].startswith("waypoint refused")]
-    print("\noutcomes:", dict(outcome))
+    print("outcomes:", dict(outcome))
     if tried:
         print(f"success on tasks passing the static checks: {len(planned)}/{len(tried)}")
         walls = [r["wall"] for r in tried]
@@ -231,6 +280,7 @@ def main() -> None:
         print(f"solve [s] over {len(planned)} plans: median {statistics.median(solves):.2f}, "
               f"p95 {pct(solves, 95):.2f}, max {max(solves):.2f}; iterations median "
               f"{statistics.median(iters):g}, range {min(iters)}-{max(iters)}")
+        split(planned)
         ratio = [r["T"] / r["baseline"] for r in planned if r.get("baseline")]
         if ratio:
             print(f"duration / baseline over {len(ratio)}: median "
@@ -245,6 +295,21 @@ def main() -> None:
                   f"{dict(statuses)}")
         src = collections.Counter(r.get("source", "ocp") for r in planned)
         print("plans from:", dict(src))
+
+
+def compare(a: list[dict], b: list[dict], name_a: str, name_b: str) -> None:
+    """Two configurations on the same tasks, run back to back: per task planned by both,
+    the ratio of the wall times and of the durations (b / a)."""
+    both = [(x, y) for x, y in zip(a, b, strict=True) if x.get("ok") and y.get("ok")]
+    if not both:
+        return
+    wall = [y["wall"] / x["wall"] for x, y in both]
+    dur = [y["T"] / x["T"] for x, y in both]
+    print(f"\n{name_b} / {name_a} on the {len(both)} tasks both planned: wall median "
+          f"{statistics.median(wall):.3f} (range {min(wall):.3f}-{max(wall):.3f}), "
+          f"duration median {statistics.median(dur):.4f} (range {min(dur):.4f}-"
+          f"{max(dur):.4f}); wall in sum {sum(y['wall'] for _, y in both):.1f} s against "
+          f"{sum(x['wall'] for x, _ in both):.1f} s")
 
 
 if __name__ == "__main__":
