@@ -34,7 +34,6 @@ import collections
 import json
 import statistics
 import time
-from dataclasses import replace
 
 import numpy as np
 
@@ -176,10 +175,6 @@ def main() -> None:
     ap.add_argument("--multi-nodes", type=int, default=None, metavar="N",
                     help="node intervals per segment on random tasks of more than one segment "
                     "(default: the task's, planner.task.AUTO_NODES)")
-    ap.add_argument("--midpoint-rows", action="append", choices=("all", "motion"),
-                    default=None, help="the path rows at the interval midpoints "
-                    "(PlannerOptions.midpoint_rows); given twice, both run back to back on "
-                    "every task and are compared")
     ap.add_argument("--regularisation", type=float, default=None,
                     help="the NLP's acceleration regularisation (PlannerOptions)")
     args = ap.parse_args()
@@ -217,22 +212,16 @@ def main() -> None:
         if not all(0 <= k < len(tasks) for k in picked):
             ap.error(f"--tasks {args.tasks}: valid indices are 0-{len(tasks) - 1}")
         tasks = [tasks[k] for k in picked]
-    configs = list(dict.fromkeys(args.midpoint_rows or [opts.midpoint_rows]))
-    runs: dict[str, list[dict]] = {c: [] for c in configs}
+    rows = []
     for task in tasks:
-        for config in configs:  # back to back on each task
-            row = run_task(task, replace(opts, midpoint_rows=config), args.certify)
-            row["midpoint_rows"] = config
-            runs[config].append(row)
-            if out:
-                out.write(json.dumps(row) + "\n")
-                out.flush()
-            print(json.dumps(row), flush=True)
-    for config, rows in runs.items():
-        print(f"\n== midpoint rows: {config}")
-        summary(rows)
-    if len(configs) == 2:
-        compare(*runs.values(), *configs)
+        row = run_task(task, opts, args.certify)
+        rows.append(row)
+        if out:
+            out.write(json.dumps(row) + "\n")
+            out.flush()
+        print(json.dumps(row), flush=True)
+    print()
+    summary(rows)
 
 
 def run_task(task: object, opts: PlannerOptions, certify_plans: bool) -> dict:
@@ -295,21 +284,6 @@ def summary(rows: list[dict]) -> None:
                   f"{dict(statuses)}")
         src = collections.Counter(r.get("source", "ocp") for r in planned)
         print("plans from:", dict(src))
-
-
-def compare(a: list[dict], b: list[dict], name_a: str, name_b: str) -> None:
-    """Two configurations on the same tasks, run back to back: per task planned by both,
-    the ratio of the wall times and of the durations (b / a)."""
-    both = [(x, y) for x, y in zip(a, b, strict=True) if x.get("ok") and y.get("ok")]
-    if not both:
-        return
-    wall = [y["wall"] / x["wall"] for x, y in both]
-    dur = [y["T"] / x["T"] for x, y in both]
-    print(f"\n{name_b} / {name_a} on the {len(both)} tasks both planned: wall median "
-          f"{statistics.median(wall):.3f} (range {min(wall):.3f}-{max(wall):.3f}), "
-          f"duration median {statistics.median(dur):.4f} (range {min(dur):.4f}-"
-          f"{max(dur):.4f}); wall in sum {sum(y['wall'] for _, y in both):.1f} s against "
-          f"{sum(x['wall'] for x, _ in both):.1f} s")
 
 
 if __name__ == "__main__":

@@ -22,7 +22,6 @@ from sixplus3.planner.solution import Solution, actuated_profile, sample_cubic, 
 from sixplus3.planner.solvers import ipopt_solver, keyboard_interrupts
 from sixplus3.planner.transcription import (
     CLEARANCE_ROWS,
-    MIDPOINT_ROWS,
     NODE_ROWS,
     node_bounds,
     type2_det_bound,
@@ -61,9 +60,6 @@ class Bounds:
     duration_cap: float | None = None
     #: (lo, hi) (3,) [rad] of the crank angles (None: :meth:`Problem.crank_range`)
     cranks: tuple[np.ndarray, np.ndarray] | None = None
-    #: the path rows at the interval midpoints (``transcription.MIDPOINT_ROWS``; None:
-    #: ``PlannerOptions.midpoint_rows``)
-    midpoint_rows: str | None = None
 
     def replace(self, **changes: Any) -> Bounds:
         return replace(self, **changes)
@@ -138,28 +134,25 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
                   else (duration, duration))
     lbx, ubx = variable_bounds(problem, wp_x, tmax, safety["acceleration"] * lim.acceleration,
                                T_hi, bounds.cranks)
-    rows = bounds.midpoint_rows or opt.midpoint_rows
-    mid = list(MIDPOINT_ROWS[rows])  # the path rows at the midpoints
-    lbg = np.r_[np.zeros(18 * N), np.tile(lb, N + 1), np.tile(lb[mid], N), smooth_lo, T_lo]
+    lbg = np.r_[np.zeros(18 * N), np.tile(lb, 2 * N + 1), smooth_lo, T_lo]
     if bounds.clearance is not None and bounds.clearance_waypoints is not None:
         for k in problem.waypoint_nodes():  # the nodes' rows come first, point by point
             first = 18 * N + NODE_ROWS * k
             lbg[first + CLEARANCE_ROWS.start:first + CLEARANCE_ROWS.stop] = \
                 bounds.clearance_waypoints
-    ubg = np.r_[np.zeros(18 * N), np.tile(ub, N + 1), np.tile(ub[mid], N), smooth_hi, T_hi]
+    ubg = np.r_[np.zeros(18 * N), np.tile(ub, 2 * N + 1), smooth_hi, T_hi]
     _, acc0, tau0, _ = profile  # (9, 2N+1): the nodes, then the midpoints
     z0 = np.vstack([x0.T, xd0.T, xdd0.T, tau0[:, :N + 1]])
     w0 = np.clip(np.r_[z0.ravel(order="F"), tau0[:, N + 1:].ravel(order="F"),
                        acc0.ravel(order="F"), T0], lbx, ubx)
-    if warm is not None and warm.nlp_point is not None and len(warm.nlp_point[2]) == len(lbg):
+    if warm is not None and warm.nlp_point is not None:
         # a re-solve with tightened bounds: start IPOPT from the previous primal-dual
-        # point (same variable scaling) with a small barrier parameter.  (After a change
-        # of the midpoint rows the multipliers do not fit: a cold start from the motion.)
-        entry = ipopt_solver(problem, warm_start=True, midpoint_rows=rows)
+        # point (same variable scaling) with a small barrier parameter
+        entry = ipopt_solver(problem, warm_start=True)
         ws, lam_x, lam_g, D = warm.nlp_point
         args: dict[str, Any] = {"x0": ws, "lam_x0": lam_x, "lam_g0": lam_g}
     else:
-        entry = ipopt_solver(problem, midpoint_rows=rows)
+        entry = ipopt_solver(problem)
         D = variable_scale(N, S, tmax)
         args = {"x0": w0 / D}
     weights = (1.0, 0.0) if duration is None else (0.0, 1.0)

@@ -40,15 +40,8 @@ class PlannerOptions:
     #: ``(("print_timing_statistics", "yes"), ("print_level", 5))`` shows where a solve's
     #: time goes).  A name or value IPOPT rejects raises InputError when the NLP is built.
     ipopt_options: tuple[tuple[str, Any], ...] | dict[str, Any] = ()
-    #: the path rows imposed at the interval midpoints (``transcription.MIDPOINT_ROWS``):
-    #: "all", or "motion" (the dynamics, rates and singularity margins; the geometric
-    #: rows at the nodes only)
-    midpoint_rows: str = "all"
 
     def __post_init__(self) -> None:
-        if self.midpoint_rows not in ("all", "motion"):
-            raise InputError(f"midpoint_rows: {self.midpoint_rows!r}; valid: 'all' or "
-                             "'motion'", value=self.midpoint_rows, valid="'all' or 'motion'")
         try:
             pairs = (tuple(self.ipopt_options.items()) if isinstance(self.ipopt_options, dict)
                      else tuple(tuple(p) for p in self.ipopt_options))

@@ -22,7 +22,7 @@ import numpy as np
 from sixplus3.cache import BoundedCache
 from sixplus3.errors import InputError
 from sixplus3.planner.options import PlannerOptions
-from sixplus3.planner.transcription import MIDPOINT_ROWS, build_nlp
+from sixplus3.planner.transcription import build_nlp
 
 if TYPE_CHECKING:
     from sixplus3.planner.problem import Problem
@@ -153,37 +153,33 @@ class SolverEntry:
 SOLVERS: BoundedCache[SolverEntry] = BoundedCache(16)
 
 
-def ipopt_solver(problem: Problem, warm_start: bool = False,
-                 midpoint_rows: str | None = None) -> SolverEntry:
-    """IPOPT on the NLP of ``problem``'s size (:func:`transcription.build_nlp`), with the
-    path rows ``midpoint_rows`` at the interval midpoints (None: the options').
+def ipopt_solver(problem: Problem, warm_start: bool = False) -> SolverEntry:
+    """IPOPT on the NLP of ``problem``'s size (:func:`transcription.build_nlp`).
 
     The node functions are the compiled ones of :mod:`dynamics.codegen` (mapped over the
     points on two threads) when a C compiler is available, otherwise CasADi's
     interpreted SX functions (expanded).  The structure depends only on the intervals
-    of every segment (:meth:`Problem.segment_intervals`), the midpoint rows and the
-    options: every task-specific value is a bound or a parameter.
+    of every segment (:meth:`Problem.segment_intervals`) and the options: every
+    task-specific value is a bound or a parameter.
     """
     from sixplus3.dynamics.codegen import compiled_functions
 
     opt = problem.options
-    rows = midpoint_rows or opt.midpoint_rows
     compiled = compiled_functions(problem.robot)
     key = (problem.robot.hash, tuple(problem.segment_intervals()), opt.max_iter, opt.tol,
            opt.constr_viol_tol, opt.regularisation, opt.verbose, opt.ipopt_options,
-           rows, bool(compiled), warm_start)
-    return SOLVERS.get(key, lambda: _build(problem, compiled, warm_start, rows))
+           bool(compiled), warm_start)
+    return SOLVERS.get(key, lambda: _build(problem, compiled, warm_start))
 
 
 def _build(problem: Problem, compiled: dict[str, ca.Function],
-           warm_start: bool, midpoint_rows: str) -> SolverEntry:
+           warm_start: bool) -> SolverEntry:
     from sixplus3.dynamics.codegen import single_threaded_solver_blas
 
     opt = problem.options
     node = compiled.get("node", problem.sr.node)
     tr = build_nlp(node, 2 if compiled else 1,
-                   tuple(int(n) for n in problem.segment_intervals()), opt.regularisation,
-                   MIDPOINT_ROWS[midpoint_rows])
+                   tuple(int(n) for n in problem.segment_intervals()), opt.regularisation)
     relay = IterationRelay(tr.nw, tr.ng)
     settings: dict[str, Any] = {"expand": not compiled, "print_time": False,
                 "ipopt": ipopt_settings(opt, warm_start), "iteration_callback": relay}

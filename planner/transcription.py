@@ -43,17 +43,6 @@ if TYPE_CHECKING:
 NODE_ROWS = 70
 #: the clearance rows among them
 CLEARANCE_ROWS = slice(67, 70)
-#: the rows of ``SymbolicRobot.node`` imposed at the interval midpoints
-#: (``PlannerOptions.midpoint_rows``): "all" of them, or "motion": the torque balance,
-#: the actuated rates, the theta_ddot ties and the singularity margins (rows 0-26 and
-#: 54-66), which change fast or decide the margin between the nodes; the actuated range,
-#: the reach, the spherical joints and the clearance only at the nodes (the dense check
-#: measures every limit between them, :func:`strategy.tightened` re-solves for an
-#: overshoot)
-MIDPOINT_ROWS: dict[str, tuple[int, ...]] = {
-    "all": tuple(range(NODE_ROWS)),
-    "motion": tuple(range(0, 27)) + tuple(range(54, 67)),
-}
 
 
 def layout(N: int, S: int) -> tuple[int, int, int, int]:
@@ -247,12 +236,10 @@ class Transcription:
 
 
 def build_nlp(node: ca.Function, threads: int, segments: tuple[int, ...],
-              regularisation: float, midpoint_rows: tuple[int, ...] = MIDPOINT_ROWS["all"]
-              ) -> Transcription:
+              regularisation: float) -> Transcription:
     """The NLP of ``len(segments)`` segments of ``segments[s]`` intervals each, with
     ``node`` the path rows' function (compiled, mapped on ``threads``, or CasADi's SX
-    function), every path row at the nodes and the rows ``midpoint_rows`` of
-    :data:`MIDPOINT_ROWS` at the interval midpoints."""
+    function)."""
     S, N = len(segments), sum(segments)
     seg = [s for s, n in enumerate(segments) for _ in range(n)]
     o_taum, o_acc, o_T, nw = layout(N, S)
@@ -271,13 +258,12 @@ def build_nlp(node: ca.Function, threads: int, segments: tuple[int, ...],
     Xm, XDm, Um = midpoint_states(X, XD, U, Hm)
     G = path_rows(node, threads, (ca.horzcat(X, Xm), ca.horzcat(XD, XDm),
                                   ca.horzcat(U, Um), ca.horzcat(TAU, TAUM)), ACC)
-    G = ca.vertcat(ca.vec(G[:, 0:N + 1]), ca.vec(G[list(midpoint_rows), N + 1:]))
-    g = ca.vertcat(ca.vec(integration_rows(X, XD, U, Hm)), G,
+    g = ca.vertcat(ca.vec(integration_rows(X, XD, U, Hm)), ca.vec(G),
                    smoothness_rows(ACC, TAU, TAUM, Hm / 2, jerk_lim, rate_lim), ca.sum1(T))
     f = objective(T, U, TAU, TAUM, w_time, w_effort, regularisation)
     return Transcription({"x": Ws, "p": P, "f": f, "g": g}, N, S, nw, int(g.numel()))
 
 
-__all__ = ["CLEARANCE_ROWS", "MIDPOINT_ROWS", "NODE_ROWS", "Transcription", "build_nlp",
-           "integration_rows", "layout", "midpoint_states", "node_bounds", "objective", "path_rows",
+__all__ = ["CLEARANCE_ROWS", "NODE_ROWS", "Transcription", "build_nlp", "integration_rows",
+           "layout", "midpoint_states", "node_bounds", "objective", "path_rows",
            "smoothness_rows", "type2_det_bound", "variable_bounds", "variable_scale"]
