@@ -45,6 +45,10 @@ class DenseCheck:
     max_tcp_acceleration: float = float("nan")  # [m/s^2]
 
 
+#: no NLP work: (seconds, IPOPT iterations, seconds of function evaluations)
+NO_WORK: tuple[float, int, float] = (0.0, 0, 0.0)
+
+
 @dataclass(frozen=True)
 class Solution:
     """A solved plan: node trajectory, timings, statistics and its own dense re-check.
@@ -208,5 +212,5 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
                       max_tcp_acceleration=lm.max_tcp_acceleration)
 
 
-__all__ = ["DenseCheck", "Solution", "actuated_profile", "dense_check", "sample_cubic",
+__all__ = ["NO_WORK", "DenseCheck", "Solution", "actuated_profile", "dense_check", "sample_cubic",
            "stretch_factors"]

@@ -30,7 +30,7 @@ from sixplus3.errors import InfeasibleTaskError
 from sixplus3.planner import baseline
 from sixplus3.planner.nlp import RATE_LIMITS, Bounds, active_limits, solve_nlp, uniform_safety
 from sixplus3.planner.problem import Problem
-from sixplus3.planner.solution import Solution, actuated_profile
+from sixplus3.planner.solution import NO_WORK, Solution, actuated_profile
 from sixplus3.planner.statics import check_crank_sides, choose_static_psi, clearance_needed
 
 #: [m] of clearance a re-solve asks beyond the overlap the dense check found.  Plans
@@ -145,7 +145,7 @@ def first_solve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
         [homotopy, {"warm": base}, {"time_scale": 2.0}] if base is not None
         else [{}, {"time_scale": 2.0}, homotopy])
     first = None
-    failed = (0.0, 0, 0.0)
+    failed = NO_WORK
     for i, start in enumerate(starts):
         t0 = time.perf_counter()
         start = dict(start)
@@ -158,7 +158,7 @@ def first_solve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
                                 else "from the kinematic guess")
                       + (" at 0.6 x the margin (homotopy)" if margin is not None else "")
                       + (", twice as slow" if "time_scale" in start else ""))
-        step = (0.0, 0, 0.0)  # the work of the homotopy's first step, once it succeeded
+        step = NO_WORK  # the work of the homotopy's first step, once it succeeded
         try:
             sol = solve_nlp(problem, psi_wp, bounds.replace(margin=margin), **start)
             if margin is not None:
@@ -173,7 +173,7 @@ def first_solve(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
                 raise
             first = first or exc
             spent = time.perf_counter() - t0
-            _, its, fn = exc.nlp_work or (0.0, 0, 0.0)
+            _, its, fn = exc.nlp_work or NO_WORK
             # the start's wall time, and the iterations of its failed and earlier steps
             failed = (failed[0] + spent, failed[1] + its + step[1], failed[2] + fn + step[2])
             problem.stage(f"  failed ({exc.value}) after {spent:.1f} s")
@@ -350,15 +350,13 @@ def fixed_duration(problem: Problem, sol: Solution, target: float, psi_wp: np.nd
     warm-started from the minimum-time plan stretched uniformly to that duration (which
     is the fallback when the effort solve fails its dense check)."""
     slow = stretched(problem, sol, target / sol.final_time)
-    eff_work = (0.0, 0, 0.0)
+    eff: Solution | None = None
     try:
-        eff: Solution | None = solve_nlp(problem, psi_wp, bounds.replace(margin=None),
-                                         warm=slow, duration=target)
-        assert eff is not None
+        eff = solve_nlp(problem, psi_wp, bounds.replace(margin=None), warm=slow,
+                        duration=target)
         eff_work = eff.work()
     except InfeasibleTaskError as exc:
-        eff = None
-        eff_work = exc.nlp_work or eff_work
+        eff_work = exc.nlp_work or NO_WORK
     if eff is not None and eff.is_feasible():
         best = eff.plus_work(*sol.work())  # its own work plus the minimum-time plan's
     else:
