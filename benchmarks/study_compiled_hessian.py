@@ -35,10 +35,8 @@ import numpy as np
 from sixplus3.dynamics.codegen import (
     CFLAGS,
     QUICK_CFLAGS,
-    _lib_path,
     _source,
-    cache_dir,
-    compile_library,
+    cached_library,
     ensure_optimised,
 )
 from sixplus3.dynamics.symbolic import home_x, symbolic_robot
@@ -56,14 +54,11 @@ def hessian_function(node_p: ca.Function) -> ca.Function:
 
 
 def library(name: str, src: str, flags: tuple[str, ...]):
-    """The library of ``src`` built with ``flags``, compiled now unless cached."""
-    lib = _lib_path(cache_dir(), name, src, flags)
-    if not lib.exists():
-        lib.parent.mkdir(parents=True, exist_ok=True)
-        t = time.perf_counter()
-        compile_library(lib.parent, name, src, flags)
-        print(f"compiled {name} with {' '.join(flags)} in {time.perf_counter() - t:.0f} s",
-              flush=True)
+    """:func:`cached_library`, with the time it took (a compile unless it was cached)."""
+    t = time.perf_counter()
+    lib = cached_library(name, src, flags)
+    print(f"{name} with {' '.join(flags)}: ready in {time.perf_counter() - t:.0f} s "
+          "(compiled unless cached)", flush=True)
     return lib
 
 

@@ -266,6 +266,17 @@ def compile_library(directory: Path, name: str, src: str, flags: tuple[str, ...]
     return lib
 
 
+def cached_library(name: str, src: str, flags: tuple[str, ...] = CFLAGS) -> Path:
+    """The library of ``src`` built with ``flags`` in :func:`cache_dir` (named by the
+    hash of both), compiled now in the foreground unless it is there; raises OSError or
+    RuntimeError (with the compiler's output) if that fails."""
+    lib = _lib_path(cache_dir(), name, src, flags)
+    if not lib.exists():
+        lib.parent.mkdir(parents=True, exist_ok=True)
+        compile_library(lib.parent, name, src, flags)
+    return lib
+
+
 def compiled_small(f: ca.Function, key: str) -> ca.Function:
     """A small function (thousands of instructions, not the planner's 11 MB Jacobian)
     compiled with ``CFLAGS`` in the foreground (about a second).  Cached per process by
@@ -279,13 +290,8 @@ def compiled_small(f: ca.Function, key: str) -> ca.Function:
     def build() -> ca.Function:
         cg = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False})
         cg.add(f)
-        src = cg.dump()
-        lib = _lib_path(cache_dir(), f.name(), src, CFLAGS)
         try:
-            if not lib.exists():
-                lib.parent.mkdir(parents=True, exist_ok=True)
-                compile_library(lib.parent, f.name(), src, CFLAGS)
-            return ca.external(f.name(), str(lib))
+            return ca.external(f.name(), str(cached_library(f.name(), cg.dump())))
         except (OSError, RuntimeError) as exc:
             log.warning("compiling %s failed (%s); interpreted", f.name(), exc)
             return f
@@ -411,5 +417,5 @@ def build_kind(robot: Robot) -> str:
     return _KIND[structure(robot).hash]
 
 
-__all__ = ["build_kind", "cache_dir", "codegen_enabled", "compiled_functions",
+__all__ = ["build_kind", "cache_dir", "cached_library", "codegen_enabled", "compiled_functions",
            "compiled_profile", "compiled_small", "ensure_optimised"]
