@@ -77,8 +77,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=200)
     args = ap.parse_args()
-    if args.repeat < 1:
-        ap.error("valid: --repeat >= 1")
+    if not 1 <= args.repeat <= 100_000:
+        ap.error(f"--repeat {args.repeat}: valid: 1 to 100000 calls per point")
     robot = Robot.default()
     if not ensure_optimised(robot):
         raise SystemExit("the planner's optimised library is not available (no gcc?)")
