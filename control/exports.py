@@ -121,32 +121,95 @@ def drive_table(robot: Robot, t: np.ndarray, theta: np.ndarray, theta_dot: np.nd
     return counts, vel, torque
 
 
+def densify(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray,
+            x: np.ndarray, rate: float, dense_rate: float
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The quintic Hermite interpolant through the points (t, th, v, a) spaced 1 / ``rate``
+    (what a JointTrajectoryController makes of positions, velocities and accelerations),
+    sampled at ``dense_rate``, a whole multiple of ``rate``: (t, theta, theta_dot,
+    theta_ddot, x_seed), every exported point one of the dense samples."""
+    from sixplus3.control.interval import hermite
+
+    m = int(round(dense_rate / rate))
+    n = len(t)
+    k = np.repeat(np.arange(n - 1), m)
+    s = np.tile(np.arange(m) / m, n - 1)
+    dth, dv, da = hermite(1.0 / rate, th, v, a, k, s)
+    td = np.arange(len(k) + 1) / dense_rate
+    return (td, np.r_[dth, th[-1:]], np.r_[dv, v[-1:]], np.r_[da, a[-1:]],
+            np.r_[x[k + (s > 0.5)], x[-1:]])
+
+
+def dense_rate_for(rate: float) -> float:
+    """The rate the interpolated motion between exported points is checked at: the
+    lowest whole multiple of ``rate`` of at least 1 kHz (the gate's own contract)."""
+    from sixplus3.control.validation import RATE_RANGE
+
+    return rate * math.ceil(RATE_RANGE[0] / rate - 1e-9)
+
+
+def _check_interpolated(rep, robot: Robot, rate: float):
+    """(t, theta, theta_dot, theta_ddot, tau, report at the points, report of the dense
+    motion) of the validated motion of ``rep`` resampled at ``rate``."""
+    from sixplus3.control.validation import INTERPOLATED_RATE_RANGE, resample, validate_motion
+
+    t, th, v, a, x = resample(rep, rate)
+    again = validate_motion(t, th, v, a, robot, rate, x, rate_range=INTERPOLATED_RATE_RANGE)
+    if not again.ok:
+        return t, th, v, a, again.tau, again, again
+    dense = densify(t, th, v, a, x, rate, dense_rate_for(rate))
+    dense_rep = validate_motion(*dense[:4], robot, dense_rate_for(rate), dense[4])
+    return t, th, v, a, again.tau, again, dense_rep
+
+
 def decimate(rep, robot: Robot, rate: float):
     """The validated motion of ``rep`` (a report of :func:`validate_file`) resampled at the
     lower ``rate`` [Hz] on the gate's quintic Hermite interpolant of its samples (at a
     whole fraction of the file's rate these are exactly every m-th sample), the resting
-    end held until the next point of the new grid, and validated again as a motion that
-    is interpolated between its points (every check over whole intervals, at rates down
-    to :data:`~sixplus3.control.validation.INTERPOLATED_RATE_RANGE`'s 10 Hz).  Returns
-    (t, theta, theta_dot, theta_ddot, tau, report); raises ValidationFailed or
+    end held until the next point of the new grid, and validated again **as the
+    controller will run it**: the quintic through the new points (a ROS 2
+    JointTrajectoryController given positions, velocities and accelerations), sampled at
+    a whole multiple of ``rate`` of at least 1 kHz (:func:`dense_rate_for`), through the
+    whole gate (Pinocchio's torques, margins, spherical joints, clearance, every rate over
+    whole intervals).  A rate whose motion fails is refused with one line naming the
+    failed check and the lowest safe rate among the file rate's whole fractions.
+    Returns (t, theta, theta_dot, theta_ddot, tau, report); raises ValidationFailed or
     InputError."""
-    from sixplus3.control.validation import (
-        INTERPOLATED_RATE_RANGE,
-        check_rate,
-        resample,
-        validate_motion,
-    )
+    from sixplus3.control.validation import INTERPOLATED_RATE_RANGE, check_rate
 
     r0 = float(rep.header["rate_hz"])
     # at most the file's rate
     rate = check_rate(rate, (INTERPOLATED_RATE_RANGE[0], r0), name="--rate")
-    t, th, v, a, x = resample(rep, rate)
-    again = validate_motion(t, th, v, a, robot, rate, x,
-                            rate_range=INTERPOLATED_RATE_RANGE)
-    if not again.ok:
-        raise ValidationFailed(f"the trajectory resampled at {rate:g} Hz fails validation: "
-                               + "; ".join(again.messages()), again.exit_code, again)
-    return t, th, v, a, again.tau, again
+    t, th, v, a, tau, again, dense = _check_interpolated(rep, robot, rate)
+    if not dense.ok:
+        first = dense.messages()[0] if dense.messages() else "not a valid motion"
+        safe = lowest_safe_rate(rep, robot, rate)
+        raise ValidationFailed(
+            f"the motion a controller interpolates through the points at {rate:g} Hz "
+            f"fails the gate: {first}; the lowest safe rate is "
+            + (f"{safe:g} Hz" if safe else f"the file's own {r0:g} Hz"),
+            dense.exit_code, dense)
+    return t, th, v, a, tau, again
+
+
+#: The rates tried for the lowest safe export rate (those that are whole fractions of
+#: the file's rate): passing is not monotonic in the rate, so each is checked in turn.
+SAFE_RATE_LADDER = (10.0, 20.0, 25.0, 40.0, 50.0, 80.0, 100.0, 125.0, 200.0, 250.0, 400.0,
+                    500.0, 1000.0, 2000.0, 2500.0, 5000.0, 10000.0)
+
+
+def lowest_safe_rate(rep, robot: Robot, failed_rate: float) -> float | None:
+    """The lowest rate of :data:`SAFE_RATE_LADDER` above ``failed_rate`` that is a whole
+    fraction of the file's rate r0 and whose interpolated motion passes the gate, or
+    None if only r0 itself does."""
+    r0 = float(rep.header["rate_hz"])
+    for r in SAFE_RATE_LADDER:
+        m = r0 / r
+        if not failed_rate < r < r0 or abs(m - round(m)) > 1e-9:
+            continue
+        if _check_interpolated(rep, robot, r)[6].ok:
+            return r
+    return None
 
 
 def follow_joint_trajectory_goal(msg: dict[str, Any],

@@ -364,6 +364,13 @@ class TrajectoryData(NamedTuple):
                 raise InputError(f"no column {key!r} in a trajectory file", value=key,
                                  valid=f"one of {', '.join(COLUMNS[:3])}, ..., {COLUMNS[-1]}")
             return self.data[:, COLUMNS.index(key)]
+        if isinstance(key, bool) or not isinstance(key, (int, slice)):
+            raise InputError(f"a trajectory is indexed by a column name or 0 (header), 1 "
+                             f"(samples), got {type(key).__name__}", value=repr(key)[:40],
+                             valid="a column name, 0, 1 or a slice")
+        if isinstance(key, int) and not -2 <= key <= 1:
+            raise InputError(f"a trajectory has two parts (header, samples), got index "
+                             f"{key}", value=key, valid="0 or 1 (or -2, -1)")
         return tuple.__getitem__(self, key)
 
     @property

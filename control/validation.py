@@ -45,6 +45,12 @@ from sixplus3.control.findings import (  # noqa: F401 - Tolerances, Finding, ...
     limit_findings,
 )
 from sixplus3.control.interval import hermite, hermite_midpoints, resample  # noqa: F401
+from sixplus3.control.motion_input import (  # noqa: E402,F401 - re-exported
+    INTERPOLATED_RATE_RANGE,
+    RATE_RANGE,
+    check_motion_arrays,
+    check_rate,
+)
 from sixplus3.control.offload import OFFLOAD_SHARE, Offload
 from sixplus3.control.trajectory_file import (
     COLUMNS,
@@ -65,32 +71,9 @@ from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import robot_fk_batch
 from sixplus3.kinematics.spherical import spherical_tilts
 from sixplus3.kinematics.tcp import tcp_acceleration, tcp_velocity
+from sixplus3.robot_description.hardware import effective_limits, tightest
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
-
-#: Controller rates accepted [Hz].  Below 1 kHz the gate and a sampled drive part: in a
-#: MuJoCo replay of feed-forward held for a tick + PD (300 / 6), plans that pass the
-#: gate peak at 133 N m at 100 Hz (tilt30_x: the PD loop near its discrete stability
-#: bound) and at 11.0 N m at 500 Hz (translate); at 1 kHz every example stays within
-#: 10 N m (docs/validation.md, "The lowest rate").  Above 10 kHz no drive listens.
-RATE_RANGE = (1000.0, 10000.0)
-#: Rates accepted for consumers that interpolate the quintic through the points instead
-#: of holding each (a ROS 2 JointTrajectory controller with positions, velocities and
-#: accelerations): the whole-interval checks prove that interpolated motion, at any rate.
-INTERPOLATED_RATE_RANGE = (10.0, 10000.0)
-
-
-def check_rate(rate: float, rate_range: tuple[float, float] = RATE_RANGE,
-               name: str = "controller rate") -> float:
-    """``rate`` [Hz] as a float if it is a finite number in ``rate_range`` (default
-    :data:`RATE_RANGE`), else an InputError naming the range: the one rate check of the
-    planner's pipeline, the smoothing, the MuJoCo replay and the CLI."""
-    lo, hi = rate_range
-    if not (isinstance(rate, (int, float)) and not isinstance(rate, bool)
-            and math.isfinite(rate) and lo <= rate <= hi):
-        raise InputError(f"{name} must be in [{lo:g}, {hi:g}] Hz, got {rate!r}", value=rate,
-                         valid=f"[{lo:g}, {hi:g}] Hz")
-    return float(rate)
 
 #: Samples checked at once: a longer motion is checked in windows of this many samples
 #: (sharing their end samples), so the checks' memory does not grow with its length.
@@ -126,7 +109,11 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
     if limits is not None and not isinstance(limits, Limits):
         raise InputError("limits must be a Limits (or None)", value=type(limits).__name__,
                          valid="Limits or None")
-    lim = robot.limits if limits is None else robot.limits.tightened(**limits.as_dict())
+    check_motion_arrays(t, theta, theta_dot, theta_ddot, rate)
+    # the hardware is the authority: the robot's limits, tightened by the site's
+    # (robot_description.hardware); ``limits`` (a task's or a header's) only tighten them
+    base = effective_limits(robot)
+    lim = base if limits is None else tightest(base, robot.limits.tightened(**limits.as_dict()))
     try:
         t = np.asarray(t, dtype=float).reshape(-1)
         arrays = [np.asarray(a, dtype=float) for a in (theta, theta_dot, theta_ddot)]
@@ -417,6 +404,7 @@ def validate_joint_trajectory(theta: np.ndarray, theta_dot: np.ndarray,
                               t: np.ndarray | None = None) -> ValidationReport:
     """:func:`validate_motion` of samples on the grid k / ``rate`` (the pipeline's check
     before it writes anything)."""
+    check_motion_arrays(theta if t is None else t, theta, theta_dot, theta_ddot, rate)
     n = len(theta)
     t = np.arange(n) / rate if t is None else t
     return validate_motion(t, theta, theta_dot, theta_ddot, robot, rate, x_guess, limits)
@@ -441,7 +429,8 @@ def _header_limits(header: dict, robot: Robot, name: str) -> Limits:
                                   value=exc.value, valid=exc.valid) from None
 
 
-def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory") -> ValidationReport:
+def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory",
+                   limits: Limits | None = None) -> ValidationReport:
     """Validate the bytes of a trajectory file for ``robot``.
 
     Raises :class:`~sixplus3.errors.TrajectoryFileError` for a file that is unreadable,
@@ -451,7 +440,10 @@ def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory") -> Valida
     header, data = parse(raw, name)
     check_robot(header, robot, name)
     rate = float(header["rate_hz"])  # a finite number (parse)
-    limits = _header_limits(header, robot, name)
+    header_limits = _header_limits(header, robot, name)
+    if limits is not None:  # a task's own limits (validate --task): tighter still
+        header_limits = tightest(header_limits, robot.limits.tightened(**limits.as_dict()))
+    limits = header_limits
     x_guess = np.c_[columns(data, "position"),
                     rot.rotvec_from_quat(columns(data, "quaternion")), columns(data, "psi")]
     rep = validate_motion(data[:, 0], columns(data, "pos"), columns(data, "vel"),
@@ -476,17 +468,24 @@ def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
     if not rep.ok:
         raise ValidationFailed("the trajectory fails validation, nothing written: "
                                + "; ".join(rep.messages()), rep.exit_code, rep)
-    lim = robot.limits if limits is None else robot.limits.tightened(**limits.as_dict())
+    base = effective_limits(robot)
+    lim = base if limits is None else tightest(base, robot.limits.tightened(**limits.as_dict()))
     out = write_trajectory(path, t, theta, theta_dot, theta_ddot, rep, robot, lim,
                            meta or {})
     return out, rep
 
 
-def validate_file(path: str | Path, robot: Robot) -> ValidationReport:
-    """Validate a trajectory file for ``robot``: the file
-    is read once, and ``report.data`` holds exactly the samples validated."""
+def validate_file(path: str | Path, robot: Robot,
+                  limits: Limits | None = None) -> ValidationReport:
+    """Validate a trajectory file for ``robot``: the file is read once, and
+    ``report.data`` holds exactly the samples validated.  ``limits``: a tightening to
+    judge by as well (a task's own, ``validate --task``); the robot's and the site's
+    hardware limits apply whatever the file or ``limits`` say."""
     robot = require_robot(robot)
-    return validate_bytes(read_bytes(path), robot, Path(path).name)
+    if limits is not None and not isinstance(limits, Limits):
+        raise InputError("limits must be a Limits (or None)", value=type(limits).__name__,
+                         valid="Limits or None")
+    return validate_bytes(read_bytes(path), robot, Path(path).name, limits)
 
 
 __all__ = ["COLUMNS", "Finding", "Tolerances", "ValidationReport", "hermite",

@@ -54,10 +54,32 @@ def _local_cluster(workers: int) -> Any:
     old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
     try:
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                            dashboard_address=None, silence_logs=40)
+                            dashboard_address=None, silence_logs=50)
     finally:
         if main:
             signal.signal(signal.SIGINT, old)
+
+
+def _quiet_close(client: Any, cluster: Any) -> None:
+    """Close the client, then the local cluster, with Dask's and asyncio's loggers
+    silenced: a worker connection closing while the cluster shuts down is logged by
+    ``distributed`` as a CommClosedError with its traceback, which is no error of the
+    run (the results are in)."""
+    import logging
+
+    names = ("distributed", "distributed.core", "distributed.comm", "distributed.nanny",
+             "distributed.worker", "distributed.scheduler", "distributed.client",
+             "tornado", "asyncio")
+    saved = {n: logging.getLogger(n).level for n in names}
+    for n in names:
+        logging.getLogger(n).setLevel(logging.CRITICAL + 1)
+    try:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    finally:
+        for n, level in saved.items():
+            logging.getLogger(n).setLevel(level)
 
 
 def map_tasks(fn: Callable[..., Any], items: Sequence[Any], shared: Any,
@@ -101,9 +123,7 @@ def map_tasks(fn: Callable[..., Any], items: Sequence[Any], shared: Any,
                 out[index[f.key]] = f.result()
                 tick(done)
         finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+            _quiet_close(client, cluster)
         return out
     finally:
         if bar is not None:

@@ -104,6 +104,10 @@ class ClosedLoopDynamics:
         if q.shape != (m.nq,) or not np.all(np.isfinite(q)):
             raise InputError(f"q must be {m.nq} finite numbers, got shape {q.shape}",
                              value=q.shape, valid=f"({m.nq},) finite")
+        if not pin.isNormalized(m, q, 1e-6):
+            raise InputError("q's quaternions (the platform's free joint) must have norm 1 "
+                             "(to 1e-6)", value="norm != 1",
+                             valid="a configuration on the tree's Lie group")
         for v in vs:
             if v.shape != (m.nv,) or not np.all(np.isfinite(v)):
                 raise InputError(f"v and a must be {m.nv} finite numbers, got {v.shape}",
@@ -145,6 +149,14 @@ class ClosedLoopDynamics:
         v = G theta_dot;  a = G theta_ddot + a_0, with a_0 the passive-only correction
         that cancels the drift: J_pas a_0,pas = -gamma(q, v).
         """
+        q = np.asarray(q, dtype=float)
+        self._check_state(q)
+        theta_dot, theta_ddot = (np.asarray(x, dtype=float) for x in (theta_dot, theta_ddot))
+        for name, x in (("theta_dot", theta_dot), ("theta_ddot", theta_ddot)):
+            if x.shape != (len(self._act),) or not np.all(np.isfinite(x)):
+                raise InputError(f"{name} must be {len(self._act)} finite numbers, got "
+                                 f"shape {x.shape}", value=x.shape,
+                                 valid=f"({len(self._act)},) finite")
         G = self.G(q)
         v = G @ theta_dot
         gamma = self.clm.drift(q, v)
@@ -231,6 +243,30 @@ class ClosedLoopDynamics:
         q = np.asarray(q, dtype=float)
         n = len(q)
         theta_dot = np.asarray(theta_dot, dtype=float)
+        v, a, X, rcond = self.consistent_states_batch(q, theta_dot, theta_ddot)
+        H = np.empty((n, m.nv))
+        rnea = pin.rnea
+        ok: list[bool] = np.isfinite(np.c_[a, v]).all(axis=1).tolist()  # type: ignore[union-attr]
+        for k in range(n):
+            H[k] = rnea(m, d, q[k], v[k], a[k]) if ok[k] else np.nan
+        if inertia is not None:
+            self._reduced_inertia(q, X, inertia)
+        tau = H[:, self._act] - np.einsum("nij,ni->nj", X, H[:, self._pas])
+        tau += self._friction(theta_dot)
+        tau[rcond <= SINGULAR_RCOND] = np.nan
+        return tau, rcond
+
+    def consistent_states_batch(self, q: np.ndarray, theta_dot: np.ndarray,
+                                theta_ddot: np.ndarray
+                                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(v (n, nv), a (n, nv), X (n, 27, 9) = J_pas^-1 J_act, rcond (n,)) of n closed
+        configurations q with actuated rates and accelerations: :meth:`consistent_state`
+        batched (v = G theta_dot, a = G theta_ddot + the drift's correction).  States at a
+        parallel singularity have NaN rows."""
+        m = self.model
+        q = np.asarray(q, dtype=float)
+        n = len(q)
+        theta_dot = np.asarray(theta_dot, dtype=float)
         Jc, kin = self.clm.constraint_jacobian_batch(q)  # world-aligned, like the drift
         Jp = Jc[:, :, self._pas]
         with np.errstate(all="ignore"):
@@ -246,23 +282,13 @@ class ClosedLoopDynamics:
         v[:, self._act] = theta_dot
         v[:, self._pas] = -np.einsum("nij,nj->ni", X, theta_dot)
         moving = np.any(theta_dot != 0.0, axis=1)  # at rest the drift is exactly 0
-        with np.errstate(all="ignore"):  # singular states: NaN, masked below
+        with np.errstate(all="ignore"):  # singular states: NaN, masked by the callers
             gamma = self.clm.drift_batch(q, v, kin, rows=moving)
             a = np.zeros((n, m.nv))
             a[:, self._act] = theta_ddot
             a[:, self._pas] = -np.einsum("nij,nj->ni", X, theta_ddot) \
                 - np.einsum("nij,nj->ni", inv, gamma)
-        H = np.empty((n, m.nv))
-        rnea = pin.rnea
-        ok: list[bool] = np.isfinite(np.c_[a, v]).all(axis=1).tolist()  # type: ignore[union-attr]
-        for k in range(n):
-            H[k] = rnea(m, d, q[k], v[k], a[k]) if ok[k] else np.nan
-        if inertia is not None:
-            self._reduced_inertia(q, X, inertia)
-        tau = H[:, self._act] - np.einsum("nij,ni->nj", X, H[:, self._pas])
-        tau += self._friction(theta_dot)
-        tau[rcond <= SINGULAR_RCOND] = np.nan
-        return tau, rcond
+        return v, a, X, rcond
 
     def _reduced_inertia(self, q: np.ndarray, X: np.ndarray, out: np.ndarray) -> None:
         """out[k] = S^T M(q_k) S with S = [I on the actuated; -X_k on the passive]: one
@@ -307,6 +333,8 @@ class ClosedLoopDynamics:
 
     def gravity_torques(self, q: np.ndarray) -> np.ndarray:
         """Static actuator torques holding the robot still at q [N m]."""
+        q = np.asarray(q, dtype=float)
+        self._check_state(q)
         z = np.zeros(self.model.nv)
         return self.inverse_dynamics(q, z, z)
 

@@ -374,6 +374,18 @@ def _with_setup(robot: Robot, libs: dict[str, ca.Function]) -> dict[str, ca.Func
 
 #: What this process loaded, by robot structure hash: "optimised" or "quick".
 _KIND: dict[str, str] = {}
+#: the library files this process loaded, per structure hash (what build_kind names)
+_LOADED: dict[str, dict[str, Path]] = {}
+
+
+def loaded_libraries(robot: Robot) -> dict[str, Path]:
+    """The compiled library files this process loaded for ``robot``'s structure (empty
+    when it runs interpreted)."""
+    from sixplus3.dynamics.symbolic import structure
+
+    if not compiled_functions(robot):
+        return {}
+    return dict(_LOADED.get(structure(robot).hash, {}))
 
 
 def _compiled(robot: Robot, optimised: bool = False) -> dict[str, ca.Function]:
@@ -389,6 +401,7 @@ def _compiled(robot: Robot, optimised: bool = False) -> dict[str, ca.Function]:
     full = all(lib == _lib_path(lib.parent, name, sources[name], CFLAGS)
                for name, lib in libs.items())
     _KIND[structure(robot).hash] = "optimised" if full else "quick"
+    _LOADED[structure(robot).hash] = dict(libs)
     return {name: ca.external(f"{name}_p", str(libs[name])) for name in COMPILED}
 
 

@@ -52,6 +52,8 @@ from scipy.spatial.transform import Rotation
 
 from sixplus3.errors import GeometryError, InputError, TaskError
 from sixplus3.fileio import read_yaml, short_repr
+from sixplus3.planner.waypoint import Waypoint
+from sixplus3.robot_description.hardware import effective_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.physical import Payload, Tool
 from sixplus3.robot_description.robot import MOUNTINGS, Robot
@@ -146,16 +148,6 @@ SCHEMA = {
 
 
 @dataclass(frozen=True)
-class Waypoint:
-    position: np.ndarray  # (3,) platform centre [m]
-    rotation: np.ndarray  # (3, 3)
-    psi: np.ndarray | None = None  # (3,) crank angles [rad] or None (free)
-    #: come to rest here (zero velocity and acceleration); ``dwell`` [s] then holds it
-    stop: bool = False
-    dwell: float = 0.0
-
-
-@dataclass(frozen=True)
 class Task:
     waypoints: tuple[Waypoint, ...]
     #: limits the task asks for, tightening the robot's (name -> value, SI units)
@@ -184,6 +176,21 @@ class Task:
     #: within the limits); ``speed`` in (0, 1] is the minimum time divided by it
     duration: float | None = None
     speed: float | None = None
+
+    def __post_init__(self) -> None:
+        wps = self.waypoints
+        if not isinstance(wps, (tuple, list)) or not all(isinstance(w, Waypoint) for w in wps):
+            raise TaskError("task waypoints must be a sequence of Waypoint",
+                            value=type(wps).__name__, valid="a tuple of Waypoint")
+        need = 1 if self.start_theta is not None else 2
+        if len(wps) < need:
+            raise TaskError(f"a task needs at least {need} waypoint(s)"
+                            + (" besides its start state" if need == 1 else ""),
+                            value=len(wps), valid=f">= {need}")
+        object.__setattr__(self, "waypoints", tuple(wps))
+        if not isinstance(self.limits, dict):
+            raise TaskError("task limits must be a mapping of name to value",
+                            value=type(self.limits).__name__, valid="a dict")
 
     @property
     def segment_nodes(self) -> int:
@@ -249,10 +256,11 @@ class Task:
 
 
     def limits_for(self, robot: Robot) -> Limits:
-        """The limits to plan to: the robot's hardware limits, tightened by the task's,
+        """The limits to plan to: the robot's hardware limits (and the site's,
+        :func:`~sixplus3.robot_description.hardware.effective_limits`), tightened by the task's,
         with the torque limit scaled by :attr:`torque_fraction` (the feedback reserve).
         Raises :class:`~sixplus3.errors.LimitError` if the task asks for a looser one."""
-        lim = robot.limits.tightened(**self.limits)
+        lim = effective_limits(robot).tightened(**self.limits)
         return lim.tightened(torque=lim.torque * self.torque_fraction)
 
 

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from sixplus3.errors import GeometryError
+from sixplus3.robot_description.hardware import check_motors
 
 #: The paper's belt: 72-tooth pulley on the joint, 34-tooth on the motor.
 BELT_RATIO = 72.0 / 34.0
@@ -65,8 +66,17 @@ def _vec(name: str, v: Any, n: int, unit: str) -> tuple[float, ...]:
 
 @dataclass(frozen=True)
 class MotorModel:
-    """Motor, transmission and friction of every actuated joint (see module doc)."""
+    """Motor, transmission and friction of every actuated joint (see module doc).
 
+    ``model`` names the drive train in the hardware catalogue
+    (:mod:`sixplus3.robot_description.hardware`): its ratings (``rated_torque``,
+    ``gear_ratio``, ``encoder_bits``) must be the catalogue's, so that no robot file can
+    raise the envelope.  What a lab measures (rotor inertia, friction, offsets,
+    directions) is free."""
+
+    model: str = field(default="SGMCS-05B+belt-72/34", metadata={
+        "doc": "the drive train's catalogue key (motor + transmission): the envelope and "
+               "the drive units come from the catalogue, never from this file"})
     rotor_inertia: float = field(default=51.0e-4, metadata={
         "doc": "rotor moment of inertia on the motor side [kg m^2] (SGMCS-05B, assumed)"})
     gear_ratio: float = field(default=BELT_RATIO, metadata={
@@ -114,6 +124,7 @@ class MotorModel:
         if len(dirs) != 9 or any(isinstance(d, bool) or d not in (1, -1) for d in dirs):
             raise GeometryError("motors.directions", self.directions, "nine values +1 or -1")
         object.__setattr__(self, "directions", tuple(int(d) for d in dirs))
+        check_motors(self)
 
     @property
     def armature(self) -> float:

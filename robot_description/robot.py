@@ -34,7 +34,8 @@ from sixplus3.errors import GeometryError
 from sixplus3.robot_description.assembly import AssemblyMode
 from sixplus3.robot_description.collision import CollisionModel
 from sixplus3.robot_description.geometry import GRAVITY, LegGeometry
-from sixplus3.robot_description.limits import RATED_SPEED_RPM, Limits
+from sixplus3.robot_description.hardware import catalogue_envelope, check_robot_limits
+from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.physical import MotorModel, Payload, Tool, _vec
 
 if TYPE_CHECKING:
@@ -260,9 +261,12 @@ class Robot:
             raise GeometryError("home_psi", psi, "away from 0 and pi rad",
                                 "a crank along its radius is a platform singularity")
         object.__setattr__(self, "home_psi", psi)
-        if not isinstance(self.name, str) or not 0 < len(self.name) <= 100:
-            raise GeometryError("name", self.name, "a string of 1 to 100 characters")
-        hardware_envelope(self.motors).tightened(**self.limits.as_dict())
+        if (not isinstance(self.name, str) or not 0 < len(self.name) <= 100
+                or not self.name.isprintable()):
+            raise GeometryError("name", fileio.short_repr(self.name, 40),
+                                "1 to 100 printable characters (no control characters "
+                                "such as ESC or newline)")
+        check_robot_limits(self.limits, self.motors)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -454,14 +458,10 @@ NAMED_ROBOTS: dict[str, tuple[Any, str]] = {
 
 
 def hardware_envelope(motors: MotorModel) -> Limits:
-    """The loosest limits any robot file may give (the authority a file cannot raise):
-    the torque the motor model delivers at the joint (rated torque x belt ratio), the
-    joint speed of its rated speed through the belt, and the built robot's own limits for
-    what no motor datum sets (acceleration, jerk, torque rate, singularity margin,
-    actuated range, spherical tilt).  :meth:`Limits.tightened` of this is the check."""
-    return Limits().replace_upper(
-        torque=motors.rated_torque * motors.gear_ratio,
-        velocity=RATED_SPEED_RPM * 2.0 * math.pi / 60.0 / motors.gear_ratio)
+    """The loosest limits any robot file may give: the envelope of the catalogue drive
+    train its motors name (:func:`sixplus3.robot_description.hardware.catalogue_envelope`;
+    never a figure of the file itself)."""
+    return catalogue_envelope(motors.model)
 
 
 def _mapping(name: str, v: object) -> dict[str, Any]:

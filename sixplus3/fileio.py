@@ -113,28 +113,6 @@ def read_text(path: str | Path, what: str, max_bytes: int = MAX_BYTES) -> str:
                          valid="UTF-8 text", value=exc.start) from exc
 
 
-def _expanded_size(obj: Any, memo: dict[int, int], limit: int) -> int:
-    """Number of values in ``obj`` as a tree (aliases expanded), computed on the shared
-    graph in linear time; stops counting past ``limit``."""
-    key = id(obj)
-    if key in memo:
-        return memo[key]
-    n = 1
-    if isinstance(obj, dict):
-        for k, v in obj.items():
-            n += _expanded_size(k, memo, limit) + _expanded_size(v, memo, limit)
-            if n > limit:
-                break
-    elif isinstance(obj, list):
-        for v in obj:
-            n += _expanded_size(v, memo, limit)
-            if n > limit:
-                break
-    if isinstance(obj, (dict, list)):
-        memo[key] = n
-    return n
-
-
 def depth(obj: Any, limit: int) -> int:
     """Nesting depth of plain data (dicts and lists), counted up to ``limit + 1``
     without recursion."""
@@ -165,9 +143,33 @@ def _nesting(text: str) -> int:
     return deepest
 
 
+def _node_size(node: yaml.Node, memo: dict[int, tuple[int, int]],
+               limit: int) -> tuple[int, int]:
+    """(values, depth) of a composed YAML node with its aliases expanded, on the shared
+    node graph in linear time (each node once); counting stops past ``limit``."""
+    key = id(node)
+    if key in memo:
+        return memo[key]
+    memo[key] = (limit + 1, 0)  # a node inside itself (a recursive alias): too big
+    n, d = 1, 0
+    children: list[yaml.Node] = []
+    if isinstance(node, yaml.MappingNode):
+        children = [c for pair in node.value for c in pair]
+    elif isinstance(node, yaml.SequenceNode):
+        children = list(node.value)
+    for child in children:
+        cn, cd = _node_size(child, memo, limit)
+        n, d = n + cn, max(d, cd)
+        if n > limit:
+            break
+    memo[key] = (n, d + 1)
+    return memo[key]
+
+
 def parse_yaml(text: str, what: str, max_aliases: int = MAX_ALIASES,
                max_values: int = MAX_VALUES) -> Any:
-    """Plain data from YAML text with bounded aliases, bounded expanded size and unique
+    """Plain data from YAML text with bounded aliases, bounded expanded size and depth
+    (both counted on the composed node graph, before any value is built) and unique
     keys."""
     if _nesting(text) > MAX_DEPTH:
         raise InputError(f"{what} nests deeper than {MAX_DEPTH} levels", value=">" +
@@ -175,7 +177,17 @@ def parse_yaml(text: str, what: str, max_aliases: int = MAX_ALIASES,
     loader = _Loader(text)
     loader.max_aliases = max_aliases
     try:
-        doc = loader.get_single_data()
+        node = loader.get_single_node()
+        if node is not None:
+            size, deep = _node_size(node, {}, max_values)
+            if size > max_values:
+                raise InputError(f"{what}: its aliases expand to more than {max_values} "
+                                 "values (a YAML alias bomb?); write the values out",
+                                 valid=f"<= {max_values} values", value=max_values + 1)
+            if deep > MAX_DEPTH:
+                raise InputError(f"{what} nests deeper than {MAX_DEPTH} levels",
+                                 value=">" + str(MAX_DEPTH), valid=f"<= {MAX_DEPTH} levels")
+        doc = None if node is None else loader.construct_document(node)
     except yaml.YAMLError as exc:
         first = str(exc).strip().splitlines()
         msg = " ".join(line.strip() for line in first[:3])[:300]
@@ -185,13 +197,6 @@ def parse_yaml(text: str, what: str, max_aliases: int = MAX_ALIASES,
                          valid=f"<= {MAX_DEPTH} levels") from None
     finally:
         loader.dispose()
-    if depth(doc, MAX_DEPTH) > MAX_DEPTH:
-        raise InputError(f"{what} nests deeper than {MAX_DEPTH} levels", value=">" +
-                         str(MAX_DEPTH), valid=f"<= {MAX_DEPTH} levels")
-    if _expanded_size(doc, {}, max_values) > max_values:
-        raise InputError(f"{what}: its aliases expand to more than {max_values} values "
-                         "(a YAML alias bomb?); write the values out",
-                         valid=f"<= {max_values} values", value=max_values + 1)
     return doc
 
 

@@ -72,14 +72,20 @@ def test_optimised_on_demand_and_stale_markers(source, tmp_path) -> None:
 
 
 def test_the_loaded_build_is_reported(monkeypatch) -> None:
-    """build_kind names the library this process loaded: the file of that build (its
-    flags in the name's hash) is in the cache; with code generation off, "interpreted"."""
+    """build_kind names the libraries this process loaded (their flags in the names'
+    hash): "optimised" exactly when every one is the optimised build; with code
+    generation off, "interpreted".  Judged on this process's own record, so a background
+    build landing in the shared cache meanwhile changes nothing."""
     robot = Robot.default()
     kind = codegen.build_kind(robot)
     assert kind in ("optimised", "quick")
-    src = codegen._source(symbolic_robot(robot).node_p)
-    flags = codegen.CFLAGS if kind == "optimised" else codegen.QUICK_CFLAGS
-    assert codegen._lib_path(codegen.cache_dir(), "node", src, flags).exists()
+    loaded = codegen.loaded_libraries(robot)
+    sr = symbolic_robot(robot)
+    assert set(loaded) == set(codegen.COMPILED)
+    full = {name: codegen._lib_path(path.parent, name, codegen._source(getattr(sr, f"{name}_p")),
+                                    codegen.CFLAGS) for name, path in loaded.items()}
+    assert (kind == "optimised") == all(loaded[n] == full[n] for n in loaded)
+    assert all(p.name.startswith(f"sixplus3_{n}_") and p.exists() for n, p in loaded.items())
     monkeypatch.setenv("SIXPLUS3_NO_CODEGEN", "1")
     assert codegen.build_kind(robot) == "interpreted"
 

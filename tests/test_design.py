@@ -195,4 +195,4 @@ def test_design_optimize_checks_every_grid_before_searching() -> None:
 
     res = CliRunner().invoke(main, ["design", "optimize", "--ws-step", "0.05",
                                     "--ws-step", "nan"])
-    assert res.exit_code == 2 and "ws_step" in res.output and "grid 50 mm" not in res.output
+    assert res.exit_code == 2 and "--ws-step" in res.output and "grid 50 mm" not in res.output

@@ -33,6 +33,8 @@ class Frames:
     marks: np.ndarray | None = None
     #: (W, 3) the task's waypoints (platform centre) [m], drawn apart from the rests
     waypoints: np.ndarray | None = None
+    #: the gate's refusal of the file shown (``play --unsafe``): a red banner says it
+    refused: str | None = None
 
 #: Times the page and the live viewer replay the animation (MeshCat has no endless loop
 #: through its Python API; at a few seconds per play this is hours).
@@ -186,7 +188,12 @@ def write_html(frames: Frames, out: str | Path) -> Path:
     box = "padding:4px 8px;background:rgba(255,255,255,0.85);border-radius:4px"
     banner = ('<div style="position:fixed;top:8px;left:8px;right:240px;z-index:10;'
               'font:14px sans-serif;display:flex;flex-direction:column;'
-              f'align-items:flex-start;gap:4px"><div style="{box}">{info}</div>'
+              'align-items:flex-start;gap:4px">'
+              + (f'<div id="sixplus3-refused" style="padding:6px 10px;background:#c00;'
+                 f'color:#fff;font-weight:bold;border-radius:4px">NOT A VALID MOTION: the '
+                 f'gate refuses this file ({html.escape(frames.refused)}). Never feed it '
+                 f'to the robot.</div>' if frames.refused else "")
+              + f'<div style="{box}">{info}</div>'
               f'<div id="sixplus3-time" style="{box};font-family:monospace">'
               f't = 0.000 s of {frames.duration:.3f} s</div></div>')
     # the time of the motion shown, read from the animation's clip time

@@ -83,16 +83,25 @@ class _Group(click.Group):
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="sixplus3")
 @click.option("--robot", "robot_file", default=None, metavar="NAME|FILE",
-              help="A named robot (default, paper, paper-mirror: 'sixplus3 robot list') or a "
-              "file of robot parameters (YAML/JSON, keys as in 'sixplus3 robot show --json'; "
-              "missing keys keep the defaults). Default: the built robot ('default').")
+              help="A named robot (default, paper-as-stated, paper-mirror, compact: "
+              "'sixplus3 robot list') or a file of robot parameters (YAML/JSON, keys as in "
+              "'sixplus3 robot show --json'; missing keys keep the defaults). Default: the "
+              "built robot ('default').")
+@click.option("--hardware", "hardware_file", default=None, metavar="FILE",
+              help="The site hardware file (YAML/JSON: drive_train, people, limits): the "
+              "envelope no robot, task or trajectory file can raise (docs/validation.md, "
+              "'The envelope'). Default: $SIXPLUS3_HARDWARE, else the built-in catalogue.")
 @click.pass_context
-def main(ctx: click.Context, robot_file: str | None) -> None:
+def main(ctx: click.Context, robot_file: str | None, hardware_file: str | None) -> None:
     """sixplus3: kinematics, dynamics, design and planning for the (6+3)-DoF robot."""
     from sixplus3 import progress
+    from sixplus3.robot_description import hardware
 
     progress.set_level(progress.NORMAL)  # before a subcommand's --quiet / --verbose
     ctx.obj = {"robot_file": robot_file}
+    hardware.use(None)
+    if hardware_file is not None:  # an unreadable or raising file: exit 2 (_Group)
+        hardware.use(hardware.load_hardware(hardware_file))
 
 
 def bars() -> bool:
@@ -126,15 +135,90 @@ def verbosity(f):
                              "and errors.")(f)
 
 
-def emit(text: str, out_file: str | None) -> None:
-    """``text`` to stdout, or atomically to ``out_file``."""
+def check_output(out_path: str | None, inputs: tuple[str | None, ...] = (),
+                 force: bool = False) -> None:
+    """Refuse (exit 2) an output that is one of the command's inputs (the same path or
+    the same file through a link), or, without ``force``, an existing trajectory file:
+    no command replaces what it reads, or a validated trajectory, by another kind of
+    file."""
+    if out_path is None:
+        return
+    for src in inputs:
+        if src is None or not os.path.exists(src) or not os.path.exists(out_path):
+            continue
+        try:
+            same = os.path.samefile(src, out_path)
+        except OSError:
+            same = False
+        if same:
+            fail(f"{out_path} is this command's input {src}: write the output elsewhere")
+    if force or not os.path.isfile(out_path):
+        return
+    from sixplus3.control.file_format import FORMAT
+
+    try:
+        with open(out_path, "rb") as fh:
+            head = fh.read(200)
+    except OSError:
+        return
+    if FORMAT.encode() in head:
+        fail(f"{out_path} is a trajectory file ({FORMAT}); it is not replaced by another "
+             "kind of file unless you add --force")
+
+
+def emit(text: str, out_file: str | None, inputs: tuple[str | None, ...] = (),
+         force: bool = False) -> None:
+    """``text`` to stdout, or atomically to ``out_file`` (:func:`check_output` first)."""
     if out_file is None:
         click.echo(text, nl=False)
         return
+    check_output(out_file, inputs, force)
     from sixplus3.fileio import atomic_write
 
     atomic_write(out_file, text.encode())
     click.echo(f"wrote {out_file}", err=True)
+
+
+class _StrictNumber(click.ParamType):
+    """A number on the command line in the files' one strict decimal grammar
+    (:data:`sixplus3.control.trajectory_parse.NUMBER`: no '1_000', 'inf', 'nan', '0x10')."""
+
+    def __init__(self, integer: bool) -> None:
+        self.integer = integer
+        self.name = "integer" if integer else "number"
+
+    def convert(self, value: Any, param: click.Parameter | None,
+                ctx: click.Context | None) -> Any:
+        import re
+
+        from sixplus3.control.trajectory_parse import NUMBER
+
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return int(value) if self.integer else float(value)
+        text = str(value).strip()
+        grammar = r"-?(?:0|[1-9][0-9]*)" if self.integer else NUMBER
+        from sixplus3.errors import InputError
+
+        where = (param.opts[0] if param is not None and param.opts else "a number")
+        if param is not None and param.param_type_name == "argument":
+            where = (param.name or "argument").upper()
+        if not re.fullmatch(grammar, text):
+            # an InputError, not click's usage text: one line, exit 2 (_Group.invoke)
+            raise InputError(f"{where}: {text[:40]!r} is not "
+                             f"{'an integer' if self.integer else 'a number'} (decimal "
+                             "digits, an optional '-', '.' and exponent: e.g. "
+                             f"{'1000' if self.integer else '-0.25 or 1e3'})",
+                             value=text[:40], valid="a decimal number")
+        out = int(text) if self.integer else float(text)
+        if not self.integer and not math.isfinite(out):
+            raise InputError(f"{where}: {text[:40]!r} is too large", value=text[:40],
+                             valid="a finite number")
+        return out
+
+
+#: The CLI's number types (every numeric option and argument).
+FLOAT = _StrictNumber(integer=False)
+INT = _StrictNumber(integer=True)
 
 
 def current_robot() -> Robot:
@@ -154,9 +238,11 @@ def current_robot() -> Robot:
                  f"{', '.join(NAMED_ROBOTS)}) nor an existing robot file")
         else:
             from sixplus3.kinematics.collision import check_layout
+            from sixplus3.robot_description.hardware import check_robot_within
 
             obj["robot"] = load_robot(path)
             check_layout(obj["robot"])  # a robot file must describe a buildable robot
+            check_robot_within(obj["robot"])  # nor raise the site's envelope
     return obj["robot"]
 
 

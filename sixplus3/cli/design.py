@@ -8,7 +8,7 @@ import math
 
 import click
 
-from sixplus3.cli.app import bars, current_robot, fail, main, verbosity
+from sixplus3.cli.app import FLOAT, INT, bars, current_robot, fail, main, verbosity
 
 
 @main.group()
@@ -36,12 +36,12 @@ def _reading(name: str):
 
 
 @design.command("optimize")
-@click.option("--coarse-step", default=0.01, show_default=True, type=float,
+@click.option("--coarse-step", default=0.01, show_default=True, type=FLOAT,
               help="Stage-1 grid of the design variables [m].")
-@click.option("--fine-step", default=0.001, show_default=True, type=float,
+@click.option("--fine-step", default=0.001, show_default=True, type=FLOAT,
               help="Stage-2 grid around the best coarse design [m].")
 @click.option("--ws-step", "ws_steps", default=(0.01, 0.005, 0.0025), show_default=True,
-              type=float, multiple=True,
+              type=FLOAT, multiple=True,
               help="Workspace grid of the half-plane [m]; repeat to re-optimise on each.")
 @_reading_option
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object per grid.")
@@ -97,13 +97,13 @@ def design_optimize(coarse_step: float, fine_step: float, ws_steps: tuple[float,
               help="Axis turns gamma to sweep [deg].")
 @click.option("--phases", default="-20:20:10", show_default=True, metavar="START:STOP:STEP",
               help="Platform phase offsets to sweep [deg], from the robot's own phase.")
-@click.option("--step", default=0.02, show_default=True, type=float,
+@click.option("--step", default=0.02, show_default=True, type=FLOAT,
               help="COW grid pitch, x, y and z [m].")
 @click.option("--legs", type=click.Choice(["both", "paper", "other-basin"]), default="both",
               show_default=True, help="Which §V legs to study.")
 @click.option("--out", "out_dir", default="layout", show_default=True,
               type=click.Path(file_okay=False), help="Output directory (table, figure).")
-@click.option("--workers", default=2, show_default=True, type=int,
+@click.option("--workers", default=2, show_default=True, type=INT,
               help="LocalCluster worker processes (1-4).")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="A Dask scheduler address (tcp://host:8786), or 'synchronous'.")
@@ -167,7 +167,7 @@ def _sweep(name: str, text: str) -> tuple[float, ...]:
 @click.option("--out", "out_dir", default="figures", show_default=True,
               type=click.Path(file_okay=False), help="Output directory.")
 @_reading_option
-@click.option("--ws-step", default=0.0025, show_default=True, type=float,
+@click.option("--ws-step", default=0.0025, show_default=True, type=FLOAT,
               help="Half-plane grid of the leg figures [m].")
 def design_figures(out_dir: str, reading: str, ws_step: float) -> None:
     """Write the §V figures (det J/K, tau_ext, COW, encoder resolution) as PNG."""
@@ -186,7 +186,7 @@ def design_figures(out_dir: str, reading: str, ws_step: float) -> None:
 
 
 @main.command()
-@click.option("--ws-step", default=0.005, show_default=True, type=float,
+@click.option("--ws-step", default=0.005, show_default=True, type=FLOAT,
               help="Workspace grid step of the usable-area report [m].")
 def report(ws_step: float) -> None:
     """A report of the robot's leg design (sample configurations, usable area)."""
@@ -198,26 +198,26 @@ def report(ws_step: float) -> None:
 @main.command()
 @click.option("-o", "--out", "out_dir", default="out/atlas", show_default=True,
               type=click.Path(file_okay=False), help="Output directory (atlas.nc, PNGs).")
-@click.option("--step", default=0.02, show_default=True, type=float,
+@click.option("--step", default=0.02, show_default=True, type=FLOAT,
               help="Position grid step [m].")
-@click.option("--azimuth-step", default=15.0, show_default=True, type=float,
+@click.option("--azimuth-step", default=15.0, show_default=True, type=FLOAT,
               help="Tilt-direction step [deg] (tilt-axis azimuths 0..360).")
-@click.option("--torsion", "torsions", multiple=True, type=float,
+@click.option("--torsion", "torsions", multiple=True, type=FLOAT,
               help="Torsion angle [deg] (repeat for several; default 0).")
-@click.option("--max-tilt", default=180.0, show_default=True, type=float,
+@click.option("--max-tilt", default=180.0, show_default=True, type=FLOAT,
               help="Largest tilt searched [deg].")
-@click.option("--resolution", default=1.0, show_default=True, type=float,
+@click.option("--resolution", default=1.0, show_default=True, type=FLOAT,
               help="Bisection resolution of the tilt [deg].")
-@click.option("--z", "z_range", nargs=2, type=float, default=None,
+@click.option("--z", "z_range", nargs=2, type=FLOAT, default=None,
               help="Only heights in [ZMIN, ZMAX] [m] (default: the reachable region).")
-@click.option("--workers", default=2, show_default=True, type=int,
+@click.option("--workers", default=2, show_default=True, type=INT,
               help="Dask LocalCluster worker processes (one thread each).")
 @click.option("--scheduler", default=None,
               help="A Dask scheduler address (tcp://host:8786) instead of a LocalCluster; "
               "'synchronous' runs in this process.")
-@click.option("--chunk", default=48, show_default=True, type=int,
+@click.option("--chunk", default=48, show_default=True, type=INT,
               help="Positions per Dask task.")
-@click.option("--accel-g", default=0.0, show_default=True, type=float,
+@click.option("--accel-g", default=0.0, show_default=True, type=FLOAT,
               help="Dynamic criterion: the platform must also accelerate at this many g "
               "in every direction from rest within the torque limit (0: static only).")
 @click.option("--no-figures", is_flag=True, help="Write only the data file.")

@@ -6,7 +6,7 @@ import math
 
 import click
 
-from sixplus3.cli.app import NUMERIC_ARGS, bars, current_robot, fail, main, verbosity
+from sixplus3.cli.app import FLOAT, NUMERIC_ARGS, bars, current_robot, fail, main, verbosity
 
 
 def _check_rate(rate: float) -> None:
@@ -47,7 +47,7 @@ def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None
 @click.argument("task_file", type=click.Path(dir_okay=False))
 @click.option("-o", "--out", "out_dir", default="out", show_default=True,
               type=click.Path(file_okay=False), help="Output directory.")
-@click.option("--rate", default=1000.0, show_default=True, help="Controller rate [Hz].")
+@click.option("--rate", default=1000.0, show_default=True, type=FLOAT, help="Controller rate [Hz].")
 @click.option("--no-html", is_flag=True, help="Skip the MeshCat page.")
 @click.option("--locked", is_flag=True, help="Lock the crank angles at their home angles.")
 @verbosity
@@ -63,11 +63,11 @@ def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool)
 
 @main.command("move-to-start", context_settings=NUMERIC_ARGS)
 @click.argument("task_file", type=click.Path(dir_okay=False))
-@click.option("--theta", nargs=9, type=float, required=True, metavar="A0 B0 C0 ... C2",
+@click.option("--theta", nargs=9, type=FLOAT, required=True, metavar="A0 B0 C0 ... C2",
               help="The robot's current actuated angles [deg], legs 0..2 each A, B, C.")
 @click.option("-o", "--out", "out_dir", default="out", show_default=True,
               help="Output directory.")
-@click.option("--rate", default=1000.0, show_default=True, help="Controller rate [Hz].")
+@click.option("--rate", default=1000.0, show_default=True, type=FLOAT, help="Controller rate [Hz].")
 @verbosity
 def move_to_start_cmd(task_file: str, theta: tuple[float, ...], out_dir: str,
                       rate: float) -> None:

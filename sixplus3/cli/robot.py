@@ -11,6 +11,7 @@ from typing import Any
 import click
 
 from sixplus3.cli.app import (
+    FLOAT,
     NUMERIC_ARGS,
     current_robot,
     emit,
@@ -22,10 +23,10 @@ from sixplus3.cli.app import (
 
 
 @main.command(context_settings=NUMERIC_ARGS)
-@click.argument("x", type=float)
-@click.argument("y", type=float)
-@click.argument("z", type=float)
-@click.option("--force", nargs=3, type=float, default=None, metavar="FX FY FZ",
+@click.argument("x", type=FLOAT)
+@click.argument("y", type=FLOAT)
+@click.argument("z", type=FLOAT)
+@click.option("--force", nargs=3, type=FLOAT, default=None, metavar="FX FY FZ",
               help="Force at P in the leg frame [N].")
 @click.option("--mode", default=None,
               help="Assembly mode: four of +/- for (th1, th_s3, th2, th3), or 'default'. "
@@ -114,13 +115,13 @@ def robot_check(as_json: bool) -> None:
 
 
 @robot.command("ik", context_settings=NUMERIC_ARGS)
-@click.argument("x", type=float)
-@click.argument("y", type=float)
-@click.argument("z", type=float)
-@click.argument("roll", type=float)
-@click.argument("pitch", type=float)
-@click.argument("yaw", type=float)
-@click.option("--redundancy", nargs=3, type=float, default=(90.0, 90.0, 90.0),
+@click.argument("x", type=FLOAT)
+@click.argument("y", type=FLOAT)
+@click.argument("z", type=FLOAT)
+@click.argument("roll", type=FLOAT)
+@click.argument("pitch", type=FLOAT)
+@click.argument("yaw", type=FLOAT)
+@click.option("--redundancy", nargs=3, type=FLOAT, default=(90.0, 90.0, 90.0),
               show_default=True, metavar="A1 A2 A3", help="Crank angles psi_i [deg].")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 def robot_ik_cmd(x: float, y: float, z: float, roll: float, pitch: float, yaw: float,

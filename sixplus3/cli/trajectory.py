@@ -11,7 +11,16 @@ from typing import TYPE_CHECKING
 
 import click
 
-from sixplus3.cli.app import current_robot, emit, fail, json_default, main, request_fast_exit
+from sixplus3.cli.app import (
+    FLOAT,
+    check_output,
+    current_robot,
+    emit,
+    fail,
+    json_default,
+    main,
+    request_fast_exit,
+)
 
 if TYPE_CHECKING:
     from sixplus3.robot_description.robot import Robot
@@ -28,9 +37,9 @@ def _task_robot(task_file: str | None) -> Robot:
 
 
 _gain_options = [
-    click.option("--kp", default=300.0, show_default=True, type=float,
+    click.option("--kp", default=300.0, show_default=True, type=FLOAT,
                  help="PD stiffness of the replay [N m/rad]."),
-    click.option("--kd", default=6.0, show_default=True, type=float,
+    click.option("--kd", default=6.0, show_default=True, type=FLOAT,
                  help="PD damping of the replay [N m s/rad]."),
 ]
 
@@ -65,14 +74,22 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
     # Read once, when numba first starts its threads: that is later, in validate_file.
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     from sixplus3.control.validation import validate_file
+    from sixplus3.robot_description.hardware import envelope_record
 
     robot = _task_robot(task_file)
-    rep = validate_file(csv_file, robot)
+    task_limits = None
+    if task_file is not None:  # the task's own limits: a planning choice checked here
+        from sixplus3.planner.task import load_task
+        from sixplus3.robot_description.hardware import effective_limits
+
+        task_limits = effective_limits(robot).tightened(**load_task(task_file).limits)
+    rep = validate_file(csv_file, robot, limits=task_limits)
     from sixplus3.robot_description.limits import Limits
 
     limits = Limits(**rep.limits) if rep.limits else robot.limits
+    envelope = envelope_record()
     out = {"file": csv_file, "duration_s": rep.duration, **rep.summary(),
-           "feedforward_max_error": rep.feedforward_error}
+           "feedforward_max_error": rep.feedforward_error, "envelope": envelope}
     code = rep.exit_code
     eng = None
     if with_sim and code != 2:
@@ -98,7 +115,8 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
                        f"{limits.torque_rate:g} N m/s between its own nodes)")
         lim_txt = ", ".join(f"{k} {v:.6g}" for k, v in limits.as_dict().items())
         click.echo(f"  judged by robot {robot.hash[:12]} at {rep.rate_hz:g} Hz, its hardware "
-                   f"limits tightened by the file's: {lim_txt}")
+                   f"limits tightened by the site's and the file's: {lim_txt}")
+        click.echo(f"  envelope: {envelope['drive_train']} from the {envelope['origin']}")
         for msg in rep.messages():
             click.echo(f"  {'defect' if rep.exit_code == 2 else 'violation'}: {msg}")
         if eng is not None:
@@ -118,7 +136,7 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
 @click.argument("csv_file", type=click.Path(dir_okay=False))
 @click.option("--task", "task_file", default=None, type=click.Path(dir_okay=False),
               help="Apply this task file's setup (payload, tool, mounting) to the robot.")
-@click.option("--ff-scale", default=1.0, show_default=True, type=float,
+@click.option("--ff-scale", default=1.0, show_default=True, type=FLOAT,
               help="Scale the feed-forward torques by this factor, in [0, 2].")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.option("--torque-hold", type=click.Choice(["sample", "mean"]), default="mean",
@@ -178,16 +196,20 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
               help="Torque per sample: 'mean' of it and the next (for a drive that holds "
                    "it over the tick; drive-csv's default) or the 'sample''s own (the "
                    "ROS 2 forms' default).")
-@click.option("--rate", "rate", default=None, type=float,
+@click.option("--rate", "rate", default=None, type=FLOAT,
               help="ROS 2 forms: resample at this lower rate [Hz] (>= 10) on the gate's "
                    "quintic interpolant, validated again as an interpolated motion.")
 @click.option("--goal", is_flag=True,
               help="ROS 2 forms: a control_msgs/action/FollowJointTrajectory goal "
                    "(for 'ros2 action send_goal').")
+@click.option("--force", is_flag=True,
+              help="Replace an existing trajectory file given as -o (never the input).")
 def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | None,
-               torque_hold: str | None, rate: float | None, goal: bool) -> None:
+               torque_hold: str | None, rate: float | None, goal: bool, force: bool) -> None:
     """Export a trajectory file for the controller side, after validating it (exit 1
-    for a violated limit, 2 for a bad file: nothing is written)."""
+    for a violated limit, 2 for a bad file: nothing is written).  With --rate, the
+    motion a controller interpolates through the exported points is validated as it
+    will run (docs/validation.md, "Exports")."""
     from sixplus3.control.exports import export_file
 
     if fmt == "rosbag2":
@@ -196,21 +218,26 @@ def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | N
         if out_file is None:
             fail("--format rosbag2 writes a directory: give it with -o DIR")
             return
+        if rate is not None or goal:
+            fail("--rate and --goal go with the ROS 2 message forms (ros2-yaml, "
+                 "ros2-json); the rosbag2 export records the file's own samples")
+        check_output(out_file, (csv_file,), force)
         bag = write_rosbag2(csv_file, _task_robot(task_file), out_file)
         click.echo(f"wrote {bag} (ros2 bag play {bag})", err=True)
         return
+    check_output(out_file, (csv_file, task_file), force)  # before the work
     text = export_file(csv_file, _task_robot(task_file), fmt, torque_hold, rate, goal)
-    emit(text, out_file)
+    emit(text, out_file, (csv_file, task_file), force)
 
 
 @main.command()
 @click.argument("csv_file", type=click.Path(dir_okay=False))
 @click.option("--udp", default="127.0.0.1:9870", show_default=True,
               help="IPv4:PORT of the controller.")
-@click.option("--speed", default=1.0, show_default=True, type=float,
+@click.option("--speed", default=1.0, show_default=True, type=FLOAT,
               help="Replay speed in [0.01, 1]: < 1 is a real retiming, validated again.")
 @click.option("--dry-run", is_flag=True, help="Print the datagrams instead of sending.")
-@click.option("--start-theta", nargs=9, type=float, default=None, metavar="A0 B0 C0 ... C2",
+@click.option("--start-theta", nargs=9, type=FLOAT, default=None, metavar="A0 B0 C0 ... C2",
               help="The robot's current actuated angles [deg], legs 0..2 each A, B, C: the "
                    "file must start there, on the robot's assembly branch.")
 @click.option("--torque-hold", type=click.Choice(["sample", "mean"]), default="mean",
@@ -251,11 +278,21 @@ def feed(csv_file: str, udp: str, speed: float, dry_run: bool,
 @click.option("--html", "html_out", default=None, type=click.Path(dir_okay=False),
               help="Write a standalone page with the animation instead of serving it.")
 @click.option("--no-wait", is_flag=True, help="Do not wait for Ctrl-C after loading.")
-def play(csv_file: str, html_out: str | None, no_wait: bool) -> None:
-    """Animate a trajectory file in MeshCat (live; the URL is printed) or as HTML."""
+@click.option("--unsafe", is_flag=True,
+              help="Show a file the gate refuses, under a red banner naming the failed "
+                   "check (default: refuse it, exit 1 or 2).")
+def play(csv_file: str, html_out: str | None, no_wait: bool, unsafe: bool) -> None:
+    """Animate a trajectory file in MeshCat (live; the URL is printed) or as HTML.
+
+    The file is validated first: one the gate refuses is not shown (exit 1 for a
+    violated limit, 2 for a bad file) unless --unsafe, which shows it under a red banner.
+    What is animated is the forward kinematics of the file's joints, never its platform
+    columns."""
+    from dataclasses import replace
     from pathlib import Path
 
     from sixplus3.control.trajectory_file import read_trajectory
+    from sixplus3.control.validation import validate_file
     from sixplus3.visualization.meshcat_player import (
         animate,
         frames_from_samples,
@@ -264,11 +301,27 @@ def play(csv_file: str, html_out: str | None, no_wait: bool) -> None:
     )
 
     robot = current_robot()
+    check_output(html_out, (csv_file,))
+    rep = validate_file(csv_file, robot)
+    refused = None
+    if rep.exit_code != 0:
+        refused = "; ".join(rep.messages())[:300] or "not a valid motion"
+        if not unsafe:
+            click.echo(f"refused: not shown, the gate refuses {csv_file}: {refused} "
+                       "(--unsafe shows it under a red banner)", err=True)
+            sys.exit(rep.exit_code)
+        click.echo(f"warning: the gate refuses this file ({refused}); shown under a red "
+                   "banner", err=True)
     traj = read_trajectory(csv_file, robot)
-    frames = frames_from_samples(robot, traj.t, traj.platform_position,
-                                 traj.platform_quaternion, traj.psi,
+    if rep.position is not None and rep.quaternion is not None and rep.psi is not None:
+        position, quaternion, psi = rep.position, rep.quaternion, rep.psi  # the gate's FK
+    else:
+        position, quaternion, psi = (traj.platform_position, traj.platform_quaternion,
+                                     traj.psi)
+    frames = frames_from_samples(robot, traj.t, position, quaternion, psi,
                                  title=f"sixplus3: {Path(csv_file).stem}",
                                  theta_dot=traj.joints("vel"))
+    frames = replace(frames, refused=refused)
     if html_out:
         path = write_html(frames, html_out)
         click.echo(f"wrote {path} ({len(frames.q)} frames, slowed down "
