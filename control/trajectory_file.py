@@ -330,7 +330,8 @@ def _robot_diff(a: dict, b: dict, where: str = "") -> str:
             if d:
                 return d
         elif va != vb:
-            return f"{where}{k}: file {va!r}, robot {vb!r}"
+            return (f"{where}{k}: file {fileio.short_repr(va, 60)}, robot "
+                    f"{fileio.short_repr(vb, 60)}")
     return ""
 
 

@@ -31,7 +31,13 @@ import numpy as np
 from sixplus3.cache import cached
 from sixplus3.dynamics.clearance import clearance_rows
 from sixplus3.dynamics.platform_rows import platform_line_det_normalised
-from sixplus3.dynamics.tree import revolute_joints, tree_forces, tree_placements
+from sixplus3.dynamics.tree import (
+    N_BODY_PARAMETERS,
+    SETUP_BODIES,
+    revolute_joints,
+    tree_forces,
+    tree_placements,
+)
 from sixplus3.kinematics.spherical import spherical_reference
 from sixplus3.robot_description.assembly import AssemblyMode
 from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, require_robot
@@ -157,28 +163,43 @@ def _leg_symbolic(p_leg, geom: RobotGeometry, mode: AssemblyMode):
     }
 
 
-#: Layout of the setup parameters p: gravity (3), payload mass (1), centre of mass (3),
-#: inertia (6: ixx iyy izz ixy ixz iyz), motors: armature, viscous, Coulomb, its speed.
-N_SETUP = 17
+#: The tree's bodies (Pinocchio joints 1..31: 9 per leg, the platform, its 3 cranks).
+N_BODIES = 31
+#: Layout of the setup parameters p: gravity (3); every body's ten inertial parameters
+#: (Pinocchio's order, the payload merged into the platform's; :data:`tree.SETUP_BODIES`
+#: on); per actuated joint its rotor inertia at the joint (9), viscous (9) and Coulomb
+#: (9) friction; the Coulomb law's smoothing speed (1).
+SETUP_MOTORS = SETUP_BODIES + N_BODY_PARAMETERS * N_BODIES
+N_SETUP = SETUP_MOTORS + 27 + 1
 
 
 def structure(robot: Robot) -> Robot:
-    """The robot without what :func:`setup_parameters` carries (payload, mounting,
-    motors) and what the constraint functions never see (limits, tool): its symbolic
-    model and compiled code are shared by every robot of the same structure.  The home
-    pose stays: it defines the spherical joints' mounting axes."""
-    from sixplus3.robot_description.physical import MotorModel, Payload, Tool
-
-    return Robot(geometry=robot.geometry, mode=robot.mode, masses=robot.masses,
-                 collision=robot.collision, motors=MotorModel(), payload=Payload(), tool=Tool(),
+    """The robot without what :func:`setup_parameters` carries (masses and per-body
+    inertials, payload, mounting, motors) and what the constraint functions never see
+    (limits, tool): its symbolic model and compiled code are shared by every robot of the
+    same structure, so that a robot with other masses (an identified one) plans at once.
+    The home pose stays: it defines the spherical joints' mounting axes."""
+    return Robot(geometry=robot.geometry, mode=robot.mode, collision=robot.collision,
                  home_position=robot.home_position, home_psi=robot.home_psi)
 
 
 def setup_parameters(robot: Robot) -> np.ndarray:
-    """(N_SETUP,) the setup of ``robot`` as the symbolic model's parameter vector."""
-    pl, mot = robot.payload, robot.motors
-    return np.r_[robot.gravity, pl.mass, pl.com, pl.inertia, mot.armature, mot.viscous,
-                 mot.coulomb, mot.coulomb_velocity].astype(float)
+    """(N_SETUP,) the setup of ``robot`` as the symbolic model's parameter vector: its
+    gravity, its Pinocchio model's body inertias (from its URDF: masses, per-body
+    inertials, payload) and its motors per joint."""
+    robot = require_robot(robot)
+
+    def make() -> np.ndarray:
+        model = robot.closed_loop_model().model
+        if model.njoints - 1 != N_BODIES:
+            raise ValueError(f"the tree has {model.njoints - 1} bodies, not {N_BODIES}")
+        bodies = np.concatenate([model.inertias[j].toDynamicParameters()
+                                 for j in range(1, model.njoints)])
+        mot = robot.motors
+        return np.r_[robot.gravity, bodies, mot.armature_per_joint, mot.viscous_per_joint,
+                     mot.coulomb_per_joint, mot.coulomb_velocity].astype(float)
+
+    return np.array(cached(("setup-parameters", robot.hash), make))
 
 
 def symbolic_robot(robot: Robot) -> SymbolicRobot:
@@ -281,8 +302,9 @@ def motor_torques(setup: Any, th_dot: Any, th_ddot: Any) -> Any:
     """The motors' own torques at the joints (robot_description.physical): reflected
     rotor inertia and joint friction, from the setup parameters (Robot.motors; not read
     back from the Pinocchio armature)."""
-    return (setup[13] * th_ddot + setup[14] * th_dot
-            + setup[15] * ca.tanh(th_dot / setup[16]))
+    a, b, c = (setup[SETUP_MOTORS + 9 * k:SETUP_MOTORS + 9 * (k + 1)] for k in range(3))
+    return (a * th_ddot + b * th_dot
+            + c * ca.tanh(th_dot / setup[SETUP_MOTORS + 27]))
 
 
 def ik_expressions(geom: RobotGeometry, mode: AssemblyMode, x: ca.SX) -> dict[str, Any]:

@@ -13,6 +13,11 @@ from typing import Any
 
 import casadi as ca
 
+#: Where the bodies' inertial parameters start in the setup vector (after gravity), and
+#: how many each body has (Pinocchio's ``Inertia.toDynamicParameters`` order).
+SETUP_BODIES = 3
+N_BODY_PARAMETERS = 10
+
 
 def _rx(q):
     c, s = ca.cos(q), ca.sin(q)
@@ -76,7 +81,9 @@ def tree_forces(model: Any, oR: list[Any], ot: list[Any], qd: dict[int, Any],
     """(tau_tree, f, n, E): the generalized forces of the revolute joints (a recursive
     Newton-Euler pass in the world frame with joint rates ``qd`` and accelerations
     ``qdd`` by joint index), and the force ``f`` and moment ``n`` the platform's joint
-    transmits (payload included, from ``setup``), with omega = E(r) r_dot."""
+    transmits, with omega = E(r) r_dot.  Gravity and every body's inertial parameters
+    (the payload merged into the platform's) come from ``setup``
+    (:func:`sixplus3.dynamics.symbolic.setup_parameters`)."""
     rev = revolute_joints(model)
     rd, rdd = xd[3:6], xdd[3:6]
     Rdot = ca.reshape(ca.jtimes(ca.reshape(R, 9, 1), r, rd), 3, 3)
@@ -88,7 +95,7 @@ def tree_forces(model: Any, oR: list[Any], ot: list[Any], qd: dict[int, Any],
     zero = ca.SX.zeros(3, 1)
     om, al, acc = [zero] * model.njoints, [zero] * model.njoints, [zero] * model.njoints
     axes = {}
-    com, F, N = {}, {}, {}
+    F, N = {}, {}
     for j in range(1, model.njoints):
         par = model.parents[j]
         kind = model.joints[j].shortname()
@@ -101,26 +108,23 @@ def tree_forces(model: Any, oR: list[Any], ot: list[Any], qd: dict[int, Any],
             om[j] = om[par] + ax * qd[j]
             al[j] = al[par] + ax * qdd[j] + ca.cross(om[par], ax * qd[j])
             acc[j] = acc[par] + ca.cross(al[par], d) + ca.cross(om[par], ca.cross(om[par], d))
-        Y = model.inertias[j]
-        lever = oR[j] @ ca.DM(Y.lever)
-        com[j] = lever
-        ac = acc[j] + ca.cross(al[j], lever) + ca.cross(om[j], ca.cross(om[j], lever))
-        Iw = oR[j] @ ca.DM(Y.inertia) @ oR[j].T
-        F[j] = Y.mass * (ac - grav)
-        N[j] = Iw @ al[j] + ca.cross(om[j], Iw @ om[j])
+        # the body's ten inertial parameters (Pinocchio's order, about the joint origin,
+        # joint axes) from the setup: identified and payload-carrying robots share one
+        # compiled model; the forces are linear in them
+        k = SETUP_BODIES + N_BODY_PARAMETERS * (j - 1)
+        m = setup[k]
+        h = oR[j] @ setup[k + 1:k + 4]
+        ixx, ixy, iyy, ixz, iyz, izz = (setup[k + 4 + i] for i in range(6))
+        I_o = ca.vertcat(ca.horzcat(ixx, ixy, ixz), ca.horzcat(ixy, iyy, iyz),
+                         ca.horzcat(ixz, iyz, izz))
+        Iw = oR[j] @ I_o @ oR[j].T
+        a_g = acc[j] - grav
+        F[j] = m * a_g + ca.cross(al[j], h) + ca.cross(om[j], ca.cross(om[j], h))
+        N[j] = Iw @ al[j] + ca.cross(om[j], Iw @ om[j]) + ca.cross(h, a_g)
     f = {j: F[j] for j in range(1, model.njoints)}
-    n = {j: N[j] + ca.cross(com[j], F[j]) for j in range(1, model.njoints)}  # about t_j
-    # the payload: a rigid body on the platform, from the parameters
+    n = {j: N[j] for j in range(1, model.njoints)}  # about t_j
     ff = next(j for j in range(1, model.njoints)
               if model.joints[j].shortname() == "JointModelFreeFlyer")
-    m_pl, c_pl, i6 = setup[3], R @ setup[4:7], setup[7:13]
-    I_pl = ca.vertcat(ca.horzcat(i6[0], i6[3], i6[4]), ca.horzcat(i6[3], i6[1], i6[5]),
-                      ca.horzcat(i6[4], i6[5], i6[2]))
-    Iw_pl = R @ I_pl @ R.T
-    a_pl = acc[ff] + ca.cross(al[ff], c_pl) + ca.cross(om[ff], ca.cross(om[ff], c_pl))
-    F_pl = m_pl * (a_pl - grav)
-    f[ff] = f[ff] + F_pl
-    n[ff] = n[ff] + Iw_pl @ al[ff] + ca.cross(om[ff], Iw_pl @ om[ff]) + ca.cross(c_pl, F_pl)
     for j in range(model.njoints - 1, 0, -1):
         par = model.parents[j]
         if par > 0:

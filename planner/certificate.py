@@ -75,8 +75,8 @@ class PathCoefficients:
     A: np.ndarray
     B: np.ndarray
     C: np.ndarray
-    viscous: float
-    coulomb: float
+    viscous: np.ndarray  # (n, 9): each joint's, at every point
+    coulomb: np.ndarray  # (n, 9)
     coulomb_velocity: float
 
     def rates(self, v, v2, a, col=lambda m: m, tanh=np.tanh):
@@ -85,8 +85,9 @@ class PathCoefficients:
         ``tanh`` = ``ca.tanh`` (the one formula of both, :func:`retime_path`)."""
         thp = col(self.theta_p)
         thdd = thp * a + col(self.theta_pp) * v2
-        tau = (col(self.A) * a + col(self.B) * v2 + col(self.C) + self.viscous * thp * v
-               + self.coulomb * tanh(thp * v / self.coulomb_velocity))
+        tau = (col(self.A) * a + col(self.B) * v2 + col(self.C)
+               + col(self.viscous) * thp * v
+               + col(self.coulomb) * tanh(thp * v / self.coulomb_velocity))
         return thdd, tau
 
     def torque(self, v: np.ndarray, a: np.ndarray) -> np.ndarray:
@@ -110,7 +111,9 @@ def path_coefficients(robot: Robot, x: np.ndarray, xp: np.ndarray,
     zero = np.zeros_like(x)
     thp, thpp, tau1, grav = (v.T for v in actuated_profile(robot, x, xp, xpp))
     _, _, tau_a, _ = (v.T for v in actuated_profile(robot, x, zero, xp))
-    visc, coul, wc = float(m.viscous), float(m.coulomb), float(m.coulomb_velocity)
+    visc = np.broadcast_to(m.viscous_per_joint, thp.shape).copy()
+    coul = np.broadcast_to(m.coulomb_per_joint, thp.shape).copy()
+    wc = float(m.coulomb_velocity)
     # tau1 is the torque at v = 1, a = 0: B + C + friction(theta')
     B = tau1 - grav - visc * thp - coul * np.tanh(thp / wc)
     return PathCoefficients(theta_p=thp, theta_pp=thpp, A=tau_a - grav, B=B, C=grav,

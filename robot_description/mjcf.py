@@ -12,7 +12,9 @@ frames away and knows no loop closures (docs/libraries.md).  What is written:
   1), plus the tool centre point as a site ``tcp``;
 - on the nine actuated hinges: ``armature`` (the reflected rotor inertia), ``damping``
   (viscous friction) and ``frictionloss`` (MuJoCo's dry friction: the Coulomb term,
-  unsmoothed) and a ``<motor>`` of gear 1 (torque at the joint [N m]);
+  unsmoothed, made stiff by ``solreffriction`` of two steps: with MuJoCo's default of
+  20 ms it acts as a damper below ~0.2 rad/s, which a prototype's bearings do not) and
+  a ``<motor>`` of gear 1 (torque at the joint [N m]);
 - the actuators limited to the robot's torque limit (``ctrlrange`` and ``forcerange``),
   the actuated hinges to its actuated range (``range``), when ``limits`` (the default);
 - a ``home`` keyframe when ``keyframe`` is given (qpos of the assembled home pose and the
@@ -91,7 +93,7 @@ def build_mjcf(robot: Robot, timestep: float = TIMESTEP,
                          valid="[1e-6, 1e-2] s")
     clm = robot.closed_loop_model()
     m = clm.model
-    act = set(actuated_joint_names())
+    act = actuated_joint_names()  # ordered: legs 0..2, each A, B, C
     mot = robot.motors
     root = ET.Element("mujoco", model=robot.name)
     ET.SubElement(root, "compiler", angle="radian", autolimits="true",
@@ -138,8 +140,14 @@ def build_mjcf(robot: Robot, timestep: float = TIMESTEP,
             axis = "1 0 0" if kind == "JointModelRX" else "0 0 1"
             attrs = {"name": name, "type": "hinge", "axis": axis, "limited": "false"}
             if name in act:
-                attrs.update(armature=_f(mot.armature), damping=_f(mot.viscous),
-                             frictionloss=_f(mot.coulomb))
+                k = act.index(name)
+                attrs.update(armature=_f(mot.armature_per_joint[k]),
+                             damping=_f(mot.viscous_per_joint[k]),
+                             frictionloss=_f(mot.coulomb_per_joint[k]),
+                             # stiff dry friction: the friction row's time constant two
+                             # steps (MuJoCo's default, 20 ms, regularises it into a
+                             # damper below ~0.2 rad/s)
+                             solreffriction=_f(2 * timestep) + " 1")
                 if limits:
                     attrs.update(limited="true", range=_v([lim.theta_min, lim.theta_max]))
             ET.SubElement(body, "joint", **attrs)

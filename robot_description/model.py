@@ -335,7 +335,7 @@ def closed_loop_model(robot: Robot) -> ClosedLoopModel:
     _check_sizes(pairs, act, "robot")
     clm = ClosedLoopModel(model, pairs, act, f"robot {robot.hash[:12]}", robot)
     # the reflected rotor inertia of the motors: rnea and crba include model.armature
-    model.armature[clm.idx_v_act] = robot.motors.armature
+    model.armature[clm.idx_v_act] = robot.motors.armature_per_joint
     return clm
 
 

@@ -97,6 +97,13 @@ class MotorModel:
                "each A, B, C); set at commissioning"})
     directions: tuple[int, ...] = field(default=(1,) * 9, metadata={
         "doc": "+1 or -1: the sign of each motor's positive turn about the joint axis"})
+    joint_armature: tuple[float, ...] | None = field(default=None, metadata={
+        "doc": "per joint (legs 0..2, each A, B, C): the reflected rotor inertia at the "
+               "joint [kg m^2], as identified; None: gear_ratio^2 rotor_inertia for all"})
+    joint_viscous: tuple[float, ...] | None = field(default=None, metadata={
+        "doc": "per joint: viscous friction [N m s/rad]; None: viscous for all"})
+    joint_coulomb: tuple[float, ...] | None = field(default=None, metadata={
+        "doc": "per joint: Coulomb friction [N m]; None: coulomb for all"})
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "rotor_inertia", _num(
@@ -124,17 +131,52 @@ class MotorModel:
         if len(dirs) != 9 or any(isinstance(d, bool) or d not in (1, -1) for d in dirs):
             raise GeometryError("motors.directions", self.directions, "nine values +1 or -1")
         object.__setattr__(self, "directions", tuple(int(d) for d in dirs))
+        for name, hi, unit in (("joint_armature", 1.0, "kg m^2"),
+                               ("joint_viscous", 10.0, "N m s/rad"),
+                               ("joint_coulomb", 10.0, "N m")):
+            v = getattr(self, name)
+            if v is None:
+                continue
+            vals = _vec(f"motors.{name}", v, 9, unit)
+            if min(vals) < 0.0 or max(vals) > hi:
+                raise GeometryError(f"motors.{name}", vals, f"nine values in [0, {hi:g}] "
+                                    f"{unit}")
+            object.__setattr__(self, name, vals)
         check_motors(self)
 
     @property
     def armature(self) -> float:
-        """Reflected rotor inertia at the joint, N^2 J_rotor [kg m^2]."""
+        """Reflected rotor inertia at the joint, N^2 J_rotor [kg m^2] (the catalogue
+        motor's; :attr:`armature_per_joint` is what each joint has)."""
         return self.gear_ratio ** 2 * self.rotor_inertia
 
+    @property
+    def armature_per_joint(self) -> np.ndarray:
+        """(9,) the reflected rotor inertia of each joint [kg m^2]."""
+        if self.joint_armature is not None:
+            return np.array(self.joint_armature)
+        return np.full(9, self.armature)
+
+    @property
+    def viscous_per_joint(self) -> np.ndarray:
+        """(9,) each joint's viscous friction [N m s/rad]."""
+        return np.array(self.joint_viscous if self.joint_viscous is not None
+                        else (self.viscous,) * 9)
+
+    @property
+    def coulomb_per_joint(self) -> np.ndarray:
+        """(9,) each joint's Coulomb friction [N m]."""
+        return np.array(self.joint_coulomb if self.joint_coulomb is not None
+                        else (self.coulomb,) * 9)
+
     def friction(self, theta_dot: np.ndarray) -> np.ndarray:
-        """Joint-side friction torque [N m] at joint rates theta_dot [rad/s]."""
+        """Joint-side friction torque [N m] at joint rates theta_dot [rad/s] (..., 9)
+        (per joint; a scalar law when no joint has its own values)."""
         w = np.asarray(theta_dot, dtype=float)
-        return self.viscous * w + self.coulomb * np.tanh(w / self.coulomb_velocity)
+        if self.joint_viscous is None and self.joint_coulomb is None:
+            return self.viscous * w + self.coulomb * np.tanh(w / self.coulomb_velocity)
+        return (self.viscous_per_joint * w
+                + self.coulomb_per_joint * np.tanh(w / self.coulomb_velocity))
 
     def motor_torque(self, theta_dot: np.ndarray, theta_ddot: np.ndarray) -> np.ndarray:
         """I_a theta_ddot + friction: what the motors add to the links' torque [N m]."""

@@ -36,6 +36,11 @@ from sixplus3.robot_description.collision import CollisionModel
 from sixplus3.robot_description.geometry import GRAVITY, LegGeometry
 from sixplus3.robot_description.hardware import catalogue_envelope, check_robot_limits
 from sixplus3.robot_description.limits import Limits
+from sixplus3.robot_description.masses import (  # noqa: F401 - re-exported
+    POINT_MASS,
+    BodyInertials,
+    MassModel,
+)
 from sixplus3.robot_description.physical import MotorModel, Payload, Tool, _vec
 
 if TYPE_CHECKING:
@@ -129,52 +134,6 @@ class RobotGeometry:
             [math.cos(b + psi), math.sin(b + psi), 0.0])
 
 
-@dataclass(frozen=True)
-class MassModel:
-    """Masses [kg] of the moving parts; each body is a uniform rod/plate (see docs).
-
-    Leg (about 0.5 kg of moving parts, paper §V-A): aluminium proximal link AD 0.16 kg,
-    the body DEFP (aluminium, with the 3 spherical-joint housings) 0.15 kg, two
-    aluminium cranks 0.05 kg each, two carbon-fibre distal tubes 0.03 kg each, three
-    U-joint crosses 0.01 kg each: 0.50 kg.  Platform (a Wen et al. style plate with three
-    bearings, no motors): 0.30 kg, cranks 0.03 kg each.  ``point_mass`` is the paper's
-    design model instead: every link massless and ``point_mass_value`` at each P_i.
-    """
-
-    proximal: float = 0.16
-    body: float = 0.15
-    crank: float = 0.05
-    distal: float = 0.03
-    ucross: float = 0.01
-    platform: float = 0.30
-    platform_crank: float = 0.03
-    point_mass: bool = False
-    point_mass_value: float = 0.5
-
-    def __post_init__(self) -> None:
-        for name in ("proximal", "body", "crank", "distal", "ucross", "platform",
-                     "platform_crank", "point_mass_value"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v)
-                                           and 0.0 <= v <= 100.0):
-                raise GeometryError(name, v, "a number in [0, 100] kg")
-        if not isinstance(self.point_mass, bool):
-            raise GeometryError("point_mass", self.point_mass, "true or false")
-
-    @property
-    def leg_total(self) -> float:
-        if self.point_mass:
-            return self.point_mass_value
-        return self.proximal + self.body + 2 * self.crank + 2 * self.distal + 3 * self.ucross
-
-    @property
-    def total(self) -> float:
-        if self.point_mass:
-            return NUM_LEGS * self.point_mass_value
-        return NUM_LEGS * self.leg_total + self.platform + NUM_LEGS * self.platform_crank
-
-
-POINT_MASS = MassModel(point_mass=True)
 
 #: The built robot's layout, the winner of the layout study (``sixplus3 design layout``,
 #: docs/design.md "Layout"): every actuated axis turned by 28 deg about the vertical
@@ -224,6 +183,9 @@ class Robot:
         "doc": "assembly mode: the IK branch of every leg, never switched in a motion"})
     masses: MassModel = field(default_factory=MassModel, metadata={
         "doc": "masses of the moving parts [kg]"})
+    inertials: BodyInertials = field(default_factory=BodyInertials, metadata={
+        "doc": "per-link mass, centre of mass and inertia replacing the rod model where "
+               "a lab measured or identified them"})
     limits: Limits = field(default_factory=Limits, metadata={
         "doc": "hardware limits: the authority every plan and file is checked against"})
     motors: MotorModel = field(default_factory=MotorModel, metadata={
@@ -244,6 +206,7 @@ class Robot:
 
     def __post_init__(self) -> None:
         for attr, kind in (("geometry", RobotGeometry), ("masses", MassModel),
+                           ("inertials", BodyInertials),
                            ("limits", Limits), ("motors", MotorModel),
                            ("payload", Payload), ("tool", Tool),
                            ("collision", CollisionModel)):
@@ -317,6 +280,7 @@ class Robot:
                          "leg": asdict(self.geometry.leg)},
             "mode": self.mode.name,
             "masses": asdict(self.masses),
+            **({"inertials": self.inertials.as_dict()} if self.inertials.bodies else {}),
             "limits": asdict(self.limits),
             "motors": {k: list(v) if isinstance(v, tuple) else v
                        for k, v in asdict(self.motors).items()},
@@ -362,6 +326,8 @@ class Robot:
             m = _mapping("masses", doc["masses"])
             _no_unknown("masses", m, {f.name for f in fields(MassModel)})
             kw["masses"] = MassModel(**m)
+        if "inertials" in doc:
+            kw["inertials"] = BodyInertials.from_dict(doc["inertials"])
         if "limits" in doc:
             lim = _mapping("limits", doc["limits"])
             _no_unknown("limits", lim, {f.name for f in fields(Limits)})

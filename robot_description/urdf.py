@@ -35,6 +35,7 @@ import numpy as np
 from sixplus3.robot_description.robot import (
     NUM_LEGS,
     POINT_MASS,
+    BodyInertials,
     MassModel,
     Robot,
     RobotGeometry,
@@ -88,9 +89,16 @@ class _Builder:
     geom: RobotGeometry
     masses: MassModel
     root: ET.Element
+    inertials: BodyInertials | None = None
 
     # ------------------------------------------------------------------ elements
     def link(self, name: str, mass: float = 0.0, com=(0, 0, 0), inertia=None) -> ET.Element:
+        own = self.inertials.get(name) if self.inertials is not None else None
+        if own is not None:  # a lab's or an identification's values replace the model
+            mass, com, inertia = own.mass, own.com, own.inertia_matrix
+        return self._link(name, mass, com, inertia)
+
+    def _link(self, name: str, mass: float = 0.0, com=(0, 0, 0), inertia=None) -> ET.Element:
         """A link; a massless one states its zero mass and inertia: a link without
         ``<inertial>`` is given 1 kg by PyBullet's importer (the 22 frame links made the
         robot 23.9 kg there), while Pinocchio and MuJoCo (which fuses static bodies)
@@ -203,7 +211,7 @@ def build_urdf(robot: Robot) -> str:
                       ("joint", "0.85 0.45 0.10 1"), ("platform", "0.20 0.45 0.80 1")):
         m = ET.SubElement(root, "material", name=mat)
         ET.SubElement(m, "color", rgba=rgba)
-    b = _Builder(geom, masses, root)
+    b = _Builder(geom, masses, root, robot.inertials)
 
     base = b.link("base_link")
     # The base under each leg: a beam below its actuated axis, on the side of the robot's
@@ -235,9 +243,10 @@ def build_urdf(robot: Robot) -> str:
         A = geom.leg_origin(i)
         x = geom.leg_rotation(i)[:, 0]
         yaw = (0.0, 0.0, geom.leg_yaw(i))
+        mot = robot.motors
         act = {"limits": (lim.theta_min, lim.theta_max), "effort": lim.torque,
                "velocity": lim.velocity,
-               "dynamics": (robot.motors.viscous, robot.motors.coulomb)}
+               "dynamics": (mot.viscous_per_joint[3 * i], mot.coulomb_per_joint[3 * i])}
         b.cylinder(base, A - (leg.l7 + 0.03) * x, A + (leg.l6 + 0.03) * x, 0.012, "motor")
         # the pulley stack at A (the collision model's hub)
         half = 0.5 * cm.hub_width * x
@@ -276,8 +285,11 @@ def build_urdf(robot: Robot) -> str:
             uj = "G" if side == "B" else "H"
             b.rod_link(f"leg{i}_crank{side}", masses.crank, (0, 0, 0), (0, crank, 0), "alu",
                        collision=cm.crank_radius)
+            jk = 3 * i + (1 if side == "B" else 2)
             b.joint(f"leg{i}_{side}", "revolute", "base_link", f"leg{i}_crank{side}",
-                    xyz=A + off * x, rpy=yaw, axis=(1, 0, 0), **act)
+                    xyz=A + off * x, rpy=yaw, axis=(1, 0, 0),
+                    **{**act, "dynamics": (mot.viscous_per_joint[jk],
+                                           mot.coulomb_per_joint[jk])})
             ucross = b.link(f"leg{i}_ucross{uj}", 0.0 if pm else masses.ucross, (0, 0, 0),
                             None if pm else np.eye(3) * 1e-6)
             b.sphere(ucross, (0, 0, 0), JOINT_SPHERE, "joint")
@@ -357,10 +369,12 @@ def ros2_control_block(robot: Robot, plugin: str = "mock_components/GenericSyste
         ET.SubElement(cmd, "param", name="max").text = _f(lim.torque)
         for state in ("position", "velocity", "effort"):
             ET.SubElement(j, "state_interface", name=state)
-        for key, value in (("rotor_inertia_at_joint_kg_m2", mot.armature),
-                           ("rotor_inertia_motor_kg_m2", mot.rotor_inertia),
-                           ("viscous_friction_n_m_s", mot.viscous),
-                           ("coulomb_friction_n_m", mot.coulomb),
+        jk = actuated_joint_names().index(name)
+        for key, value in (("rotor_inertia_at_joint_kg_m2", mot.armature_per_joint[jk]),
+                           ("rotor_inertia_motor_kg_m2",
+                            mot.armature_per_joint[jk] / mot.gear_ratio ** 2),
+                           ("viscous_friction_n_m_s", mot.viscous_per_joint[jk]),
+                           ("coulomb_friction_n_m", mot.coulomb_per_joint[jk]),
                            ("velocity_limit_rad_s", lim.velocity)):
             ET.SubElement(j, "param", name=key).text = _f(value)
     for name in actuated_joint_names():

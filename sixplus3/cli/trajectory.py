@@ -13,6 +13,7 @@ import click
 
 from sixplus3.cli.app import (
     FLOAT,
+    INT,
     check_output,
     current_robot,
     emit,
@@ -143,18 +144,38 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
               show_default=True,
               help="Feed-forward held over each tick: the 'mean' of both ends' torques, "
                    "or the 'sample''s own.")
+@click.option("--plant", "plant_file", default=None, type=click.Path(dir_okay=False),
+              help="Run the file on this robot file instead (a virtual prototype whose "
+                   "masses, inertias and friction differ: docs/identification.md).")
+@click.option("--log", "log_file", default=None, type=click.Path(dir_okay=False),
+              help="With --plant: write the drives' log here (encoder and torque "
+                   "quantised, seeded noise).")
+@click.option("--seed", default=0, show_default=True, type=INT,
+              help="With --plant: the seed of the torque monitor's noise.")
+@click.option("--noise", default=0.005, show_default=True, type=FLOAT,
+              help="With --plant: the torque monitor's noise, one standard deviation "
+                   "[N m at the joint].")
+@click.option("--hold", default=0.0, show_default=True, type=FLOAT,
+              help="With --plant: keep holding the last sample this long [s].")
+@click.option("--force", is_flag=True, help="Replace an existing --log file.")
 @_gains
 def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: bool,
-             torque_hold: str, kp: float, kd: float) -> None:
+             torque_hold: str, plant_file: str | None, log_file: str | None, seed: int,
+             noise: float, hold: float, force: bool, kp: float, kd: float) -> None:
     """Replay a trajectory file in MuJoCo at its rate: feed-forward + PD.
 
     The file is validated first (a defective file is not simulated: exit 2).  Reports
     the tracking error, the PD share of the torque and the peak total torque; exit 1 if
-    that peak is over the hardware limit.
+    that peak is over the hardware limit.  With --plant, the file runs on that robot (a
+    virtual prototype) and --log writes what its drives measured.
     """
     from sixplus3.control.simulation import simulate_file
 
     robot = _task_robot(task_file)
+    if plant_file is not None or log_file is not None:
+        _simulate_plant(csv_file, robot, plant_file, log_file, seed, noise, hold, force,
+                        kp, kd, as_json)
+        return
     rep, sim = simulate_file(csv_file, robot, kp, kd, ff_scale, torque_hold)
     if sim is None:
         what = "is not a valid motion" if rep.exit_code == 2 else "violates a limit"
@@ -178,6 +199,38 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
                    f"(limit {sim.torque_limit:g}); closure residual "
                    f"{sim.max_closure_residual_m:.1e} m")
     sys.exit(0 if sim.within_torque_limit else 1)
+
+
+def _simulate_plant(csv_file: str, robot, plant_file: str | None, log_file: str | None,
+                    seed: int, noise: float, hold: float, force: bool, kp: float,
+                    kd: float, as_json: bool) -> None:
+    from sixplus3.control.drive_log import write_log
+    from sixplus3.control.plant import run_on_plant
+    from sixplus3.robot_description.robot import load_robot
+
+    if plant_file is None or log_file is None:
+        fail("--plant and --log go together (the plant's run is what the log records)")
+        return
+    check_output(log_file, (csv_file, plant_file))
+    if os.path.exists(log_file) and not force:
+        fail(f"{log_file} exists: add --force to replace it")
+    plant = load_robot(plant_file)
+    run = run_on_plant(csv_file, robot, plant, seed=seed, kp=kp, kd=kd, torque_noise=noise,
+                       hold=hold)
+    write_log(log_file, run.log, robot, {"plant": plant.name, "plant_hash": plant.hash,
+                                         "seed": seed, "torque_noise_n_m": noise,
+                                         "source": os.path.basename(csv_file)})
+    out = {"log": log_file, "samples": len(run.log.t), "peak_torque_n_m": run.peak_torque,
+           "torque_limit_n_m": run.torque_limit, "within_limit": not run.saturated,
+           "max_tracking_error_rad": run.max_tracking_error_rad}
+    if as_json:
+        click.echo(json.dumps(out))
+    else:
+        click.echo(f"{csv_file} on plant {plant.name}: {len(run.log.t)} ticks logged to "
+                   f"{log_file}; peak |tau| applied {run.peak_torque:.3f} N m (limit "
+                   f"{run.torque_limit:g}{', EXCEEDED' if run.saturated else ''}); "
+                   f"tracking error max {math.degrees(run.max_tracking_error_rad):.4f} deg")
+    sys.exit(1 if run.saturated else 0)
 
 
 @main.command("export")

@@ -1,0 +1,193 @@
+"""A virtual prototype: a trajectory file run on a *plant* robot in MuJoCo, logged as the
+drives would log it (docs/identification.md, "The virtual prototype").
+
+The plant is a robot file whose parameters differ from the model that planned the file
+(masses, per-body inertias, centres of mass, rotor inertias, friction); it shares with
+the planning model only what a lab knows (the geometry, the drive train, offsets and
+directions).  MuJoCo runs it from its own MJCF (built from the plant's URDF), with the
+plant's friction as MuJoCo's own: viscous ``damping`` and dry ``frictionloss`` (true
+static friction, not the planner's smoothed law).  The drive runs at the file's rate:
+every tick it reads its encoder, applies the file's feed-forward (held over the tick,
+its mean) plus its PD on the measured angle and the plant's rate, quantised to the
+drive's torque resolution, and holds it over the tick.  An optional external wrench on
+the platform (a person's push: :class:`WrenchProfile`) acts through MuJoCo's
+``xfrc_applied``.
+
+The log (:mod:`sixplus3.control.drive_log`) holds what the drive saw: the encoder angle
+quantised to one count of the motor's encoder (20 bit per motor turn through the belt:
+2.8 microrad at the joint), and the torque it applied, quantised to 0.1 % of the motor's
+rated torque (0.0106 N m at the joint) plus a seeded Gaussian noise of the torque
+monitor (``torque_noise``, default 0.005 N m).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sixplus3.control.drive_log import DriveLog
+from sixplus3.control.simulation import KD, KP, MujocoRobot, first_configuration
+from sixplus3.errors import InputError
+from sixplus3.robot_description.mjcf import TIMESTEP
+from sixplus3.robot_description.robot import Robot, require_robot
+
+#: Default standard deviation of the torque monitor's noise [N m at the joint].
+TORQUE_NOISE = 0.005
+
+
+@dataclass
+class WrenchProfile:
+    """An external wrench on the platform over time: t (m,) [s], and (m, 6) force [N]
+    and moment [N m] in the base frame, about the platform centre; held between rows
+    (zero-order hold), zero before the first and after the last."""
+
+    t: np.ndarray
+    wrench: np.ndarray
+
+    def at(self, t: float) -> np.ndarray:
+        k = int(np.searchsorted(self.t, t + 1e-12, side="right")) - 1
+        if k < 0 or t > self.t[-1] + 1e-12:
+            return np.zeros(6)
+        return self.wrench[k]
+
+
+def read_wrench_profile(path: str | Path) -> WrenchProfile:
+    """A wrench profile CSV: a header ``t,fx,fy,fz,mx,my,mz`` (``#`` comments allowed),
+    times increasing, every value a finite number (|f| <= 500 N, |m| <= 50 N m)."""
+    import re
+
+    from sixplus3.control.trajectory_parse import NUMBER
+    from sixplus3.fileio import read_text
+
+    num = re.compile(NUMBER)
+    lines = [ln.strip() for ln in read_text(path, "wrench profile").splitlines()]
+    lines = [ln for ln in lines if ln and not ln.startswith("#")]
+    if not lines or [c.strip() for c in lines[0].split(",")] != \
+            ["t", "fx", "fy", "fz", "mx", "my", "mz"]:
+        raise InputError(f"{Path(path).name}: the first row must name the columns "
+                         "t,fx,fy,fz,mx,my,mz", value=lines[0][:60] if lines else "",
+                         valid="t,fx,fy,fz,mx,my,mz")
+    rows = []
+    for k, ln in enumerate(lines[1:], 2):
+        f = [x.strip() for x in ln.split(",")]
+        if len(f) != 7 or not all(num.fullmatch(x) for x in f):
+            raise InputError(f"{Path(path).name}: row {k} is not 7 numbers", value=ln[:60],
+                             valid="7 decimal numbers")
+        rows.append([float(x) for x in f])
+    a = np.array(rows)
+    if len(a) == 0 or np.any(np.diff(a[:, 0]) <= 0) or a[0, 0] < 0:
+        raise InputError(f"{Path(path).name}: times must start >= 0 and increase",
+                         value=None, valid="increasing times")
+    if np.abs(a[:, 1:4]).max() > 500 or np.abs(a[:, 4:7]).max() > 50:
+        raise InputError(f"{Path(path).name}: a force above 500 N or a moment above 50 N m",
+                         value=float(np.abs(a[:, 1:]).max()), valid="|f| <= 500 N, "
+                         "|m| <= 50 N m")
+    return WrenchProfile(t=a[:, 0], wrench=a[:, 1:])
+
+
+@dataclass
+class PlantRun:
+    log: DriveLog
+    peak_torque: float  # largest |torque applied| over the run [N m]
+    max_tracking_error_rad: float
+    torque_limit: float
+    saturated: bool = False
+    notes: list[str] = field(default_factory=list)
+
+
+def run_on_plant(path: str | Path, model: Robot, plant: Robot, seed: int = 0,
+                 kp: float = KP, kd: float = KD, torque_noise: float = TORQUE_NOISE,
+                 wrench: WrenchProfile | None = None, hold: float = 0.0,
+                 timestep: float = TIMESTEP) -> PlantRun:
+    """Validate ``path`` for the planning ``model`` (the gate: only a valid file runs),
+    then run it on ``plant`` in MuJoCo and log it (module doc).  ``hold`` [s]: keep
+    commanding the last sample this long after the motion (a hold at rest)."""
+    from sixplus3.control.interval import held_torque
+    from sixplus3.control.trajectory_file import columns
+    from sixplus3.control.validation import validate_file
+    from sixplus3.errors import ValidationFailed
+
+    model, plant = require_robot(model), require_robot(plant)
+    if plant.geometry != model.geometry or plant.mode != model.mode:
+        raise InputError("the plant must have the planning model's geometry and assembly "
+                         "mode (what differs is what a lab measures)", value=None,
+                         valid="the same geometry")
+    for name, v, lo, hi in (("torque_noise", torque_noise, 0.0, 1.0), ("hold", hold, 0.0,
+                                                                        60.0)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
+                math.isfinite(v) and lo <= v <= hi):
+            raise InputError(f"{name} must be in [{lo:g}, {hi:g}], got {v!r}", value=v,
+                             valid=f"[{lo:g}, {hi:g}]")
+    rep = validate_file(path, model)
+    if not rep.ok or rep.data is None or rep.header is None:
+        raise ValidationFailed("not run on the plant: " + "; ".join(rep.messages()),
+                               rep.exit_code, rep)
+    rate = float(rep.header["rate_hz"])
+    n_sub = round(1.0 / (rate * timestep))
+    data = rep.data
+    theta_ref = columns(data, "pos")
+    vel_ref = columns(data, "vel")
+    ff = held_torque(columns(data, "tau"), "mean")
+    n_hold = int(round(hold * rate))
+    if n_hold:
+        theta_ref = np.vstack([theta_ref, np.repeat(theta_ref[-1:], n_hold, axis=0)])
+        vel_ref = np.vstack([vel_ref, np.zeros((n_hold, 9))])
+        ff = np.vstack([ff, np.repeat(columns(data, "tau")[-1:], n_hold, axis=0)])
+    n = len(theta_ref)
+    sim = MujocoRobot(plant, timestep)
+    mj, m, d = sim.mj, sim.model, sim.data
+    sim.set_state(first_configuration(model, rep), np.zeros(9))
+    mot = plant.motors
+    counts = mot.gear_ratio * 2 ** mot.encoder_bits / (2 * math.pi)  # per joint rad
+    t_unit = mot.gear_ratio * mot.rated_torque / 1000.0  # 0.1 % of rated, at the joint
+    rng = np.random.default_rng(seed)
+    platform = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, "platform_free")
+    if platform < 0:
+        platform = next(b for b in range(m.nbody) if m.body_jntnum[b] and
+                        m.jnt_type[m.body_jntadr[b]] == mj.mjtJoint.mjJNT_FREE)
+    th_log = np.empty((n, 9))
+    tau_log = np.empty((n, 9))
+    err = 0.0
+    peak = 0.0
+    for k in range(n):
+        th_true = d.qpos[sim.act_qpos].copy()
+        th_meas = np.rint(th_true * counts) / counts
+        thd = d.qvel[sim.act_dof].copy()
+        u = ff[k] + kp * (theta_ref[k] - th_meas) + kd * (vel_ref[k] - thd)
+        applied = np.rint(u / t_unit) * t_unit
+        th_log[k] = th_meas
+        tau_log[k] = np.rint((applied + rng.normal(0.0, torque_noise, 9)) / t_unit) * t_unit \
+            if torque_noise > 0 else applied
+        err = max(err, float(np.abs(theta_ref[k] - th_true).max()))
+        peak = max(peak, float(np.abs(applied).max()))
+        d.ctrl[:] = applied
+        if k < n - 1:
+            for s in range(n_sub):
+                if wrench is not None:
+                    w = wrench.at((k + s / n_sub) / rate)
+                    _apply_wrench(sim, platform, w)
+                mj.mj_step(m, d)
+    t = np.arange(n) / rate
+    log = DriveLog(t=t, theta=th_log, tau=tau_log, name=Path(path).name,
+                   meta={"plant": plant.name, "seed": seed, "torque_noise": torque_noise})
+    return PlantRun(log=log, peak_torque=peak, max_tracking_error_rad=err,
+                    torque_limit=model.limits.torque,
+                    saturated=peak > model.limits.torque)
+
+
+def _apply_wrench(sim: MujocoRobot, body: int, w: np.ndarray) -> None:
+    """MuJoCo's ``xfrc_applied`` is a force at the body's centre of mass and a moment: a
+    wrench about the platform centre (the body's origin) is moved there."""
+    d = sim.data
+    f, mom = w[:3], w[3:]
+    com = d.xipos[body]
+    origin = d.xpos[body]
+    d.xfrc_applied[body, :3] = f
+    d.xfrc_applied[body, 3:] = mom + np.cross(origin - com, f)
+
+
+__all__ = ["PlantRun", "TORQUE_NOISE", "WrenchProfile", "read_wrench_profile",
+           "run_on_plant"]

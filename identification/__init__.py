@@ -1,0 +1,1 @@
+"""Identification of the robot's dynamics from drive logs (docs/identification.md)."""

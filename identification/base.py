@@ -1,0 +1,161 @@
+"""The stacked regressor of a motion, and the robot's base parameters.
+
+Base parameters (Gautier 1990, numerical form; FloBaRoID and BIRDy do the same): the
+torques of any motion depend on pi only through beta = pi_b + K pi_d, where pi_b are the
+r independent columns of the regressor (QR with column pivoting of a regressor stacked
+over random states) and pi_d the rest.  r is the number of identifiable combinations;
+``combination(k)`` lists the parameters each base parameter stands for.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.dynamics.regressor import Layout, layout, regressor_batch
+from sixplus3.errors import InputError
+from sixplus3.kinematics.robot import robot_fk, robot_fk_batch, robot_ik_pose
+from sixplus3.kinematics.rotations import rotvec_from_matrix
+from sixplus3.robot_description.robot import Robot
+
+#: Relative threshold on |R_kk| / |R_00| of the pivoted QR for a base column.
+RANK_TOL = 1e-8
+#: Random states stacked to find the base parameters.
+BASE_SAMPLES = 400
+
+
+@dataclass(frozen=True)
+class BaseParameters:
+    """beta = pi[index] + K @ pi[dependent] (module doc)."""
+
+    layout: Layout
+    index: np.ndarray  #: (r,) the base columns of pi
+    dependent: np.ndarray  #: (P - r,) the other columns
+    K: np.ndarray  #: (r, P - r)
+
+    @property
+    def rank(self) -> int:
+        return len(self.index)
+
+    def beta(self, pi: np.ndarray) -> np.ndarray:
+        pi = np.asarray(pi, dtype=float)
+        return pi[self.index] + self.K @ pi[self.dependent]
+
+    def reduce(self, Y: np.ndarray) -> np.ndarray:
+        """The base regressor: the columns of ``Y`` (..., P) at :attr:`index`."""
+        return Y[..., self.index]
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """(r, P) B with beta = B pi."""
+        B = np.zeros((self.rank, self.layout.size))
+        B[np.arange(self.rank), self.index] = 1.0
+        B[:, self.dependent] = self.K
+        return B
+
+    def combination(self, k: int, tol: float = 1e-9) -> str:
+        """Base parameter k as its combination of the named parameters."""
+        names = self.layout.names
+        terms = [names[self.index[k]]]
+        for j, c in zip(self.dependent, self.K[k], strict=True):
+            if abs(c) > tol:
+                terms.append(f"{c:+.4g} {names[j]}")
+        return " ".join(terms)
+
+
+def states_of(robot: Robot, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(q (n, nq), converged (n,)) of a sequence of actuated angles, by forward
+    kinematics seeded sample after sample from the first one's (on the robot's branch
+    from home)."""
+    theta = np.asarray(theta, dtype=float)
+    first = robot_fk(theta[0], robot)
+    x = np.r_[first.position, np.reshape(rotvec_from_matrix(first.rotation), -1), first.psi]
+    n = len(theta)
+    q = np.empty((n, len(first.q)))
+    ok = np.zeros(n, dtype=bool)
+    chunk = 8
+    for i in range(0, n, chunk):
+        sl = slice(i, min(n, i + chunk))
+        fk = robot_fk_batch(theta[sl], np.tile(x, (sl.stop - sl.start, 1)), robot,
+                            margins=False)
+        q[sl], ok[sl] = fk.cfg.q, fk.converged
+        if fk.converged[-1]:
+            x = fk.x[-1]
+    return q, ok
+
+
+def stacked_regressor(dyn: ClosedLoopDynamics, theta: np.ndarray, theta_dot: np.ndarray,
+                      theta_ddot: np.ndarray) -> np.ndarray:
+    """(n, 9, P) the regressor of n states of ``dyn``'s robot given by their actuated
+    angles; a state whose forward kinematics fails or that is singular is an InputError
+    (a log that is not a motion of this robot)."""
+    assert dyn.robot is not None
+    q, ok = states_of(dyn.robot, theta)
+    if not ok.all():
+        k = int(np.argmin(ok))
+        raise InputError(f"no pose of this robot has the logged angles of sample {k} (is "
+                         "the log of another robot, or are its offsets wrong?)", value=k,
+                         valid="angles of an assembly of this robot")
+    Y, rcond = regressor_batch(dyn, q, theta_dot, theta_ddot)
+    if not np.all(np.isfinite(Y)):
+        k = int(np.argmax(~np.isfinite(Y).all(axis=(1, 2))))
+        raise InputError(f"sample {k} is at a parallel singularity (rcond {rcond[k]:.2e})",
+                         value=float(rcond[k]), valid="non-singular states")
+    return Y
+
+
+def random_states(robot: Robot, n: int, seed: int = 0
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(q, theta_dot, theta_ddot) of n random reachable states around home: positions
+    within 8 cm, tilts within 25 deg, cranks within 30 deg of home, rates of 2 rad/s and
+    accelerations of 50 rad/s^2 (RMS)."""
+    rng = np.random.default_rng(seed)
+    qs: list[np.ndarray] = []
+    home = np.asarray(robot.home_position)
+    tries = 0
+    while len(qs) < n and tries < 50 * n:
+        tries += 1
+        p = home + rng.uniform(-0.08, 0.08, 3)
+        rpy = rng.uniform(-math.radians(25), math.radians(25), 3)
+        psi = np.asarray(robot.home_psi) + rng.uniform(-0.5, 0.5, 3)
+        try:
+            cfg = robot_ik_pose(p, rpy, psi, robot=robot)
+        except Exception:  # noqa: BLE001 - unreachable: draw again
+            continue
+        q = np.asarray(cfg.q[0])
+        if np.all(np.isfinite(q)):
+            qs.append(q)
+    if len(qs) < n:
+        raise InputError("too few reachable random states", value=len(qs), valid=str(n))
+    q = np.array(qs)
+    return q, rng.normal(0.0, 2.0, (n, 9)), rng.normal(0.0, 50.0, (n, 9))
+
+
+def base_parameters(robot: Robot, n: int = BASE_SAMPLES, seed: int = 0) -> BaseParameters:
+    """The base parameters of ``robot``'s structure (module doc), from ``n`` random
+    states."""
+    dyn = ClosedLoopDynamics(robot)
+    q, v, a = random_states(robot, n, seed)
+    Y, _ = regressor_batch(dyn, q, v, a)
+    Y = Y[np.isfinite(Y).all(axis=(1, 2))]
+    W = Y.reshape(-1, Y.shape[-1])
+    scale = np.linalg.norm(W, axis=0)
+    scale[scale == 0] = 1.0
+    _, R, piv = scipy.linalg.qr(W / scale, mode="economic", pivoting=True)
+    d = np.abs(np.diag(R))
+    r = int(np.sum(d > RANK_TOL * d[0]))
+    R1, R2 = R[:r, :r], R[:r, r:]
+    K = scipy.linalg.solve_triangular(R1, R2)
+    # undo the column scaling: W_b pi_b + W_d pi_d = W_b (pi_b + K' pi_d)
+    idx, dep = piv[:r], piv[r:]
+    K = K * scale[dep][None, :] / scale[idx][:, None]
+    return BaseParameters(layout=layout(dyn), index=np.asarray(idx), dependent=np.asarray(dep),
+                          K=K)
+
+
+__all__ = ["BaseParameters", "base_parameters", "random_states", "stacked_regressor",
+           "states_of"]

@@ -1,0 +1,197 @@
+"""From drive logs to an identified robot (docs/identification.md).
+
+:func:`dataset` filters each log (:mod:`.signals`), computes the closed-loop regressor
+of its states (:mod:`sixplus3.dynamics.regressor`) and keeps, per joint, the rows where
+that joint moves faster than ``v_min`` (near zero speed a joint's dry friction holds
+any torque within its band: those rows say nothing about the model, the classic
+exclusion of identification practice).  :func:`identify` then estimates the base
+parameters (OLS, WLS, IRLS) and a physically consistent full set
+(:mod:`.estimate`), and returns the robot that realises it
+(:func:`.plants.robot_with_parameters`).  :func:`check` measures a robot's torque
+prediction on a log.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from sixplus3.control.drive_log import DriveLog
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.dynamics.regressor import N_BODY, N_MOTOR, parameters
+from sixplus3.errors import InputError
+from sixplus3.identification.base import BaseParameters, base_parameters, stacked_regressor
+from sixplus3.identification.estimate import (
+    MAX_CONDITION,
+    PRIOR_WEIGHT,
+    Consistent,
+    LeastSquares,
+    check_consistent,
+    consistent,
+    least_squares,
+)
+from sixplus3.identification.plants import robot_with_parameters
+from sixplus3.identification.signals import Filtered, filter_log
+from sixplus3.robot_description.robot import Robot, require_robot
+
+#: Rows of a joint slower than this are left out [rad/s] (module doc).
+V_MIN = 0.1
+
+
+@dataclass
+class Dataset:
+    """Stacked rows over the logs: the regressor Y (N, P) of the full parameters, the
+    torques (N,), the joint of each row, and the filtered logs."""
+
+    Y: np.ndarray
+    tau: np.ndarray
+    joint: np.ndarray
+    filtered: list[Filtered]
+    names: list[str]
+
+    @property
+    def rows(self) -> int:
+        return len(self.tau)
+
+
+def dataset(logs: list[DriveLog], robot: Robot, cutoff: float | None = None,
+            v_min: float = V_MIN) -> Dataset:
+    """The rows of ``logs`` for ``robot`` (module doc)."""
+    dyn = ClosedLoopDynamics(robot)
+    Ys, taus, joints, fs = [], [], [], []
+    wc = robot.motors.coulomb_velocity
+    nb = dyn.model.njoints - 1
+    for log in logs:
+        f = filter_log(log, cutoff, coulomb_velocity=wc)
+        Y = stacked_regressor(dyn, f.theta, f.theta_dot, f.theta_ddot)  # (n, 9, P)
+        assert f.coulomb is not None
+        idx = np.arange(9)
+        Y[:, idx, N_BODY * nb + N_MOTOR * idx + 2] = f.coulomb  # the filtered switch
+        keep = np.abs(f.theta_dot) > v_min  # (n, 9)
+        Ys.append(Y[keep])
+        taus.append(f.tau[keep])
+        joints.append(np.nonzero(keep)[1])
+        fs.append(f)
+    Y = np.vstack(Ys)
+    return Dataset(Y=Y, tau=np.concatenate(taus), joint=np.concatenate(joints),
+                   filtered=fs, names=[lg.name for lg in logs])
+
+
+@dataclass
+class Identification:
+    robot: Robot  # the identified robot (physically consistent)
+    base: BaseParameters
+    ls: LeastSquares  # the base parameters by WLS + IRLS
+    consistent: Consistent
+    beta_nominal: np.ndarray
+    beta_consistent: np.ndarray
+    rows: int
+    cutoffs: list[float]
+    residual_rms: np.ndarray  # (9,) of the consistent set on the data [N m]
+    nominal_rms: np.ndarray  # (9,) of the nominal robot on the data [N m]
+    seconds: float
+    notes: list[str] = field(default_factory=list)
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            "base_parameters": self.base.rank, "parameters": self.base.layout.size,
+            "rows": self.rows, "condition": self.ls.condition,
+            "cutoff_hz": self.cutoffs, "irls_iterations": self.ls.iterations,
+            "residual_rms_n_m": self.residual_rms.tolist(),
+            "nominal_rms_n_m": self.nominal_rms.tolist(),
+            "prior_weight": self.consistent.prior_weight,
+            "distance_from_nominal": self.consistent.distance,
+            "min_pseudo_inertia_eigenvalue": self.consistent.min_eigenvalue,
+            "solver": self.consistent.solver, "seconds": self.seconds,
+            "robot_hash": self.robot.hash, "notes": self.notes,
+        }
+
+    def table(self) -> list[dict[str, Any]]:
+        """One row per base parameter: its combination, nominal, WLS estimate with its
+        standard deviation, and the consistent set's value."""
+        out = []
+        rel = self.ls.relative_std
+        for k in range(self.base.rank):
+            out.append({"k": k, "combination": self.base.combination(k),
+                        "nominal": float(self.beta_nominal[k]),
+                        "wls": float(self.ls.beta[k]), "std": float(self.ls.std[k]),
+                        "relative_std_pct": float(rel[k]),
+                        "consistent": float(self.beta_consistent[k])})
+        return out
+
+
+def per_joint_rms(err: np.ndarray, joint: np.ndarray, n: int = 9) -> np.ndarray:
+    return np.array([math.sqrt(float(np.mean(err[joint == j] ** 2)))
+                     if np.any(joint == j) else math.nan for j in range(n)])
+
+
+def identify(logs: list[DriveLog], robot: Robot, cutoff: float | None = None,
+             prior_weight: float = PRIOR_WEIGHT, robust: bool = True,
+             max_condition: float = MAX_CONDITION, name: str | None = None) -> Identification:
+    """Identify ``robot``'s dynamics from ``logs`` (module doc).  A poorly excited data
+    set (condition number of the weighted base regressor above ``max_condition``) is
+    refused, naming both."""
+    robot = require_robot(robot)
+    if not logs:
+        raise InputError("no log given", value=0, valid="at least one log")
+    t0 = time.perf_counter()
+    base = base_parameters(robot)
+    ds = dataset(logs, robot, cutoff)
+    Wb = base.reduce(ds.Y)
+    if ds.rows <= 2 * base.rank:
+        raise InputError(f"{ds.rows} rows of moving joints for {base.rank} base parameters: "
+                         "the logs are too short or the joints barely move", value=ds.rows,
+                         valid=f"> {2 * base.rank} rows")
+    ls = least_squares(Wb, ds.tau, ds.joint, robust)
+    if not ls.condition <= max_condition:
+        raise InputError(f"the logs excite the base parameters too poorly: condition number "
+                         f"{ls.condition:.3g} > {max_condition:g} (plan an excitation with "
+                         "'sixplus3 identify excite')", value=ls.condition,
+                         valid=f"<= {max_condition:g}")
+    pi0 = parameters(ClosedLoopDynamics(robot))
+    cons = consistent(Wb, ds.tau, ls.weights, base, pi0, prior_weight)
+    check_consistent(cons.pi, base.layout, tol=1e-12)
+    new = robot_with_parameters(robot, cons.pi, base.layout,
+                                name=name or f"{robot.name}-identified")
+    # what the written robot realises, as its own model computes it
+    pi_new = parameters(ClosedLoopDynamics(new))
+    check_consistent(pi_new, base.layout, tol=1e-12)
+    beta_c = base.beta(pi_new)
+    res = ds.tau - Wb @ beta_c
+    res0 = ds.tau - Wb @ base.beta(pi0)
+    return Identification(
+        robot=new, base=base, ls=ls, consistent=cons, beta_nominal=base.beta(pi0),
+        beta_consistent=beta_c, rows=ds.rows, cutoffs=[f.cutoff_hz for f in ds.filtered],
+        residual_rms=per_joint_rms(res, ds.joint), nominal_rms=per_joint_rms(res0, ds.joint),
+        seconds=time.perf_counter() - t0)
+
+
+@dataclass
+class Check:
+    rms: np.ndarray  # (9,) per joint [N m]
+    peak: np.ndarray  # (9,)
+    rms_all: float
+    rows: int
+    cutoff_hz: float
+
+
+def check(log: DriveLog, robot: Robot, cutoff: float | None = None,
+          v_min: float = V_MIN) -> Check:
+    """Per-joint RMS and peak of the measured minus the predicted torque of ``robot`` on
+    ``log`` (the same filter and rows as identification)."""
+    robot = require_robot(robot)
+    ds = dataset([log], robot, cutoff, v_min)
+    pi = parameters(ClosedLoopDynamics(robot))
+    err = ds.tau - ds.Y @ pi
+    peak = np.array([float(np.abs(err[ds.joint == j]).max()) if np.any(ds.joint == j)
+                     else math.nan for j in range(9)])
+    return Check(rms=per_joint_rms(err, ds.joint), peak=peak,
+                 rms_all=math.sqrt(float(np.mean(err ** 2))), rows=ds.rows,
+                 cutoff_hz=ds.filtered[0].cutoff_hz)
+
+
+__all__ = ["V_MIN", "Check", "Dataset", "Identification", "check", "dataset", "identify"]

@@ -1,0 +1,136 @@
+"""Robots as a real build differs from its model: perturbed plants for the virtual
+prototype, and the conversion between a robot's bodies and the regressor's parameters."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sixplus3.dynamics.regressor import N_BODY, N_MOTOR, Layout
+from sixplus3.errors import InputError
+from sixplus3.robot_description.masses import BODY_LINKS, BodyInertial, BodyInertials
+from sixplus3.robot_description.physical import MotorModel
+from sixplus3.robot_description.robot import Robot, require_robot
+
+
+def link_inertials(robot: Robot) -> dict[str, BodyInertial]:
+    """Each moving link's (mass, com, inertia about the com) as the robot's Pinocchio
+    model has it (the link frame is its joint's frame; the payload is not a link)."""
+    from dataclasses import replace
+
+    from sixplus3.robot_description.physical import Payload
+
+    bare = robot if robot.payload.mass == 0.0 else replace(robot, payload=Payload())
+    model = bare.closed_loop_model().model
+    from sixplus3.dynamics.regressor import body_links
+
+    out = {}
+    for j, link in enumerate(body_links(model), 1):
+        Y = model.inertias[j]
+        I = Y.inertia
+        out[link] = BodyInertial(float(Y.mass), tuple(float(c) for c in Y.lever),  # type: ignore[arg-type]
+                                 (I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]))
+    return out
+
+
+def body_to_inertial(p: np.ndarray) -> BodyInertial:
+    """One body's 10 parameters (Pinocchio's order, about the frame origin) as mass,
+    centre of mass and inertia about it (a massless body: all zero)."""
+    m = float(p[0])
+    if m <= 1e-12:
+        return BodyInertial(0.0, (0.0, 0.0, 0.0), (0.0,) * 6)  # type: ignore[arg-type]
+    c = np.asarray(p[1:4]) / m
+    ixx, ixy, iyy, ixz, iyz, izz = p[4:10]
+    Io = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    Ic = Io - m * (float(c @ c) * np.eye(3) - np.outer(c, c))
+    Ic = 0.5 * (Ic + Ic.T)
+    # the inertia about the com of a consistent body is PSD with the triangle
+    # inequality; remove rounding below 1e-15 kg m^2
+    w, V = np.linalg.eigh(Ic)
+    w = np.maximum(w, 0.0)
+    s = np.sort(w)
+    if s[2] > s[0] + s[1]:
+        w = np.where(w == s[2], s[0] + s[1], w)
+    Ic = (V * w) @ V.T
+    return BodyInertial(m, (float(c[0]), float(c[1]), float(c[2])),  # type: ignore[arg-type]
+                        (float(Ic[0, 0]), float(Ic[1, 1]), float(Ic[2, 2]), float(Ic[0, 1]),
+                         float(Ic[0, 2]), float(Ic[1, 2])))
+
+
+def robot_with_parameters(robot: Robot, pi: np.ndarray, layout: Layout,
+                          name: str | None = None) -> Robot:
+    """``robot`` realising the parameters ``pi``: each body's inertial (the payload's
+    share taken out of the platform's), each joint's rotor inertia and friction."""
+    from sixplus3.robot_description.physical import Payload
+
+    robot = require_robot(robot)
+    pi = np.asarray(pi, dtype=float)
+    if pi.shape != (layout.size,) or not np.all(np.isfinite(pi)):
+        raise InputError("parameters of the wrong size or not finite", value=pi.shape,
+                         valid=f"({layout.size},) finite")
+    pl = robot.payload
+    bodies = {}
+    for b, link in enumerate(layout.bodies):
+        p = pi[N_BODY * b:N_BODY * (b + 1)].copy()
+        if link == "platform" and pl.mass > 0.0:
+            p = p - _payload_parameters(pl)
+        bodies[link] = body_to_inertial(p)
+    mot = pi[N_BODY * len(layout.bodies):].reshape(-1, N_MOTOR)
+    motors = MotorModel(**{**{k: getattr(robot.motors, k) for k in
+                              ("model", "rotor_inertia", "gear_ratio", "viscous", "coulomb",
+                               "coulomb_velocity", "encoder_bits", "rated_torque",
+                               "zero_offsets", "directions")},
+                           "joint_armature": tuple(float(x) for x in mot[:, 0]),
+                           "joint_viscous": tuple(float(x) for x in mot[:, 1]),
+                           "joint_coulomb": tuple(float(x) for x in mot[:, 2])})
+    _ = Payload  # the payload stays the robot's own
+    return robot.replace(inertials=BodyInertials(bodies=tuple(bodies.items())),
+                         motors=motors, name=name or robot.name)
+
+
+def _payload_parameters(pl) -> np.ndarray:
+    """The payload's 10 parameters in the platform frame (Pinocchio's order)."""
+    import pinocchio as pin
+
+    Y = pin.Inertia(pl.mass, np.asarray(pl.com), pl.inertia_matrix)
+    return np.asarray(Y.toDynamicParameters())
+
+
+def perturbed_plant(robot: Robot, seed: int, mass: float = 0.3, com: float = 0.01,
+                    rotor: float = 0.4, friction: float = 3.0,
+                    name: str | None = None) -> Robot:
+    """A plant as a real build differs from ``robot``: every link's mass and inertia
+    scaled by its own factor in [1 - mass, 1 + mass], its centre of mass moved by up to
+    ``com`` [m] per axis, each joint's rotor inertia scaled in [1 - rotor, 1 + rotor],
+    its viscous and Coulomb friction multiplied by a factor in [1, friction] (seeded)."""
+    for k, v, hi in (("mass", mass, 0.9), ("com", com, 0.05), ("rotor", rotor, 0.9),
+                     ("friction", friction, 10.0)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
+                math.isfinite(v) and 0 <= v <= hi):
+            raise InputError(f"{k} must be in [0, {hi:g}]", value=v, valid=f"[0, {hi:g}]")
+    rng = np.random.default_rng(seed)
+    bodies = {}
+    for link, b in link_inertials(robot).items():
+        if link not in BODY_LINKS:
+            continue
+        s = 1.0 + rng.uniform(-mass, mass)
+        c = np.asarray(b.com) + rng.uniform(-com, com, 3) * (b.mass > 0)
+        bodies[link] = BodyInertial(b.mass * s, (float(c[0]), float(c[1]), float(c[2])),
+                                    tuple(float(x) * s for x in b.inertia))  # type: ignore[arg-type]
+    mot = robot.motors
+    arm = mot.armature_per_joint * (1.0 + rng.uniform(-rotor, rotor, 9))
+    visc = mot.viscous_per_joint * rng.uniform(1.0, friction, 9)
+    coul = mot.coulomb_per_joint * rng.uniform(1.0, friction, 9)
+    motors = MotorModel(**{**{k: getattr(mot, k) for k in
+                              ("model", "rotor_inertia", "gear_ratio", "viscous", "coulomb",
+                               "coulomb_velocity", "encoder_bits", "rated_torque",
+                               "zero_offsets", "directions")},
+                           "joint_armature": tuple(float(x) for x in arm),
+                           "joint_viscous": tuple(float(x) for x in visc),
+                           "joint_coulomb": tuple(float(x) for x in coul)})
+    return robot.replace(inertials=BodyInertials(bodies=tuple(bodies.items())),
+                         motors=motors, name=name or f"plant-seed{seed}")
+
+
+__all__ = ["body_to_inertial", "link_inertials", "perturbed_plant", "robot_with_parameters"]
