@@ -26,6 +26,8 @@ from sixplus3.robot_description.robot import Robot
 RANK_TOL = 1e-8
 #: Random states stacked to find the base parameters.
 BASE_SAMPLES = 400
+#: Samples solved at once by the forward kinematics of a log (:func:`states_of`).
+CHUNK_FK = 16
 
 
 @dataclass(frozen=True)
@@ -69,22 +71,36 @@ class BaseParameters:
 
 def states_of(robot: Robot, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(q (n, nq), converged (n,)) of a sequence of actuated angles, by forward
-    kinematics seeded sample after sample from the first one's (on the robot's branch
-    from home)."""
+    kinematics on the robot's branch from home: :data:`CHUNK_FK` samples at a time, each
+    chunk seeded from the last solution before it; a chunk is kept up to its first sample
+    that does not converge or jumps from its neighbour (more than 5 cm or 0.1 rad), and
+    the rest is solved again from there (one sample at a time where it must)."""
     theta = np.asarray(theta, dtype=float)
+    n = len(theta)
     first = robot_fk(theta[0], robot)
     x = np.r_[first.position, np.reshape(rotvec_from_matrix(first.rotation), -1), first.psi]
-    n = len(theta)
     q = np.empty((n, len(first.q)))
     ok = np.zeros(n, dtype=bool)
-    chunk = 8
-    for i in range(0, n, chunk):
-        sl = slice(i, min(n, i + chunk))
-        fk = robot_fk_batch(theta[sl], np.tile(x, (sl.stop - sl.start, 1)), robot,
-                            margins=False)
-        q[sl], ok[sl] = fk.cfg.q, fk.converged
-        if fk.converged[-1]:
-            x = fk.x[-1]
+    i, size = 0, CHUNK_FK
+    while i < n:
+        sl = slice(i, min(n, i + size))
+        m = sl.stop - sl.start
+        fk = robot_fk_batch(theta[sl], np.tile(x, (m, 1)), robot, margins=False)
+        steps = np.abs(np.diff(np.vstack([x[None], fk.x]), axis=0)).max(axis=1)
+        good = fk.converged & (steps < 0.1)
+        k = m if good.all() else int(np.argmin(good))
+        if k == 0:
+            if size > 1:
+                size = max(1, size // 4)
+                continue
+            ok[i] = False  # this sample has no pose near the last: left unsolved
+            q[i] = fk.cfg.q[0]
+            i += 1
+            continue
+        q[i:i + k], ok[i:i + k] = fk.cfg.q[:k], True
+        x = fk.x[k - 1]
+        i += k
+        size = CHUNK_FK
     return q, ok
 
 
@@ -137,7 +153,14 @@ def random_states(robot: Robot, n: int, seed: int = 0
 
 def base_parameters(robot: Robot, n: int = BASE_SAMPLES, seed: int = 0) -> BaseParameters:
     """The base parameters of ``robot``'s structure (module doc), from ``n`` random
-    states."""
+    states (cached per process by the robot's hash)."""
+    from sixplus3.cache import cached
+
+    return cached(("base-parameters", robot.hash, n, seed),
+                  lambda: _base_parameters(robot, n, seed))
+
+
+def _base_parameters(robot: Robot, n: int, seed: int) -> BaseParameters:
     dyn = ClosedLoopDynamics(robot)
     q, v, a = random_states(robot, n, seed)
     Y, _ = regressor_batch(dyn, q, v, a)

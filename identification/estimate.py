@@ -55,17 +55,26 @@ class LeastSquares:
 
 def condition_number(Wb: np.ndarray) -> float:
     """Of the column-scaled matrix (each column to unit norm): the identifiability
-    criterion of the excitation and of an estimate."""
+    criterion of the excitation and of an estimate (from the eigenvalues of its Gram
+    matrix: the squares of its singular values)."""
     s = np.linalg.norm(Wb, axis=0)
     s[s == 0] = 1.0
-    sv = np.linalg.svd(Wb / s, compute_uv=False)
-    return float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+    A = Wb / s
+    ev = np.linalg.eigvalsh(A.T @ A)
+    return float(math.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else math.inf
 
 
 def _solve(Wb: np.ndarray, y: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted least squares by the normal equations of the column-scaled system (its
+    condition number is below MAX_CONDITION, so its square is far from double
+    precision's limit): (beta, the Gram matrix A^T A of the weighted rows)."""
     A = Wb * w[:, None]
-    beta, *_ = np.linalg.lstsq(A, y * w, rcond=None)
-    return beta, A
+    s = np.linalg.norm(A, axis=0)
+    s[s == 0] = 1.0
+    As = A / s
+    G = As.T @ As
+    beta = np.linalg.solve(G, As.T @ (y * w)) / s
+    return beta, G * s[:, None] * s[None, :]
 
 
 def least_squares(Wb: np.ndarray, tau: np.ndarray, joint: np.ndarray | None = None,
@@ -98,19 +107,22 @@ def least_squares(Wb: np.ndarray, tau: np.ndarray, joint: np.ndarray | None = No
                 w = w_new
                 break
             w = w_new
-    beta, A = _solve(Wb, tau, w)
+    beta, gram = _solve(Wb, tau, w)
     res_w = (tau - Wb @ beta) * w
     dof = max(N - r, 1)
     s2 = float(res_w @ res_w) / dof
     try:
-        cov = s2 * np.linalg.inv(A.T @ A)
+        cov = s2 * np.linalg.inv(gram)
         std = np.sqrt(np.maximum(np.diag(cov), 0.0))
     except np.linalg.LinAlgError:
         std = np.full(r, np.inf)
     res = tau - Wb @ beta
     sigma = _rms_by_joint(res, joint, n_joints)
-    return LeastSquares(beta=beta, std=std, sigma=sigma, weights=w,
-                        condition=condition_number(A), iterations=it)
+    d = np.sqrt(np.maximum(np.diag(gram), 1e-300))
+    ev = np.linalg.eigvalsh(gram / d[:, None] / d[None, :])
+    cond = float(math.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else math.inf
+    return LeastSquares(beta=beta, std=std, sigma=sigma, weights=w, condition=cond,
+                        iterations=it)
 
 
 def _rms_by_joint(res: np.ndarray, joint: np.ndarray, n: int) -> np.ndarray:
@@ -168,13 +180,18 @@ def consistent(Wb: np.ndarray, tau: np.ndarray, weights: np.ndarray, base: BaseP
         raise InputError("the prior weight must be a positive number", value=prior_weight,
                          valid="> 0")
     B = base.matrix
-    A = (Wb * weights[:, None]) @ B  # (N, P)
-    y = tau * weights
-    # compress the data term: ||A pi - y||^2 = ||R pi - c||^2 + const
-    Q, R = np.linalg.qr(np.c_[A, y], mode="reduced")
-    R1, c = R[:P, :P], R[:P, P]
+    r = base.rank
+    # compress the data term: ||w (Wb B pi - tau)||^2 = ||R_b B pi - c||^2 + const, with
+    # R the Cholesky factor of the weighted base regressor's augmented Gram matrix
+    Aw = np.c_[Wb * weights[:, None], tau * weights]
+    sc = np.linalg.norm(Aw, axis=0)
+    sc[sc == 0] = 1.0
+    Gm = (Aw / sc).T @ (Aw / sc)
+    Gm[np.diag_indices_from(Gm)] *= 1.0 + 1e-13  # the residual's pivot may be ~0
+    R = np.linalg.cholesky(Gm).T * sc[None, :]
+    R1, c = R[:r, :r] @ B, R[:r, r]
     s = parameter_scales(pi0, lay)
-    Rs = R1 * s[None, :]
+    Rs = R1 * s[None, :]  # (r, P)
     info = float(np.sum(Rs ** 2)) / P
     lam = prior_weight * info
     z = cp.Variable(P)  # pi = pi0 + s z

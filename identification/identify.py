@@ -44,10 +44,10 @@ V_MIN = 0.1
 
 @dataclass
 class Dataset:
-    """Stacked rows over the logs: the regressor Y (N, P) of the full parameters, the
-    torques (N,), the joint of each row, and the filtered logs."""
+    """Stacked rows over the logs: the base regressor Wb (N, r), the torques (N,), the
+    joint of each row, and the filtered logs."""
 
-    Y: np.ndarray
+    Wb: np.ndarray
     tau: np.ndarray
     joint: np.ndarray
     filtered: list[Filtered]
@@ -58,27 +58,33 @@ class Dataset:
         return len(self.tau)
 
 
-def dataset(logs: list[DriveLog], robot: Robot, cutoff: float | None = None,
-            v_min: float = V_MIN) -> Dataset:
-    """The rows of ``logs`` for ``robot`` (module doc)."""
+#: Samples whose regressor is computed at once (the full regressor of a chunk, 337
+#: columns, is reduced to the base columns before the next: memory stays flat).
+CHUNK = 2000
+
+
+def dataset(logs: list[DriveLog], robot: Robot, base: BaseParameters,
+            cutoff: float | None = None, v_min: float = V_MIN) -> Dataset:
+    """The rows of ``logs`` for ``robot`` in ``base``'s columns (module doc)."""
     dyn = ClosedLoopDynamics(robot)
-    Ys, taus, joints, fs = [], [], [], []
+    Ws, taus, joints, fs = [], [], [], []
     wc = robot.motors.coulomb_velocity
     nb = dyn.model.njoints - 1
+    idx = np.arange(9)
     for log in logs:
         f = filter_log(log, cutoff, coulomb_velocity=wc)
-        Y = stacked_regressor(dyn, f.theta, f.theta_dot, f.theta_ddot)  # (n, 9, P)
         assert f.coulomb is not None
-        idx = np.arange(9)
-        Y[:, idx, N_BODY * nb + N_MOTOR * idx + 2] = f.coulomb  # the filtered switch
-        keep = np.abs(f.theta_dot) > v_min  # (n, 9)
-        Ys.append(Y[keep])
-        taus.append(f.tau[keep])
-        joints.append(np.nonzero(keep)[1])
+        for i in range(0, len(f.t), CHUNK):
+            sl = slice(i, i + CHUNK)
+            Y = stacked_regressor(dyn, f.theta[sl], f.theta_dot[sl], f.theta_ddot[sl])
+            Y[:, idx, N_BODY * nb + N_MOTOR * idx + 2] = f.coulomb[sl]  # the filtered switch
+            keep = np.abs(f.theta_dot[sl]) > v_min  # (n, 9)
+            Ws.append(base.reduce(Y[keep]))
+            taus.append(f.tau[sl][keep])
+            joints.append(np.nonzero(keep)[1])
         fs.append(f)
-    Y = np.vstack(Ys)
-    return Dataset(Y=Y, tau=np.concatenate(taus), joint=np.concatenate(joints),
-                   filtered=fs, names=[lg.name for lg in logs])
+    return Dataset(Wb=np.vstack(Ws), tau=np.concatenate(taus),
+                   joint=np.concatenate(joints), filtered=fs, names=[lg.name for lg in logs])
 
 
 @dataclass
@@ -140,8 +146,8 @@ def identify(logs: list[DriveLog], robot: Robot, cutoff: float | None = None,
         raise InputError("no log given", value=0, valid="at least one log")
     t0 = time.perf_counter()
     base = base_parameters(robot)
-    ds = dataset(logs, robot, cutoff)
-    Wb = base.reduce(ds.Y)
+    ds = dataset(logs, robot, base, cutoff)
+    Wb = ds.Wb
     if ds.rows <= 2 * base.rank:
         raise InputError(f"{ds.rows} rows of moving joints for {base.rank} base parameters: "
                          "the logs are too short or the joints barely move", value=ds.rows,
@@ -184,9 +190,9 @@ def check(log: DriveLog, robot: Robot, cutoff: float | None = None,
     """Per-joint RMS and peak of the measured minus the predicted torque of ``robot`` on
     ``log`` (the same filter and rows as identification)."""
     robot = require_robot(robot)
-    ds = dataset([log], robot, cutoff, v_min)
-    pi = parameters(ClosedLoopDynamics(robot))
-    err = ds.tau - ds.Y @ pi
+    base = base_parameters(robot)
+    ds = dataset([log], robot, base, cutoff, v_min)
+    err = ds.tau - ds.Wb @ base.beta(parameters(ClosedLoopDynamics(robot)))
     peak = np.array([float(np.abs(err[ds.joint == j]).max()) if np.any(ds.joint == j)
                      else math.nan for j in range(9)])
     return Check(rms=per_joint_rms(err, ds.joint), peak=peak,

@@ -82,12 +82,14 @@ def _plot_torques(path: Path, log: DriveLog, robot: Robot, nominal: Robot) -> No
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    ds = dataset([log], robot, v_min=-1.0)  # every row, in order (n, 9)
+    from sixplus3.identification.base import base_parameters
+
+    base = base_parameters(robot)
+    ds = dataset([log], robot, base, v_min=-1.0)  # every row, in order (n, 9)
     f = ds.filtered[0]
     n = len(f.t)
-    pred = (ds.Y @ parameters(ClosedLoopDynamics(robot))).reshape(n, 9)
-    ds0 = dataset([log], nominal, v_min=-1.0)
-    pred0 = (ds0.Y @ parameters(ClosedLoopDynamics(nominal))).reshape(n, 9)
+    pred = (ds.Wb @ base.beta(parameters(ClosedLoopDynamics(robot)))).reshape(n, 9)
+    pred0 = (ds.Wb @ base.beta(parameters(ClosedLoopDynamics(nominal)))).reshape(n, 9)
     fig, axes = plt.subplots(3, 3, figsize=(13, 8), sharex=True)
     for j, name in enumerate(actuated_joint_names()):
         ax = axes[j // 3, j % 3]

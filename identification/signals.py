@@ -40,7 +40,7 @@ ORDER = 4
 CUTOFF_FACTOR = 2.5
 MIN_CUTOFF = 5.0
 RATE_PER_CUTOFF = 8.0
-SAMPLES_PER_CUTOFF = 8.0
+SAMPLES_PER_CUTOFF = 5.0
 EDGE = 2.0
 
 
@@ -69,6 +69,11 @@ def bandwidth(log: DriveLog) -> float:
     nper = int(min(len(vel), max(256, 2 ** int(math.log2(max(rate, 2.0))))))
     f, p = signal.welch(vel, fs=rate, nperseg=nper, axis=0)
     total = p.sum(axis=1)
+    # the encoder's quantisation noise is white: its floor (the median level of the upper
+    # half of the band) is taken out before the 99 % point is found, so a log with long
+    # holds (little motion, the same noise) does not read as a wide band
+    floor = float(np.median(total[f > rate / 4.0])) if np.any(f > rate / 4.0) else 0.0
+    total = np.maximum(total - floor, 0.0)
     c = np.cumsum(total)
     if c[-1] <= 0:
         return MIN_CUTOFF

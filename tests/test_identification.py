@@ -327,6 +327,21 @@ def test_cli_identify_estimate_and_check(excitation, validation_plan, tmp_path) 
         cv["identified"]["rms_all_n_m"])
     r = run.invoke(cli, ["--robot", str(out), "validate", str(excitation.path)])
     assert r.exit_code == 2 and "robot mismatch" in r.output  # made for the nominal robot
+    # the identified robot file drives plan, validate, export (no compilation)
+    task = tmp_path / "t.yaml"
+    task.write_text("name: small\nnodes_per_segment: 6\nwaypoints:\n  - position: [0, 0, 0.58]"
+                    "\n  - position: [0.02, 0, 0.58]\n")
+    r = run.invoke(cli, ["--robot", str(out), "plan", str(task), "-o", str(tmp_path / "p"),
+                         "--no-html", "--quiet"])
+    assert r.exit_code == 0, r.output
+    planned = tmp_path / "p" / "small.csv"
+    r = run.invoke(cli, ["--robot", str(out), "validate", str(planned)])
+    assert r.exit_code == 0, r.output
+    r = run.invoke(cli, ["--robot", str(out), "export", str(planned), "--format", "drive-csv"])
+    assert r.exit_code == 0, r.output
+    # a poorly excited log: refused with its condition number and the threshold
+    r = run.invoke(cli, ["identify", "estimate", str(val), "-o", str(tmp_path / "y.yaml")])
+    assert r.exit_code == 2 and "condition number" in r.output, r.output
     # bad input: one line, exit 2; the output never written over
     r = run.invoke(cli, ["identify", "estimate", str(log), "-o", str(out)])
     assert r.exit_code == 2 and "--force" in r.output

@@ -7,13 +7,21 @@
 - :mod:`~sixplus3.cli.plan`: ``plan``, ``move-to-start``, ``demo``;
 - :mod:`~sixplus3.cli.trajectory`: ``validate``, ``simulate``, ``export``, ``feed``,
   ``play``;
-- :mod:`~sixplus3.cli.identify`: ``identify excite | estimate | check | plant``.
+- :mod:`~sixplus3.cli.identify`: ``identify excite | estimate | check | plant``;
+- :mod:`~sixplus3.cli.interaction`: ``wrench``, ``wrench-resolution``.
 
 Each command is a thin wrapper over a library function; the CLI is the one place (with
 ``sixplus3.plan``) that chooses ``Robot.default()``.
 """
 
-from sixplus3.cli import design, identify, plan, robot, trajectory  # noqa: F401 - registers
+from sixplus3.cli import (  # noqa: F401 - registers the commands
+    design,
+    identify,
+    interaction,
+    plan,
+    robot,
+    trajectory,
+)
 from sixplus3.cli.app import main, run
 
 __all__ = ["main", "run"]

@@ -157,11 +157,15 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
                    "[N m at the joint].")
 @click.option("--hold", default=0.0, show_default=True, type=FLOAT,
               help="With --plant: keep holding the last sample this long [s].")
+@click.option("--wrench", "wrench_file", default=None, type=click.Path(dir_okay=False),
+              help="With --plant: an external wrench on the platform over time (CSV "
+                   "t,fx,fy,fz,mx,my,mz; base frame, about the platform centre).")
 @click.option("--force", is_flag=True, help="Replace an existing --log file.")
 @_gains
 def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: bool,
              torque_hold: str, plant_file: str | None, log_file: str | None, seed: int,
-             noise: float, hold: float, force: bool, kp: float, kd: float) -> None:
+             noise: float, hold: float, wrench_file: str | None, force: bool, kp: float,
+             kd: float) -> None:
     """Replay a trajectory file in MuJoCo at its rate: feed-forward + PD.
 
     The file is validated first (a defective file is not simulated: exit 2).  Reports
@@ -172,9 +176,9 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
     from sixplus3.control.simulation import simulate_file
 
     robot = _task_robot(task_file)
-    if plant_file is not None or log_file is not None:
+    if plant_file is not None or log_file is not None or wrench_file is not None:
         _simulate_plant(csv_file, robot, plant_file, log_file, seed, noise, hold, force,
-                        kp, kd, as_json)
+                        kp, kd, as_json, wrench_file)
         return
     rep, sim = simulate_file(csv_file, robot, kp, kd, ff_scale, torque_hold)
     if sim is None:
@@ -203,7 +207,7 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
 
 def _simulate_plant(csv_file: str, robot, plant_file: str | None, log_file: str | None,
                     seed: int, noise: float, hold: float, force: bool, kp: float,
-                    kd: float, as_json: bool) -> None:
+                    kd: float, as_json: bool, wrench_file: str | None = None) -> None:
     from sixplus3.control.drive_log import write_log
     from sixplus3.control.plant import run_on_plant
     from sixplus3.robot_description.robot import load_robot
@@ -215,8 +219,13 @@ def _simulate_plant(csv_file: str, robot, plant_file: str | None, log_file: str 
     if os.path.exists(log_file) and not force:
         fail(f"{log_file} exists: add --force to replace it")
     plant = load_robot(plant_file)
+    profile = None
+    if wrench_file is not None:
+        from sixplus3.control.plant import read_wrench_profile
+
+        profile = read_wrench_profile(wrench_file)
     run = run_on_plant(csv_file, robot, plant, seed=seed, kp=kp, kd=kd, torque_noise=noise,
-                       hold=hold)
+                       hold=hold, wrench=profile)
     write_log(log_file, run.log, robot, {"plant": plant.name, "plant_hash": plant.hash,
                                          "seed": seed, "torque_noise_n_m": noise,
                                          "source": os.path.basename(csv_file)})

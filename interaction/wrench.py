@@ -1,0 +1,387 @@
+"""Sensorless touch: the wrench a person applies to the platform, from the drives alone
+(docs/interaction.md).
+
+The external wrench w = (f, m) on the platform (base frame, m about the platform centre)
+enters the actuated dynamics through the inverse kinematics Jacobian J (9 x 9:
+theta_dot = J (v, omega, psi_dot), :func:`sixplus3.kinematics.robot.ik_jacobian`).  By
+virtual work, J^T tau + (w, 0) = Q(x, xd, xdd), so with the model's torque
+tau_model = J^-T Q:
+
+    tau_ext := tau_model - tau_measured = J^-T (w, 0),   (w, c) = J^T tau_ext.
+
+The six first components are the wrench; the last three, ``c``, are the generalized
+forces on the three redundant cranks, which carry no platform load: a crank residual is
+a model error or a force on a crank (the report shows it).
+
+Two estimates of tau_ext:
+
+- the **momentum observer** (De Luca and Mattone 2003; Haddadin et al. 2017) on the
+  closed-loop dynamics in the actuated coordinates: p = M(theta) theta_dot,
+  r_k = K (p_k - p_0 - sum_j (tau_j - h_j + Mdot_j theta_dot_j + r_j-1) dt), which needs
+  no acceleration; r follows tau_ext through a first-order low-pass of bandwidth K.
+  M is the reduced inertia G^T M_tree G (rotors included) and h the model's torque at
+  zero acceleration (Coriolis, gravity, friction), both from Pinocchio;
+- the **direct residual** with filtered accelerations (the identification's filter).
+
+Uncertainty per sample: the torque's noise (the monitor's and the 0.1 % quantisation)
+through the observer's low-pass, the model's error (``model_sigma``), and near zero speed
+(|theta_dot| < ``v_band``) the dry friction band: there a joint's friction can take any
+value within +-f_c, which a hold cannot tell from a push.  The band is reported apart, as
+a bound in newtons at the platform (|A| f_c, A = J^T's wrench rows).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from sixplus3.control.drive_log import DriveLog
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.errors import InputError
+from sixplus3.kinematics.robot import ik_jacobian, robot_fk, robot_fk_batch
+from sixplus3.kinematics.rotations import rotvec_from_matrix
+from sixplus3.robot_description.robot import Robot, require_robot
+
+#: Default observer gain [1/s]: a step reaches 95 % of its value in 3 / K = 20 ms.
+GAIN = 150.0
+#: Default standard deviation of the model's torque error [N m] (an identified robot on
+#: the virtual prototype: 0.005-0.01, docs/identification.md).
+MODEL_SIGMA = 0.01
+#: Below this speed a joint's dry friction is a band, not a law [rad/s].
+V_BAND = 0.1
+#: Contact when a component leaves N_SIGMA standard deviations plus its band.
+N_SIGMA = 4.0
+#: Lowest log rate the observer takes [Hz].
+MIN_RATE = 200.0
+
+
+@dataclass
+class WrenchEstimate:
+    """Per sample: t (n,), wrench (n, 6) [N, N m], its standard deviation (n, 6), the
+    friction band (n, 6), the crank residual (n, 3) [N m], the contact flag (n,), and
+    the direct residual's wrench (n, 6) for comparison."""
+
+    t: np.ndarray
+    wrench: np.ndarray
+    std: np.ndarray
+    band: np.ndarray
+    crank: np.ndarray
+    contact: np.ndarray
+    direct: np.ndarray | None = None
+    at: str = "centre"
+    gain: float = GAIN
+    notes: list[str] = field(default_factory=list)
+
+    def summary(self) -> dict[str, Any]:
+        return {"samples": len(self.t), "at": self.at, "gain_per_s": self.gain,
+                "contact_samples": int(self.contact.sum()),
+                "max_force_n": float(np.linalg.norm(self.wrench[:, :3], axis=1).max()),
+                "max_moment_n_m": float(np.linalg.norm(self.wrench[:, 3:], axis=1).max()),
+                "median_std": np.median(self.std, axis=0).tolist(),
+                "max_friction_band": self.band.max(axis=0).tolist(),
+                "max_crank_residual_n_m": float(np.abs(self.crank).max()),
+                "notes": self.notes}
+
+
+def torque_sigma(robot: Robot, monitor_noise: float = 0.005) -> float:
+    """The standard deviation of a logged torque [N m at the joint]: the monitor's noise
+    and the drive's 0.1 %-of-rated quantisation (uniform)."""
+    unit = robot.motors.gear_ratio * robot.motors.rated_torque / 1000.0
+    return math.sqrt(monitor_noise ** 2 + unit ** 2 / 12.0)
+
+
+class StateModel:
+    """The robot's configuration, Jacobian, reduced inertia and bias torque along a
+    sequence of actuated angles (forward kinematics seeded sample after sample)."""
+
+    def __init__(self, robot: Robot) -> None:
+        self.robot = require_robot(robot)
+        self.dyn = ClosedLoopDynamics(self.robot)
+        self._x: np.ndarray | None = None
+
+    def seed(self, theta: np.ndarray) -> None:
+        fk = robot_fk(theta, self.robot)
+        self._x = np.r_[fk.position, np.reshape(rotvec_from_matrix(fk.rotation), -1), fk.psi]
+
+    def states(self, theta: np.ndarray, theta_dot: np.ndarray, chunk: int = 8
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(J (n, 9, 9), M (n, 9, 9), h (n, 9), tcp offset (n, 3)) of the samples."""
+        theta = np.asarray(theta, dtype=float)
+        n = len(theta)
+        if self._x is None:
+            self.seed(theta[0])
+        J = np.empty((n, 9, 9))
+        M = np.empty((n, 9, 9))
+        h = np.empty((n, 9))
+        off = np.empty((n, 3))
+        tool = np.asarray(self.robot.tool.xyz)
+        for i in range(0, n, chunk):
+            sl = slice(i, min(n, i + chunk))
+            m = sl.stop - sl.start
+            assert self._x is not None
+            fk = robot_fk_batch(theta[sl], np.tile(self._x, (m, 1)), self.robot,
+                                margins=False)
+            if not fk.converged.all():
+                k = i + int(np.argmin(fk.converged))
+                raise InputError(f"no pose of this robot has the logged angles of sample {k}",
+                                 value=k, valid="angles of an assembly of this robot")
+            self._x = fk.x[-1]
+            J[sl] = ik_jacobian(fk.cfg)
+            inertia = np.empty((m, 9, 9))
+            h[sl], rc = self.dyn.actuated_inverse_dynamics_batch(
+                fk.cfg.q, theta_dot[sl], np.zeros((m, 9)), inertia=inertia)
+            M[sl] = inertia
+            off[sl] = np.einsum("nij,j->ni", fk.rotation, tool)
+        return J, M, h, off
+
+
+class SingleState:
+    """One sample at a time with Pinocchio only (no batched kernels: their thread pools
+    cost more than a sample): forward kinematics by Newton on the closures from the
+    previous configuration, G = dv/dtheta_dot, and from G's platform and crank rows the
+    inverse kinematics Jacobian J = (S G)^-1; the reduced inertia G^T M G and the model's
+    torque at zero acceleration."""
+
+    def __init__(self, robot: Robot) -> None:
+        import pinocchio as pin
+
+        self.robot = require_robot(robot)
+        self.dyn = ClosedLoopDynamics(self.robot)
+        m = self.dyn.model
+        self._pin = pin
+        self._q: np.ndarray | None = None
+        ff = next(j for j in range(1, m.njoints) if m.joints[j].nq == 7)
+        self._ffq, self._ffv = m.joints[ff].idx_q, m.joints[ff].idx_v
+        self._crank_v = [m.joints[m.getJointId(f"platform_crank{i}")].idx_v
+                         for i in range(3)]
+        self._tool = np.asarray(self.robot.tool.xyz)
+
+    def state(self, theta: np.ndarray, theta_dot: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(J (9, 9), M (9, 9), h (9,), tcp offset (3,)) of one sample."""
+        from scipy.linalg import lapack
+
+        pin, dyn = self._pin, self.dyn
+        fk = robot_fk(theta, self.robot, q_hint=self._q, model=dyn.clm)
+        q = self._q = fk.q
+        m, d, act, pas = dyn.model, dyn.data, dyn.clm.idx_v_act, dyn.clm.idx_v_pas
+        Jc = dyn.clm.constraint_jacobian(q)  # one Jacobian for G, the drift and h
+        lu, piv, _ = dyn._lu(Jc)
+        X, _ = lapack.dgetrs(lu, piv, Jc[:, act])
+        G = np.zeros((m.nv, len(act)))
+        G[act] = np.eye(len(act))
+        G[pas] = -X
+        v = G @ theta_dot
+        a = np.zeros(m.nv)
+        corr, _ = lapack.dgetrs(lu, piv, dyn.clm.drift(q, v))
+        a[pas] = -corr
+        rn = pin.rnea(m, d, q, v, a)
+        h = rn[act] - X.T @ rn[pas] + dyn._friction(theta_dot)
+        Mt = pin.crba(m, d, q)
+        Mt = np.triu(Mt) + np.triu(Mt, 1).T
+        M = G.T @ Mt @ G
+        quat = q[self._ffq + 3:self._ffq + 7]
+        R = pin.Quaternion(quat[3], quat[0], quat[1], quat[2]).toRotationMatrix()
+        vf = self._ffv
+        B = np.vstack([R @ G[vf:vf + 3], R @ G[vf + 3:vf + 6], G[self._crank_v]])
+        J = np.linalg.inv(B)
+        return J, M, h, R @ self._tool
+
+
+def wrench_map(J: np.ndarray) -> np.ndarray:
+    """(n, 9, 9) J^T: tau_ext -> (f, m about the centre, crank torques)."""
+    return np.swapaxes(J, 1, 2)
+
+
+def to_tcp(w: np.ndarray, off: np.ndarray) -> np.ndarray:
+    """The wrench about the platform centre as the wrench about the tool centre point
+    (``off``: the TCP minus the centre, base frame): m_tcp = m_c - off x f."""
+    out = w.copy()
+    out[:, 3:] = w[:, 3:] - np.cross(off, w[:, :3])
+    return out
+
+
+def momentum_observer(t: np.ndarray, tau: np.ndarray, theta_dot: np.ndarray,
+                      M: np.ndarray, h: np.ndarray, gain: float = GAIN) -> np.ndarray:
+    """(n, 9) the observer's estimate of tau_ext (module doc), from its first sample."""
+    n = len(t)
+    r = np.zeros((n, 9))
+    p = np.einsum("nij,nj->ni", M, theta_dot)
+    integral = np.zeros(9)
+    for k in range(1, n):
+        dt = t[k] - t[k - 1]
+        mdot = (M[k] - M[k - 1]) @ theta_dot[k] / dt
+        integral += (tau[k] - h[k] + mdot + r[k - 1]) * dt
+        r[k] = gain * (p[k] - p[0] - integral)
+    return r  # r follows tau_ext = M theta_ddot + h - tau = tau_model - tau
+
+
+def estimate(log: DriveLog, robot: Robot, gain: float = GAIN, at: str = "centre",
+             monitor_noise: float = 0.005, model_sigma: float = MODEL_SIGMA,
+             v_band: float = V_BAND, n_sigma: float = N_SIGMA,
+             direct: bool = True) -> WrenchEstimate:
+    """The wrench on the platform over ``log`` (module doc)."""
+    from scipy import signal
+
+    robot = require_robot(robot)
+    for name, v, lo, hi in (("gain", gain, 1.0, 2000.0), ("model_sigma", model_sigma, 0.0,
+                                                          10.0),
+                            ("monitor_noise", monitor_noise, 0.0, 10.0),
+                            ("v_band", v_band, 0.0, 10.0), ("n_sigma", n_sigma, 0.0, 100.0)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
+                math.isfinite(v) and lo <= v <= hi):
+            raise InputError(f"{name} must be in [{lo:g}, {hi:g}], got {v!r}", value=v,
+                             valid=f"[{lo:g}, {hi:g}]")
+    if at not in ("centre", "tcp"):
+        raise InputError(f"--at must be centre or tcp, got {at!r}", value=at,
+                         valid="centre or tcp")
+    rate = log.rate
+    if rate < MIN_RATE or rate < 4 * gain / (2 * math.pi):
+        need = max(MIN_RATE, 4 * gain / (2 * math.pi))
+        raise InputError(f"{log.name}: its rate {rate:.6g} Hz is too low for the observer "
+                         f"(gain {gain:g}/s)", value=rate, valid=f">= {need:g} Hz")
+    dt = 1.0 / rate
+    # velocity: the encoder's differences, zero-phase filtered at rate / 8 (no lag; the
+    # streaming form uses a causal filter instead)
+    sos = signal.butter(4, rate / 8.0, fs=rate, output="sos")
+    pad = min(len(log.t) - 1, 24)
+    th_f = signal.sosfiltfilt(sos, log.theta, axis=0, padlen=pad)
+    thd = np.gradient(th_f, dt, axis=0)
+    tau = np.vstack([log.tau[:1], 0.5 * (log.tau[1:] + log.tau[:-1])])  # held over a tick
+    sm = StateModel(robot)
+    J, M, h, off = sm.states(log.theta, thd)
+    tau_ext = momentum_observer(log.t, tau, thd, M, h, gain)
+    A = wrench_map(J)
+    full = np.einsum("nij,nj->ni", A, tau_ext)
+    w, crank = full[:, :6], full[:, 6:]
+    sig = torque_sigma(robot, monitor_noise)
+    s_obs = sig * math.sqrt(gain * dt / 2.0)  # white noise through the first-order filter
+    var = np.full(9, s_obs ** 2 + model_sigma ** 2)
+    std = np.sqrt(np.einsum("nij,j->ni", A[:, :6, :] ** 2, var))
+    fc = robot.motors.coulomb_per_joint
+    slow = np.abs(thd) < v_band
+    band = np.einsum("nij,nj->ni", np.abs(A[:, :6, :]), slow * fc)
+    if at == "tcp":
+        w = to_tcp(w, off)
+        # the bound moves with the lever: |m_tcp| <= |m_c| + |off| |f| componentwise
+        band = band.copy()
+        band[:, 3:] += np.abs(off) @ np.ones((3, 3)) * band[:, :3].max(axis=1)[:, None]
+    contact = np.any(np.abs(w) > n_sigma * std + band, axis=1)
+    out_direct = None
+    if direct:
+        from sixplus3.identification.signals import filter_log
+
+        f = filter_log(log, decimate=False, coulomb_velocity=None)
+        sm2 = StateModel(robot)
+        J2, _, _, off2 = sm2.states(f.theta, f.theta_dot)
+        tau_m, _ = sm2.dyn.actuated_inverse_dynamics_batch(
+            _configs(robot, f.theta), f.theta_dot, f.theta_ddot)
+        wd = np.einsum("nij,nj->ni", wrench_map(J2), tau_m - f.tau)[:, :6]
+        if at == "tcp":
+            wd = to_tcp(wd, off2)
+        out_direct = np.full_like(w, np.nan)
+        idx = np.searchsorted(log.t, f.t)
+        out_direct[idx] = wd
+    notes = [f"observer gain {gain:g}/s (95 % of a step in {3000 / gain:.0f} ms); torque "
+             f"noise {sig:.4f} N m per joint, {s_obs:.4f} N m after the observer; model "
+             f"error {model_sigma:g} N m per joint",
+             f"below {v_band:g} rad/s a joint's dry friction (f_c up to "
+             f"{fc.max():.3g} N m) is a band: the 'band' columns bound what a hold cannot "
+             "tell from a push"]
+    return WrenchEstimate(t=log.t.copy(), wrench=w, std=std, band=band, crank=crank,
+                          contact=contact, direct=out_direct, at=at, gain=gain, notes=notes)
+
+
+def _configs(robot: Robot, theta: np.ndarray) -> np.ndarray:
+    from sixplus3.identification.base import states_of
+
+    q, _ = states_of(robot, theta)
+    return q
+
+
+__all__ = ["GAIN", "MODEL_SIGMA", "N_SIGMA", "StateModel", "V_BAND", "WrenchEstimate",
+           "estimate", "momentum_observer", "to_tcp", "torque_sigma", "wrench_map"]
+
+
+class WrenchStream:
+    """The momentum observer fed one sample at a time, for a 1 kHz controller:
+    ``update(theta, tau)`` -> (wrench (6,), std (6,), band (6,), contact).
+
+    Small matrices on a multi-threaded BLAS cost more in thread hand-offs than in work
+    (measured: 7.7 ms a sample with another process busy, 0.9 ms on one thread), so the
+    stream limits this process's BLAS to one thread when it is built, as a real-time
+    loop would (``threadpoolctl``).
+
+    The velocity is causal here: the encoder's difference through a second-order
+    Butterworth low-pass at rate / 8 (its group delay, about 0.3 ms at 1 kHz, is the
+    price of running online; the offline :func:`estimate` filters without lag).  The
+    drive's torque is taken as held over the previous tick.  Cost per sample:
+    BENCHMARKS.md, "Sensorless touch"."""
+
+    def __init__(self, robot: Robot, rate: float, gain: float = GAIN,
+                 monitor_noise: float = 0.005, model_sigma: float = MODEL_SIGMA,
+                 v_band: float = V_BAND, n_sigma: float = N_SIGMA) -> None:
+        from scipy import signal
+        from threadpoolctl import threadpool_limits
+
+        self.robot = require_robot(robot)
+        self._blas = threadpool_limits(limits=1, user_api="blas")  # held with the stream
+        if not (isinstance(rate, (int, float)) and math.isfinite(rate)
+                and MIN_RATE <= rate <= 20000.0):
+            raise InputError(f"rate must be in [{MIN_RATE:g}, 20000] Hz, got {rate!r}",
+                             value=rate, valid=f"[{MIN_RATE:g}, 20000] Hz")
+        if not (isinstance(gain, (int, float)) and math.isfinite(gain)
+                and 1.0 <= gain <= min(2000.0, 2 * math.pi * rate / 4)):
+            raise InputError(f"gain must be in [1, {min(2000.0, 2 * math.pi * rate / 4):g}]"
+                             f"/s, got {gain!r}", value=gain, valid="a positive gain")
+        self.dt, self.gain = 1.0 / rate, float(gain)
+        self.model = SingleState(self.robot)
+        b, a = signal.butter(2, rate / 8.0, fs=rate)
+        self._b, self._a = b, a
+        self._z = np.zeros((2, 9))  # the biquad's state (transposed direct form II)
+        self._prev_theta: np.ndarray | None = None
+        self._prev_tau: np.ndarray | None = None
+        self._prev_M: np.ndarray | None = None
+        self._p0: np.ndarray | None = None
+        self._integral = np.zeros(9)
+        self._r = np.zeros(9)
+        sig = torque_sigma(self.robot, monitor_noise)
+        self._var = np.full(9, sig ** 2 * self.gain * self.dt / 2.0 + model_sigma ** 2)
+        self._fc = self.robot.motors.coulomb_per_joint
+        self.v_band, self.n_sigma = v_band, n_sigma
+
+    def _velocity(self, theta: np.ndarray) -> np.ndarray:
+        raw = np.zeros(9) if self._prev_theta is None else (theta - self._prev_theta) / self.dt
+        b, a, z = self._b, self._a, self._z
+        y = b[0] * raw + z[0]
+        z[0] = b[1] * raw - a[1] * y + z[1]
+        z[1] = b[2] * raw - a[2] * y
+        return y
+
+    def update(self, theta: np.ndarray, tau: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+        theta = np.asarray(theta, dtype=float).reshape(9)
+        tau = np.asarray(tau, dtype=float).reshape(9)
+        if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(tau))):
+            raise InputError("theta and tau must be 9 finite numbers each", value=None,
+                             valid="finite")
+        thd = self._velocity(theta)
+        J, M, h, _ = self.model.state(theta, thd)
+        held = tau if self._prev_tau is None else 0.5 * (tau + self._prev_tau)
+        p = M @ thd
+        if self._p0 is None:
+            self._p0 = p
+        else:
+            assert self._prev_M is not None
+            mdot = (M - self._prev_M) @ thd / self.dt
+            self._integral += (held - h + mdot + self._r) * self.dt
+            self._r = self.gain * (p - self._p0 - self._integral)
+        self._prev_theta, self._prev_tau, self._prev_M = theta, tau, M
+        A = J.T[:6]
+        w = A @ self._r
+        std = np.sqrt((A ** 2) @ self._var)
+        band = np.abs(A) @ ((np.abs(thd) < self.v_band) * self._fc)
+        return w, std, band, bool(np.any(np.abs(w) > self.n_sigma * std + band))

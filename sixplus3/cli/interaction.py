@@ -1,0 +1,140 @@
+"""The ``sixplus3 wrench`` and ``wrench-resolution`` commands (docs/interaction.md)."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from sixplus3.cli.app import FLOAT, check_output, current_robot, emit, json_default, main
+
+
+@main.command()
+@click.argument("log", type=click.Path())
+@click.option("-o", "--out", "out_file", default=None, type=click.Path(dir_okay=False),
+              help="Write the wrench CSV here (t, fx, fy, fz, mx, my, mz, their standard "
+                   "deviations and friction bands, the crank residual, the contact flag).")
+@click.option("--at", "at", type=click.Choice(["centre", "tcp"]), default="centre",
+              show_default=True, help="Reduce the wrench to the platform centre or the TCP.")
+@click.option("--gain", default=150.0, show_default=True, type=FLOAT,
+              help="The momentum observer's gain [1/s] (95 % of a step in 3/gain s).")
+@click.option("--noise", default=0.005, show_default=True, type=FLOAT,
+              help="The torque monitor's noise, one standard deviation [N m].")
+@click.option("--model-sigma", default=0.01, show_default=True, type=FLOAT,
+              help="The model's torque error, one standard deviation [N m per joint].")
+@click.option("--plot", "plot_file", default=None, type=click.Path(dir_okay=False),
+              help="A PNG of the wrench over time with its uncertainty band.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def wrench(log: str, out_file: str | None, at: str, gain: float, noise: float,
+           model_sigma: float, plot_file: str | None, as_json: bool) -> None:
+    """The wrench a person applies to the platform, from a drive log alone (a momentum
+    observer on the closed-loop dynamics; the direct residual for comparison)."""
+    from sixplus3.control.drive_log import read_log
+    from sixplus3.interaction.wrench import estimate
+
+    check_output(out_file, (log,))
+    check_output(plot_file, (log,))
+    robot = current_robot()
+    est = estimate(read_log(log, robot), robot, gain=gain, at=at, monitor_noise=noise,
+                   model_sigma=model_sigma)
+    if out_file is not None:
+        emit(_csv(est), out_file, (log,))
+    if plot_file is not None:
+        _plot(est, plot_file, robot.name)
+    summary = {"log": log, "robot": robot.name, **est.summary()}
+    if as_json:
+        click.echo(json.dumps(summary, default=json_default))
+        return
+    click.echo(f"{log}: wrench at the platform {'centre' if at == 'centre' else 'TCP'} over "
+               f"{len(est.t)} samples; max |f| {summary['max_force_n']:.3f} N, max |m| "
+               f"{summary['max_moment_n_m']:.4f} N m; contact in "
+               f"{summary['contact_samples']} samples")
+    s, b = summary["median_std"], summary["max_friction_band"]
+    click.echo("  standard deviation (median) f " + " ".join(f"{x:.3f}" for x in s[:3])
+               + " N, m " + " ".join(f"{x:.4f}" for x in s[3:]) + " N m")
+    click.echo("  dry friction band at rest (up to) f " + " ".join(f"{x:.3f}" for x in b[:3])
+               + " N, m " + " ".join(f"{x:.4f}" for x in b[3:]) + " N m: a hold cannot "
+               "feel less than this")
+    click.echo(f"  crank residual up to {summary['max_crank_residual_n_m']:.4f} N m (a model "
+               "error or a force on a crank)")
+
+
+def _csv(est) -> str:
+    cols = ["t", "fx", "fy", "fz", "mx", "my", "mz"]
+    head = cols + [f"std_{c}" for c in cols[1:]] + [f"band_{c}" for c in cols[1:]] + \
+        ["crank0", "crank1", "crank2", "contact"]
+    lines = [f"# sixplus3 wrench: {est.at}, base frame, N and N m; observer gain "
+             f"{est.gain:g}/s; " + " ".join(est.notes), ",".join(head)]
+    for k in range(len(est.t)):
+        row = [est.t[k], *est.wrench[k], *est.std[k], *est.band[k], *est.crank[k]]
+        lines.append(",".join(repr(float(x)) for x in row) + f",{int(est.contact[k])}")
+    return "\n".join(lines) + "\n"
+
+
+def _plot(est, path: str, name: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from sixplus3.fileio import atomic_write_with
+
+    fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    colors = ("tab:red", "tab:green", "tab:blue")
+    for row, (lo, unit) in enumerate(((0, "N"), (3, "N m"))):
+        ax = axes[row]
+        for k in range(3):
+            c = lo + k
+            lab = ("f" if row == 0 else "m") + "xyz"[k]
+            ax.plot(est.t, est.wrench[:, c], color=colors[k], lw=1, label=lab)
+            half = 4 * est.std[:, c] + est.band[:, c]
+            ax.fill_between(est.t, est.wrench[:, c] - half, est.wrench[:, c] + half,
+                            color=colors[k], alpha=0.15, lw=0)
+        ax.set_ylabel(f"[{unit}]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="upper right")
+    on = est.contact
+    axes[0].fill_between(est.t, 0, 1, where=on, transform=axes[0].get_xaxis_transform(),
+                         color="k", alpha=0.07, lw=0)
+    axes[1].set_xlabel("t [s]")
+    fig.suptitle(f"{name}: external wrench at the platform {est.at} (shaded: 4 std + dry "
+                 "friction band; grey: contact)", fontsize=10)
+    fig.tight_layout()
+    atomic_write_with(path, lambda p: fig.savefig(p, dpi=90, format="png"))
+    plt.close(fig)
+
+
+@main.command("wrench-resolution")
+@click.option("-o", "--out", "out_file", required=True, type=click.Path(dir_okay=False),
+              help="The map (PNG).")
+@click.option("--step", default=0.01, show_default=True, type=FLOAT, help="Grid step [m].")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def wrench_resolution(out_file: str, step: float, as_json: bool) -> None:
+    """The smallest force the robot can feel, at home and over the constant-orientation
+    workspace at the home height (a map), at rest and while moving."""
+    import numpy as np
+
+    from sixplus3.errors import InputError
+    from sixplus3.interaction.resolution import plot_resolution_map, resolution
+
+    if not 0.002 <= step <= 0.05:
+        raise InputError(f"--step must be in [0.002, 0.05] m, got {step:g}", value=step,
+                         valid="[0.002, 0.05] m")
+    robot = current_robot()
+    home = resolution(robot, robot.home_position)
+    stats = plot_resolution_map(robot, out_file, step=step)
+    out = {"home_at_rest": home.at_rest.tolist(), "home_moving": home.moving.tolist(),
+           "map": stats, "file": out_file}
+    if as_json:
+        click.echo(json.dumps(out, default=json_default))
+        return
+    click.echo(f"at home, at rest: f {np.round(home.at_rest[:3], 3).tolist()} N, m "
+               f"{np.round(home.at_rest[3:], 4).tolist()} N m; while moving: f "
+               f"{np.round(home.moving[:3], 3).tolist()} N, m "
+               f"{np.round(home.moving[3:], 4).tolist()} N m")
+    click.echo(f"map {out_file}: {stats['points']} poses; at rest {stats['at_rest_n'][0]:.2f}"
+               f"-{stats['at_rest_n'][2]:.2f} N (median {stats['at_rest_n'][1]:.2f}); "
+               f"moving {stats['moving_n'][0]:.3f}-{stats['moving_n'][2]:.3f} N")
+
+
+__all__ = ["wrench", "wrench_resolution"]
