@@ -350,3 +350,69 @@ def test_cli_identify_estimate_and_check(excitation, validation_plan, tmp_path) 
     r = run.invoke(cli, ["identify", "estimate", str(bad), "-o", str(tmp_path / "x.yaml")])
     assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1, r.output
     assert not (tmp_path / "x.yaml").exists()
+
+
+def test_a_rosbag2_joint_states_log(tmp_path) -> None:
+    """A bag of sensor_msgs/JointState with the nine actuated joints' positions and
+    efforts (a lab's ros2_control broadcaster) reads as the same log."""
+    pytest.importorskip("rosbags")
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    T = store.types
+    names = [f"leg{i}_{s}" for i in range(3) for s in "ABC"]
+    rng = np.random.default_rng(3)
+    n = 300
+    th = 1.5 + 0.01 * rng.normal(size=(n, 9))
+    tau = rng.normal(size=(n, 9))
+    bag = tmp_path / "bag"
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        c = w.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=store)
+        for k in range(n):
+            ns = 5_000_000_000 + k * 1_000_000  # stamps from 5 s, at 1 kHz
+            msg = T["sensor_msgs/msg/JointState"](
+                header=T["std_msgs/msg/Header"](
+                    stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9,
+                                                           nanosec=ns % 10**9),
+                    frame_id="base_link"),
+                name=names[::-1], position=th[k, ::-1].copy(), velocity=np.zeros(0),
+                effort=tau[k, ::-1].copy())
+            w.write(c, ns, store.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+    log = read_log(bag, ROBOT)
+    assert np.allclose(log.theta, th) and np.allclose(log.tau, tau)
+    assert log.rate == pytest.approx(1000.0) and log.t[0] == 0.0
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(InputError):
+        read_log(empty, ROBOT)
+
+
+def test_the_wrench_on_a_perturbed_plant_with_its_identified_robot(excitation, tmp_path) -> None:
+    """Sensorless touch on a plant of seed 7 with the robot identified on it: a held
+    push is estimated inside the band the estimate states, and better than with the
+    nominal model."""
+    pytest.importorskip("mujoco")
+    from sixplus3.control.pipeline import run_plan
+    from sixplus3.control.plant import WrenchProfile, run_on_plant
+    from sixplus3.identification.identify import identify
+    from sixplus3.interaction.wrench import estimate
+    from sixplus3.planner.task import task_from_dict
+
+    plant = perturbed_plant(ROBOT, 7)
+    idf = identify([run_on_plant(excitation.path, ROBOT, plant, seed=7).log], ROBOT)
+    small = run_plan(task_from_dict({"name": "small", "nodes_per_segment": 6, "waypoints": [
+        {"position": [0, 0, 0.58]}, {"position": [0.01, 0, 0.58]}]}), tmp_path, ROBOT,
+        html=False, plots=False).csv
+    push = np.array([0.0, -10.0, 0.0, 0.3, 0.0, 0.0])
+    prof = WrenchProfile(np.array([0.0, 0.6, 1.4]), np.array([np.zeros(6), push,
+                                                               np.zeros(6)]))
+    run = run_on_plant(small, ROBOT, plant, seed=8, hold=1.6, wrench=prof)
+    on = (run.log.t > 0.7) & (run.log.t < 1.35)
+    est = estimate(run.log, idf.robot)
+    err = np.abs(est.wrench[on] - push)
+    assert np.all(err <= 4 * est.std[on] + est.band[on])
+    nominal = estimate(run.log, ROBOT)
+    e_id = np.sqrt(np.mean(np.sum(err[:, :3] ** 2, axis=1)))
+    e_nom = np.sqrt(np.mean(np.sum((nominal.wrench[on] - push)[:, :3] ** 2, axis=1)))
+    assert e_id < e_nom, (e_id, e_nom)
