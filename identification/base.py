@@ -156,7 +156,7 @@ def base_parameters(robot: Robot, n: int = BASE_SAMPLES, seed: int = 0) -> BaseP
     states (cached per process by the robot's hash)."""
     from sixplus3.cache import cached
 
-    return cached(("base-parameters", robot.hash, n, seed),
+    return cached(("base-parameters", f"{robot.hash}:{n}:{seed}"),
                   lambda: _base_parameters(robot, n, seed))
 
 
