@@ -45,6 +45,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--excitation", default="out/bench_identification/excitation.csv")
     ap.add_argument("--out", default="out/bench_wrench")
+    ap.add_argument("--stream-only", action="store_true",
+                    help="Only the streaming form's cost per sample.")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -53,8 +55,8 @@ def main() -> None:
     slow = run_plan(task_from_dict(SLOW), out, robot, html=False, plots=False).csv
     push = np.array([10.0, 0, 0, 0, 0, 0.5])
     moving = np.array([0.0, 8.0, -5.0, 0, 0, 0.3])
-    cases = [("nominal plant", robot, robot)]
-    if Path(args.excitation).exists():
+    cases = [] if args.stream_only else [("nominal plant", robot, robot)]
+    if Path(args.excitation).exists() and not args.stream_only:
         from sixplus3.identification.identify import identify
         from sixplus3.identification.plants import perturbed_plant
 
@@ -90,6 +92,8 @@ def main() -> None:
     stream = {"median_us": 1e6 * statistics.median(per[10:]),
               "p99_us": 1e6 * float(np.percentile(per[10:], 99)), "samples": len(per)}
     print("stream", json.dumps(stream))
+    if args.stream_only:
+        return
     home = resolution(robot, robot.home_position)
     stats = plot_resolution_map(robot, str(out / "resolution.png"))
     summary = {"errors": rows, "stream": stream,

@@ -45,6 +45,7 @@ class LeastSquares:
     weights: np.ndarray  # (N,) the final row weights (WLS x Huber)
     condition: float  # of the weighted, column-scaled base regressor
     iterations: int = 0
+    cov: np.ndarray | None = None  # (r, r) covariance of beta [SI^2]
 
     @property
     def relative_std(self) -> np.ndarray:
@@ -111,18 +112,19 @@ def least_squares(Wb: np.ndarray, tau: np.ndarray, joint: np.ndarray | None = No
     res_w = (tau - Wb @ beta) * w
     dof = max(N - r, 1)
     s2 = float(res_w @ res_w) / dof
+    cov: np.ndarray | None
     try:
         cov = s2 * np.linalg.inv(gram)
         std = np.sqrt(np.maximum(np.diag(cov), 0.0))
     except np.linalg.LinAlgError:
-        std = np.full(r, np.inf)
+        cov, std = None, np.full(r, np.inf)
     res = tau - Wb @ beta
     sigma = _rms_by_joint(res, joint, n_joints)
     d = np.sqrt(np.maximum(np.diag(gram), 1e-300))
     ev = np.linalg.eigvalsh(gram / d[:, None] / d[None, :])
     cond = float(math.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else math.inf
     return LeastSquares(beta=beta, std=std, sigma=sigma, weights=w, condition=cond,
-                        iterations=it)
+                        iterations=it, cov=cov)
 
 
 def _rms_by_joint(res: np.ndarray, joint: np.ndarray, n: int) -> np.ndarray:

@@ -71,9 +71,22 @@ def write_report(out_dir: str | Path, idf: Identification, logs: list[DriveLog],
         name = f"torques_{Path(validation.name).stem[:60]}_validation.png"
         _plot_torques(out / name, validation, idf.robot, nominal)
         files.append(name)
+    if idf.ls.cov is not None:  # the base parameters' confidence, for `sixplus3 wrench`
+        save_parameters(out / "parameters.npz", idf)
+        files.append("parameters.npz")
     summary["files"] = files + ["summary.json"]
     atomic_write(out / "summary.json", (json.dumps(summary, indent=1) + "\n").encode())
     return summary
+
+
+def save_parameters(path: Path, idf: Identification) -> None:
+    """The base parameters' definition, estimate and covariance (``np.load``-able):
+    ``index`` (the base columns), ``beta``, ``cov``, ``robot_hash``."""
+    assert idf.ls.cov is not None
+    buf = io.BytesIO()
+    np.savez(buf, index=idf.base.index, beta=idf.beta_consistent, cov=idf.ls.cov,
+             robot_hash=np.array(idf.robot.hash))
+    atomic_write(path, buf.getvalue())
 
 
 def _plot_torques(path: Path, log: DriveLog, robot: Robot, nominal: Robot) -> None:

@@ -153,6 +153,8 @@ class SingleState:
         m = self.dyn.model
         self._pin = pin
         self._q: np.ndarray | None = None
+        self._G: np.ndarray | None = None
+        self._theta: np.ndarray | None = None
         ff = next(j for j in range(1, m.njoints) if m.joints[j].nq == 7)
         self._ffq, self._ffv = m.joints[ff].idx_q, m.joints[ff].idx_v
         self._crank_v = [m.joints[m.getJointId(f"platform_crank{i}")].idx_v
@@ -165,7 +167,11 @@ class SingleState:
         from scipy.linalg import lapack
 
         pin, dyn = self._pin, self.dyn
-        fk = robot_fk(theta, self.robot, q_hint=self._q, model=dyn.clm)
+        hint = self._q
+        if hint is not None and self._G is not None and self._theta is not None:
+            # first-order prediction along the closures: one Newton step is then enough
+            hint = pin.integrate(dyn.model, hint, self._G @ (theta - self._theta))
+        fk = robot_fk(theta, self.robot, q_hint=hint, model=dyn.clm, tol=1e-9)
         q = self._q = fk.q
         m, d, act, pas = dyn.model, dyn.data, dyn.clm.idx_v_act, dyn.clm.idx_v_pas
         Jc = dyn.clm.constraint_jacobian(q)  # one Jacobian for G, the drift and h
@@ -188,6 +194,7 @@ class SingleState:
         vf = self._ffv
         B = np.vstack([R @ G[vf:vf + 3], R @ G[vf + 3:vf + 6], G[self._crank_v]])
         J = np.linalg.inv(B)
+        self._G, self._theta = G, np.array(theta, dtype=float)
         return J, M, h, R @ self._tool
 
 
@@ -222,8 +229,12 @@ def momentum_observer(t: np.ndarray, tau: np.ndarray, theta_dot: np.ndarray,
 def estimate(log: DriveLog, robot: Robot, gain: float = GAIN, at: str = "centre",
              monitor_noise: float = 0.005, model_sigma: float = MODEL_SIGMA,
              v_band: float = V_BAND, n_sigma: float = N_SIGMA,
-             direct: bool = True) -> WrenchEstimate:
-    """The wrench on the platform over ``log`` (module doc)."""
+             direct: bool = True,
+             parameter_cov: tuple[np.ndarray, np.ndarray] | None = None) -> WrenchEstimate:
+    """The wrench on the platform over ``log`` (module doc).  ``parameter_cov``: (the
+    base columns, the covariance of the base parameters) of an identification
+    (``--report DIR``'s ``parameters.npz``): each sample's torque variance then adds
+    Y_b Sigma Y_b^T, the parameters' confidence at that state."""
     from scipy import signal
 
     robot = require_robot(robot)
@@ -259,8 +270,12 @@ def estimate(log: DriveLog, robot: Robot, gain: float = GAIN, at: str = "centre"
     w, crank = full[:, :6], full[:, 6:]
     sig = torque_sigma(robot, monitor_noise)
     s_obs = sig * math.sqrt(gain * dt / 2.0)  # white noise through the first-order filter
-    var = np.full(9, s_obs ** 2 + model_sigma ** 2)
-    std = np.sqrt(np.einsum("nij,j->ni", A[:, :6, :] ** 2, var))
+    var = np.broadcast_to(np.full(9, s_obs ** 2 + model_sigma ** 2), (len(log.t), 9))
+    if parameter_cov is not None:
+        var = var + parameter_variance(robot, log.theta, thd, parameter_cov)
+    # the encoder's quantisation (uniform over a count) through the bias's sensitivity is
+    # below 1e-6 N m at the joint: not added
+    std = np.sqrt(np.einsum("nij,nj->ni", A[:, :6, :] ** 2, var))
     fc = robot.motors.coulomb_per_joint
     slow = np.abs(thd) < v_band
     band = np.einsum("nij,nj->ni", np.abs(A[:, :6, :]), slow * fc)
@@ -293,6 +308,33 @@ def estimate(log: DriveLog, robot: Robot, gain: float = GAIN, at: str = "centre"
              "tell from a push"]
     return WrenchEstimate(t=log.t.copy(), wrench=w, std=std, band=band, crank=crank,
                           contact=contact, direct=out_direct, at=at, gain=gain, notes=notes)
+
+
+def parameter_variance(robot: Robot, theta: np.ndarray, theta_dot: np.ndarray,
+                       parameter_cov: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """(n, 9) the variance of each joint's model torque from the base parameters'
+    covariance: diag(Y_b Sigma Y_b^T) at each sample (its acceleration taken as zero: a
+    hold's or a slow motion's dominant terms, gravity and friction)."""
+    from sixplus3.identification.base import base_parameters, stacked_regressor
+
+    index, cov = (np.asarray(x, dtype=float) for x in parameter_cov)
+    base = base_parameters(robot)
+    if index.shape != base.index.shape or np.any(index != base.index):
+        raise InputError("the parameters' covariance is of another base (another robot "
+                         "structure)", value=index.shape, valid=f"({base.rank},) base columns")
+    if cov.shape != (base.rank, base.rank) or not np.all(np.isfinite(cov)):
+        raise InputError("the parameters' covariance has the wrong shape", value=cov.shape,
+                         valid=f"({base.rank}, {base.rank}) finite")
+    out = np.empty((len(theta), 9))
+    step = 2000
+    for i in range(0, len(theta), step):
+        sl = slice(i, i + step)
+        from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+
+        Wb = base.reduce(stacked_regressor(ClosedLoopDynamics(robot), theta[sl],
+                                           theta_dot[sl], np.zeros_like(theta_dot[sl])))
+        out[sl] = np.einsum("nja,ab,njb->nj", Wb, cov, Wb)
+    return np.maximum(out, 0.0)
 
 
 def _configs(robot: Robot, theta: np.ndarray) -> np.ndarray:

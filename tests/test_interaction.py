@@ -175,3 +175,32 @@ def test_cli_wrench_and_resolution(hold_file, tmp_path) -> None:
 
     res = json.loads(r.output)
     assert 0 < res["home_moving"][0] < res["home_at_rest"][0]
+
+
+def test_the_parameters_confidence_widens_the_uncertainty(hold_file, tmp_path) -> None:
+    """With an identification's covariance, each sample's standard deviation adds the
+    parameters' confidence at that state (never less than without it), and the CLI
+    takes the report's parameters.npz."""
+    pytest.importorskip("mujoco")
+    from sixplus3.control.drive_log import write_log
+    from sixplus3.control.plant import run_on_plant
+    from sixplus3.identification.base import base_parameters
+
+    run = run_on_plant(hold_file, ROBOT, ROBOT, seed=4, hold=0.5)
+    base = base_parameters(ROBOT)
+    cov = np.eye(base.rank) * 1e-6
+    plain = estimate(run.log, ROBOT, direct=False)
+    wide = estimate(run.log, ROBOT, direct=False, parameter_cov=(base.index, cov))
+    assert np.all(wide.std >= plain.std - 1e-15) and np.any(wide.std > 1.01 * plain.std)
+    with pytest.raises(InputError, match="another base"):
+        estimate(run.log, ROBOT, parameter_cov=(base.index[:-1], cov))
+    npz = tmp_path / "parameters.npz"
+    np.savez(npz, index=base.index, beta=np.zeros(base.rank), cov=cov)
+    log = tmp_path / "log.csv"
+    write_log(log, run.log, ROBOT)
+    r = CliRunner().invoke(cli, ["wrench", str(log), "--parameters", str(npz), "--json"])
+    assert r.exit_code == 0, r.output
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a npz")
+    r = CliRunner().invoke(cli, ["wrench", str(log), "--parameters", str(bad)])
+    assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1, r.output

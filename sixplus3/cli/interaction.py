@@ -24,9 +24,14 @@ from sixplus3.cli.app import FLOAT, check_output, current_robot, emit, json_defa
               help="The model's torque error, one standard deviation [N m per joint].")
 @click.option("--plot", "plot_file", default=None, type=click.Path(dir_okay=False),
               help="A PNG of the wrench over time with its uncertainty band.")
+@click.option("--parameters", "parameters_file", default=None,
+              type=click.Path(dir_okay=False),
+              help="An identification's parameters.npz (identify estimate --report DIR): "
+                   "the parameters' confidence enters each sample's uncertainty.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 def wrench(log: str, out_file: str | None, at: str, gain: float, noise: float,
-           model_sigma: float, plot_file: str | None, as_json: bool) -> None:
+           model_sigma: float, plot_file: str | None, parameters_file: str | None,
+           as_json: bool) -> None:
     """The wrench a person applies to the platform, from a drive log alone (a momentum
     observer on the closed-loop dynamics; the direct residual for comparison)."""
     from sixplus3.control.drive_log import read_log
@@ -35,8 +40,11 @@ def wrench(log: str, out_file: str | None, at: str, gain: float, noise: float,
     check_output(out_file, (log,))
     check_output(plot_file, (log,))
     robot = current_robot()
+    cov = None
+    if parameters_file is not None:
+        cov = _load_parameters(parameters_file)
     est = estimate(read_log(log, robot), robot, gain=gain, at=at, monitor_noise=noise,
-                   model_sigma=model_sigma)
+                   model_sigma=model_sigma, parameter_cov=cov)
     if out_file is not None:
         emit(_csv(est), out_file, (log,))
     if plot_file is not None:
@@ -57,6 +65,24 @@ def wrench(log: str, out_file: str | None, at: str, gain: float, noise: float,
                "feel less than this")
     click.echo(f"  crank residual up to {summary['max_crank_residual_n_m']:.4f} N m (a model "
                "error or a force on a crank)")
+
+
+def _load_parameters(path: str):
+    import io
+
+    import numpy as np
+
+    from sixplus3.errors import InputError
+    from sixplus3.fileio import read_bytes
+
+    try:
+        with np.load(io.BytesIO(read_bytes(path, "parameters file", 64 << 20)),
+                     allow_pickle=False) as z:
+            return np.array(z["index"]), np.array(z["cov"])
+    except (OSError, ValueError, KeyError) as exc:
+        raise InputError(f"{path} is not an identification's parameters.npz "
+                         f"({type(exc).__name__})", value=path,
+                         valid="identify estimate --report DIR's parameters.npz") from None
 
 
 def _csv(est) -> str:
