@@ -62,8 +62,6 @@ def robot_with_parameters(robot: Robot, pi: np.ndarray, layout: Layout,
                           name: str | None = None) -> Robot:
     """``robot`` realising the parameters ``pi``: each body's inertial (the payload's
     share taken out of the platform's), each joint's rotor inertia and friction."""
-    from sixplus3.robot_description.physical import Payload
-
     robot = require_robot(robot)
     pi = np.asarray(pi, dtype=float)
     if pi.shape != (layout.size,) or not np.all(np.isfinite(pi)):
@@ -77,16 +75,19 @@ def robot_with_parameters(robot: Robot, pi: np.ndarray, layout: Layout,
             p = p - _payload_parameters(pl)
         bodies[link] = body_to_inertial(p)
     mot = pi[N_BODY * len(layout.bodies):].reshape(-1, N_MOTOR)
-    motors = MotorModel(**{**{k: getattr(robot.motors, k) for k in
-                              ("model", "rotor_inertia", "gear_ratio", "viscous", "coulomb",
-                               "coulomb_velocity", "encoder_bits", "rated_torque",
-                               "zero_offsets", "directions")},
-                           "joint_armature": tuple(float(x) for x in mot[:, 0]),
-                           "joint_viscous": tuple(float(x) for x in mot[:, 1]),
-                           "joint_coulomb": tuple(float(x) for x in mot[:, 2])})
-    _ = Payload  # the payload stays the robot's own
+    motors = per_joint_motors(robot.motors, mot[:, 0], mot[:, 1], mot[:, 2])
     return robot.replace(inertials=BodyInertials(bodies=tuple(bodies.items())),
                          motors=motors, name=name or robot.name)
+
+
+def per_joint_motors(motors: MotorModel, armature: np.ndarray, viscous: np.ndarray,
+                     coulomb: np.ndarray) -> MotorModel:
+    """``motors`` with each joint's rotor inertia at the joint and friction set."""
+    from dataclasses import replace
+
+    return replace(motors, joint_armature=tuple(float(x) for x in armature),
+                   joint_viscous=tuple(float(x) for x in viscous),
+                   joint_coulomb=tuple(float(x) for x in coulomb))
 
 
 def _payload_parameters(pl) -> np.ndarray:
@@ -122,15 +123,10 @@ def perturbed_plant(robot: Robot, seed: int, mass: float = 0.3, com: float = 0.0
     arm = mot.armature_per_joint * (1.0 + rng.uniform(-rotor, rotor, 9))
     visc = mot.viscous_per_joint * rng.uniform(1.0, friction, 9)
     coul = mot.coulomb_per_joint * rng.uniform(1.0, friction, 9)
-    motors = MotorModel(**{**{k: getattr(mot, k) for k in
-                              ("model", "rotor_inertia", "gear_ratio", "viscous", "coulomb",
-                               "coulomb_velocity", "encoder_bits", "rated_torque",
-                               "zero_offsets", "directions")},
-                           "joint_armature": tuple(float(x) for x in arm),
-                           "joint_viscous": tuple(float(x) for x in visc),
-                           "joint_coulomb": tuple(float(x) for x in coul)})
+    motors = per_joint_motors(mot, arm, visc, coul)
     return robot.replace(inertials=BodyInertials(bodies=tuple(bodies.items())),
                          motors=motors, name=name or f"plant-seed{seed}")
 
 
-__all__ = ["body_to_inertial", "link_inertials", "perturbed_plant", "robot_with_parameters"]
+__all__ = ["body_to_inertial", "link_inertials", "per_joint_motors", "perturbed_plant",
+           "robot_with_parameters"]
