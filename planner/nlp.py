@@ -10,6 +10,7 @@ those bounds and returns a :class:`Solution` with its dense re-check, or raises
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -20,6 +21,7 @@ from sixplus3.errors import InfeasibleTaskError
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import Solution, actuated_profile, sample_cubic, stretch_factors
 from sixplus3.planner.solvers import ipopt_solver, keyboard_interrupts
+from sixplus3.planner.tcp_rows import tcp_rates_at
 from sixplus3.planner.transcription import (
     CLEARANCE_ROWS,
     NODE_ROWS,
@@ -32,6 +34,10 @@ from sixplus3.robot_description.limits import Limits
 
 #: limits that a uniform time stretch lowers; the NLP bounds each at a share of its limit
 RATE_LIMITS = ("torque", "velocity", "acceleration")
+#: the share of the tool centre point's speed and acceleration limits that the NLP's
+#: rows allow at its points (the dense check sees between them; :func:`strategy.finish`
+#: stretches what little it finds over)
+TCP_SAFETY = 0.98
 
 
 def uniform_safety(value: float) -> dict[str, float]:
@@ -108,7 +114,27 @@ def start_point(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
             T0, xd0, xdd0 = T0 * a, xd0 / a, xdd0 / a**2
             pts = (pts[0], pts[1] / a, pts[2] / a**2)  # the same cubics, slower
             profile = actuated_profile(problem.robot, *pts)
+    if problem.motion_limits.has_tcp and duration is None and (
+            warm is None or warm.nlp_point is None):
+        # a start over the platform-space limits (the guess, a plan timed to the joint
+        # limits) slowed uniformly to just inside the rows
+        a = tcp_stretch(problem, *pts, 0.99 * TCP_SAFETY)
+        if a > 1.0:
+            T0, xd0, xdd0 = T0 * a, xd0 / a, xdd0 / a**2
+            pts = (pts[0], pts[1] / a, pts[2] / a**2)
+            profile = actuated_profile(problem.robot, *pts)
     return wp_x, x0, xd0, xdd0, T0, pts, profile
+
+
+def tcp_stretch(problem: Problem, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray,
+                fraction: float, at_least: float = 1.0) -> float:
+    """The uniform time stretch (at least ``at_least``; < 1 compresses) that brings the
+    tool centre point's speed and acceleration at the states (n, 9) to ``fraction`` of
+    the task's platform-space limits (speed scales 1/a, acceleration 1/a^2)."""
+    lim = problem.motion_limits
+    v, acc = tcp_rates_at(problem.robot.tool.xyz, x, xd, xdd)
+    return max(at_least, float(v.max()) / (fraction * lim.tcp_speed),
+               math.sqrt(float(acc.max()) / (fraction * lim.tcp_acceleration)))
 
 
 def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
@@ -141,6 +167,12 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
             lbg[first + CLEARANCE_ROWS.start:first + CLEARANCE_ROWS.stop] = \
                 bounds.clearance_waypoints
     ubg = np.r_[np.zeros(18 * N), np.tile(ub, 2 * N + 1), smooth_hi, T_hi]
+    tcp_p = np.zeros(0)
+    if problem.motion_limits.has_tcp:  # the rows of tcp_rows, last
+        lbg = np.r_[lbg, np.full(2 * (2 * N + 1), -np.inf)]
+        ubg = np.r_[ubg, np.full(2 * (2 * N + 1), TCP_SAFETY**2)]
+        tcp_p = np.array([problem.motion_limits.tcp_speed**-2,
+                          problem.motion_limits.tcp_acceleration**-2])
     _, acc0, tau0, _ = profile  # (9, 2N+1): the nodes, then the midpoints
     z0 = np.vstack([x0.T, xd0.T, xdd0.T, tau0[:, :N + 1]])
     w0 = np.clip(np.r_[z0.ravel(order="F"), tau0[:, N + 1:].ravel(order="F"),
@@ -157,7 +189,7 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
         args = {"x0": w0 / D}
     weights = (1.0, 0.0) if duration is None else (0.0, 1.0)
     args.update(p=np.r_[D, lim.jerk, lim.torque_rate, weights,
-                        problem.interval_fractions()], lbx=lbx / D,
+                        problem.interval_fractions(), tcp_p], lbx=lbx / D,
                 ubx=ubx / D, lbg=lbg, ubg=ubg)
     with entry.lock:
         relay = entry.relay
@@ -248,6 +280,11 @@ def active_limits(problem: Problem, x: np.ndarray, xd: np.ndarray, u: np.ndarray
         ("crank angle range", np.maximum(crank_lo / x[:, 6:9], x[:, 6:9] / crank_hi)
          .max(axis=1)),
     ]
+    if problem.motion_limits.has_tcp:
+        v, acc = tcp_rates_at(problem.robot.tool.xyz, x, xd, u)
+        checks += [("tcp speed", v / (TCP_SAFETY * problem.motion_limits.tcp_speed)),
+                   ("tcp acceleration",
+                    acc / (TCP_SAFETY * problem.motion_limits.tcp_acceleration))]
     for name, ratio in checks:
         hit = np.flatnonzero(ratio > 0.995)
         if len(hit):
@@ -283,5 +320,5 @@ def diagnose(problem: Problem, x: np.ndarray, xd: np.ndarray, u: np.ndarray,
             "waypoints")
 
 
-__all__ = ["RATE_LIMITS", "Bounds", "active_limits", "diagnose", "iteration_listener",
-           "point_bounds", "solve_nlp", "start_point", "uniform_safety"]
+__all__ = ["RATE_LIMITS", "TCP_SAFETY", "Bounds", "active_limits", "diagnose", "iteration_listener",
+           "point_bounds", "solve_nlp", "start_point", "tcp_stretch", "uniform_safety"]

@@ -22,6 +22,7 @@ import numpy as np
 from sixplus3.cache import BoundedCache
 from sixplus3.errors import InputError
 from sixplus3.planner.options import PlannerOptions
+from sixplus3.planner.tcp_rows import tcp_function
 from sixplus3.planner.transcription import build_nlp
 
 if TYPE_CHECKING:
@@ -160,7 +161,8 @@ def ipopt_solver(problem: Problem, warm_start: bool = False) -> SolverEntry:
     points on two threads) when a C compiler is available, otherwise CasADi's
     interpreted SX functions (expanded).  The structure depends only on the intervals
     of every segment (:meth:`Problem.segment_intervals`) and the options: every
-    task-specific value is a bound or a parameter.
+    task-specific value is a bound or a parameter; a task with platform-space limits
+    adds their rows (:mod:`sixplus3.planner.tcp_rows`).
     """
     from sixplus3.dynamics.codegen import compiled_functions
 
@@ -168,7 +170,7 @@ def ipopt_solver(problem: Problem, warm_start: bool = False) -> SolverEntry:
     compiled = compiled_functions(problem.robot)
     key = (problem.robot.hash, tuple(problem.segment_intervals()), opt.max_iter, opt.tol,
            opt.constr_viol_tol, opt.regularisation, opt.verbose, opt.ipopt_options,
-           bool(compiled), warm_start)
+           bool(compiled), warm_start, problem.motion_limits.has_tcp)
     return SOLVERS.get(key, lambda: _build(problem, compiled, warm_start))
 
 
@@ -178,8 +180,11 @@ def _build(problem: Problem, compiled: dict[str, ca.Function],
 
     opt = problem.options
     node = compiled.get("node", problem.sr.node)
+    tcp = (tcp_function(problem.robot.tool.xyz) if problem.motion_limits.has_tcp
+           else None)
     tr = build_nlp(node, 2 if compiled else 1,
-                   tuple(int(n) for n in problem.segment_intervals()), opt.regularisation)
+                   tuple(int(n) for n in problem.segment_intervals()), opt.regularisation,
+                   tcp)
     relay = IterationRelay(tr.nw, tr.ng)
     settings: dict[str, Any] = {"expand": not compiled, "print_time": False,
                 "ipopt": ipopt_settings(opt, warm_start), "iteration_callback": relay}

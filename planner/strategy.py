@@ -28,10 +28,16 @@ import numpy as np
 
 from sixplus3.errors import InfeasibleTaskError
 from sixplus3.planner import baseline
-from sixplus3.planner.nlp import RATE_LIMITS, Bounds, active_limits, solve_nlp, uniform_safety
+from sixplus3.planner.nlp import (
+    RATE_LIMITS,
+    Bounds,
+    solve_nlp,
+    uniform_safety,
+)
 from sixplus3.planner.problem import Problem
-from sixplus3.planner.solution import NO_WORK, Solution, actuated_profile
+from sixplus3.planner.solution import NO_WORK, Solution
 from sixplus3.planner.statics import check_crank_sides, choose_static_psi, clearance_needed
+from sixplus3.planner.timing import retime, stretched, tcp_limited
 
 #: [m] of clearance a re-solve asks beyond the overlap the dense check found.  Plans
 #: that slide along contact dip between their points by some hundredths of a mm
@@ -58,6 +64,8 @@ def solve(problem: Problem) -> Solution:
     problem.stage("crank angles at the waypoints chosen; building the stop-at-waypoints "
                   "baseline (TOPP-RA per segment)")
     base, note = baseline.baseline_plan(problem, psi_wp)
+    if base is not None and problem.motion_limits.has_tcp:
+        base = tcp_limited(problem, base)  # the baseline knows the joints' limits only
     bounds = initial_bounds(problem, psi_wp, base)
     problem.stage(f"baseline: {base.final_time:.4f} s" if base is not None else
                   f"no admissible baseline ({note})")
@@ -285,32 +293,6 @@ def finish(problem: Problem, sol: Solution, base: Solution | None, t_wall: float
                        wall_time=time.perf_counter() - t_wall)
 
 
-def tcp_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solution:
-    """``sol`` within the platform-space limits (the tool centre point's speed and
-    acceleration): stretched uniformly in time by the smallest factor that brings both
-    within ``target`` of their limits (the speed scales 1/a, the acceleration 1/a^2,
-    every joint rate and inertial torque with them), then checked against every limit.
-    Without such limits: ``sol`` as it is.  Not time-optimal: the NLP has no rows for
-    these limits."""
-    lim = problem.motion_limits
-    if not lim.has_tcp:
-        return sol
-    if sol.check is None:
-        sol = sol.checked()
-    assert sol.check is not None
-    # the dense check measured the tool centre point on the same samples
-    speed, acc = sol.check.max_tcp_speed, sol.check.max_tcp_acceleration
-    a = max(1.0, speed / (target * lim.tcp_speed),
-            math.sqrt(acc / (target * lim.tcp_acceleration)))
-    if a > 1.0:
-        problem.stage(f"stretching time by {a:.3f} for the tool centre point's limits "
-                      f"({lim.tcp_speed:g} m/s, {lim.tcp_acceleration:g} m/s^2)")
-        by_speed = speed / lim.tcp_speed >= math.sqrt(acc / lim.tcp_acceleration)
-        sol = stretched(problem, sol, a).replace(active_limits=(
-            f"tcp {'speed' if by_speed else 'acceleration'} (uniform stretch {a:.3f})",))
-    return sol.replace(limits=lim).checked()
-
-
 def target_duration(problem: Problem, sol: Solution) -> float | None:
     """The duration the task asks for (None: minimum time); raises if it is shorter than
     the minimum-time plan."""
@@ -331,17 +313,6 @@ def target_duration(problem: Problem, sol: Solution) -> float | None:
             f"({t_min:.4f} s) within the limits", None, "duration", value=target,
             valid=f">= {t_min:.4f} s")
     return float(target)
-
-
-def stretched(problem: Problem, sol: Solution, a: float) -> Solution:
-    """``sol`` with time scaled uniformly by ``a`` (slower for a > 1; the path kept,
-    rates / a, accelerations / a^2, torques recomputed with the whole model),
-    dense-checked."""
-    tau = actuated_profile(problem.robot, sol.x, sol.xd / a, sol.xdd / a**2)[2].T
-    return sol.replace(final_time=sol.final_time * a, segment_times=sol.segment_times * a,
-                       t=sol.t * a, xd=sol.xd / a, xdd=sol.xdd / a**2, tau=tau,
-                       active_limits=(), nlp_point=None,
-                       time_scale=sol.time_scale * a).checked()
 
 
 def fixed_duration(problem: Problem, sol: Solution, target: float, psi_wp: np.ndarray,
@@ -365,33 +336,6 @@ def fixed_duration(problem: Problem, sol: Solution, target: float, psi_wp: np.nd
     if not best.is_feasible():
         return sol  # neither passed: the minimum-time plan and its diagnosis
     return best
-
-
-def retime(problem: Problem, sol: Solution, platform_proxy: float, target: float = 0.995,
-           max_stretch: float = 1.0) -> Solution:
-    """Compress the verified plan uniformly in time up to ``target`` of its limits (or,
-    with ``max_stretch`` > 1, slow down a plan whose torques, rates or accelerations
-    exceed ``target`` by a stretch 1 < a <= ``max_stretch``).
-
-    The NLP bounds the torques at the nodes and midpoints at a safety fraction of the
-    limit, so the verified plan usually keeps 1-2% in reserve everywhere.  Stretching
-    time by a keeps the path (and every margin) and scales theta_dot by 1/a and
-    theta_ddot and the inertial torques by 1/a^2 exactly, so the smallest a that keeps
-    every dense sample within ``target`` of the limits follows in closed form.  The
-    result is re-checked with Pinocchio; if that check fails, ``sol`` itself is returned.
-    """
-    times = np.linspace(0.0, sol.t[-1], (len(sol.t) - 1) * 10 + 1)
-    x, xd, xdd = sol.sample(times)
-    a = float(problem.time_stretch(x, xd, xdd, target).max())
-    wanted = 1.0 < a <= max_stretch if max_stretch > 1.0 else 0.5 < a < 1.0
-    if not wanted:
-        return sol
-    new = stretched(problem, sol, a)
-    if not new.is_feasible():
-        return sol
-    full = Bounds(safety=uniform_safety(1.0), platform_proxy=platform_proxy)
-    return new.replace(active_limits=active_limits(problem, new.x, new.xd, new.xdd, new.tau,
-                                                   new.t, full))
 
 
 __all__ = ["admitting", "finish", "first_solve", "fixed_duration", "initial_bounds",

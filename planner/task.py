@@ -11,6 +11,8 @@ Example (units: m and degrees in the file, SI inside)::
         psi: [90, 90, 90]           # optional crank angles [deg]; free otherwise
         stop: true                  # optional: come to rest here (v = 0, a = 0)
         dwell: 0.5                  # optional: then hold the pose [s] (implies stop)
+    people: collaborative           # optional: a named set of platform limits for work
+                                    # near people (hardware.PEOPLE_LIMITS), tightening
     limits:                         # optional: only tightens the robot's hardware limits
       torque: 9                     # |tau| [N m]            (robot: 10)
       velocity: 10                  # |theta_dot| [rad/s]    (robot: 14.8)
@@ -53,7 +55,7 @@ from scipy.spatial.transform import Rotation
 from sixplus3.errors import GeometryError, InputError, TaskError
 from sixplus3.fileio import read_yaml, short_repr
 from sixplus3.planner.waypoint import Waypoint
-from sixplus3.robot_description.hardware import effective_limits
+from sixplus3.robot_description.hardware import PEOPLE_LIMITS, effective_limits, people_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.physical import Payload, Tool
 from sixplus3.robot_description.robot import MOUNTINGS, Robot
@@ -105,6 +107,7 @@ SCHEMA = {
                 "margin": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1},
             },
         },
+        "people": {"enum": sorted(PEOPLE_LIMITS)},
         "nodes_per_segment": {"type": "integer", "minimum": 4, "maximum": 60},
         "frame": {"enum": ["platform", "tcp"]},
         "start": {
@@ -336,6 +339,8 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
         wps.append(Waypoint(pos, rot, psi, stop=bool(w.get("stop", False)) or dwell > 0,
                             dwell=dwell))
     lim = {k: float(v) for k, v in doc.get("limits", {}).items()}
+    for name, value in people_limits(doc.get("people")).items():  # a named set tightens
+        lim[name] = min(lim.get(name, value), value)
     setup = doc.get("setup", {})
     try:
         payload = Payload(**setup["payload"]) if "payload" in setup else None

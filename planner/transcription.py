@@ -17,6 +17,8 @@ Rows, assembled in :func:`build_nlp`:
   singularity margins, platform margin, clearance.  Their bounds: :func:`node_bounds`;
 - :func:`smoothness_rows`: actuated jerk and torque rate between consecutive points;
 - the total duration (a row: free for minimum time, fixed for a given duration);
+- with platform-space limits only, :func:`tcp_rows.tcp_rows`: the tool centre point's
+  squared speed and acceleration over their limits at every node and midpoint;
 - :func:`objective`: the total duration plus a small regularisation, or the effort.
 
 Waypoints, rest and locked or given crank angles are equal variable bounds
@@ -34,6 +36,7 @@ import casadi as ca
 import numpy as np
 
 from sixplus3.planner.options import ACC_SCALE, ROW_SCALE
+from sixplus3.planner.tcp_rows import tcp_rows
 from sixplus3.robot_description.limits import Limits
 
 if TYPE_CHECKING:
@@ -226,7 +229,8 @@ class Transcription:
     """A built NLP (CasADi's ``{"x", "p", "f", "g"}``) and its sizes.
 
     Parameters p = [D (nw), jerk limit, torque-rate limit, w_time, w_effort, the N
-    interval fractions (:meth:`Problem.interval_fractions`)]."""
+    interval fractions (:meth:`Problem.interval_fractions`)], then with platform-space
+    rows 1 / v_max^2 and 1 / a_max^2 of the tool centre point."""
 
     nlp: dict[str, Any]
     N: int
@@ -236,17 +240,20 @@ class Transcription:
 
 
 def build_nlp(node: ca.Function, threads: int, segments: tuple[int, ...],
-              regularisation: float) -> Transcription:
+              regularisation: float, tcp: ca.Function | None = None) -> Transcription:
     """The NLP of ``len(segments)`` segments of ``segments[s]`` intervals each, with
     ``node`` the path rows' function (compiled, mapped on ``threads``, or CasADi's SX
-    function)."""
+    function); with ``tcp`` (:func:`tcp_rows.tcp_function`), the platform-space rows
+    last (:func:`tcp_rows.tcp_rows`: 2 (2 N + 1) rows, the speeds then the
+    accelerations, at the nodes then the midpoints) and two more parameters
+    (1 / v_max^2, 1 / a_max^2)."""
     S, N = len(segments), sum(segments)
     seg = [s for s, n in enumerate(segments) for _ in range(n)]
     o_taum, o_acc, o_T, nw = layout(N, S)
-    P = ca.MX.sym("p", nw + 4 + N)
+    P = ca.MX.sym("p", nw + 4 + N + (2 if tcp is not None else 0))
     Ws, D = ca.MX.sym("w", nw), P[0:nw]
     jerk_lim, rate_lim, w_time, w_effort = P[nw], P[nw + 1], P[nw + 2], P[nw + 3]
-    frac = P[nw + 4:]
+    frac = P[nw + 4:nw + 4 + N]
     W = Ws * D
     Z = ca.reshape(W[0:o_taum], 36, N + 1)
     TAUM = ca.reshape(W[o_taum:o_acc], 9, N)
@@ -260,6 +267,9 @@ def build_nlp(node: ca.Function, threads: int, segments: tuple[int, ...],
                                   ca.horzcat(U, Um), ca.horzcat(TAU, TAUM)), ACC)
     g = ca.vertcat(ca.vec(integration_rows(X, XD, U, Hm)), ca.vec(G),
                    smoothness_rows(ACC, TAU, TAUM, Hm / 2, jerk_lim, rate_lim), ca.sum1(T))
+    if tcp is not None:
+        g = ca.vertcat(g, tcp_rows(tcp, (ca.horzcat(X, Xm), ca.horzcat(XD, XDm),
+                                         ca.horzcat(U, Um)), P[-2], P[-1]))
     f = objective(T, U, TAU, TAUM, w_time, w_effort, regularisation)
     return Transcription({"x": Ws, "p": P, "f": f, "g": g}, N, S, nw, int(g.numel()))
 

@@ -80,6 +80,16 @@ PEOPLE_LIMITS: dict[str, dict[str, Any]] = {
                   "(about 0.2 g: no standard gives a platform acceleration)"},
 }
 
+def people_limits(name: object) -> dict[str, float]:
+    """The limits of the named set ``name`` of :data:`PEOPLE_LIMITS` (None: none), or a
+    GeometryError naming the known sets."""
+    if name is None:
+        return {}
+    if not isinstance(name, str) or name not in PEOPLE_LIMITS:
+        raise GeometryError("people", name, f"one of {sorted(PEOPLE_LIMITS)}")
+    return {k: float(v) for k, v in PEOPLE_LIMITS[name].items() if k != "source"}
+
+
 #: Environment variable naming the site hardware file.
 ENV = "SIXPLUS3_HARDWARE"
 
@@ -198,11 +208,11 @@ def hardware_from_dict(doc: object, origin: str) -> Hardware:
     key = doc.get("drive_train", DEFAULT_DRIVE_TRAIN)
     env = catalogue_envelope(key) if isinstance(key, str) else catalogue_envelope("?")
     values: dict[str, Any] = {}
-    people = doc.get("people")
-    if people is not None:
-        if not isinstance(people, str) or people not in PEOPLE_LIMITS:
-            raise GeometryError("hardware.people", people, f"one of {sorted(PEOPLE_LIMITS)}")
-        values.update({k: v for k, v in PEOPLE_LIMITS[people].items() if k != "source"})
+    try:
+        values.update(people_limits(doc.get("people")))
+    except GeometryError as exc:
+        raise GeometryError("hardware.people", doc.get("people"),
+                            f"one of {sorted(PEOPLE_LIMITS)}") from exc
     lim = doc.get("limits", {})
     if not isinstance(lim, dict):
         raise GeometryError("hardware.limits", type(lim).__name__, "a mapping of limits")

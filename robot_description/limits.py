@@ -124,8 +124,9 @@ class Limits:
 
     def without_tcp(self) -> Limits:
         """These limits with the platform-space ones at their defaults (none): the
-        planner's NLP does not see them; it meets them by a uniform time stretch
-        afterwards (docs/planner.md, "Platform-space limits")."""
+        joint-space limits of the planner's NLP, which bounds the platform-space ones in
+        rows of their own (:mod:`sixplus3.planner.tcp_rows`; docs/planner.md,
+        "Platform-space limits")."""
         return self.replace_upper(tcp_speed=TCP_SPEED_NONE,
                                   tcp_acceleration=TCP_ACCELERATION_NONE)
 

@@ -34,7 +34,11 @@ from sixplus3.errors import GeometryError
 from sixplus3.robot_description.assembly import AssemblyMode
 from sixplus3.robot_description.collision import CollisionModel
 from sixplus3.robot_description.geometry import GRAVITY, LegGeometry
-from sixplus3.robot_description.hardware import catalogue_envelope, check_robot_limits
+from sixplus3.robot_description.hardware import (
+    catalogue_envelope,
+    check_robot_limits,
+    people_limits,
+)
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.masses import (  # noqa: F401 - re-exported
     POINT_MASS,
@@ -302,7 +306,7 @@ class Robot:
         """
         if not isinstance(doc, dict):
             raise GeometryError("robot", type(doc).__name__, "a mapping of parameters")
-        known = {f.name for f in fields(cls)} | {"mounting", "hash"}
+        known = {f.name for f in fields(cls)} | {"mounting", "hash", "people"}
         _no_unknown("robot", doc, known)
         if "hash" in doc:  # what `robot show --json` prints: checked, not an input
             robot = cls.from_dict({k: v for k, v in doc.items() if k != "hash"})
@@ -332,6 +336,10 @@ class Robot:
             lim = _mapping("limits", doc["limits"])
             _no_unknown("limits", lim, {f.name for f in fields(Limits)})
             kw["limits"] = Limits(**lim)
+        if "people" in doc:  # a named set of platform limits: tightens, is not stored
+            lim_ = kw.get("limits", Limits())
+            kw["limits"] = lim_.replace_upper(**{
+                k: min(v, getattr(lim_, k)) for k, v in people_limits(doc["people"]).items()})
         for key, kind in (("motors", MotorModel), ("payload", Payload), ("tool", Tool),
                           ("collision", CollisionModel)):
             if key in doc:
