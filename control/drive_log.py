@@ -60,6 +60,8 @@ class DriveLog:
     theta_dot: np.ndarray | None = None
     meta: dict[str, Any] = field(default_factory=dict)
     name: str = "log"
+    #: (n, 9) the motors' raw encoder counts, when the log is in the drive's units
+    counts: np.ndarray | None = None
 
     @property
     def rate(self) -> float:
@@ -180,15 +182,43 @@ def parse_log(raw: bytes, robot: Robot, name: str = "log") -> DriveLog:
     vcol = "vel" if joint_units == "pos" else "counts_per_s"
     vel = (np.c_[[data[:, cols[f"{j}_{vcol}"]] for j in JOINTS]].T
            if all(f"{j}_{vcol}" in cols for j in JOINTS) else None)
+    counts = None
     if joint_units == "counts":
+        if np.any(theta != np.rint(theta)) or np.abs(theta).max() > 2.0**62:
+            raise _bad(name, "an encoder count is not a whole number", "integer counts")
+        counts = theta.astype(np.int64)
         theta, vel, tau = from_drive_units(robot, theta, vel, tau)
-    return DriveLog(t=t, theta=theta, tau=tau, theta_dot=vel, meta=meta, name=name)
+    return DriveLog(t=t, theta=theta, tau=tau, theta_dot=vel, meta=meta, name=name,
+                    counts=counts)
+
+
+def counts_per_rad(robot: Robot) -> float:
+    """Motor encoder counts per radian of the joint (the belt ratio times the counts of
+    a motor turn over 2 pi)."""
+    m = robot.motors
+    return float(m.gear_ratio * 2 ** m.encoder_bits / (2 * math.pi))
+
+
+def to_drive_units(robot: Robot, theta: np.ndarray, theta_dot: np.ndarray | None,
+                   tau: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """The drive's own integer units of joint-side samples: (position counts, velocity
+    counts/s or None, torque in 0.1 % of the motor's rated torque), each int64, through
+    the robot's belt ratio, encoder, zero offsets and directions."""
+    m = robot.motors
+    d = np.asarray(m.directions, dtype=float)
+    k = counts_per_rad(robot)
+    counts = np.rint(d * (np.asarray(theta) - np.asarray(m.zero_offsets)) * k).astype(np.int64)
+    vel = (None if theta_dot is None
+           else np.rint(d * np.asarray(theta_dot) * k).astype(np.int64))
+    torque = np.rint(1000.0 * d * np.asarray(tau) / (m.gear_ratio * m.rated_torque)
+                     ).astype(np.int64)
+    return counts, vel, torque
 
 
 def from_drive_units(robot: Robot, counts: np.ndarray, counts_per_s: np.ndarray | None,
                      torque: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """Joint-side (theta, theta_dot, tau) of the drive's units (the inverse of
-    :func:`sixplus3.control.exports.drive_table`)."""
+    :func:`to_drive_units`)."""
     m = robot.motors
     d = np.asarray(m.directions, dtype=float)
     k = m.gear_ratio * 2 ** m.encoder_bits / (2 * math.pi)
@@ -246,19 +276,40 @@ def read_bag_log(path: Path, robot: Robot, topic: str = "/joint_states") -> Driv
 
 
 def write_log(path: str | Path, log: DriveLog, robot: Robot,
-              notes: dict[str, Any] | None = None) -> Path:
-    """Write ``log`` atomically in joint-side units, with its format comment."""
-    meta = {"rate_hz": round(log.rate, 9), "robot_kinematics": kinematic_hash(robot),
-            **(notes or {})}
-    cols = ["t"] + [f"{j}_pos" for j in JOINTS] + [f"{j}_tau" for j in JOINTS]
-    arrays = [log.t[:, None], log.theta, log.tau]
-    if log.theta_dot is not None:
-        cols += [f"{j}_vel" for j in JOINTS]
-        arrays.append(log.theta_dot)
-    block = np.hstack(arrays)
+              notes: dict[str, Any] | None = None, units: str = "joint") -> Path:
+    """Write ``log`` atomically with its format comment, in joint-side units or
+    (``units="drive"``) in the drive's integer units through ``robot``'s motors.  A
+    log in drive units records the drive train, not the robot's kinematic hash: its
+    counts do not depend on the offsets and directions a lab commissions."""
+    if units not in ("joint", "drive"):
+        raise InputError(f"log units must be joint or drive, got {units!r}", value=units,
+                         valid="joint or drive")
+    meta: dict[str, Any] = {"rate_hz": round(log.rate, 9), **(notes or {})}
+    if units == "joint":
+        meta["robot_kinematics"] = kinematic_hash(robot)
+        cols = ["t"] + [f"{j}_pos" for j in JOINTS] + [f"{j}_tau" for j in JOINTS]
+        arrays = [log.t[:, None], log.theta, log.tau]
+        if log.theta_dot is not None:
+            cols += [f"{j}_vel" for j in JOINTS]
+            arrays.append(log.theta_dot)
+    else:
+        meta["drive_train"] = robot.motors.model
+        counts, vel, torque = to_drive_units(robot, log.theta, log.theta_dot, log.tau)
+        cols = (["t"] + [f"{j}_counts" for j in JOINTS]
+                + [f"{j}_torque_0p1pct" for j in JOINTS])
+        arrays = [log.t[:, None], counts, torque]
+        if vel is not None:
+            cols += [f"{j}_counts_per_s" for j in JOINTS]
+            arrays.append(vel)
     lines = [f"# {FORMAT} " + json.dumps(meta, sort_keys=True, separators=(",", ":")),
              ",".join(cols)]
-    lines += [",".join(_num(x) for x in row) for row in block]
+    if units == "joint":
+        block = np.hstack(arrays)
+        lines += [",".join(_num(x) for x in row) for row in block]
+    else:  # the times as decimals, every drive value as an integer
+        ints = np.hstack(arrays[1:])
+        lines += [_num(tk) + "," + ",".join(map(str, row.tolist()))
+                  for tk, row in zip(log.t, ints, strict=True)]
     atomic_write(path, ("\n".join(lines) + "\n").encode())
     return Path(path)
 
@@ -274,5 +325,5 @@ def _num(x: float) -> str:
     return r
 
 
-__all__ = ["FORMAT", "JOINTS", "DriveLog", "from_drive_units", "kinematic_hash",
-           "parse_log", "read_log", "write_log"]
+__all__ = ["FORMAT", "JOINTS", "DriveLog", "counts_per_rad", "from_drive_units",
+           "kinematic_hash", "parse_log", "read_log", "to_drive_units", "write_log"]

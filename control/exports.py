@@ -20,7 +20,8 @@ reads (for the robot of the invocation) and converts exactly those samples.
   axis direction and theta_0 the zero offset (``Robot.motors``)::
 
       counts   = round(d (theta - theta_0) N 2^b / (2 pi))
-      counts/s = d theta_dot N 2^b / (2 pi)
+      counts/s = round(d theta_dot N 2^b / (2 pi))    [the drive's velocity objects
+                                                     are integers]
       torque   = round(1000 d tau / (N tau_rated))       [0.1 % of rated]
 
   The header carries every parameter used.  Rounding the position to a count changes
@@ -38,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from sixplus3.control.drive_log import to_drive_units
 from sixplus3.errors import ValidationFailed
 from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
@@ -110,14 +112,11 @@ def drive_units(robot: Robot) -> dict[str, Any]:
 
 def drive_table(robot: Robot, t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
                 tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(position counts (n, 9) int64, velocity counts/s (n, 9), torque in 0.1 % of rated
-    (n, 9) int64) of joint-side samples."""
-    m = robot.motors
-    d = np.asarray(m.directions, dtype=float)
-    k = m.gear_ratio * 2 ** m.encoder_bits / (2 * math.pi)
-    counts = np.rint(d * (theta - np.asarray(m.zero_offsets)) * k).astype(np.int64)
-    vel = d * theta_dot * k
-    torque = np.rint(1000.0 * d * tau / (m.gear_ratio * m.rated_torque)).astype(np.int64)
+    """(position counts, velocity counts/s, torque in 0.1 % of rated), each (n, 9) int64,
+    of joint-side samples (:func:`sixplus3.control.drive_log.to_drive_units`: the one
+    conversion, also the logs')."""
+    counts, vel, torque = to_drive_units(robot, theta, theta_dot, tau)
+    assert vel is not None
     return counts, vel, torque
 
 
@@ -288,6 +287,6 @@ def export_file(path: str | Path, robot: Robot, fmt: str,
     for i in range(len(t)):
         row: list[Any] = [f"{t[i]:.9f}"]
         for j in range(len(names)):
-            row += [int(counts[i, j]), f"{vel[i, j]:.6f}", int(torque[i, j])]
+            row += [int(counts[i, j]), int(vel[i, j]), int(torque[i, j])]
         w.writerow(row)
     return out.getvalue()

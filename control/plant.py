@@ -178,6 +178,65 @@ def run_on_plant(path: str | Path, model: Robot, plant: Robot, seed: int = 0,
                     saturated=peak > model.limits.torque)
 
 
+def run_jog(plant: Robot, amplitude: float = 0.1, each: float = 1.2,
+            rest: float = 0.3, rate: float = 1000.0, seed: int = 0,
+            torque_noise: float = TORQUE_NOISE, kp: float = KP, kd: float = KD,
+            timestep: float = TIMESTEP) -> DriveLog:
+    """Each motor of ``plant`` jogged in turn from its home pose (the home jig's), as a
+    lab jogs them for commissioning: motor j goes out by ``amplitude`` [rad] and back
+    (a 1 - cos profile over ``each`` seconds) while the others hold, then all rest for
+    ``rest`` seconds.  Every drive runs its PD at ``rate`` with the holding torques of
+    home as feed-forward, as :func:`run_on_plant`'s drives do.  The log holds the true
+    joint angles (quantised to a count) and the applied torques; write it in the drive's
+    units with the plant's own offsets and directions (``write_log(..., units="drive")``)
+    to get what the drives would report."""
+    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+    from sixplus3.kinematics.robot import home
+
+    plant = require_robot(plant)
+    for name, v, lo, hi in (("amplitude", amplitude, 0.0, 0.5), ("each", each, 0.2, 30.0),
+                            ("rest", rest, 0.0, 30.0), ("rate", rate, 100.0, 10000.0)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
+                math.isfinite(v) and lo <= v <= hi):
+            raise InputError(f"{name} must be in [{lo:g}, {hi:g}], got {v!r}", value=v,
+                             valid=f"[{lo:g}, {hi:g}]")
+    h = home(plant)
+    q0, th0 = np.asarray(h.q[0]), np.asarray(h.theta[0])
+    ff = ClosedLoopDynamics(plant).gravity_torques(q0)
+    n_each, n_rest = int(round(each * rate)), int(round(rest * rate))
+    prof = amplitude * 0.5 * (1 - np.cos(2 * np.pi * np.arange(n_each) / n_each))
+    vprof = amplitude * 0.5 * (2 * np.pi * rate / n_each) * np.sin(
+        2 * np.pi * np.arange(n_each) / n_each)
+    ref = np.tile(th0, (9 * (n_each + n_rest) + n_rest, 1))
+    vref = np.zeros_like(ref)
+    for j in range(9):
+        k0 = n_rest + j * (n_each + n_rest)
+        ref[k0:k0 + n_each, j] += prof
+        vref[k0:k0 + n_each, j] = vprof
+    sim = MujocoRobot(plant, timestep)
+    mj, m, d = sim.mj, sim.model, sim.data
+    sim.set_state(q0, np.zeros(9))
+    mot = plant.motors
+    counts = mot.gear_ratio * 2 ** mot.encoder_bits / (2 * math.pi)
+    t_unit = mot.gear_ratio * mot.rated_torque / 1000.0
+    rng = np.random.default_rng(seed)
+    n_sub = round(1.0 / (rate * timestep))
+    n = len(ref)
+    th_log, tau_log = np.empty((n, 9)), np.empty((n, 9))
+    for k in range(n):
+        th_meas = np.rint(d.qpos[sim.act_qpos] * counts) / counts
+        u = ff + kp * (ref[k] - th_meas) + kd * (vref[k] - d.qvel[sim.act_dof])
+        applied = np.rint(u / t_unit) * t_unit
+        th_log[k] = th_meas
+        tau_log[k] = (np.rint((applied + rng.normal(0.0, torque_noise, 9)) / t_unit) * t_unit
+                      if torque_noise > 0 else applied)
+        d.ctrl[:] = applied
+        for _ in range(n_sub):
+            mj.mj_step(m, d)
+    return DriveLog(t=np.arange(n) / rate, theta=th_log, tau=tau_log, name="jog",
+                    meta={"plant": plant.name, "seed": seed, "jog_amplitude_rad": amplitude})
+
+
 def _apply_wrench(sim: MujocoRobot, body: int, w: np.ndarray) -> None:
     """MuJoCo's ``xfrc_applied`` is a force at the body's centre of mass and a moment: a
     wrench about the platform centre (the body's origin) is moved there."""

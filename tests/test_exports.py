@@ -59,8 +59,10 @@ def test_drive_table_units(planned) -> None:
     # back to joint angles: within half a count of the file
     back = counts / (n * 2 ** bits / (2 * math.pi)) * np.array(dirs) + np.array(offs)
     assert np.abs(back - th).max() <= 0.5 * 2 * math.pi / (n * 2 ** bits) + 1e-12
+    # the drive's velocity objects are integers: within half a count per second
+    assert counts.dtype == vel.dtype == torque.dtype == np.int64
     np.testing.assert_allclose(vel * np.array(dirs) / (n * 2 ** bits / (2 * math.pi)), thd,
-                               atol=1e-12)
+                               atol=0.5 / (n * 2 ** bits / (2 * math.pi)) + 1e-12)
     # 0.1 % of the 5 N m rated motor torque: the joint torque through the belt
     np.testing.assert_allclose(torque * np.array(dirs) * 5.0 * n / 1000.0, tau,
                                atol=0.5 * 5.0 * n / 1000.0 + 1e-12)

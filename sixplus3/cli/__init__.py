@@ -8,13 +8,15 @@
 - :mod:`~sixplus3.cli.trajectory`: ``validate``, ``simulate``, ``export``, ``feed``,
   ``play``;
 - :mod:`~sixplus3.cli.identify`: ``identify excite | estimate | check | plant``;
-- :mod:`~sixplus3.cli.interaction`: ``wrench``, ``wrench-resolution``.
+- :mod:`~sixplus3.cli.interaction`: ``wrench``, ``wrench-resolution``;
+- :mod:`~sixplus3.cli.commission`: ``commission zero | directions | jog | theta``.
 
 Each command is a thin wrapper over a library function; the CLI is the one place (with
 ``sixplus3.plan``) that chooses ``Robot.default()``.
 """
 
 from sixplus3.cli import (  # noqa: F401 - registers the commands
+    commission,
     design,
     identify,
     interaction,

@@ -302,12 +302,16 @@ def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | N
 @click.option("--start-theta", nargs=9, type=FLOAT, default=None, metavar="A0 B0 C0 ... C2",
               help="The robot's current actuated angles [deg], legs 0..2 each A, B, C: the "
                    "file must start there, on the robot's assembly branch.")
+@click.option("--start-counts", nargs=9, type=FLOAT, default=None, metavar="A0 B0 C0 ... C2",
+              help="Or the counts the drives read back, turned into angles with the robot "
+                   "file's offsets and directions (sixplus3 commission).")
 @click.option("--torque-hold", type=click.Choice(["sample", "mean"]), default="mean",
               show_default=True,
               help="Feed-forward per tick: the 'mean' of the torques at both ends of the "
                    "tick the drive holds it over, or the 'sample''s own.")
 def feed(csv_file: str, udp: str, speed: float, dry_run: bool,
-         start_theta: tuple[float, ...] | None, torque_hold: str) -> None:
+         start_theta: tuple[float, ...] | None, start_counts: tuple[float, ...] | None,
+         torque_hold: str) -> None:
     """Send a trajectory file to the controller: read once, validate, send those samples.
 
     Exit codes: 0 sent; 1 a limit is violated; 2 bad input, a bad file, or a file that
@@ -318,6 +322,14 @@ def feed(csv_file: str, udp: str, speed: float, dry_run: bool,
     address = parse_address(udp)
     check_speed(speed)
     current = None
+    if start_theta is not None and start_counts is not None:
+        fail("give the robot's state as --start-theta or as --start-counts, not both")
+    if start_counts is not None:
+        import numpy as np
+
+        from sixplus3.identification.commission import counts_to_theta
+
+        current = counts_to_theta(current_robot(), np.array(start_counts))
     if start_theta is not None:
         if not all(math.isfinite(v) for v in start_theta):
             fail(f"--start-theta must be 9 finite angles [deg], got {list(start_theta)}")
@@ -327,7 +339,8 @@ def feed(csv_file: str, udp: str, speed: float, dry_run: bool,
     plan = prepare_feed(csv_file, current_robot(), speed, current_theta=current,
                         torque_hold=torque_hold)
     if current is None:
-        click.echo("note: the robot's start state was not checked (--start-theta)", err=True)
+        click.echo("note: the robot's start state was not checked (--start-theta or "
+                   "--start-counts)", err=True)
     emit = (lambda m: click.echo(m.decode())) if dry_run else udp_sender(address)
     n = send(plan, emit)
     verb = "printed (dry run, nothing sent)" if dry_run else "sent"
