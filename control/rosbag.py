@@ -14,11 +14,23 @@ fails it) and writes a bag directory with, on the file's time grid:
 - ``/joint_trajectory`` (``trajectory_msgs/msg/JointTrajectory``), once at the start:
   the nine actuated joints (:func:`sixplus3.control.exports.ros2_joint_trajectory`).
 
-With ``robot_state_publisher`` fed the URDF (``sixplus3 robot export urdf``), RViz shows
-the whole robot move.  Message types are ROS 2 Humble's (the ``rosbags`` library's type
-store); the ``rosbags`` package is optional (``pip install 'sixplus3[ros]'``).  The
-directory is written beside its final name and renamed into place when complete; an
-existing output is never replaced.
+With ``robot_state_publisher`` fed the URDF, RViz shows the whole robot move: the bag
+directory also holds ``robot.urdf``, ``sixplus3.rviz`` and ``replay.launch.py``
+(:mod:`sixplus3.control.ros_replay`).  Message types are ROS 2 Humble's (the ``rosbags``
+library's type store); the ``rosbags`` package is optional (``pip install
+'sixplus3[ros]'``).  The directory is written beside its final name and renamed into
+place when complete; an existing output is never replaced.
+
+**Distributions.**  A bag's ``metadata.yaml`` moves forward across ROS 2 distributions,
+not back: Humble's reader (rosbag2 0.15, metadata version 5) fails on a newer version's
+file.  ``distro="humble"`` (the default) writes Humble's version 5 with exactly the
+fields of its ``metadata_io.cpp`` (:func:`humble_metadata`), which every later reader
+also reads; ``"jazzy"`` keeps the ``rosbags`` writer's version 9.  The MCAP storage is
+the same for both (Humble needs ``ros-humble-rosbag2-storage-mcap``).
+
+**Stamps** start at ``start_ns`` (nanoseconds since the epoch; default: now), so that
+``ros2 bag play --clock`` publishes a clock near the wall clock; the samples keep the
+file's grid.
 """
 
 from __future__ import annotations
@@ -26,7 +38,9 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -35,6 +49,89 @@ from sixplus3.robot_description.robot import Robot
 
 #: Topics of the bag.
 TOPICS = {"joint_states": "/joint_states", "tf": "/tf", "trajectory": "/joint_trajectory"}
+#: metadata.yaml's version per distribution (rosbag2's BagMetadata::version there).
+DISTROS = {"humble": 5, "jazzy": 9}
+#: The rosbags writer's metadata version per distribution (8 serialises the QoS as the
+#: integer-enum YAML string Humble decodes; its file is then rewritten as version 5).
+WRITER_VERSION = {"humble": 8, "jazzy": 9}
+
+
+def _qos() -> list[Any]:
+    """The QoS offered on every topic (in the MCAP channels and the metadata): keep last
+    10, reliable, volatile, automatic liveliness, durations unspecified (0)."""
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
+
+    zero = QosTime(sec=0, nsec=0)
+    return [Qos(history=QosHistory.KEEP_LAST, depth=10, reliability=QosReliability.RELIABLE,
+                durability=QosDurability.VOLATILE, deadline=zero, lifespan=zero,
+                liveliness=QosLiveliness.AUTOMATIC, liveliness_lease_duration=zero,
+                avoid_ros_namespace_conventions=False)]
+
+
+def check_distro(distro: object) -> str:
+    if not isinstance(distro, str) or distro not in DISTROS:
+        raise InputError(f"unknown ROS 2 distribution {distro!r}", value=distro,
+                         valid=f"one of {sorted(DISTROS)}")
+    return distro
+
+
+def humble_metadata(doc: dict[str, Any]) -> dict[str, Any]:
+    """Humble's ``metadata.yaml`` (version 5) of the ``rosbags`` writer's version 8
+    document: exactly the fields rosbag2's humble ``metadata_io.cpp`` encodes and
+    decodes (``BagMetadata``, ``TopicInformation``, ``TopicMetadata`` with its
+    ``offered_qos_profiles`` as a YAML string of integer enums, ``FileInformation``)."""
+    info = doc["rosbag2_bagfile_information"]
+
+    def ns(d: Any) -> dict[str, int]:
+        return {"nanoseconds": int(d["nanoseconds"])}
+
+    def since(d: Any) -> dict[str, int]:
+        return {"nanoseconds_since_epoch": int(d["nanoseconds_since_epoch"])}
+
+    return {"rosbag2_bagfile_information": {
+        "version": DISTROS["humble"],
+        "storage_identifier": str(info["storage_identifier"]),
+        "duration": ns(info["duration"]),
+        "starting_time": since(info["starting_time"]),
+        "message_count": int(info["message_count"]),
+        "topics_with_message_count": [
+            {"topic_metadata": {"name": str(t["topic_metadata"]["name"]),
+                                "type": str(t["topic_metadata"]["type"]),
+                                "serialization_format":
+                                    str(t["topic_metadata"]["serialization_format"]),
+                                "offered_qos_profiles":
+                                    str(t["topic_metadata"]["offered_qos_profiles"])},
+             "message_count": int(t["message_count"])}
+            for t in info["topics_with_message_count"]],
+        "compression_format": str(info["compression_format"] or ""),
+        "compression_mode": str(info["compression_mode"] or ""),
+        "relative_file_paths": [str(p) for p in info["relative_file_paths"]],
+        "files": [{"path": str(f["path"]), "starting_time": since(f["starting_time"]),
+                   "duration": ns(f["duration"]), "message_count": int(f["message_count"])}
+                  for f in info["files"]],
+    }}
+
+
+def _finish_metadata(bag: Path, distro: str) -> None:
+    """Rewrite the bag's ``metadata.yaml`` for ``distro`` (atomically)."""
+    import yaml
+
+    from sixplus3.fileio import atomic_write
+
+    meta = bag / "metadata.yaml"
+    doc = yaml.safe_load(meta.read_text())
+    if distro == "humble":
+        doc = humble_metadata(doc)
+    else:
+        doc["rosbag2_bagfile_information"]["ros_distro"] = distro
+    atomic_write(meta, yaml.safe_dump(doc, sort_keys=False).encode())
 
 
 def _rosbags():
@@ -47,8 +144,7 @@ def _rosbags():
     return Writer, StoragePlugin, get_typestore(Stores.ROS2_HUMBLE)
 
 
-def _stamp(types, t: float):
-    ns = int(round(t * 1e9))
+def _stamp(types, ns: int):
     return types["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000,
                                                  nanosec=ns % 1_000_000_000)
 
@@ -66,17 +162,30 @@ def revolute_joints(robot: Robot) -> tuple[list[str], np.ndarray, np.ndarray]:
     return names, np.array(iq), np.array(iv)
 
 
-def write_rosbag2(path: str | Path, robot: Robot, out_dir: str | Path) -> Path:
+def write_rosbag2(path: str | Path, robot: Robot, out_dir: str | Path,
+                  distro: str = "humble", start_ns: int | None = None) -> Path:
     """Validate the trajectory file ``path`` for ``robot`` and write it as a rosbag2
-    directory ``out_dir`` (MCAP).  Raises :class:`ValidationFailed` for a file that fails
-    the gate and :class:`InputError` for an existing output or a missing ``rosbags``."""
+    directory ``out_dir`` (MCAP) that ``distro``'s rosbag2 reads, its stamps from
+    ``start_ns`` [ns since the epoch] (default: now), with the replay files beside the
+    data (module doc).  Raises :class:`ValidationFailed` for a file that fails the gate
+    and :class:`InputError` for an existing output, a bad distribution or start time,
+    or a missing ``rosbags``."""
     from sixplus3.control.exports import ros2_joint_trajectory
+    from sixplus3.control.ros_replay import write_replay_files
     from sixplus3.control.trajectory_file import columns
     from sixplus3.control.validation import validate_file
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.kinematics.robot import robot_ik
     from sixplus3.kinematics.rotations import matrix_from_quat
 
+    check_distro(distro)
+    if start_ns is None:
+        start_ns = time.time_ns()
+    if (isinstance(start_ns, bool) or not isinstance(start_ns, int)
+            or not 0 <= start_ns <= 2**62):
+        raise InputError(f"the bag's start time must be whole nanoseconds since the epoch "
+                         f"in [0, 2^62], got {start_ns!r}", value=start_ns,
+                         valid="[0, 2^62] ns")
     Writer, StoragePlugin, store = _rosbags()
     out = Path(out_dir)
     if out.exists() or out.is_symlink():
@@ -101,20 +210,23 @@ def write_rosbag2(path: str | Path, robot: Robot, out_dir: str | Path) -> Path:
     tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name[:80]}.", suffix=".tmp"))
     bag = tmp / "bag"
     try:
-        with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        qos = _qos()
+        with Writer(bag, version=WRITER_VERSION[distro],
+                    storage_plugin=StoragePlugin.MCAP) as writer:
             c_js = writer.add_connection(TOPICS["joint_states"], "sensor_msgs/msg/JointState",
-                                         typestore=store)
+                                         typestore=store, offered_qos_profiles=qos)
             c_tf = writer.add_connection(TOPICS["tf"], "tf2_msgs/msg/TFMessage",
-                                         typestore=store)
+                                         typestore=store, offered_qos_profiles=qos)
             c_tr = writer.add_connection(TOPICS["trajectory"],
                                          "trajectory_msgs/msg/JointTrajectory",
-                                         typestore=store)
-            writer.write(c_tr, 0, store.serialize_cdr(
+                                         typestore=store, offered_qos_profiles=qos)
+            writer.write(c_tr, start_ns, store.serialize_cdr(
                 _trajectory(T, ros2_joint_trajectory(t, th, thd, columns(data, "acc"),
-                                                     columns(data, "tau"))),
+                                                     columns(data, "tau")), start_ns),
                 "trajectory_msgs/msg/JointTrajectory"))
             for k in range(len(t)):
-                stamp = _stamp(T, float(t[k]))
+                ns = start_ns + int(round(float(t[k]) * 1e9))
+                stamp = _stamp(T, ns)
                 q = cfg.q[k]
                 v, _ = dyn.consistent_state(q, thd[k], zero)
                 js = T["sensor_msgs/msg/JointState"](
@@ -122,7 +234,6 @@ def write_rosbag2(path: str | Path, robot: Robot, out_dir: str | Path) -> Path:
                     name=names, position=q[iq].astype(np.float64),
                     velocity=np.asarray(v)[iv].astype(np.float64),
                     effort=np.zeros(0, dtype=np.float64))
-                ns = int(round(float(t[k]) * 1e9))
                 writer.write(c_js, ns, store.serialize_cdr(js, "sensor_msgs/msg/JointState"))
                 x, y, z, w = (float(c) for c in rep.quaternion[k])
                 tf = T["geometry_msgs/msg/TransformStamped"](
@@ -134,27 +245,30 @@ def write_rosbag2(path: str | Path, robot: Robot, out_dir: str | Path) -> Path:
                         rotation=T["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)))
                 writer.write(c_tf, ns, store.serialize_cdr(
                     T["tf2_msgs/msg/TFMessage"](transforms=[tf]), "tf2_msgs/msg/TFMessage"))
+        _finish_metadata(bag, distro)
+        write_replay_files(bag, robot, names, float(t[-1]))
         os.rename(bag, out)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return out
 
 
-def _trajectory(T, msg: dict):
+def _trajectory(T, msg: dict, start_ns: int):
     """A JointTrajectory message of the typestore from the mapping of
     :func:`ros2_joint_trajectory`."""
-    Time, Duration = T["builtin_interfaces/msg/Time"], T["builtin_interfaces/msg/Duration"]
+    Duration = T["builtin_interfaces/msg/Duration"]
     points = [T["trajectory_msgs/msg/JointTrajectoryPoint"](
         positions=np.array(p["positions"]), velocities=np.array(p["velocities"]),
         accelerations=np.array(p["accelerations"]), effort=np.array(p["effort"]),
         time_from_start=Duration(sec=p["time_from_start"]["sec"],
                                  nanosec=p["time_from_start"]["nanosec"]))
         for p in msg["points"]]
-    header = T["std_msgs/msg/Header"](stamp=Time(sec=0, nanosec=0),
+    header = T["std_msgs/msg/Header"](stamp=_stamp(T, start_ns),
                                       frame_id=msg["header"]["frame_id"])
     return T["trajectory_msgs/msg/JointTrajectory"](header=header,
                                                     joint_names=msg["joint_names"],
                                                     points=points)
 
 
-__all__ = ["TOPICS", "revolute_joints", "write_rosbag2"]
+__all__ = ["DISTROS", "TOPICS", "WRITER_VERSION", "check_distro", "humble_metadata",
+           "revolute_joints", "write_rosbag2"]

@@ -156,8 +156,9 @@ def test_the_rosbag2_export_reads_back_in_rosbags(planned, tmp_path) -> None:
     path, data = planned
     out = tmp_path / "bag"
     res = CliRunner().invoke(main, ["export", str(path), "--format", "rosbag2", "-o",
-                                    str(out)])
+                                    str(out), "--start-time", "1790000000.5"])
     assert res.exit_code == 0, res.output
+    start = 1_790_000_000_500_000_000  # the stamps start at the chosen time
     store = get_typestore(Stores.ROS2_HUMBLE)
     names = revolute_joints(ROBOT)[0]
     assert len(names) == 30 and set(actuated_joint_names()) <= set(names)
@@ -175,7 +176,8 @@ def test_the_rosbag2_export_reads_back_in_rosbags(planned, tmp_path) -> None:
                 assert len(msg.points) == len(data)
             elif conn.topic == "/joint_states":
                 k = seen["/joint_states"]
-                assert stamp == round(data[k, 0] * 1e9)
+                assert stamp == start + round(data[k, 0] * 1e9)
+                assert (msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec) == stamp
                 assert list(msg.name) == names and len(msg.velocity) == 30
                 np.testing.assert_allclose(msg.position[act], columns(data, "pos")[k],
                                            atol=1e-9)

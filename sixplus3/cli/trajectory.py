@@ -264,10 +264,17 @@ def _simulate_plant(csv_file: str, robot, plant_file: str | None, log_file: str 
 @click.option("--goal", is_flag=True,
               help="ROS 2 forms: a control_msgs/action/FollowJointTrajectory goal "
                    "(for 'ros2 action send_goal').")
+@click.option("--ros-distro", type=click.Choice(["humble", "jazzy"]), default="humble",
+              show_default=True,
+              help="rosbag2: the ROS 2 distribution whose reader the bag's metadata.yaml "
+                   "is for (a humble bag also opens in later ones).")
+@click.option("--start-time", "start_time", default=None, type=FLOAT,
+              help="rosbag2: the first stamp [s since the epoch] (default: now).")
 @click.option("--force", is_flag=True,
               help="Replace an existing trajectory file given as -o (never the input).")
 def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | None,
-               torque_hold: str | None, rate: float | None, goal: bool, force: bool) -> None:
+               torque_hold: str | None, rate: float | None, goal: bool, ros_distro: str,
+               start_time: float | None, force: bool) -> None:
     """Export a trajectory file for the controller side, after validating it (exit 1
     for a violated limit, 2 for a bad file: nothing is written).  With --rate, the
     motion a controller interpolates through the exported points is validated as it
@@ -283,10 +290,18 @@ def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | N
         if rate is not None or goal:
             fail("--rate and --goal go with the ROS 2 message forms (ros2-yaml, "
                  "ros2-json); the rosbag2 export records the file's own samples")
+        start_ns = None
+        if start_time is not None:
+            if not 0.0 <= start_time <= 4e9:
+                fail(f"--start-time must be in [0, 4e9] s since the epoch, got {start_time:g}")
+            start_ns = int(round(start_time * 1e9))
         check_output(out_file, (csv_file,), force)
-        bag = write_rosbag2(csv_file, _task_robot(task_file), out_file)
-        click.echo(f"wrote {bag} (ros2 bag play {bag})", err=True)
+        bag = write_rosbag2(csv_file, _task_robot(task_file), out_file, ros_distro, start_ns)
+        click.echo(f"wrote {bag} for ROS 2 {ros_distro} (ros2 launch {bag}/replay.launch.py; "
+                   f"or ros2 bag play {bag} --clock --rate 0.1)", err=True)
         return
+    if start_time is not None or ros_distro != "humble":
+        fail("--ros-distro and --start-time go with --format rosbag2")
     check_output(out_file, (csv_file, task_file), force)  # before the work
     text = export_file(csv_file, _task_robot(task_file), fmt, torque_hold, rate, goal)
     emit(text, out_file, (csv_file, task_file), force)
