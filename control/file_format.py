@@ -22,6 +22,27 @@ COLUMNS = (["t"] + [f"{j}_{k}" for j in JOINTS for k in ("pos", "vel", "acc", "t
            + [f"psi_{i}" for i in range(3)])
 UNITS = {"t": "s", "pos": "rad", "vel": "rad/s", "acc": "rad/s^2", "tau": "N m",
          "platform_xyz": "m", "platform_q": "unit quaternion (x, y, z, w)", "psi": "rad"}
+
+
+def column_unit(name: str) -> str:
+    """The unit of the column ``name`` of :data:`COLUMNS` (SI; the quaternion's
+    components are unitless: "1")."""
+    if name == "t":
+        return "s"
+    if name.startswith("platform_q"):
+        return "1"
+    if name.startswith("platform_"):
+        return UNITS["platform_xyz"]
+    if name.startswith("psi_"):
+        return UNITS["psi"]
+    kind = name.rsplit("_", 1)[-1]
+    if name in COLUMNS and kind in UNITS:
+        return UNITS[kind]
+    raise KeyError(name)
+
+
+#: The unit of every column (:func:`column_unit`).
+COLUMN_UNITS = {c: column_unit(c) for c in COLUMNS}
 #: Largest trajectory file read [bytes]: ~143,000 samples (the package writes at most
 #: MAX_SAMPLES).  Validating one this size peaks near 1 GB (benchmarks/bench_gate_memory.py;
 #: about 1.9 kB per sample above a 0.8 GB base, docs/validation.md "Caps").

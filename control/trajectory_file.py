@@ -51,8 +51,9 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from sixplus3 import fileio
-from sixplus3.control.file_format import (  # noqa: F401 - the file's names, re-exported
-    _JOINT_COLUMNS,
+from sixplus3.control.file_format import (
+    _JOINT_COLUMNS,  # noqa: F401 - the file's names, re-exported
+    COLUMN_UNITS,
     COLUMNS,
     FORMAT,
     JOINTS,
@@ -62,7 +63,6 @@ from sixplus3.control.file_format import (  # noqa: F401 - the file's names, re-
     UNITS,
     _canonical,
     _finite_tree,
-    _jsonable,
     columns,
     digest,
 )
@@ -352,8 +352,11 @@ class TrajectoryData(NamedTuple):
     - ``traj.t``; ``traj.joints("pos" | "vel" | "acc" | "tau")``: (n, 9) in joint order;
     - ``traj.platform_position`` (n, 3) [m], ``traj.platform_quaternion`` (n, 4)
       (x, y, z, w), ``traj.psi`` (n, 3) [rad];
-    - ``traj.to_pandas()``: a DataFrame with the 47 named columns (pandas is optional:
-      an InputError says how to install it if it is missing).
+    - ``traj.to_pandas()``: a DataFrame of the 46 named columns indexed by time
+      (``t [s]``), with every column's unit in ``df.attrs["units"]`` (or in the names
+      themselves, ``to_pandas(unit_names=True)``: ``leg0_A_pos [rad]``), and the file's
+      rate, robot hash, name and limits in ``df.attrs`` (pandas is optional: an
+      InputError says how to install it if it is missing).
     """
 
     header: dict
@@ -393,13 +396,25 @@ class TrajectoryData(NamedTuple):
     def psi(self) -> np.ndarray:
         return columns(self.data, "psi")
 
-    def to_pandas(self) -> pd.DataFrame:
+    def to_pandas(self, unit_names: bool = False) -> pd.DataFrame:
         try:
             import pandas as pd
         except ImportError:
             raise InputError("to_pandas needs pandas: pip install pandas", value=None,
                              valid="pandas installed") from None
-        return pd.DataFrame(self.data, columns=COLUMNS)
+        names = COLUMNS[1:]
+        if unit_names:
+            names = [f"{c} [{COLUMN_UNITS[c]}]" for c in names]
+        df = pd.DataFrame(self.data[:, 1:], columns=names,
+                          index=pd.Index(self.data[:, 0], name="t [s]"))
+        df.attrs.update({
+            "units": {c: COLUMN_UNITS[c] for c in COLUMNS},
+            "rate_hz": self.header.get("rate_hz"),
+            "robot_hash": (self.header.get("robot") or {}).get("hash"),
+            "name": (self.header.get("task") or {}).get("name")
+            if isinstance(self.header.get("task"), dict) else None,
+            "limits": self.header.get("limits")})
+        return df
 
 
 def read_trajectory(path: str | Path, robot: Robot) -> TrajectoryData:

@@ -138,7 +138,18 @@ def test_read_trajectory_names_its_columns(planned) -> None:
     np.testing.assert_array_equal(traj.platform_quaternion[:, 3], traj["platform_qw"])
     np.testing.assert_array_equal(traj.psi[:, 2], traj["psi_2"])
     df = traj.to_pandas()
-    assert list(df.columns) == COLUMNS and df["leg2_C_pos"].iloc[-1] == data[-1, 33]
+    assert list(df.columns) == COLUMNS[1:] and df["leg2_C_pos"].iloc[-1] == data[-1, 33]
+    # indexed by time, with every column's unit and the file's rate and robot
+    assert df.index.name == "t [s]" and df.index[-1] == data[-1, 0]
+    units = df.attrs["units"]
+    assert (units["t"], units["leg0_A_pos"], units["leg1_B_vel"], units["leg2_C_acc"],
+            units["leg0_A_tau"], units["platform_z"], units["platform_qw"], units["psi_1"]) \
+        == ("s", "rad", "rad/s", "rad/s^2", "N m", "m", "1", "rad")
+    assert set(units) == set(COLUMNS)
+    assert df.attrs["rate_hz"] == header["rate_hz"] and df.attrs["robot_hash"] == ROBOT.hash
+    named = traj.to_pandas(unit_names=True)
+    assert named.columns[0] == "leg0_A_pos [rad]" and named.columns[-1] == "psi_2 [rad]"
+    assert "platform_qx [1]" in named.columns and "leg0_A_tau [N m]" in named.columns
     with pytest.raises(InputError, match="no column"):
         traj["leg3_A_pos"]
 
