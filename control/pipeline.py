@@ -158,7 +158,8 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
         files = plot_trajectory(robot, out, sm.t, sm.theta, rep.tau, rep.position,
                                 rep.quaternion, rep.psi, robot.limits.torque,
                                 sol.limits.margin, stem, theta_dot=sm.theta_dot,
-                                theta_ddot=sm.theta_ddot, planned_torque=sol.limits.torque)
+                                theta_ddot=sm.theta_ddot, planned_torque=sol.limits.torque,
+                                limits=sol.limits)
         say(f"  plots: {', '.join(Path(f).name for f in files)}")
     html_path = None
     if html:

@@ -171,3 +171,48 @@ def test_the_planned_page_marks_the_task_waypoints(planned) -> None:
     res, _ = planned
     text = res.html.read_text()
     assert "green: the task's waypoints" in text and 'id="sixplus3-time"' in text
+
+
+def test_plots_show_excursions_legs_and_which_robot(planned, tmp_path, monkeypatch) -> None:
+    """The joints and platform plots draw each motion relative to its start, the rates
+    plot gives each leg its own colour, and every title names the robot and the limits."""
+    from sixplus3.visualization import plots
+
+    res, _ = planned
+    rep = res.report
+    sm = smooth(res.solution)
+    figs = {}
+
+    def keep(fig, path):
+        figs[Path(path).stem.split("_", 1)[-1]] = [
+            (ax.get_title(), [line.get_ydata() for line in ax.get_lines()],
+             [line.get_color() for line in ax.get_lines()]) for ax in fig.axes]
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
+        return str(path)
+
+    monkeypatch.setattr(plots, "_save", keep)
+    robot = Robot.default()
+    plots.plot_trajectory(robot, tmp_path, sm.t, sm.theta, rep.tau, rep.position,
+                          rep.quaternion, rep.psi, 10.0, 0.05, "small",
+                          theta_dot=sm.theta_dot, theta_ddot=sm.theta_ddot,
+                          planned_torque=9.0, limits=res.solution.limits)
+    assert set(figs) == {"torques", "rates", "margins", "joints", "platform"}
+    for name, axes in figs.items():
+        assert f"robot {robot.name} ({robot.hash[:8]})" in axes[0][0].replace("\n", " "), name
+    # joints: every curve starts at 0 and the largest excursion is the motion's own
+    joint_curves = [y for _, ys, _ in figs["joints"] for y in ys if len(y) == len(sm.t)]
+    assert len(joint_curves) == 12 and all(abs(y[0]) < 1e-9 for y in joint_curves)
+    moved = np.degrees(np.abs(sm.theta - sm.theta[0]).max())
+    assert max(np.abs(y).max() for y in joint_curves) == pytest.approx(
+        max(moved, np.degrees(np.abs(rep.psi - rep.psi[0]).max())), rel=1e-9)
+    # platform: the centre relative to its start, in mm (the task moves 30 mm in x and z)
+    centre = [y for y in figs["platform"][0][1] if len(y) == len(sm.t)]
+    assert len(centre) == 3 and all(abs(y[0]) < 1e-9 for y in centre)
+    assert np.abs(centre[0]).max() == pytest.approx(30.0, abs=0.5)
+    # rates: nine curves per panel, three colours, one per leg
+    speeds = figs["rates"][0]
+    colours = [c for y, c in zip(speeds[1], speeds[2], strict=True) if len(y) == len(sm.t)]
+    assert len(colours) == 9 and len(set(colours)) == 3
+    assert colours[0] == colours[2] != colours[3]

@@ -1,4 +1,10 @@
-"""PNG plots of a validated trajectory: torques, singularity margins, joint positions."""
+"""PNG plots of a validated trajectory: torques, rates, singularity margins, joint and
+platform excursions.
+
+Every title names the robot (name and hash) and the limits the file was planned to; the
+joint and platform plots show each motion relative to its start (a millimetre
+excursion at a height of 580 mm, or a few degrees at 127 deg, is then visible); where
+the nine joints share a panel, a leg is a colour and a joint (A, B, C) a line style."""
 
 from __future__ import annotations
 
@@ -8,6 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sixplus3.kinematics.robot import robot_ik
+from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
 
@@ -24,17 +31,37 @@ def _save(fig, path: Path) -> str:
     return str(path)
 
 
+#: A leg's colour where the nine joints share a panel, and a joint's line style.
+LEG_COLOURS = ("tab:blue", "tab:orange", "tab:green")
+JOINT_STYLES = ("-", "--", "-.")
+
+
+def subtitle(robot: Robot, limits: Limits, planned_torque: float | None = None) -> str:
+    """One line naming the robot and the limits: what a reader of a plot must know."""
+    parts = [f"torque {robot.limits.torque:g} N m"
+             + (f" (planned to {planned_torque:g})" if planned_torque is not None else ""),
+             f"speed {limits.velocity:.3g} rad/s", f"acc. {limits.acceleration:g} rad/s^2",
+             f"margin {limits.margin:g}"]
+    if limits.has_tcp:
+        parts.append(f"platform {limits.tcp_speed:g} m/s, {limits.tcp_acceleration:g} m/s^2")
+    import textwrap
+
+    return "\n".join(textwrap.wrap(f"robot {robot.name} ({robot.hash[:8]}); limits: "
+                                   + ", ".join(parts), 96))
+
+
 def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, quaternion,
                     psi, torque_limit: float, margin: float, title: str = "",
-                    theta_dot=None, theta_ddot=None, planned_torque: float | None = None
-                    ) -> list[str]:
+                    theta_dot=None, theta_ddot=None, planned_torque: float | None = None,
+                    limits: Limits | None = None) -> list[str]:
     """Write <title>_torques.png, <title>_margins.png, <title>_joints.png,
     <title>_platform.png and, with the rates given, <title>_rates.png into ``out_dir``
     (per-trajectory names: plans written to one folder do not overwrite each other).
 
     Torques, speeds and accelerations are drawn one panel per leg (its joints A, B, C),
     with the hardware limits (red, dashed) and the torque planned to (orange, dotted);
-    legends sit outside the axes so that no limit line is hidden."""
+    legends sit outside the axes so that no limit line is hidden.  ``limits``: those the
+    file was planned to (default: the robot's), named in every title."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -45,6 +72,7 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
     prefix = f"{title}_" if title else ""
     names = actuated_joint_names()
     lim = robot.limits
+    sub = subtitle(robot, limits if limits is not None else lim, planned_torque)
     files = []
     # joints A, B, C of a leg: colour and line style both differ (B and C move alike)
     styles = [{"color": "tab:blue", "ls": "-"}, {"color": "tab:green", "ls": "--"},
@@ -67,7 +95,7 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
         axes[-1].set_xlabel("t [s]")
         peak = float(np.abs(values).max())
         axes[0].set_title(f"{title}: {what}, peak {peak:.3g} of {hw:.3g} "
-                          f"({100 * peak / hw:.1f} %)", fontsize=10)
+                          f"({100 * peak / hw:.1f} %)\n{sub}", fontsize=9)
         fig.tight_layout()
         return _save(fig, out / f"{prefix}{fname}.png")
 
@@ -87,7 +115,8 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
                    "planner's bound (not a gate limit)"))
         for ax, tt, values, hw, label, what in panels:
             for j in range(9):
-                ax.plot(tt, values[:, j], lw=1.0, label=names[j], **styles[j % 3])
+                ax.plot(tt, values[:, j], lw=1.0, label=names[j], color=LEG_COLOURS[j // 3],
+                        ls=JOINT_STYLES[j % 3])
             limit_line = None
             for sgn in (1, -1):
                 line = ax.axhline(sgn * hw, color="r", ls="--", lw=1.0, label=what)
@@ -104,9 +133,9 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
             f"{title}: joint speeds (peak {np.abs(theta_dot).max() / lim.velocity:.0%} of "
             f"the limit), accelerations ({np.abs(theta_ddot).max() / lim.acceleration:.0%}),"
             f"\njerk between samples ({np.abs(jerk).max() / lim.jerk:.0%}) and torque rate "
-            f"({np.abs(trate).max() / lim.torque_rate:.0%} of the planner's bound)",
+            f"({np.abs(trate).max() / lim.torque_rate:.0%} of the planner's bound)\n{sub}",
             fontsize=9)
-        fig.subplots_adjust(left=0.12, right=0.84, top=0.93, bottom=0.06, hspace=0.12)
+        fig.subplots_adjust(left=0.12, right=0.84, top=0.91, bottom=0.06, hspace=0.12)
         files.append(_save(fig, out / f"{prefix}rates.png"))
 
     cfg = robot_ik(position, Rotation.from_quat(quaternion).as_matrix(), psi, robot)
@@ -120,40 +149,52 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
     ax.set_ylim(0, 1)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("singularity margin (0 singular .. 1)")
-    ax.set_title(f"{title}: singularity margins, threshold {margin:g} (red)", fontsize=10)
+    ax.set_title(f"{title}: singularity margins, threshold {margin:g} (red)\n{sub}",
+                 fontsize=9)
     ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
     fig.tight_layout()
     files.append(_save(fig, out / f"{prefix}margins.png"))
 
+    th_deg, psi_deg = np.degrees(np.asarray(theta)), np.degrees(np.asarray(psi))
+    room = min(float(np.degrees(np.asarray(theta) - lim.theta_min).min()),
+               float(np.degrees(lim.theta_max - np.asarray(theta)).min()))
     fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     for i, ax in enumerate(axes):
         for j in range(3 * i, 3 * i + 3):
-            ax.plot(t, np.degrees(theta[:, j]), lw=1.2, label=names[j], **styles[j % 3])
-        ax.plot(t, np.degrees(psi[:, i]), "k", ls=":", lw=1.2, label=f"crank psi {i}")
-        for k, bound in enumerate((lim.theta_min, lim.theta_max)):
-            ax.axhline(np.degrees(bound), color="r", ls="--", lw=1.0,
-                       label="actuated range" if k == 0 else None)
-        ax.set_ylabel("angle [deg]", fontsize=8)
+            ax.plot(t, th_deg[:, j] - th_deg[0, j], lw=1.2,
+                    label=f"{names[j]} (from {th_deg[0, j]:.1f})", **styles[j % 3])
+        ax.plot(t, psi_deg[:, i] - psi_deg[0, i], "k", ls=":", lw=1.2,
+                label=f"crank psi {i} (from {psi_deg[0, i]:.1f})")
+        ax.axhline(0.0, color="0.6", lw=0.6)
+        ax.set_ylabel("from the start [deg]", fontsize=8)
         ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
     axes[-1].set_xlabel("t [s]")
-    axes[0].set_title(f"{title}: actuated angles and crank angles (dotted), per leg; "
-                      f"actuated range {np.degrees(lim.theta_min):g}.."
-                      f"{np.degrees(lim.theta_max):g} deg (red)", fontsize=10)
+    axes[0].set_title(f"{title}: each actuated and crank angle relative to its start "
+                      f"(legend: start [deg])\nclosest to the actuated range "
+                      f"{np.degrees(lim.theta_min):g}..{np.degrees(lim.theta_max):g} deg: "
+                      f"{room:.1f} deg\n{sub}", fontsize=9)
     fig.tight_layout()
     files.append(_save(fig, out / f"{prefix}joints.png"))
 
+    pos = 1000 * np.asarray(position)
     fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
     for k, c in enumerate("xyz"):
-        axes[0].plot(t, 1000 * np.asarray(position)[:, k], lw=1.2, label=c)
-    rpy = np.degrees(Rotation.from_quat(quaternion).as_euler("xyz"))
-    for k, c in enumerate(("roll", "pitch", "yaw")):
-        axes[1].plot(t, rpy[:, k], lw=1.2, label=c)
-    axes[0].set_ylabel("platform centre [mm]", fontsize=8)
-    axes[1].set_ylabel("orientation [deg] (R = Rz Ry Rx)", fontsize=8)
+        axes[0].plot(t, pos[:, k] - pos[0, k], lw=1.2, label=f"{c} (from {pos[0, k]:.1f})")
+    rot = Rotation.from_quat(quaternion)
+    rel = (rot[0].inv() * rot).as_rotvec(degrees=True)  # in the start's frame
+    for k, c in enumerate("xyz"):
+        axes[1].plot(t, rel[:, k], lw=1.2, label=f"about {c}")
+    axes[0].set_ylabel("centre from the start [mm]", fontsize=8)
+    axes[1].set_ylabel("rotation from the start [deg]\n(rotation vector, start frame)",
+                       fontsize=8)
     axes[1].set_xlabel("t [s]")
     for ax in axes:
+        ax.axhline(0.0, color="0.6", lw=0.6)
         ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
-    axes[0].set_title(f"{title}: platform pose", fontsize=10)
+    start_rpy = np.degrees(rot[0].as_euler("xyz"))
+    axes[0].set_title(f"{title}: platform pose relative to its start\n(start: centre [mm] "
+                      f"in the legend, roll/pitch/yaw {start_rpy[0]:.1f}/{start_rpy[1]:.1f}/"
+                      f"{start_rpy[2]:.1f} deg)\n{sub}", fontsize=9)
     fig.tight_layout()
     files.append(_save(fig, out / f"{prefix}platform.png"))
     return files
