@@ -216,3 +216,34 @@ def test_plots_show_excursions_legs_and_which_robot(planned, tmp_path, monkeypat
     colours = [c for y, c in zip(speeds[1], speeds[2], strict=True) if len(y) == len(sm.t)]
     assert len(colours) == 9 and len(set(colours)) == 3
     assert colours[0] == colours[2] != colours[3]
+
+
+def test_play_renders_a_video_of_the_motion(planned, tmp_path) -> None:
+    """`play --video`: a GIF (and an MP4) rendered headless, one frame per 1/fps s of the
+    slowed-down playback; the robot moves between frames and the time readout changes."""
+    import imageio.v3 as iio
+
+    from sixplus3.visualization.video import video_times
+
+    res, _ = planned
+    gif = tmp_path / "motion.gif"
+    r = run("play", res.csv, "--video", gif, "--fps", 4)
+    assert r.exit_code == 0, r.output
+    frames = iio.imread(gif)
+    traj = read_trajectory(res.csv, Robot.default())
+    from sixplus3.visualization.meshcat_player import frames_from_samples
+
+    fr = frames_from_samples(Robot.default(), traj.t, traj.platform_position,
+                             traj.platform_quaternion, traj.psi)
+    assert len(frames) == len(video_times(fr.duration, fr.slowdown, 4.0)) >= 3
+    assert frames.shape[1:3] == (600, 800)
+    first, last = frames[0].astype(int), frames[-1].astype(int)
+    scene = np.s_[100:, :]  # below the banner: the robot
+    readout = np.s_[50:80, 0:260]  # the time readout box
+    assert np.abs(first[scene] - last[scene]).sum() > 0  # the robot moved
+    assert np.abs(first[readout] - last[readout]).sum() > 0  # t = 0.000 -> the end
+    mp4 = tmp_path / "motion.mp4"
+    assert run("play", res.csv, "--video", mp4, "--fps", 4).exit_code == 0
+    assert len(iio.imread(mp4)) == len(frames)
+    bad = run("play", res.csv, "--video", tmp_path / "m.avi")
+    assert bad.exit_code == 2 and ".mp4 or .gif" in bad.output

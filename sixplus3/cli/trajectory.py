@@ -371,7 +371,13 @@ def feed(csv_file: str, udp: str, speed: float, dry_run: bool,
 @click.option("--unsafe", is_flag=True,
               help="Show a file the gate refuses, under a red banner naming the failed "
                    "check (default: refuse it, exit 1 or 2).")
-def play(csv_file: str, html_out: str | None, no_wait: bool, unsafe: bool) -> None:
+@click.option("--video", "video_out", default=None, type=click.Path(dir_okay=False),
+              help="Render the playback headless into an .mp4 or .gif (needs chromium and "
+                   "pip install 'sixplus3[video]').")
+@click.option("--fps", default=20.0, show_default=True, type=FLOAT,
+              help="--video: frames per second of the (slowed-down) playback, in [1, 60].")
+def play(csv_file: str, html_out: str | None, no_wait: bool, unsafe: bool,
+         video_out: str | None, fps: float) -> None:
     """Animate a trajectory file in MeshCat (live; the URL is printed) or as HTML.
 
     The file is validated first: one the gate refuses is not shown (exit 1 for a
@@ -392,6 +398,14 @@ def play(csv_file: str, html_out: str | None, no_wait: bool, unsafe: bool) -> No
 
     robot = current_robot()
     check_output(html_out, (csv_file,))
+    check_output(video_out, (csv_file,))
+    if video_out is not None:
+        if html_out is not None:
+            fail("give --html or --video, not both")
+        if Path(video_out).suffix.lower() not in (".mp4", ".gif"):
+            fail(f"--video writes .mp4 or .gif, got {Path(video_out).name}")
+        if not 1.0 <= fps <= 60.0:
+            fail(f"--fps must be in [1, 60], got {fps:g}")
     rep = validate_file(csv_file, robot)
     refused = None
     if rep.exit_code != 0:
@@ -412,6 +426,12 @@ def play(csv_file: str, html_out: str | None, no_wait: bool, unsafe: bool) -> No
                                  title=f"sixplus3: {Path(csv_file).stem}",
                                  theta_dot=traj.joints("vel"))
     frames = replace(frames, refused=refused)
+    if video_out:
+        from sixplus3.visualization.video import render_video
+
+        path = render_video(frames, video_out, fps=fps)
+        click.echo(f"wrote {path} (the motion {frames.slowdown:.0f}x slower, {fps:g} fps)")
+        return
     if html_out:
         path = write_html(frames, html_out)
         click.echo(f"wrote {path} ({len(frames.q)} frames, slowed down "
