@@ -219,9 +219,12 @@ def samples_fingerprint(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
     return sha.hexdigest()
 
 
+#: Limits of the header the gate reports but does not enforce at the samples.
+REPORTED_ONLY = ("torque_rate",)
 #: Header fields the writer sets itself; ``meta`` may not name them.
 RESERVED = ("format", "rate_hz", "samples", "duration_s", "columns", "units",
-            "joint_names", "robot", "limits", "validation", "integrity")
+            "joint_names", "robot", "limits", "limits_reported_only", "validation",
+            "integrity")
 
 
 def write_trajectory(path: str | Path, t: np.ndarray, theta: np.ndarray,
@@ -281,6 +284,9 @@ def write_trajectory(path: str | Path, t: np.ndarray, theta: np.ndarray,
         "robot": {"hash": robot.hash, "parameters": robot.as_dict(),
                   "summary": robot.summary()},
         "limits": limits.as_dict(),
+        # what the gate does with each: torque_rate is the planner's bound between its
+        # own nodes; the gate reports it between samples and does not enforce it there
+        "limits_reported_only": list(REPORTED_ONLY),
         **{k: v for k, v in meta.items() if k not in RESERVED},
         "validation": report.summary(),
     }

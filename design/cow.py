@@ -156,7 +156,9 @@ class HomeInCOW:
     inside: bool  # home satisfies every limit set (reach .. clear)
     failing: str | None  # the first limit set home fails, None when inside
     depth: float  # distance from home to the COW boundary [m] (0 outside)
-    deepest: tuple[float, float, float]  # deepest COW point on the vertical through home
+    #: deepest COW point on the grid's column nearest the vertical through home (the
+    #: grid is cell-centred: its columns sit half a pitch off the axis)
+    deepest: tuple[float, float, float]
     deepest_depth: float  # [m]
     z_range: tuple[float, float]  # lowest, highest COW layer on that vertical [m] (NaN: none)
     volume_l: float  # COW volume (all five sets) [L]
@@ -170,9 +172,10 @@ class HomeInCOW:
                 f"no interference) is {self.volume_l:.1f} L")
         if not math.isfinite(self.z_range[0]):
             return head + " and does not cross the vertical through home"
-        return (head + f"; on the vertical through home it spans z = {self.z_range[0]:.2f}.."
-                f"{self.z_range[1]:.2f} m, deepest at z = {self.deepest[2]:.2f} m "
-                f"({self.deepest_depth * 100:.1f} cm deep)")
+        return (head + f"; the grid's column nearest home (x = {self.deepest[0] * 1e3:.0f}, "
+                f"y = {self.deepest[1] * 1e3:.0f} mm; {self.step * 100:g} cm grid) spans "
+                f"z = {self.z_range[0]:.2f}..{self.z_range[1]:.2f} m, deepest at z = "
+                f"{self.deepest[2]:.2f} m ({self.deepest_depth * 100:.1f} cm deep)")
 
 
 def home_in_cow(robot: Robot, step: float = 0.01,

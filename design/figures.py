@@ -82,7 +82,8 @@ def make_figures(out_dir: str | Path, reading: Reading | None = None,
     geometry = LegGeometry.symmetric(*design, ey=reading.ey, fy=-reading.ey)
     load = LegLoad()
     tag = (f"l2={design[0]:.3f}, l4={design[1]:.3f}, ex={design[2]:.3f} m; mode "
-           f"{reading.mode}, ey={reading.ey:g} m; reading '{reading.name}'")
+           f"{reading.mode}, ey={reading.ey:g} m; reading '{reading.name}' (the paper's "
+           "design, not the default robot)")
     X, Y, pts, inside = _grid_image(geometry, ws_step)
     s = leg_ik(pts, geometry, reading.mode, load)
     ok = (s.ok & inside.ravel()).reshape(X.shape)

@@ -4,12 +4,13 @@ and its leg design (:func:`leg_report`, ``sixplus3 report``)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from sixplus3.design.cow import home_in_cow
-from sixplus3.design.workspace import THETA_MAX, usable_area
+from sixplus3.design.search import Reading
+from sixplus3.design.workspace import usable_area
 from sixplus3.errors import InputError
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.robot_description.geometry import LegLoad
@@ -29,7 +30,7 @@ def leg_report(robot: Robot, ws_step: float = 0.005) -> str:
         f"  design l2 = l3 = {geometry.l2:.3f}, l4 = l5 = {geometry.l4:.3f}, ex = fx = "
         f"{geometry.ex:.3f}, ey = -fy = {geometry.ey:.3f} m (paper: 0.139, 0.350, 0.097, "
         f"ey 'as small as possible'); assembly mode {mode.name}",
-        "  " + home_in_cow(robot, step=0.02).line() + " (grid 2 cm)",
+        "  " + home_in_cow(robot, step=0.02).line(),
         "  geometry [m]: " + ", ".join(f"{k}={v:g}" for k, v in geometry.as_dict().items()),
         f"  assembly mode {mode.name}; load {load.mass} kg at P, "
         f"{load.accel_g:g} g in any direction, limit {load.torque_limit:g} N m",
@@ -56,16 +57,26 @@ def leg_report(robot: Robot, ws_step: float = 0.005) -> str:
             f"  ({p[0]:+.3f}, {p[1]:+.3f}, {p[2]:+.3f})  {th}   "
             f"{st.margin_I[i]:.3f}/{st.margin_II[i]:.3f}   {st.tau_ext[i]:8.3f}  {sing[i]}"
         )
-    rep = usable_area(geometry, ws_step, mode, load)
+    reading = reading_of(mode.name)
+    rep = usable_area(geometry, ws_step, mode, load, reading.theta_max, reading.theta_zero,
+                      reading.theta_direction)
     lines += [
         "",
-        f"  design half-plane z = 0, y >= 0 (grid {ws_step * 1000:g} mm):",
+        f"  design half-plane z = 0, y >= 0 (grid {ws_step * 1000:g} mm), this robot's own "
+        f"leg (ey = {geometry.ey:.3f} m), the angles read as '{reading.name}' (the reading "
+        f"in assembly mode {mode.name}; docs/design.md, 'Readings'):",
         f"    reachable disk          {rep.disk_area:.5f} m^2",
         f"    solved in mode {mode.name}    {rep.reachable_area:.5f} m^2",
-        f"    0 <= theta <= {math.degrees(THETA_MAX):.0f} deg    {rep.theta_ok_area:.5f} m^2",
+        f"    0 <= theta <= {math.degrees(reading.theta_max):.0f} deg    "
+        f"{rep.theta_ok_area:.5f} m^2",
         f"    and tau_ext <= {load.torque_limit:g} N m  {rep.usable_area:.5f} m^2"
-        "  (the paper's design objective)",
+        "  (the paper's design objective, in that reading)",
     ]
+    if geometry.ey != 0.0:
+        flat = usable_area(replace(geometry, ey=0.0, fy=0.0), ws_step, mode, load,
+                           reading.theta_max, reading.theta_zero, reading.theta_direction)
+        lines.append(f"    the same leg with E = F (ey = 0, the paper's assumption): "
+                     f"{flat.usable_area:.5f} m^2")
     return "\n".join(lines)
 
 
@@ -79,6 +90,16 @@ class RobotCheck:
     lines: tuple[str, ...]
     inside: bool
     cow_line: str
+
+
+def reading_of(mode: str) -> Reading:
+    """The reading of the paper's conventions in assembly mode ``mode``
+    (:data:`design.readings.READINGS`: paper-match for ++--, paper-mirror for -+++, ours
+    for ++++); ours for any other mode."""
+    from sixplus3.design.readings import READINGS
+
+    return next((r for r in READINGS.values() if r.mode == mode
+                 and r.theta_max < 2 * math.pi), READINGS["spec"])
 
 
 def robot_check(robot: Robot) -> RobotCheck:
@@ -145,7 +166,7 @@ def robot_check(robot: Robot) -> RobotCheck:
         f"home      platform at {list(robot.home_position)} m, psi = "
         f"{np.round(np.degrees(robot.home_psi), 2).tolist()} deg; closure residual "
         f"{residual:.2e} m",
-        f"COW       {where.line()} (grid {where.step * 100:g} cm)",
+        f"COW       {where.line()}",
         "margins   leg type I " + " ".join(f"{v:.3f}" for v in m["leg_type1"])
         + " | leg type II " + " ".join(f"{v:.3f}" for v in m["leg_type2"])
         + f" | platform {m['platform']:.3f}",

@@ -76,16 +76,19 @@ class AreaReport:
 
 def usable_area(geometry: LegGeometry, step: float = 0.005,
                 mode: AssemblyMode | str = DEFAULT_MODE, load: LegLoad | None = None,
-                theta_max: float = THETA_MAX) -> AreaReport:
-    """Areas of the half-plane workspace that are reachable, within theta, within torque."""
+                theta_max: float = THETA_MAX, zero: float = 0.0,
+                direction: int = 1) -> AreaReport:
+    """Areas of the half-plane workspace that are reachable, within theta, within torque;
+    the angles counted in the convention (``zero``, ``direction``) of
+    :func:`theta_within` (default: ours, docs/conventions.md)."""
     load = load or LegLoad()
     pts = halfplane_grid(geometry, step)
     ev = leg_eval_packed(pts, geometry.packed(), AssemblyMode.parse(mode), load,
                          margin_ii=False)
     cell = step * step
-    th_ok = ev.ok & theta_within(ev.theta, theta_max)
+    th_ok = ev.ok & theta_within(ev.theta, theta_max, zero, direction)
     return AreaReport(
         step=step, disk_area=len(pts) * cell, reachable_area=float(ev.ok.sum()) * cell,
         theta_ok_area=float(th_ok.sum()) * cell,
-        usable_area=float(counted(ev, load, theta_max).sum()) * cell,
+        usable_area=float((th_ok & (ev.tau_ext <= load.torque_limit)).sum()) * cell,
     )

@@ -177,6 +177,11 @@ def design_figures(out_dir: str, reading: str, ws_step: float) -> None:
         fail(f"--ws-step must be in [0.0005, 0.05] m, got {ws_step!r}")
     rd = _reading(reading)
     s = make_figures(out_dir, rd, ws_step=ws_step)
+    robot = current_robot()
+    click.echo(f"figures of the paper's leg design (l2, l4, ex) = {s.design} in the reading "
+               f"'{rd.name}' (mode {rd.mode}, ey = {rd.ey:g} m): the paper's figures, not the "
+               f"robot in use ({robot.name}: mode {robot.mode.name}, ey = {robot.leg.ey:g} m); "
+               "'sixplus3 report' gives that robot's own design objective")
     for f in s.files:
         click.echo(f"wrote {f}")
     click.echo(f"counted area {s.counted_area_m2:.4f} m^2; COW projected area / footprint: "

@@ -114,7 +114,10 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
             click.echo(f"  torque rate between samples: max {rep.max_torque_rate:.0f} N m/s "
                        f"(reported, not a gate limit: the planner bounds it at "
                        f"{limits.torque_rate:g} N m/s between its own nodes)")
-        lim_txt = ", ".join(f"{k} {v:.6g}" for k, v in limits.as_dict().items())
+        from sixplus3.control.trajectory_file import REPORTED_ONLY
+
+        lim_txt = ", ".join(f"{k} {v:.6g}" for k, v in limits.as_dict().items()
+                            if k not in REPORTED_ONLY)
         click.echo(f"  judged by robot {robot.hash[:12]} at {rep.rate_hz:g} Hz, its hardware "
                    f"limits tightened by the site's and the file's: {lim_txt}")
         click.echo(f"  envelope: {envelope['drive_train']} from the {envelope['origin']}")
