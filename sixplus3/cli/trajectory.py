@@ -115,9 +115,11 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
                        f"(reported, not a gate limit: the planner bounds it at "
                        f"{limits.torque_rate:g} N m/s between its own nodes)")
         from sixplus3.control.trajectory_file import REPORTED_ONLY
+        from sixplus3.robot_description.limits import TCP_ACCELERATION_NONE, TCP_SPEED_NONE
 
-        lim_txt = ", ".join(f"{k} {v:.6g}" for k, v in limits.as_dict().items()
-                            if k not in REPORTED_ONLY)
+        none = {"tcp_speed": TCP_SPEED_NONE, "tcp_acceleration": TCP_ACCELERATION_NONE}
+        lim_txt = ", ".join(f"{k} {'none' if v >= none.get(k, float('inf')) else f'{v:.6g}'}"
+                            for k, v in limits.as_dict().items() if k not in REPORTED_ONLY)
         click.echo(f"  judged by robot {robot.hash[:12]} at {rep.rate_hz:g} Hz, its hardware "
                    f"limits tightened by the site's and the file's: {lim_txt}")
         click.echo(f"  envelope: {envelope['drive_train']} from the {envelope['origin']}")
