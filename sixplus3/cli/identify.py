@@ -32,7 +32,7 @@ def identify() -> None:
               help="Share of the torque limit the tours may use, in [0.5, 1].")
 @click.option("--seed", default=0, show_default=True, type=INT)
 @click.option("--compare-examples", is_flag=True,
-              help="Also plan the ten examples and report their stacked condition number.")
+              help="Also plan every example and report their stacked condition number.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 def excite(out_dir: str, duration: float, candidates: int, waypoints: int, reach: float,
            tilt: float, torque_fraction: float, seed: int, compare_examples: bool,
@@ -63,7 +63,7 @@ def excite(out_dir: str, duration: float, candidates: int, waypoints: int, reach
 
 
 def _examples_condition(robot) -> float:
-    """The condition number of the ten examples' base regressor, stacked (each example
+    """The condition number of the examples' base regressor, stacked (each example
     planned; a comparison for the excitation)."""
     import math
 
