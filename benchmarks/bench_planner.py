@@ -28,6 +28,7 @@ from sixplus3.kinematics.robot import robot_ik
 from sixplus3.planner.analysis import largest_tilt
 from sixplus3.planner.certificate import certify
 from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
+from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import load_task, task_from_dict
 from sixplus3.planner.toppra_baseline import toppra_along
 from sixplus3.robot_description.robot import Robot
@@ -39,7 +40,7 @@ HOME_Z = Robot.default().home_position[2]
 def run(task, locked: bool):
     try:
         opts = PlannerOptions(lock_redundancy=locked)
-        return Problem(task, Robot.default(), options=opts).solve()
+        return solve(Problem(task, Robot.default(), options=opts))
     except InfeasibleTaskError as exc:
         print(f"  {task.name} locked={locked}: infeasible: {exc}", flush=True)
         return None
@@ -69,7 +70,7 @@ def planned_tilt(axis: str, locked: bool, static_deg: float) -> str:
                                              {"position": [0, 0, HOME_Z]}]})
         try:
             opts = PlannerOptions(lock_redundancy=locked)
-            sol = Problem(task, Robot.default(), options=opts).solve()
+            sol = solve(Problem(task, Robot.default(), options=opts))
             if sol.is_feasible():
                 return (f"{deg:g} deg in {sol.final_time:.4f} s (solve {sol.solve_time:.2f} s, "
                         f"max|tau|/lim {sol.check.max_torque_ratio:.3f}, margin "

@@ -18,7 +18,7 @@ at the end).  Tasks whose waypoints fail
 the static checks (reach, ranges, margins, holding torque) are refused before any
 optimisation, by design, and counted apart.
 
-Per task: the wall time of ``Problem(task, robot).solve()`` (everything from the task to a
+Per task: the wall time of ``solve(Problem(task, robot))`` (everything from the task to a
 dense-checked Solution; the one-time C compilation of the model is done before the clock
 starts), the NLP solve time, IPOPT iterations, the plan's duration, and the duration of
 the stop-at-waypoints baseline (straight lines, static crank angles, TOPP-RA per segment,
@@ -40,6 +40,7 @@ import numpy as np
 from sixplus3.dynamics.codegen import ensure_optimised
 from sixplus3.planner.certificate import certify
 from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
+from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -229,7 +230,7 @@ def run_task(task: object, opts: PlannerOptions, certify_plans: bool) -> dict:
     row: dict = {"name": task.name, "waypoints": len(task.waypoints)}
     t0 = time.perf_counter()
     try:
-        sol = Problem(task, Robot.default(), options=opts).solve()
+        sol = solve(Problem(task, Robot.default(), options=opts))
         row["wall"] = time.perf_counter() - t0
         row.update(ok=sol.is_feasible(), T=sol.final_time, solve=sol.solve_time,
                    iterations=sol.iterations, solves=sol.solves, status=sol.status,

@@ -21,6 +21,7 @@ import numpy as np
 
 from sixplus3.dynamics.codegen import ensure_optimised
 from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
+from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -54,7 +55,7 @@ def main() -> None:
         t0 = time.perf_counter()
         try:
             opts = PlannerOptions(lock_redundancy=args.locked)
-            sol = Problem(task, Robot.default(), options=opts).solve()
+            sol = solve(Problem(task, Robot.default(), options=opts))
             if sol.is_feasible():
                 outcome["planned"] += 1
                 solves.append(sol.solve_time)

@@ -37,6 +37,7 @@ from sixplus3.planner import options as planner_options
 from sixplus3.planner.certificate import certify
 from sixplus3.planner.ocp import Problem
 from sixplus3.planner.statics import choose_static_psi
+from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import task_from_dict
 from sixplus3.planner.toppra_baseline import toppra_along, toppra_trajectory
 from sixplus3.robot_description.robot import Robot
@@ -66,7 +67,7 @@ def tasks(robot: Robot, n: int, seed: int) -> list[dict]:
 
 def measure(problem: Problem) -> dict:
     t0 = time.perf_counter()
-    sol = problem.solve()
+    sol = solve(problem)
     wall = time.perf_counter() - t0
     psi = choose_static_psi(problem.task, problem.robot, problem.limits, False, {0, 1})
     wx = problem.waypoint_states(psi)

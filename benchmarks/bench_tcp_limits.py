@@ -20,6 +20,7 @@ import numpy as np
 from sixplus3 import examples
 from sixplus3.planner.ocp import Problem
 from sixplus3.planner.solution import actuated_profile
+from sixplus3.planner.strategy import solve
 from sixplus3.robot_description.robot import Robot
 
 CASES = (("robot's limits", {}), ("acceleration 100 rad/s^2", {"acceleration": 100.0}),
@@ -40,7 +41,7 @@ def main() -> None:
         row, first = [], None
         for _, lim in CASES:
             task = dataclasses.replace(base, limits={**base.limits, **lim})
-            sol = Problem(task, robot).solve()
+            sol = solve(Problem(task, robot))
             ok = sol.check is not None and sol.check.ok
             row.append(f"{sol.final_time:.4f}" + ("" if ok else " (check failed)"))
             first = first or sol

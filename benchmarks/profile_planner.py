@@ -27,6 +27,7 @@ from bench_planner_heldout import heldout_task
 from sixplus3.dynamics.codegen import compiled_functions, ensure_optimised
 from sixplus3.planner.ocp import Problem
 from sixplus3.planner.solvers import ipopt_solver
+from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -55,7 +56,7 @@ def main() -> None:
     # the generator draws the tasks in turn: task k is the (k+1)-th draw of the seed
     docs = [heldout_task(rng, k) for k in range(args.task + 1)]
     problem = Problem(task_from_dict(docs[-1]), robot)
-    sol = problem.solve()
+    sol = solve(problem)
     print(f"heldout_{args.task}: {len(sol.task.waypoints)} waypoints, {len(sol.t) - 1} "
           f"intervals, {sol.iterations} IPOPT iterations, solve {sol.solve_time:.2f} s")
     solver = ipopt_solver(problem).solver

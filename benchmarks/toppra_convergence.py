@@ -17,6 +17,7 @@ import numpy as np
 
 from sixplus3.dynamics.codegen import ensure_optimised
 from sixplus3.planner.ocp import PlannerOptions, Problem
+from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import load_task
 from sixplus3.planner.toppra_baseline import toppra_along
 from sixplus3.robot_description.robot import Robot
@@ -37,7 +38,7 @@ def main() -> None:
     for name in args.tasks:
         task = load_task(root / f"{name}.yaml")
         opts = PlannerOptions(lock_redundancy=not args.free)
-        sol = Problem(task, Robot.default(), options=opts).solve()
+        sol = solve(Problem(task, Robot.default(), options=opts))
         speed = np.linalg.norm(sol.xd, axis=1)
         ratios = [sol.final_time / toppra_along(sol, sol.limits, gp) for gp in GRIDS]
         print(f"| {name} {'free' if args.free else 'locked'} | "

@@ -1,18 +1,19 @@
-"""The gate's findings and report: the consistency tolerances, one :class:`Finding` per
-failed check, the :class:`ValidationReport`, and the findings of the limits on samples,
-midpoints and whole intervals, each by the one limit rule
+"""The gate's findings: the consistency tolerances, one :class:`Finding` (of
+:mod:`sixplus3.control.report`) per failed check, and the findings of the limits on
+samples, midpoints and whole intervals, each by the one limit rule
 (:mod:`sixplus3.kinematics.checks`).  :mod:`sixplus3.control.validation` runs the checks
 and re-exports these names."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from sixplus3.control import interval
-from sixplus3.control.trajectory_file import JOINTS
+from sixplus3.control.file_format import JOINTS
+from sixplus3.control.report import Finding, ValidationReport
 from sixplus3.kinematics.checks import (
     RCOND_MIN,
     cap_excess,
@@ -68,31 +69,6 @@ class Tolerances:
                 "feedforward_n_m": FEEDFORWARD_TOL, "branch": BRANCH_TOL}
 
 
-@dataclass(frozen=True)
-class Finding:
-    """One failed check: where it first failed and where it failed worst."""
-
-    check: str  # e.g. "torque", "velocity consistency"
-    kind: str  # "limit" (exit 1) or "defect" (exit 2)
-    unit: str
-    bound: float  # the limit or tolerance
-    count: int  # samples (or intervals) that fail
-    first_t: float
-    first_where: str  # joint or part
-    first_value: float
-    worst_t: float
-    worst_where: str
-    worst_value: float
-    excess: float = 0.0  # how far past the bound the worst is (in the check's own terms)
-
-    def message(self) -> str:
-        u = f" {self.unit}" if self.unit else ""
-        return (f"{self.check}: first at t = {self.first_t:.4f} s on {self.first_where}: "
-                f"{self.first_value:.6g}{u} (bound {self.bound:.6g}{u}); worst at t = "
-                f"{self.worst_t:.4f} s on {self.worst_where}: {self.worst_value:.6g}{u}; "
-                f"{self.count} failing")
-
-
 def finding(check: str, kind: str, unit: str, bound: float, excess: np.ndarray,
              value: np.ndarray, times: np.ndarray, names: list[str]) -> Finding | None:
     """A finding from per-(sample, element) ``excess`` (> 0 fails) and ``value``."""
@@ -106,87 +82,21 @@ def finding(check: str, kind: str, unit: str, bound: float, excess: np.ndarray,
     j0 = int(np.flatnonzero(bad[k0])[0])
     flat = np.nan_to_num(excess, nan=np.inf).ravel()
     kw, jw = divmod(int(np.argmax(flat)), excess.shape[1])
-    return Finding(check, kind, unit, float(bound), int(len(rows)), float(times[k0]),
-                   names[j0], float(value[k0, j0]), float(times[kw]), names[jw],
-                   float(value[kw, jw]), float(flat[kw * excess.shape[1] + jw]))
-
-
-@dataclass
-class ValidationReport:
-    ok: bool
-    samples: int
-    robot_hash: str
-    max_torque_ratio: float  # max |tau| / limit (samples and midpoints)
-    max_velocity_ratio: float
-    max_acceleration_ratio: float
-    max_jerk_ratio: float
-    min_margin_leg_type1: float
-    min_margin_leg_type2: float
-    min_margin_platform: float
-    min_clearance: float  # [m]
-    max_spherical_tilt_deg: float
-    theta_range_ok: bool
-    findings: list[Finding] = field(default_factory=list)
-    tolerances: dict = field(default_factory=dict)
-    checked_points: int = 0  # samples + midpoints evaluated with the full dynamics
-    tau: np.ndarray | None = None  # (M, 9) [N m] on the samples
-    position: np.ndarray | None = None  # (M, 3) platform [m]
-    quaternion: np.ndarray | None = None  # (M, 4) x, y, z, w
-    psi: np.ndarray | None = None  # (M, 3) [rad]
-    feedforward_error: float | None = None  # max |tau_file - tau| [N m]
-    #: max |tau(k+1) - tau(k)| / dt over the samples [N m/s]: reported, not a gate check
-    #: (the planner bounds it between its own points, docs/validation.md)
-    max_torque_rate: float | None = None
-    duration: float | None = None  # [s]
-    #: max |jerk| of the interpolant over the intervals / (C_JERK x the jerk limit): above
-    #: 1 no motion within the jerk limit has these samples (control/interval.py)
-    max_interpolant_jerk_ratio: float = 0.0
-    header: dict | None = field(default=None, repr=False)  # validate_file only
-    #: the samples validated, exactly as read (validate_file): send these
-    data: np.ndarray | None = field(default=None, repr=False)
-    rate_hz: float | None = None  # the rate the samples were judged at [Hz]
-    #: trajectory_file.samples_fingerprint of (t, theta, theta_dot, theta_ddot, rate)
-    fingerprint: str | None = field(default=None, repr=False)
-    limits: dict | None = None  # the limits judged by (the robot's, or tighter)
-    max_tcp_speed: float = 0.0  # [m/s] the tool centre point (samples and midpoints)
-    max_tcp_acceleration: float = 0.0  # [m/s^2] (samples: finite difference)
-
-    @property
-    def defects(self) -> list[Finding]:
-        return [f for f in self.findings if f.kind == "defect"]
-
-    @property
-    def violations(self) -> list[str]:
-        """Messages of every finding (defects first)."""
-        return self.messages()
-
-    def messages(self) -> list[str]:
-        order = sorted(self.findings, key=lambda f: f.kind != "defect")
-        return [f.message() for f in order]
-
-    @property
-    def exit_code(self) -> int:
-        """0 valid; 2 the file is not a consistent motion of this robot; 1 a limit."""
-        if self.defects:
-            return 2
-        return 1 if self.findings else 0
-
-    def summary(self) -> dict:
-        keys = ("ok", "samples", "robot_hash", "max_torque_ratio", "max_velocity_ratio",
-                "max_acceleration_ratio", "max_jerk_ratio", "min_margin_leg_type1",
-                "min_margin_leg_type2", "min_margin_platform", "min_clearance",
-                "max_spherical_tilt_deg", "theta_range_ok", "checked_points", "tolerances",
-                "max_torque_rate", "max_interpolant_jerk_ratio", "rate_hz", "limits",
-                "max_tcp_speed", "max_tcp_acceleration")
-        out = {k: getattr(self, k) for k in keys}
-        out["exit_code"] = self.exit_code
-        out["findings"] = self.messages()
-        return out
+    return Finding(check=check, kind=kind, unit=unit, bound=float(bound),
+                   count=int(len(rows)), first_t=float(times[k0]), first_where=names[j0],
+                   first_value=float(value[k0, j0]), worst_t=float(times[kw]),
+                   worst_where=names[jw], worst_value=float(value[kw, jw]),
+                   excess=float(flat[kw * excess.shape[1] + jw]))
 
 
 def failed(n: int, robot: Robot, findings: list[Finding], tol: dict) -> ValidationReport:
-    return ValidationReport(False, n, robot.hash, math.inf, math.inf, math.inf, math.inf,
-                            0.0, 0.0, 0.0, -math.inf, 180.0, False, findings, tol)
+    """The report of a motion refused before its limits were measured."""
+    return ValidationReport(
+        ok=False, samples=n, robot_hash=robot.hash, max_torque_ratio=math.inf,
+        max_velocity_ratio=math.inf, max_acceleration_ratio=math.inf,
+        max_jerk_ratio=math.inf, min_margin_leg_type1=0.0, min_margin_leg_type2=0.0,
+        min_margin_platform=0.0, min_clearance=-math.inf, max_spherical_tilt_deg=180.0,
+        theta_range_ok=False, findings=findings, tolerances=tol)
 
 
 @dataclass

@@ -51,7 +51,7 @@ from sixplus3.control.file_format import columns
 from sixplus3.kinematics.rotations import rotvec_from_quat
 
 if TYPE_CHECKING:
-    from sixplus3.control.findings import ValidationReport
+    from sixplus3.control.report import ValidationReport
 
 #: For every motion with |jerk| <= J through the samples, the interpolant's jerk is at
 #: most C_JERK J (Peano kernel, see the module doc; 2.17575... rounded up).

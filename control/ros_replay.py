@@ -18,6 +18,7 @@ from pathlib import Path
 
 from sixplus3.fileio import atomic_write
 from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.urdf import robot_urdf
 
 #: The files written beside the bag's data.
 FILES = ("robot.urdf", "sixplus3.rviz", "replay.launch.py")
@@ -118,7 +119,7 @@ def write_replay_files(bag_dir: str | Path, robot: Robot, joint_names: list[str]
     from sixplus3 import __version__
 
     d = Path(bag_dir)
-    urdf = robot.urdf()
+    urdf = robot_urdf(robot)
     joints = {j.get("name") for j in ET.fromstring(urdf).iter("joint")}
     missing = [n for n in joint_names if n not in joints]
     if missing:  # a bug, not an input: the bag and the URDF come from the same robot

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from sixplus3.errors import InputError, ValidationFailed
+from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import Robot
 
 #: Topics of the bag.
@@ -152,7 +153,7 @@ def _stamp(types, ns: int):
 def revolute_joints(robot: Robot) -> tuple[list[str], np.ndarray, np.ndarray]:
     """(names, q indices, v indices) of every one-degree-of-freedom joint of the model,
     in the URDF's order (the floating platform joint left out)."""
-    m = robot.closed_loop_model().model
+    m = closed_loop_model(robot).model
     names, iq, iv = [], [], []
     for j in range(1, m.njoints):
         if m.nqs[j] == 1:

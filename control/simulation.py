@@ -30,6 +30,7 @@ import numpy as np
 
 from sixplus3.errors import InputError
 from sixplus3.robot_description.mjcf import TIMESTEP, build_mjcf
+from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import Robot, require_robot
 from sixplus3.robot_description.urdf import actuated_joint_names, closure_pairs
 
@@ -57,7 +58,7 @@ class MujocoRobot:
         self.model = mj.MjModel.from_xml_string(build_mjcf(self.robot, timestep,
                                                            limits=False))
         self.data = mj.MjData(self.model)
-        clm = self.robot.closed_loop_model()
+        clm = closed_loop_model(self.robot)
         pm = clm.model
         m = self.model
         self.nv = m.nv

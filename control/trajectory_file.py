@@ -81,7 +81,7 @@ from sixplus3.robot_description.robot import Robot, require_robot
 if TYPE_CHECKING:
     import pandas as pd
 
-    from sixplus3.control.findings import ValidationReport
+    from sixplus3.control.report import ValidationReport
 
 #: Most samples of a motion this package makes (a plan at a rate, its dwells, a slower
 #: replay): 2 minutes at 1 kHz.  Estimated before anything is allocated.

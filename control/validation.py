@@ -24,6 +24,7 @@ first and of the worst violation.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -36,9 +37,7 @@ from sixplus3.control.findings import (  # noqa: F401 - Tolerances, Finding, ...
     REST_ACCELERATION_TOL,
     REST_VELOCITY_TOL,
     TIME_TOL,
-    Finding,
     Tolerances,
-    ValidationReport,
     failed,
     finding,
     interval_findings,
@@ -52,6 +51,7 @@ from sixplus3.control.motion_input import (  # noqa: E402,F401 - re-exported
     check_rate,
 )
 from sixplus3.control.offload import OFFLOAD_SHARE, Offload
+from sixplus3.control.report import Finding, ValidationReport  # noqa: F401 - re-exported
 from sixplus3.control.trajectory_file import (
     COLUMNS,
     JOINTS,
@@ -169,10 +169,10 @@ def _merge(reps: list[ValidationReport], n: int) -> ValidationReport:
                 by_check[f.check] = f
                 continue
             worst = f if f.excess > old.excess else old
-            by_check[f.check] = Finding(
-                f.check, f.kind, f.unit, f.bound, old.count + f.count, old.first_t,
-                old.first_where, old.first_value, worst.worst_t, worst.worst_where,
-                worst.worst_value, max(old.excess, f.excess))
+            by_check[f.check] = replace(
+                old, count=old.count + f.count, worst_t=worst.worst_t,
+                worst_where=worst.worst_where, worst_value=worst.worst_value,
+                excess=max(old.excess, f.excess))
     complete = all(r.tau is not None for r in reps) and len(reps) > 0
 
     def cat(name: str) -> np.ndarray | None:
@@ -221,19 +221,23 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
     # ------------------------------------------------------------ grid and rate
     lo, hi = rate_range
     if not (math.isfinite(rate) and lo <= rate <= hi):
-        f = Finding("rate", "defect", "Hz", lo, 1, 0.0, "header", float(rate), 0.0, "header",
-                    float(rate))
+        f = Finding(check="rate", kind="defect", unit="Hz", bound=lo, count=1, first_t=0.0,
+                    first_where="header", first_value=float(rate), worst_t=0.0,
+                    worst_where="header", worst_value=float(rate))
         return failed(n, robot, [f], {})
     dt = 1.0 / rate
     tol = Tolerances(dt, lim.jerk)
     tol_d = tol.as_dict()
     if n < 2 or not np.all(np.isfinite(np.c_[t, th, v, a])):
-        f = Finding("samples", "defect", "", 2, 1, 0.0, "file", float(n), 0.0, "file", n)
+        f = Finding(check="samples", kind="defect", unit="", bound=2, count=1, first_t=0.0,
+                    first_where="file", first_value=float(n), worst_t=0.0,
+                    worst_where="file", worst_value=n)
         return failed(n, robot, [f], tol_d)
     grid = (k0 + np.arange(n)) / rate
     if (k0 + (n_total or n) - 1) / rate > MAX_DURATION:
-        f = Finding("duration", "defect", "s", MAX_DURATION, 1, float(t[-1]), "file",
-                    float(grid[-1]), float(t[-1]), "file", float(grid[-1]))
+        f = Finding(check="duration", kind="defect", unit="s", bound=MAX_DURATION, count=1,
+                    first_t=float(t[-1]), first_where="file", first_value=float(grid[-1]),
+                    worst_t=float(t[-1]), worst_where="file", worst_value=float(grid[-1]))
         return failed(n, robot, [f], tol_d)
     err = np.abs(t - grid)
     g = finding("time grid (t_k = k / rate)", "defect", "s", TIME_TOL,

@@ -58,9 +58,7 @@ symbolic statics (:func:`dynamics.symbolic.holding_function`, checked against Pi
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import casadi as ca
@@ -76,6 +74,7 @@ from sixplus3.design.atlas_data import (
     CRANKS,
     PSI_RANGE_DEG,
     THRESHOLDS_DEG,
+    AtlasSettings,
     all_directions,
     build_dataset,
     figures,
@@ -93,46 +92,6 @@ from sixplus3.robot_description.robot import Robot, require_robot
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
-
-
-@dataclass(frozen=True)
-class AtlasSettings:
-    """What the atlas computes; every value in the file's attributes."""
-
-    step: float = 0.02  # position grid [m]
-    azimuth_step_deg: float = 15.0  # tilt-axis azimuths 0, step, .. < 360 [deg]
-    torsions_deg: tuple[float, ...] = (0.0,)  # [deg]
-    max_tilt_deg: float = 180.0
-    scan_deg: float = 15.0  # the scan step before bisection [deg]
-    resolution_deg: float = 1.0  # bisection resolution [deg]
-    psi_step_deg: float = 7.5  # per-leg crank grid of the free search [deg]
-    #: the optional dynamic criterion: 0 (off) or a, the platform must be able to
-    #: accelerate at a g in every direction from rest within the torque limit [g]
-    accel_g: float = 0.0
-
-    def check(self) -> AtlasSettings:
-        vals = {"step": (self.step, 0.002, 0.2), "azimuth_step_deg": (self.azimuth_step_deg,
-                                                                      1.0, 180.0),
-                "max_tilt_deg": (self.max_tilt_deg, 1.0, 180.0),
-                "scan_deg": (self.scan_deg, 0.5, 90.0),
-                "resolution_deg": (self.resolution_deg, 0.01, 10.0),
-                "psi_step_deg": (self.psi_step_deg, 1.0, 45.0),
-                "accel_g": (self.accel_g, 0.0, 5.0)}
-        for name, (v, lo, hi) in vals.items():
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
-                raise InputError(f"atlas {name} must be in [{lo:g}, {hi:g}], got {v!r}",
-                                 value=v, valid=f"[{lo:g}, {hi:g}]")
-        tors = tuple(self.torsions_deg)
-        if not tors or len(tors) > 36 or not all(
-                isinstance(t, (int, float)) and math.isfinite(t) and -180 <= t <= 180
-                for t in tors):
-            raise InputError(f"atlas torsions must be 1..36 angles in [-180, 180] deg, "
-                             f"got {tors!r}", value=tors, valid="[-180, 180] deg")
-        return self
-
-    @property
-    def azimuths_deg(self) -> np.ndarray:
-        return np.arange(0.0, 360.0 - 1e-9, self.azimuth_step_deg)
 
 
 # --------------------------------------------------------------------- one batch of poses

@@ -10,6 +10,7 @@ names are re-exported by :mod:`sixplus3.design.atlas`.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,8 +25,6 @@ from sixplus3.robot_description.robot import Robot
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
 
-    from sixplus3.design.atlas import AtlasSettings
-
 #: Binding codes (the first check no candidate passes just beyond the largest tilt).
 BINDING = ("none", "reach", "theta", "spherical", "leg margin", "clearance", "platform",
            "torque", "max tilt")
@@ -34,6 +33,46 @@ CRANKS = ("free", "locked")
 PSI_RANGE_DEG = (math.degrees(PSI_MIN), math.degrees(PSI_MAX))
 #: Volumes reported for "every direction tilts at least" these angles [deg].
 THRESHOLDS_DEG = (30.0, 45.0, 60.0, 90.0)
+
+
+@dataclass(frozen=True)
+class AtlasSettings:
+    """What the atlas computes; every value in the file's attributes."""
+
+    step: float = 0.02  # position grid [m]
+    azimuth_step_deg: float = 15.0  # tilt-axis azimuths 0, step, .. < 360 [deg]
+    torsions_deg: tuple[float, ...] = (0.0,)  # [deg]
+    max_tilt_deg: float = 180.0
+    scan_deg: float = 15.0  # the scan step before bisection [deg]
+    resolution_deg: float = 1.0  # bisection resolution [deg]
+    psi_step_deg: float = 7.5  # per-leg crank grid of the free search [deg]
+    #: the optional dynamic criterion: 0 (off) or a, the platform must be able to
+    #: accelerate at a g in every direction from rest within the torque limit [g]
+    accel_g: float = 0.0
+
+    def check(self) -> AtlasSettings:
+        vals = {"step": (self.step, 0.002, 0.2), "azimuth_step_deg": (self.azimuth_step_deg,
+                                                                      1.0, 180.0),
+                "max_tilt_deg": (self.max_tilt_deg, 1.0, 180.0),
+                "scan_deg": (self.scan_deg, 0.5, 90.0),
+                "resolution_deg": (self.resolution_deg, 0.01, 10.0),
+                "psi_step_deg": (self.psi_step_deg, 1.0, 45.0),
+                "accel_g": (self.accel_g, 0.0, 5.0)}
+        for name, (v, lo, hi) in vals.items():
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
+                raise InputError(f"atlas {name} must be in [{lo:g}, {hi:g}], got {v!r}",
+                                 value=v, valid=f"[{lo:g}, {hi:g}]")
+        tors = tuple(self.torsions_deg)
+        if not tors or len(tors) > 36 or not all(
+                isinstance(t, (int, float)) and math.isfinite(t) and -180 <= t <= 180
+                for t in tors):
+            raise InputError(f"atlas torsions must be 1..36 angles in [-180, 180] deg, "
+                             f"got {tors!r}", value=tors, valid="[-180, 180] deg")
+        return self
+
+    @property
+    def azimuths_deg(self) -> np.ndarray:
+        return np.arange(0.0, 360.0 - 1e-9, self.azimuth_step_deg)
 
 
 # --------------------------------------------------------------------- the grid
@@ -295,6 +334,7 @@ def _save(fig, path: Path, plt) -> Path:
     return path
 
 
-__all__ = ["BINDING", "CRANKS", "PSI_RANGE_DEG", "THRESHOLDS_DEG", "all_directions",
+__all__ = ["BINDING", "CRANKS", "PSI_RANGE_DEG", "THRESHOLDS_DEG", "AtlasSettings",
+           "all_directions",
            "build_dataset", "figures", "headline", "load", "position_grid", "save",
            "volumes"]

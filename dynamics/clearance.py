@@ -37,7 +37,7 @@ def segment_distance(p1, q1, p2, q2):
 #: true minimum of its pairs by at most ln(pairs in the row) / 2000 m (on the safe side)
 CLEARANCE_SHARPNESS = 2000.0
 #: The rows measure the pairs that come within this of contact somewhere in the sample
-#: of :func:`sixplus3.kinematics.collision.near_pairs` [m]
+#: of :func:`sixplus3.kinematics.near.near_pairs` [m]
 PAIR_MARGIN = 0.02
 #: The value of a row none of whose pairs comes near in that sample [m]
 FAR = 1.0
@@ -49,16 +49,11 @@ def clearance_rows(caps, robot: Robot) -> ca.SX:
     legs (links and hubs), the platform against the legs and hubs, the platform above
     the base plate.  Each row is a soft minimum -ln(sum exp(-k d)) / k, shifted for
     numerical range, over the pairs of its family that come within ``PAIR_MARGIN`` of
-    contact in :func:`~sixplus3.kinematics.collision.near_pairs`'s sample (all 333 make
+    contact in :func:`~sixplus3.kinematics.near.near_pairs`'s sample (all 333 make
     a C file gcc needs 15 GB to optimise); the dense check and the gate measure every
     pair."""
-    from sixplus3.kinematics.collision import (
-        BASE_BODIES,
-        PAIR_FAMILY,
-        PAIRS,
-        near_pairs,
-        radii,
-    )
+    from sixplus3.kinematics.collision import BASE_BODIES, PAIR_FAMILY, PAIRS, radii
+    from sixplus3.kinematics.near import near_pairs
 
     r = radii(robot)
     pair_idx, base_idx = near_pairs(robot, PAIR_MARGIN)

@@ -31,7 +31,7 @@ import pinocchio as pin
 from scipy.linalg import lapack
 
 from sixplus3.errors import InputError, SingularityError
-from sixplus3.robot_description.model import ClosedLoopModel
+from sixplus3.robot_description.model import ClosedLoopModel, closed_loop_model
 from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Parallel-singularity threshold on the reciprocal condition number (1-norm) of J_pas.
@@ -80,7 +80,7 @@ class ClosedLoopDynamics:
                                  value=model.robot.hash, valid=robot.hash)
             self.clm = model
         else:
-            self.clm = require_robot(robot).closed_loop_model()
+            self.clm = closed_loop_model(require_robot(robot))
         self.robot = self.clm.robot
         self.model = self.clm.model
         self.data = self.model.createData()

@@ -33,6 +33,7 @@ from sixplus3.dynamics.symbolic import (
     rotvec_matrix,
 )
 from sixplus3.dynamics.tree import revolute_joints, tree_forces, tree_placements
+from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import NUM_LEGS, Robot, require_robot
 
 #: the lifted joints of a leg, in this order (legs 0, 1, 2)
@@ -68,7 +69,7 @@ def lifted_functions(robot: Robot) -> dict[str, ca.Function]:
     p (``symbolic.setup_parameters``); ``lift``: (x, xd, xdd) -> (qv, qd, qdd) that
     satisfy the closure rows (the closed forms)."""
     robot = require_robot(robot)
-    model = robot.closed_loop_model().model
+    model = closed_loop_model(robot).model
     x, xd, xdd = (ca.SX.sym(n, NX) for n in ("x", "xd", "xdd"))
     tau, setup = ca.SX.sym("tau", NX), ca.SX.sym("p", N_SETUP)
     qv, qd, qdd = (ca.SX.sym(n, NQ) for n in ("qv", "qd", "qdd"))
@@ -118,7 +119,7 @@ def implicit_functions(robot: Robot) -> dict[str, ca.Function]:
     are linear in (tau, lam) with a unique solution, whose tau is today's
     (tests/test_planner_structure.py)."""
     robot = require_robot(robot)
-    clm = robot.closed_loop_model()
+    clm = closed_loop_model(robot)
     model = clm.model
     x, xd, xdd = (ca.SX.sym(n, NX) for n in ("x", "xd", "xdd"))
     tau, setup = ca.SX.sym("tau", NX), ca.SX.sym("p", N_SETUP)

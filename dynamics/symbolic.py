@@ -40,6 +40,7 @@ from sixplus3.dynamics.tree import (
 )
 from sixplus3.kinematics.spherical import spherical_reference
 from sixplus3.robot_description.assembly import AssemblyMode
+from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, require_robot
 
 NX = 9  # minimal coordinates: p (3), r (3), psi (3)
@@ -190,7 +191,7 @@ def setup_parameters(robot: Robot) -> np.ndarray:
     robot = require_robot(robot)
 
     def make() -> np.ndarray:
-        model = robot.closed_loop_model().model
+        model = closed_loop_model(robot).model
         if model.njoints - 1 != N_BODIES:
             raise ValueError(f"the tree has {model.njoints - 1} bodies, not {N_BODIES}")
         bodies = np.concatenate([model.inertias[j].toDynamicParameters()
@@ -350,7 +351,7 @@ def ik_expressions(geom: RobotGeometry, mode: AssemblyMode, x: ca.SX) -> dict[st
 
 
 def _build(robot: Robot) -> _Core:
-    model = robot.closed_loop_model().model
+    model = closed_loop_model(robot).model
     setup = ca.SX.sym("p", N_SETUP)
     geom = robot.geometry
     mode: AssemblyMode = robot.mode

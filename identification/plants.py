@@ -10,6 +10,7 @@ import numpy as np
 from sixplus3.dynamics.regressor import N_BODY, N_MOTOR, Layout
 from sixplus3.errors import InputError
 from sixplus3.robot_description.masses import BODY_LINKS, BodyInertial, BodyInertials
+from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.physical import MotorModel
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -22,7 +23,7 @@ def link_inertials(robot: Robot) -> dict[str, BodyInertial]:
     from sixplus3.robot_description.physical import Payload
 
     bare = robot if robot.payload.mass == 0.0 else replace(robot, payload=Payload())
-    model = bare.closed_loop_model().model
+    model = closed_loop_model(bare).model
     from sixplus3.dynamics.regressor import body_links
 
     out = {}

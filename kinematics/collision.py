@@ -202,48 +202,6 @@ def check_layout(robot: Robot) -> None:
             f"{-d * 1e3:.1f} mm (collision model, docs/robot.md)")
 
 
-#: The region :func:`near_pairs` samples, around the robot's home: |x|, |y| <= 0.15 m,
-#: z from -0.20 to +0.15 m, tilts up to 100 deg about any axis, cranks in [35, 145] deg.
-NEAR_SAMPLES = 40000
-
-
-def near_pairs(robot: Robot, margin: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
-    """The pairs (indices into :data:`PAIRS`) and base bodies (into
-    :data:`BASE_BODIES`) that come within ``margin`` [m] of contact somewhere in a seeded
-    sample of the workspace around home (``NEAR_SAMPLES`` random poses, the solved ones
-    with every actuated angle and spherical joint in range).  The planner's smooth rows
-    measure only these; the dense check and the gate measure every pair.  Cached per
-    robot."""
-    from sixplus3.cache import cached
-
-    return cached(("near-pairs", f"{robot.hash}:{margin!r}"),
-                  lambda: _near_pairs(robot, margin))
-
-
-def _near_pairs(robot: Robot, margin: float) -> tuple[np.ndarray, np.ndarray]:
-    from sixplus3.kinematics import rotations as rot
-    from sixplus3.kinematics.checks import pose_masks
-    from sixplus3.kinematics.robot import robot_ik
-
-    rng = np.random.default_rng(0)
-    n = NEAR_SAMPLES
-    pos = np.asarray(robot.home_position) + np.c_[rng.uniform(-0.15, 0.15, (n, 2)),
-                                                  rng.uniform(-0.20, 0.15, n)]
-    axis = rng.normal(size=(n, 3))
-    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
-    R = rot.matrix_from_rotvec(axis * rng.uniform(0.0, np.radians(100.0), (n, 1)))
-    psi = rng.uniform(np.radians(35.0), np.radians(145.0), (n, 3))
-    cfg = robot_ik(pos, R, psi, robot, platform_margins=False)
-    _, sph = pose_masks(cfg, robot.limits)
-    cfg = cfg.take(sph)
-    caps = np.ascontiguousarray(capsules(cfg))
-    r = radii(robot)
-    d = _geometry_kernel.pair_distances(caps, r, PAIRS).min(axis=0)
-    low = (caps[:, BASE_BODIES][..., 2].min(axis=(0, 2)) - r[BASE_BODIES]
-           - robot.collision.base_top)
-    return np.flatnonzero(d < margin), np.flatnonzero(low < margin)
-
-
 def _segment_distance(p1, q1, p2, q2):
     """(n,) distance between segments [p1, q1] and [p2, q2] (batched, (n, 3) each): the
     numpy reference of the compiled kernel ``_geometry_kernel.segment_distance``."""

@@ -27,6 +27,7 @@ from sixplus3.cache import cached
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError, as_float_array
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.leg import LegState, failing_chain, leg_ik, status_reason
+from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, require_robot
 
 if TYPE_CHECKING:
@@ -101,7 +102,7 @@ def q_layout(robot: Robot) -> dict[str, int]:
     """q index of every joint of the robot's tree (from Pinocchio), and the nq."""
 
     def make() -> dict[str, int]:
-        m = robot.closed_loop_model().model
+        m = closed_loop_model(robot).model
         out = {m.names[j]: int(m.joints[j].idx_q) for j in range(1, m.njoints)}
         out["__nq__"] = int(m.nq)
         return out
@@ -324,7 +325,7 @@ def robot_fk(theta: ArrayLike, robot: Robot | None, q_hint: ArrayLike | None = N
                              value=model.robot.hash, valid=robot.hash)
         robot = model.robot
     robot = require_robot(robot)
-    clm = model or robot.closed_loop_model()
+    clm = model or closed_loop_model(robot)
     theta = as_float_array(theta, "theta", "9 actuated angles [rad]")
     if theta.shape != (9,) or not np.all(np.isfinite(theta)):
         raise InputError(f"theta must be 9 finite angles [rad], got shape {theta.shape}",

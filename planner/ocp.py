@@ -34,6 +34,7 @@ from sixplus3.errors import InfeasibleTaskError
 from sixplus3.planner.options import PlannerOptions
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import DenseCheck, Solution, dense_check
+from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import Task
 from sixplus3.robot_description.robot import Robot
 
@@ -49,8 +50,8 @@ def plan(task: Task, robot: Robot | None = None, options: PlannerOptions | None 
     ``Robot.default()``, the one place of the library that chooses a robot for its
     caller (:class:`Problem` and everything below it require one).  ``progress``: a
     :class:`sixplus3.progress.PlanProgress` told each stage and IPOPT iteration."""
-    sol = Problem(task, Robot.default() if robot is None else robot, options,
-                  progress).solve()
+    sol = solve(Problem(task, Robot.default() if robot is None else robot, options,
+                        progress))
     if not sol.is_feasible():
         raise InfeasibleTaskError(
             "the solved plan fails its dense re-check: "

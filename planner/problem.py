@@ -1,7 +1,7 @@
 """A planning problem: one task on one robot, with its limits and its node grid.
 
-:class:`Problem` holds data only and never changes after it is made: ``solve()`` hands it
-to :func:`sixplus3.planner.strategy.solve`, which keeps the state of a solve (tightened
+:class:`Problem` holds data only and never changes after it is made: the free function
+:func:`sixplus3.planner.strategy.solve` plans it and keeps the state of a solve (tightened
 bounds, the duration cap, the homotopy's margin) to itself.  The node grid (which nodes
 sit at the waypoints, how long each interval is), the kinematic first guess and the
 mapping of any plan onto the grid are here, because every part of the planner reads them.
@@ -31,7 +31,8 @@ if TYPE_CHECKING:
 
 
 class Problem:
-    """A planning problem for one task on one robot (``solve()`` -> :class:`Solution`).
+    """A planning problem for one task on one robot (``strategy.solve(problem)`` ->
+    :class:`Solution`).
 
     The limits are the robot's hardware limits tightened by the task's
     (:meth:`Task.limits_for`: a looser one raises :class:`LimitError`).  Immutable: its
@@ -64,13 +65,6 @@ class Problem:
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError(f"Problem is immutable (tried to set {name!r})")
-
-    def solve(self) -> Solution:
-        """The plan (:func:`sixplus3.planner.strategy.solve`); raises
-        :class:`InfeasibleTaskError` when nothing admissible is found."""
-        from sixplus3.planner.strategy import solve
-
-        return solve(self)
 
     def stage(self, text: str) -> None:
         """Tell the progress reporter about a sub-step of the caller's "planning ..."."""

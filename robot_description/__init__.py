@@ -4,7 +4,8 @@ mounting), its URDF + closures, and its Pinocchio closed-loop model.
 In two lines, as example-robot-data does::
 
     robot = Robot.default()
-    clm = robot.closed_loop_model()   # clm.model, clm.constraint_models (caller-owned)
+    clm = closed_loop_model(robot)   # robot_description.model; clm.model, clm.constraint_models
+                                     # (caller-owned)
 """
 
 from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode

@@ -40,6 +40,7 @@ import numpy as np
 import pinocchio as pin
 
 from sixplus3.cache import cached
+from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import Robot, require_robot
 from sixplus3.robot_description.urdf import _f, _vec, actuated_joint_names, closure_pairs
 
@@ -60,7 +61,7 @@ def qpos_from_q(robot: Robot, q: np.ndarray) -> np.ndarray:
     """MuJoCo's qpos of the exported model from a Pinocchio configuration q: the same
     joints in the same order (hinges: the angle; the platform's free joint: position
     and the quaternion as (w, x, y, z), Pinocchio's being (x, y, z, w))."""
-    m = robot.closed_loop_model().model
+    m = closed_loop_model(robot).model
     q = np.asarray(q, dtype=float)
     out: list[float] = []
     for j in range(1, m.njoints):
@@ -91,7 +92,7 @@ def build_mjcf(robot: Robot, timestep: float = TIMESTEP,
 
         raise InputError(f"timestep {timestep!r} s out of range", value=timestep,
                          valid="[1e-6, 1e-2] s")
-    clm = robot.closed_loop_model()
+    clm = closed_loop_model(robot)
     m = clm.model
     act = actuated_joint_names()  # ordered: legs 0..2, each A, B, C
     mot = robot.motors

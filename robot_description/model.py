@@ -22,7 +22,7 @@ from sixplus3.cache import cached
 from sixplus3.errors import InputError
 from sixplus3.fileio import read_yaml
 from sixplus3.robot_description.robot import NUM_LEGS, Robot, require_robot
-from sixplus3.robot_description.urdf import actuated_joint_names, closure_pairs
+from sixplus3.robot_description.urdf import actuated_joint_names, closure_pairs, robot_urdf
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
@@ -320,14 +320,14 @@ def _check_sizes(pairs: list, act: list, where: str) -> None:
 def closed_loop_model(robot: Robot) -> ClosedLoopModel:
     """A new closed-loop model of ``robot``, caller-owned.
 
-    The Pinocchio model parsed from ``robot.urdf()`` is cached by the robot's hash; each
+    The Pinocchio model parsed from ``robot_urdf(robot)`` is cached by the robot's hash; each
     call returns a copy of it with gravity set from ``robot.gravity`` and its own data and
     constraint models: one object per thread, no shared mutable state.
     """
     robot = require_robot(robot)
 
     def parse() -> pin.Model:
-        return pin.buildModelFromXML(robot.urdf())
+        return pin.buildModelFromXML(robot_urdf(robot))
 
     model = cached(("pinocchio", f"{robot.hash}:{robot.name}"), parse).copy()
     model.gravity = pin.Motion(np.array(robot.gravity), np.zeros(3))

@@ -24,12 +24,11 @@ import json
 import math
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from sixplus3 import fileio
-from sixplus3.cache import cached
 from sixplus3.errors import GeometryError
 from sixplus3.robot_description.assembly import AssemblyMode
 from sixplus3.robot_description.collision import CollisionModel
@@ -46,9 +45,6 @@ from sixplus3.robot_description.masses import (  # noqa: F401 - re-exported
     MassModel,
 )
 from sixplus3.robot_description.physical import MotorModel, Payload, Tool, _vec
-
-if TYPE_CHECKING:
-    from sixplus3.robot_description.model import ClosedLoopModel
 
 NUM_LEGS = 3
 #: The platform phase at which P_i points at leg i at psi = 90 deg (the paper's layout).
@@ -365,23 +361,6 @@ class Robot:
         doc.pop("name")
         text = json.dumps(doc, sort_keys=True, separators=(",", ":"), allow_nan=False)
         return hashlib.sha256(text.encode()).hexdigest()
-
-    # ------------------------------------------------------------------ models
-    def urdf(self) -> str:
-        """The URDF text of the spanning tree (cached by :attr:`hash`)."""
-        from sixplus3.robot_description.urdf import build_urdf
-
-        return cached(("urdf", f"{self.hash}:{self.name}"), lambda: build_urdf(self))
-
-    def closed_loop_model(self) -> ClosedLoopModel:
-        """A new Pinocchio closed-loop model of this robot, owned by the caller.
-
-        The parsed model is cached by :attr:`hash`; every call returns a copy with its own
-        data and constraint models, so no two callers share mutable state.
-        """
-        from sixplus3.robot_description.model import closed_loop_model
-
-        return closed_loop_model(self)
 
     def summary(self) -> str:
         """One line naming the design, the assembly and the mounting."""

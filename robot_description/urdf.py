@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from sixplus3.cache import cached
 from sixplus3.robot_description.robot import (
     NUM_LEGS,
     POINT_MASS,
@@ -187,6 +188,12 @@ class _Builder:
                 rpy=(0, 0, 0), limit: float = math.pi) -> None:
         self.joint(name, "revolute", parent, child, xyz=xyz, rpy=rpy, axis=axis,
                    limits=(-limit, limit), effort=0.0, velocity=100.0)
+
+
+def robot_urdf(robot: Robot) -> str:
+    """The URDF text of ``robot``'s spanning tree (:func:`build_urdf`, cached by the
+    robot's hash and name)."""
+    return cached(("urdf", f"{robot.hash}:{robot.name}"), lambda: build_urdf(robot))
 
 
 def build_urdf(robot: Robot) -> str:
@@ -389,7 +396,7 @@ def ros2_control_block(robot: Robot, plugin: str = "mock_components/GenericSyste
 
 def with_ros2_control(robot: Robot, plugin: str = "mock_components/GenericSystem") -> str:
     """The robot's URDF with :func:`ros2_control_block` before ``</robot>``."""
-    text = robot.urdf()
+    text = robot_urdf(robot)
     end = text.rindex("</robot>")
     return text[:end] + ros2_control_block(robot, plugin) + "\n" + text[end:]
 
@@ -412,9 +419,9 @@ def generated_files() -> dict[Path, str]:
     """The committed files: ``Robot.default()`` and its point-mass variant."""
     robot = Robot.default()
     return {
-        URDF_PATH: robot.urdf(),
-        POINT_MASS_URDF_PATH: robot.replace(masses=POINT_MASS,
-                                            name="sixplus3_pointmass").urdf(),
+        URDF_PATH: robot_urdf(robot),
+        POINT_MASS_URDF_PATH: robot_urdf(robot.replace(masses=POINT_MASS,
+                                            name="sixplus3_pointmass")),
         CLOSURES_PATH: build_closures_yaml(),
     }
 

@@ -41,7 +41,7 @@ def run(tree: Path, **kw: object) -> subprocess.CompletedProcess:
     """``lint-imports`` with pyproject.toml's contract over the namespace in ``tree``."""
     env = {**os.environ, "PYTHONPATH": str(tree)}
     exe = Path(sys.executable).with_name("lint-imports")
-    return subprocess.run([str(exe), "--config", str(ROOT / "pyproject.toml"),
+    return subprocess.run([str(exe), str(ROOT / "pyproject.toml"),
                            "--no-cache"], env=env, cwd=tree, check=False, **kw)
 
 

@@ -87,9 +87,10 @@ def test_a_user_project_with_clashing_names_plans_from_any_directory(wheel, tmp_
 
 
 def test_the_layers_contract_holds_and_catches_an_upward_import(tmp_path) -> None:
-    """`make lint`'s import-linter contract (pyproject.toml) holds on the tree, and
-    fails, naming the import, when a lower layer imports a higher one (a lazy import
-    inside a function, as the old upward imports were)."""
+    """`make lint`'s import-linter contracts (pyproject.toml) hold on the tree, and fail,
+    naming the import, when a lower layer imports a higher one (a lazy import inside a
+    function, as the old upward imports were) or two modules of a package import each
+    other."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location(
@@ -105,6 +106,16 @@ def test_the_layers_contract_holds_and_catches_an_upward_import(tmp_path) -> Non
     bad = mod.run(tree, capture_output=True, text=True)
     assert bad.returncode != 0
     assert "sixplus3.kinematics._upward -> sixplus3.planner.ocp" in bad.stdout
+    # a cycle between two modules of one package, which the layers cannot see: the
+    # acyclic-packages contract names it
+    (tree / "sixplus3" / "kinematics" / "_upward.py").unlink()
+    (tree / "sixplus3" / "control" / "_cycle.py").write_text(
+        "from sixplus3.control import validation\n")
+    with open(tree / "sixplus3" / "control" / "report.py", "a") as f:
+        f.write("\ndef _back():\n    from sixplus3.control import _cycle\n    return _cycle\n")
+    cyc = mod.run(tree, capture_output=True, text=True)
+    assert cyc.returncode != 0 and "acyclic packages BROKEN" in cyc.stdout
+    assert "No cycles are allowed in sixplus3.control" in cyc.stdout
 
 
 def test_the_curated_api_is_written_once_and_typed() -> None:

@@ -17,6 +17,7 @@ from sixplus3.kinematics.spherical import spherical_tilts
 from sixplus3.planner import solution, solvers, strategy
 from sixplus3.planner.ocp import PlannerOptions, Problem, dense_check, plan
 from sixplus3.planner.options import ROW_SCALE
+from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import TaskError, load_task, task_from_dict
 from sixplus3.robot_description.physical import NO_MOTORS, MotorModel, Payload
 from sixplus3.robot_description.robot import Robot
@@ -432,7 +433,7 @@ def test_a_violation_between_nodes_tightens_and_re_solves(monkeypatch) -> None:
         return solved[-1]
 
     monkeypatch.setattr(strategy, "solve_nlp", spy)
-    sol = problem.solve()
+    sol = solve(problem)
     assert sol.solves == len(seen) >= 2 and sol.check.ok and sol.is_feasible()
     # the plan counts the work of every solve behind it, not only the last one's
     assert sol.iterations == solved[-1].iterations
@@ -478,7 +479,7 @@ def test_an_overshoot_a_time_stretch_fixes_is_stretched_not_re_solved(
         return strategy.stretched(problem, sol, 0.97) if len(calls) == 1 else sol
 
     monkeypatch.setattr(strategy, "solve_nlp", overshooting)
-    sol = problem.solve()
+    sol = solve(problem)
     assert len(calls) == 1 and sol.solves == 1 and sol.is_feasible()
     assert sol.source == "ocp" and sol.time_scale > 0.97
 

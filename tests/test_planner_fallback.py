@@ -13,6 +13,7 @@ from sixplus3.planner import strategy
 from sixplus3.planner.baseline import baseline_plan, line_check
 from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem, plan
 from sixplus3.planner.statics import check_crank_sides, choose_static_psi, static_candidates
+from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -117,7 +118,7 @@ def test_without_a_baseline_the_margin_homotopy_is_tried(monkeypatch) -> None:
         return real(problem, psi_wp, bounds, warm=warm, **kw)
 
     monkeypatch.setattr(strategy, "solve_nlp", fail_unless_homotopy)
-    sol = problem.solve()
+    sol = solve(problem)
     assert sol.is_feasible() and sol.baseline_time is None
     lim = problem.limits.margin
     # the guess and the slow guess fail, then the homotopy from the guess plans
@@ -148,7 +149,7 @@ def test_with_a_baseline_the_homotopy_comes_first_then_the_full_margin(monkeypat
             return out
 
         monkeypatch.setattr(strategy, "solve_nlp", record)
-        sol = problem.solve()
+        sol = solve(problem)
         solved = [c for c in calls if not isinstance(c, tuple)]
         calls = [c for c in calls if isinstance(c, tuple)]
         assert sol.is_feasible() and sol.source == "ocp" and sol.check.min_margin >= lim
@@ -236,7 +237,7 @@ def test_ctrl_c_inside_ipopt_stops_the_planner() -> None:
     try:
         problem = Problem(task_from_dict(THREE), ROBOT, progress=InterruptAtIteration3())
         with pytest.raises(KeyboardInterrupt):
-            problem.solve()
+            solve(problem)
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
     finally:
         signal.signal(signal.SIGINT, previous)
@@ -257,7 +258,7 @@ def test_explicit_cranks_outside_the_search_range_widen_the_nlps_bounds() -> Non
     lo, hi = problem.crank_range()
     np.testing.assert_allclose(np.degrees(lo), [45, 45, 45])
     np.testing.assert_allclose(np.degrees(hi), [150, 135, 135])
-    sol = problem.solve()
+    sol = solve(problem)
     assert sol.is_feasible() and sol.source == "ocp" and sol.solves == 1
     assert sol.final_time < sol.baseline_time
     k = problem.waypoint_nodes()[1]  # the second waypoint's node
@@ -281,7 +282,7 @@ def test_a_crank_that_would_pass_zero_is_refused_before_any_solve(monkeypatch) -
     monkeypatch.setattr(strategy, "solve_nlp", no_solve)
     with pytest.raises(InfeasibleTaskError, match="crank 0 would have to pass the singular "
                        "0 deg between waypoint 0 at 90.0 deg and waypoint 1 at -90.0 deg") as e:
-        problem.solve()
+        solve(problem)
     assert e.value.limit == "crank angle sign" and e.value.waypoint == 1
     # one sign per crank is not refused by this check
     ok = task_from_dict({"name": "pos", "waypoints": [
@@ -295,7 +296,7 @@ def test_extra_ipopt_options_reach_ipopt_and_bad_ones_are_named() -> None:
     at 2 iterations by them returns the (checked) baseline, as ``max_iter=2`` does.  A
     malformed pair, a NaN, or an option IPOPT rejects raises InputError (a ValueError) naming it."""
     task = task_from_dict({**THREE, "waypoints": THREE["waypoints"][:2]})
-    capped = Problem(task, ROBOT, options=PlannerOptions(ipopt_options=(("max_iter", 2),))).solve()
+    capped = solve(Problem(task, ROBOT, options=PlannerOptions(ipopt_options=(("max_iter", 2),))))
     assert capped.source == "baseline" and capped.is_feasible()
     assert capped.final_time == pytest.approx(capped.baseline_time)
     for bad, words in (((("tol",),), "not a (name, value) pair"),
@@ -306,7 +307,7 @@ def test_extra_ipopt_options_reach_ipopt_and_bad_ones_are_named() -> None:
         with pytest.raises(ValueError, match=words.replace("(", r"\(").replace(")", r"\)")):
             PlannerOptions(ipopt_options=bad)
     with pytest.raises(ValueError, match="No such IPOPT option: no_such_option"):
-        Problem(task, ROBOT, options=PlannerOptions(ipopt_options={"no_such_option": 1})).solve()
+        solve(Problem(task, ROBOT, options=PlannerOptions(ipopt_options={"no_such_option": 1})))
 
 
 #: broad_10 of ``bench_planner_heldout.py --broad --seed 1`` (rounded): a waypoint whose
@@ -341,7 +342,7 @@ def test_the_nlps_proxy_rows_admit_the_baseline_it_starts_from() -> None:
     assert np.all(lo <= base.x[:, 6:9].min(axis=0)) and np.all(hi >= base.x[:, 6:9].max(axis=0))
     assert np.degrees(hi).max() > 135.0
     assert wide.platform_proxy == pytest.approx(0.9 * line)
-    sol = problem.solve()
+    sol = solve(problem)
     assert sol.source == "ocp" and sol.is_feasible()
     assert sol.final_time < 0.9 * sol.baseline_time
     assert sol.check.min_margin >= problem.limits.margin
@@ -375,7 +376,7 @@ def test_an_overlap_next_to_a_near_contact_waypoint_is_re_solved_not_given_up() 
         def iteration(self, k: int, duration: float, violation: float) -> None:
             pass
 
-    sol = Problem(task_from_dict(NEAR_CONTACT), ROBOT, None, Recorder()).solve()
+    sol = solve(Problem(task_from_dict(NEAR_CONTACT), ROBOT, None, Recorder()))
     assert sol.source == "ocp" and sol.is_feasible()
     assert sol.check is not None and sol.check.min_clearance >= 0.0
     assert sol.final_time < 0.9 * sol.baseline_time

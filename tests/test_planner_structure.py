@@ -18,6 +18,7 @@ from sixplus3.planner import transcription
 from sixplus3.planner.ocp import Problem, plan
 from sixplus3.planner.solution import sample_cubic
 from sixplus3.planner.solvers import ipopt_solver
+from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -31,7 +32,7 @@ def test_the_problem_is_immutable_and_unchanged_by_a_solve() -> None:
     with pytest.raises(AttributeError, match="immutable"):
         problem.limits = ROBOT.limits  # type: ignore[misc]
     before = dict(vars(problem))
-    sol = problem.solve()
+    sol = solve(problem)
     assert sol.is_feasible()
     after = vars(problem)
     assert after.keys() == before.keys()

@@ -24,6 +24,8 @@ from sixplus3.errors import GeometryError, LimitError, TrajectoryFileError
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.kinematics.robot import home, robot_fk, robot_ik
 from sixplus3.robot_description import Limits, MassModel, Robot
+from sixplus3.robot_description.model import closed_loop_model
+from sixplus3.robot_description.urdf import robot_urdf
 
 DEFAULT = Robot.default()
 OTHER = DEFAULT.replace(
@@ -81,11 +83,11 @@ def test_limits_validate_themselves_and_only_tighten() -> None:
 def test_every_cache_is_keyed_by_the_robot() -> None:
     assert symbolic_robot(DEFAULT) is symbolic_robot(Robot.default())
     assert symbolic_robot(OTHER) is not symbolic_robot(DEFAULT)
-    assert OTHER.urdf() != DEFAULT.urdf()
+    assert robot_urdf(OTHER) != robot_urdf(DEFAULT)
     # the committed URDF is the default robot's
     from sixplus3.robot_description.urdf import URDF_PATH
 
-    assert URDF_PATH.read_text() == DEFAULT.urdf()
+    assert URDF_PATH.read_text() == robot_urdf(DEFAULT)
 
 
 def test_the_caller_owns_its_pinocchio_objects() -> None:
@@ -105,7 +107,7 @@ def test_the_caller_owns_its_pinocchio_objects() -> None:
     arm = np.zeros(a.model.nv)
     arm[a.clm.idx_v_act] = DEFAULT.motors.armature  # the rotors, on the actuated joints
     np.testing.assert_array_equal(a.model.armature, arm)
-    np.testing.assert_array_equal(DEFAULT.closed_loop_model().model.armature, arm)
+    np.testing.assert_array_equal(closed_loop_model(DEFAULT).model.armature, arm)
 
 
 def test_a_non_default_robot_reaches_every_part() -> None:
@@ -117,7 +119,7 @@ def test_a_non_default_robot_reaches_every_part() -> None:
     assert abs(th_o[1] - th_d[1]) > 1e-3
     np.testing.assert_allclose(cfg_o.theta[0, :3], th_o, atol=1e-12)
     # robot IK closes the loops of *its* model, not the default one
-    clm_o, clm_d = OTHER.closed_loop_model(), DEFAULT.closed_loop_model()
+    clm_o, clm_d = closed_loop_model(OTHER), closed_loop_model(DEFAULT)
     assert np.abs(clm_o.residual(cfg_o.q[0])).max() < 1e-12
     assert np.abs(clm_d.residual(cfg_o.q[0])).max() > 1e-3
     assert clm_o.total_mass() == pytest.approx(clm_d.total_mass() + 0.4, abs=1e-12)

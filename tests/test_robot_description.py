@@ -10,8 +10,9 @@ import yourdfpy
 
 from sixplus3.errors import GeometryError, InputError
 from sixplus3.robot_description import urdf as gen
-from sixplus3.robot_description.model import load_model_from, parse_closures
+from sixplus3.robot_description.model import closed_loop_model, load_model_from, parse_closures
 from sixplus3.robot_description.robot import POINT_MASS, MassModel, Robot, RobotGeometry
+from sixplus3.robot_description.urdf import robot_urdf
 
 
 def test_committed_files_match_the_generator() -> None:
@@ -39,7 +40,7 @@ def test_pybullet_and_mujoco_importers_get_the_robots_mass() -> None:
     import mujoco
     import pybullet
 
-    want = Robot.default().closed_loop_model().total_mass()
+    want = closed_loop_model(Robot.default()).total_mass()
     assert want == pytest.approx(1.89, abs=1e-9)
     cid = pybullet.connect(pybullet.DIRECT)
     try:
@@ -55,7 +56,7 @@ def test_pybullet_and_mujoco_importers_get_the_robots_mass() -> None:
 
 
 def test_pinocchio_model_dimensions_and_closures() -> None:
-    clm = Robot.default().closed_loop_model()
+    clm = closed_loop_model(Robot.default())
     m = clm.model
     assert (m.nq, m.nv) == (37, 36)  # free-flyer platform (7/6) + 30 revolute joints
     assert clm.actuated_names == gen.actuated_joint_names()
@@ -67,10 +68,10 @@ def test_pinocchio_model_dimensions_and_closures() -> None:
 
 
 def test_masses_match_the_mass_model() -> None:
-    total = Robot.default().closed_loop_model().total_mass()
+    total = closed_loop_model(Robot.default()).total_mass()
     assert total == pytest.approx(MassModel().total, abs=1e-9)
     assert MassModel().leg_total == pytest.approx(0.5)
-    pm = Robot.default().replace(masses=POINT_MASS).closed_loop_model()
+    pm = closed_loop_model(Robot.default().replace(masses=POINT_MASS))
     assert pm.total_mass() == pytest.approx(1.5)
     leg_bodies = [pm.model.inertias[pm.model.getJointId(f"leg{i}_Ds3")] for i in range(3)]
     for inertia in leg_bodies:
@@ -130,7 +131,7 @@ def test_base_plate_is_where_the_cranks_may_not_go_and_links_collide() -> None:
     from sixplus3.robot_description.urdf import ROD_RADIUS
 
     robot = Robot.default()
-    root = ET.fromstring(robot.urdf())
+    root = ET.fromstring(robot_urdf(robot))
     base = root.find("link[@name='base_link']")
     assert base is not None
     g = robot.geometry
@@ -188,7 +189,7 @@ def test_yourdfpy_posed_at_a_closed_configuration_closes_the_loops() -> None:
     from sixplus3.robot_description.model import pose_yourdfpy
 
     robot = Robot.default()
-    clm = robot.closed_loop_model()
+    clm = closed_loop_model(robot)
     model = yourdfpy.URDF.load(str(gen.URDF_PATH))
     for pose in (((0.03, -0.02, 0.59), (0.3, -0.2, 0.5)), ((-0.04, 0.02, 0.56), (-0.4, 0.1, 1.0))):
         q = robot_ik_pose(*pose, robot=robot).q[0]
@@ -225,7 +226,7 @@ def test_export_urdf_writes_its_closures_and_a_ros2_control_block(tmp_path) -> N
     closures = tmp_path / "sixplus3_closures.yaml"
     assert closures.read_text() == gen.build_closures_yaml()
     clm = load_model_from(out, closures)
-    ref = robot.closed_loop_model()
+    ref = closed_loop_model(robot)
     assert clm.model.nq == ref.model.nq and clm.n_constraints == ref.n_constraints == 27
     assert len(yourdfpy.URDF.load(str(out), load_meshes=False).actuated_joint_names) > 9
     block = ET.parse(out).getroot().find("ros2_control")

@@ -13,6 +13,7 @@ from sixplus3.errors import ConvergenceError, InputError, UnreachableError
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.kinematics.robot import home, robot_fk, robot_ik, robot_ik_pose
 from sixplus3.kinematics.spherical import spherical_tilts
+from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import Robot
 
 ROBOT_ = Robot.default()
@@ -34,7 +35,7 @@ def random_poses(n: int, seed: int, tilt: float = 0.5):
 
 
 def test_ik_closes_all_27_closures_in_pinocchio() -> None:
-    clm = Robot.default().closed_loop_model()
+    clm = closed_loop_model(Robot.default())
     pos, R, psi = random_poses(60, seed=1)
     cfg = robot_ik(pos, R, psi, robot=ROBOT_)
     assert cfg.ok.sum() >= 50
@@ -68,7 +69,7 @@ def test_unreachable_pose_names_the_leg_and_chain() -> None:
 
 
 def test_fk_recovers_pose_from_a_perturbed_hint() -> None:
-    clm = Robot.default().closed_loop_model()
+    clm = closed_loop_model(Robot.default())
     pos, R, psi = random_poses(10, seed=3, tilt=0.3)
     cfg = robot_ik(pos, R, psi, robot=ROBOT_)
     rng = np.random.default_rng(3)

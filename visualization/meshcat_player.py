@@ -17,7 +17,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sixplus3.kinematics.robot import robot_ik
+from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.urdf import robot_urdf
 
 
 @dataclass(frozen=True)
@@ -107,8 +109,8 @@ def _viewer(robot: Robot):
 
     vis = _server()
     if _LOADED.get("hash") != robot.hash:
-        model = robot.closed_loop_model().model
-        visual = pin.buildGeomFromUrdfString(model, robot.urdf(), pin.GeometryType.VISUAL)
+        model = closed_loop_model(robot).model
+        visual = pin.buildGeomFromUrdfString(model, robot_urdf(robot), pin.GeometryType.VISUAL)
         viz = MeshcatVisualizer(model, visual, visual)
         viz.initViewer(viewer=vis)
         viz.loadViewerModel(rootNodeName="sixplus3")

@@ -20,6 +20,7 @@ from sixplus3.cli.app import (
     json_default,
     main,
 )
+from sixplus3.robot_description.urdf import robot_urdf
 
 
 @main.command(context_settings=NUMERIC_ARGS)
@@ -219,7 +220,7 @@ def robot_export(fmt: str, out_file: str | None, contacts: bool, ros2_control: b
             with_ros2_control,
         )
 
-        text = with_ros2_control(robot) if ros2_control else robot.urdf()
+        text = with_ros2_control(robot) if ros2_control else robot_urdf(robot)
         if out_file is not None:
             from pathlib import Path
 
