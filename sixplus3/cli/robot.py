@@ -20,7 +20,6 @@ from sixplus3.cli.app import (
     json_default,
     main,
 )
-from sixplus3.robot_description.urdf import robot_urdf
 
 
 @main.command(context_settings=NUMERIC_ARGS)
@@ -217,6 +216,7 @@ def robot_export(fmt: str, out_file: str | None, contacts: bool, ros2_control: b
         from sixplus3.robot_description.urdf import (
             CLOSURES_PATH,
             build_closures_yaml,
+            robot_urdf,
             with_ros2_control,
         )
 
