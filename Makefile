@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install demo test bench lint clean chromium compiler
+.PHONY: install demo test test-fast bench lint clean chromium compiler
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -39,6 +39,11 @@ lint: $(STAMP)
 
 test: $(STAMP) chromium compiler lint
 	$(BIN)/python -m pytest -q
+
+# The developer's loop: the unit-level tests (no planner solve, no MuJoCo run), under two
+# minutes here; `make test` runs everything (tests/conftest.py marks the slow ones).
+test-fast: $(STAMP) compiler
+	$(BIN)/python -m pytest -q -m "not slow"
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_leg.py

@@ -212,3 +212,20 @@ def test_strict_types_cover_every_module_the_curated_api_exports_from() -> None:
     assert len(strict) == 1
     assert sorted(strict[0]["module"]) == sorted(set(sixplus3._API.values()))
     assert cfg.get("check_untyped_defs") is True
+
+
+def test_the_slow_lists_name_real_tests() -> None:
+    """tests/conftest.py's slow lists name modules and tests that exist (a renamed slow
+    test would silently join `make test-fast`)."""
+    import ast
+
+    import conftest
+
+    here = Path(__file__).parent
+    for module in conftest.SLOW_MODULES:
+        assert (here / f"{module}.py").exists(), module
+    for entry in conftest.SLOW_TESTS:
+        file, name = entry.split("::")
+        tree = ast.parse((here / file).read_text())
+        names = {n.name for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)}
+        assert name in names, entry
