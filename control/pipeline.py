@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -12,10 +12,9 @@ import numpy as np
 from sixplus3.control.smoothing import Smoothed, check_rate, smooth
 from sixplus3.control.trajectory_file import check_samples, output_path
 from sixplus3.control.validation import ValidationReport, validate_and_write
-from sixplus3.dynamics.codegen import build_kind
 from sixplus3.errors import TrajectoryFileError, ValidationFailed
-from sixplus3.planner.ocp import PlannerOptions, Solution, plan
-from sixplus3.planner.problem import check_plan_arguments
+from sixplus3.planner.ocp import PlannerOptions, Solution, plan_problem
+from sixplus3.planner.problem import Problem
 from sixplus3.planner.task import Task
 from sixplus3.progress import PlanProgress
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -63,19 +62,20 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
     :class:`InfeasibleTaskError` for an infeasible task and :class:`TrajectoryFileError`
     if the smoothed trajectory fails its validation; in both cases nothing is written.
     """
-    robot = require_robot(robot)
-    check_plan_arguments(task, robot, options)
-    robot = task.robot_for(robot)  # with the task's payload/tool/mounting
     listener: PlanProgress | None = None
     say: Callable[[str], None] = _silent
     if isinstance(progress, PlanProgress):
         listener, say = progress, progress.stage
     elif progress is not None:
         say = progress
+    # the task checked once, here: the arguments, its setup robot and its limits (a
+    # looser limit than the hardware's is refused before anything is solved), all held
+    # by the Problem
+    problem = Problem(task, robot, options, listener)
+    robot = problem.robot  # with the task's payload, tool and mounting
     out = Path(out_dir)
     csv_path = output_path(out, task.name)  # a safe name, inside out_dir: before the solve
     check_rate(rate)
-    task.limits_for(robot)
     # a fixed duration and the dwells are known before the solve: refuse a task that
     # would make more samples than the cap now, not after planning it
     check_samples((task.duration or 0.0) + sum(w.dwell for w in task.waypoints), rate,
@@ -84,7 +84,7 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
     t0 = time.perf_counter()
     say(f"planning '{task.name}' ({len(task.waypoints)} waypoints, "
         f"{task.n_segments * task.segment_nodes} intervals) ...")
-    sol = plan(task, robot, options, progress=listener)
+    sol = plan_problem(problem)
     secs["plan"] = time.perf_counter() - t0
     assert sol.check is not None  # plan() returns only checked plans
     how = ("the time-optimal NLP" if sol.source == "ocp" else
@@ -113,28 +113,8 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
         f"{sm.duration:.4f} s (+{100 * sm.added_fraction:.2f}%, time stretch "
         f"{sm.time_stretch:.4f}), max jerk {sm.max_jerk:.3g} rad/s^3")
     t2 = time.perf_counter()
-    meta = {
-        "rate_hz": rate,
-        "task": task.source,
-        "planner": {"status": sol.status, "source": sol.source,
-                    "compiled": build_kind(robot),
-                    "baseline_time_s": sol.baseline_time, "wall_time_s": sol.wall_time,
-                    "final_time_s": sol.final_time,
-                    "solve_time_s": sol.solve_time, "iterations": sol.iterations,
-                    "total_iterations": sol.total_iterations,
-                    "function_time_s": sol.function_time,
-                    "solves": sol.solves, "time_scale": sol.time_scale,
-                    "segment_times_s": sol.segment_times, "residuals": sol.residuals,
-                    "active_limits": sol.active_limits,
-                    "dense_check": sol.check.__dict__ if sol.check else None,
-                    "options": asdict(sol.options)},
-        "smoothing": {"rate_hz": rate, "planned_duration_s": sm.planned_duration,
-                      "duration_s": sm.duration, "added_fraction": sm.added_fraction,
-                      "time_stretch": sm.time_stretch,
-                      "certified_transitions": sm.smoothed_segments,
-                      "jerk_limit_rad_s3": sm.jerk_limit, "max_jerk_rad_s3": sm.max_jerk,
-                      "max_deviation_rad": sm.max_deviation},
-    }
+    meta = {"rate_hz": rate, "task": task.source, "planner": sol.header(),
+            "smoothing": sm.header()}
     out.mkdir(parents=True, exist_ok=True)
     try:
         _, rep = validate_and_write(csv_path, sm.t, sm.theta, sm.theta_dot, sm.theta_ddot,

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
@@ -64,6 +65,15 @@ class Smoothed:
     @property
     def added_fraction(self) -> float:
         return self.duration / self.planned_duration - 1.0
+
+    def header(self) -> dict[str, Any]:
+        """The trajectory file's ``smoothing`` header field."""
+        return {"rate_hz": self.rate, "planned_duration_s": self.planned_duration,
+                "duration_s": self.duration, "added_fraction": self.added_fraction,
+                "time_stretch": self.time_stretch,
+                "certified_transitions": self.smoothed_segments,
+                "jerk_limit_rad_s3": self.jerk_limit, "max_jerk_rad_s3": self.max_jerk,
+                "max_deviation_rad": self.max_deviation}
 
 
 def _joint_samples(sol: Solution, times: np.ndarray, a: float, t0: float = 0.0

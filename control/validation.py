@@ -71,7 +71,7 @@ from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import robot_fk_batch
 from sixplus3.kinematics.spherical import spherical_tilts
 from sixplus3.kinematics.tcp import tcp_acceleration, tcp_velocity
-from sixplus3.robot_description.hardware import effective_limits, tightest
+from sixplus3.robot_description.hardware import judged_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -112,8 +112,7 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
     check_motion_arrays(t, theta, theta_dot, theta_ddot, rate)
     # the hardware is the authority: the robot's limits, tightened by the site's
     # (robot_description.hardware); ``limits`` (a task's or a header's) only tighten them
-    base = effective_limits(robot)
-    lim = base if limits is None else tightest(base, robot.limits.tightened(**limits.as_dict()))
+    lim = judged_limits(robot, limits)
     try:
         t = np.asarray(t, dtype=float).reshape(-1)
         arrays = [np.asarray(a, dtype=float) for a in (theta, theta_dot, theta_ddot)]
@@ -444,10 +443,8 @@ def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory",
     header, data = parse(raw, name)
     check_robot(header, robot, name)
     rate = float(header["rate_hz"])  # a finite number (parse)
-    header_limits = _header_limits(header, robot, name)
-    if limits is not None:  # a task's own limits (validate --task): tighter still
-        header_limits = tightest(header_limits, robot.limits.tightened(**limits.as_dict()))
-    limits = header_limits
+    # the header's limits and a task's own (validate --task): each only tightens
+    limits = judged_limits(robot, _header_limits(header, robot, name), limits)
     x_guess = np.c_[columns(data, "position"),
                     rot.rotvec_from_quat(columns(data, "quaternion")), columns(data, "psi")]
     rep = validate_motion(data[:, 0], columns(data, "pos"), columns(data, "vel"),
@@ -472,8 +469,7 @@ def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
     if not rep.ok:
         raise ValidationFailed("the trajectory fails validation, nothing written: "
                                + "; ".join(rep.messages()), rep.exit_code, rep)
-    base = effective_limits(robot)
-    lim = base if limits is None else tightest(base, robot.limits.tightened(**limits.as_dict()))
+    lim = judged_limits(robot, limits)
     out = write_trajectory(path, t, theta, theta_dot, theta_ddot, rep, robot, lim,
                            meta or {})
     return out, rep

@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 
 from sixplus3.design import _atlas_kernel as _kernel
 from sixplus3.errors import InputError
+from sixplus3.fileio import save_figure
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
 from sixplus3.robot_description.robot import Robot
 
@@ -295,7 +296,7 @@ def figures(ds: xr.Dataset, out_dir: str | Path, robot: Robot | None = None,
             fig.colorbar(im, cax=cax, label="tilt in every direction [deg]")
         fig.suptitle(f"Largest tilt reached in every direction (min over azimuths){dyn}",
                      y=1 - 0.25 / height)
-        paths.append(_save(fig, out / "atlas_layers.png", plt))
+        paths.append(Path(save_figure(fig, out / "atlas_layers.png", dpi=110, tight=True)))
     # volume vs threshold
     th = np.arange(0.0, float(ds.attrs["max_tilt_deg"]) + 1e-9, 5.0)
     v = volumes(ds, th)
@@ -309,7 +310,7 @@ def figures(ds: xr.Dataset, out_dir: str | Path, robot: Robot | None = None,
         ax.set_title(dyn[2:].capitalize(), fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend()
-    paths.append(_save(fig, out / "atlas_volumes.png", plt))
+    paths.append(Path(save_figure(fig, out / "atlas_volumes.png", dpi=110, tight=True)))
     if polar is not None:
         fig = plt.figure(figsize=(5, 5))
         ax = fig.add_subplot(projection="polar")
@@ -318,20 +319,8 @@ def figures(ds: xr.Dataset, out_dir: str | Path, robot: Robot | None = None,
             ax.plot(a, np.r_[polar[mode], polar[mode][:1]], label=f"cranks {mode}")
         ax.set_title(f"Largest tilt [deg] per tilt-axis azimuth at home{dyn}", fontsize=10)
         ax.legend(loc="lower left", bbox_to_anchor=(0.8, -0.1))
-        paths.append(_save(fig, out / "atlas_home_polar.png", plt))
+        paths.append(Path(save_figure(fig, out / "atlas_home_polar.png", dpi=110, tight=True)))
     return paths
-
-
-def _save(fig, path: Path, plt) -> Path:
-    import io
-
-    from sixplus3.fileio import atomic_write
-
-    buf = io.BytesIO()
-    fig.savefig(buf, dpi=110, bbox_inches="tight")
-    plt.close(fig)
-    atomic_write(path, buf.getvalue())
-    return path
 
 
 __all__ = ["BINDING", "CRANKS", "PSI_RANGE_DEG", "THRESHOLDS_DEG", "AtlasSettings",

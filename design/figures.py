@@ -28,6 +28,7 @@ from sixplus3.design.cow import (
 )
 from sixplus3.design.search import PAPER_DESIGN, Reading
 from sixplus3.design.workspace import counted_reading, halfplane_grid
+from sixplus3.fileio import save_figure
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 from sixplus3.robot_description.robot import Robot
@@ -109,7 +110,7 @@ def make_figures(out_dir: str | Path, reading: Reading | None = None,
     fig.suptitle(f"det J and det K over the leg's half-plane (the paper's det_JK figure) - "
                  f"{tag}; grid {ws_step * 1000:g} mm", fontsize=9)
     fig.tight_layout()
-    files.append(_save(fig, out / "det_JK.png"))
+    files.append(save_figure(fig, out / "det_JK.png", dpi=110))
 
     # --- tau_ext
     fig, ax = plt.subplots(figsize=(6.5, 5.5))
@@ -134,7 +135,7 @@ def make_figures(out_dir: str | Path, reading: Reading | None = None,
     fig.suptitle(f"tau_ext over the leg's half-plane (the paper's WFW_optimal figure) - "
                  f"{tag}", fontsize=8)
     fig.tight_layout()
-    files.append(_save(fig, out / "tau_ext.png"))
+    files.append(save_figure(fig, out / "tau_ext.png", dpi=110))
 
     # --- encoder resolution over the counted workspace
     res = np.full(X.size, np.nan)
@@ -151,7 +152,7 @@ def make_figures(out_dir: str | Path, reading: Reading | None = None,
                  f"(paper: 8.4 um)", fontsize=9)
     fig.suptitle(f"{tag}", fontsize=8)
     fig.tight_layout()
-    files.append(_save(fig, out / "resolution.png"))
+    files.append(save_figure(fig, out / "resolution.png", dpi=110))
 
     # --- constant-orientation workspace of the whole robot, in the same reading: its
     # leg (design, ey), mode and theta rule (the paper's [0, 270] deg, counted its way)
@@ -210,19 +211,7 @@ def _cow_figure(plt, cow, path: Path, ratios: dict[str, float], reading: Reading
                  f"{cow.step * 100:.0f} cm; polygon: hull of the 9 actuated joints",
                  fontsize=8)
     fig.subplots_adjust(left=0.0, right=0.9, bottom=0.04, top=0.84, wspace=0.08)
-    return _save(fig, path)
-
-
-def _save(fig, path: Path) -> str:
-    import matplotlib.pyplot as plt
-
-    from sixplus3.fileio import atomic_write_with
-
-    try:
-        atomic_write_with(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    finally:
-        plt.close(fig)
-    return str(path)
+    return save_figure(fig, path, dpi=110)
 
 
 __all__ = ["FigureSummary", "halfplane_grid", "make_figures"]

@@ -232,5 +232,4 @@ def plot_study(study: LayoutStudy, path) -> None:
     ax.grid(True, alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fileio.atomic_write_with(path, lambda f: fig.savefig(f, format="png", dpi=120))
-    plt.close(fig)
+    fileio.save_figure(fig, path, dpi=120)

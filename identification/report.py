@@ -16,7 +16,7 @@ import numpy as np
 from sixplus3.control.drive_log import DriveLog
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import parameters
-from sixplus3.fileio import atomic_write, atomic_write_with
+from sixplus3.fileio import atomic_write, save_figure
 from sixplus3.identification.identify import V_MIN, Identification, check, dataset
 from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
@@ -125,8 +125,7 @@ def _plot_torques(path: Path, log: DriveLog, robot: Robot, nominal: Robot) -> No
     fig.suptitle(f"{log.name}: measured and predicted torques ({robot.name}; filter "
                  f"{f.cutoff_hz:.0f} Hz)", fontsize=11)
     fig.tight_layout()
-    atomic_write_with(path, lambda p: fig.savefig(p, dpi=90, format="png"))
-    plt.close(fig)
+    save_figure(fig, path, dpi=90)
 
 
 __all__ = ["robot_yaml", "write_report", "write_robot"]

@@ -72,7 +72,7 @@ def plot_resolution_map(robot: Robot, path: str, z: float | None = None,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from sixplus3.fileio import atomic_write_with
+    from sixplus3.fileio import save_figure
 
     xs, ys, F = resolution_map(robot, z, step=step)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
@@ -89,8 +89,7 @@ def plot_resolution_map(robot: Robot, path: str, z: float | None = None,
     fig.suptitle(f"{robot.name}: force resolution at z = {zz * 1e3:.0f} mm, home "
                  "orientation and cranks", fontsize=11)
     fig.tight_layout()
-    atomic_write_with(path, lambda p: fig.savefig(p, dpi=90, format="png"))
-    plt.close(fig)
+    save_figure(fig, path, dpi=90)
     ok = np.isfinite(F[:, :, 0])
     return {"z_m": zz, "points": int(ok.sum()),
             "at_rest_n": [float(np.nanmin(F[:, :, 0])), float(np.nanmedian(F[:, :, 0])),

@@ -50,8 +50,14 @@ def plan(task: Task, robot: Robot | None = None, options: PlannerOptions | None 
     ``Robot.default()``, the one place of the library that chooses a robot for its
     caller (:class:`Problem` and everything below it require one).  ``progress``: a
     :class:`sixplus3.progress.PlanProgress` told each stage and IPOPT iteration."""
-    sol = solve(Problem(task, Robot.default() if robot is None else robot, options,
-                        progress))
+    return plan_problem(Problem(task, Robot.default() if robot is None else robot, options,
+                                progress))
+
+
+def plan_problem(problem: Problem) -> Solution:
+    """The plan of a built :class:`Problem` (:func:`strategy.solve`), refused with
+    :class:`InfeasibleTaskError` unless it passes its dense re-check."""
+    sol = solve(problem)
     if not sol.is_feasible():
         raise InfeasibleTaskError(
             "the solved plan fails its dense re-check: "
@@ -62,4 +68,4 @@ def plan(task: Task, robot: Robot | None = None, options: PlannerOptions | None 
 
 
 __all__ = ["DenseCheck", "InfeasibleTaskError", "PlannerOptions", "Problem", "Solution",
-           "dense_check", "plan"]
+           "dense_check", "plan", "plan_problem"]

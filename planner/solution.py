@@ -105,6 +105,27 @@ class Solution:
         this plan, for :meth:`plus_work`."""
         return self.solve_time, self.total_iterations, self.function_time
 
+    def header(self) -> dict[str, Any]:
+        """The trajectory file's ``planner`` header field: how this plan was found (status,
+        source, build, timings, iterations, solves, time scale, segment times, residuals,
+        active limits, the dense check, the options).  Built here, once."""
+        from dataclasses import asdict
+
+        from sixplus3.dynamics.codegen import build_kind
+
+        return {"status": self.status, "source": self.source,
+                "compiled": build_kind(self.robot),
+                "baseline_time_s": self.baseline_time, "wall_time_s": self.wall_time,
+                "final_time_s": self.final_time,
+                "solve_time_s": self.solve_time, "iterations": self.iterations,
+                "total_iterations": self.total_iterations,
+                "function_time_s": self.function_time,
+                "solves": self.solves, "time_scale": self.time_scale,
+                "segment_times_s": self.segment_times, "residuals": self.residuals,
+                "active_limits": self.active_limits,
+                "dense_check": self.check.__dict__ if self.check else None,
+                "options": asdict(self.options)}
+
     def plus_work(self, seconds: float, iterations: int, function_time: float) -> Solution:
         """A copy that also counts the NLP work of other solves (a failed start, an
         earlier step) in its solve time, iterations and function time."""

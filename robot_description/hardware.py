@@ -194,6 +194,19 @@ def effective_limits(robot: Any, hw: Hardware | None = None) -> Limits:
     return tightest(robot.limits, hw.limits)
 
 
+def judged_limits(robot: Any, *tightenings: Limits | None) -> Limits:
+    """The limits a motion of ``robot`` is judged by: the hardware's
+    (:func:`effective_limits`: the robot's and the site's), tightened by each of
+    ``tightenings`` (a header's, a task's; None skips).  Each is first checked against
+    the robot's hardware limits, so that none can loosen them (a looser value raises
+    :class:`~sixplus3.errors.LimitError`).  The gate's one rule for its limits."""
+    lim = effective_limits(robot)
+    for t in tightenings:
+        if t is not None:
+            lim = tightest(lim, robot.limits.tightened(**t.as_dict()))
+    return lim
+
+
 def hardware_from_dict(doc: object, origin: str) -> Hardware:
     """A site's hardware from its file's mapping: ``drive_train`` (a catalogue key),
     optional ``people`` (a named set of :data:`PEOPLE_LIMITS`) and ``limits`` (each a

