@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -21,6 +22,7 @@ from sixplus3.kinematics.checks import (
     range_excess,
     tilt_excess,
 )
+from sixplus3.kinematics.tcp import tcp_acceleration, tcp_velocity
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
@@ -88,6 +90,126 @@ def finding(check: str, kind: str, unit: str, bound: float, excess: np.ndarray,
                    worst_where=names[jw], worst_value=float(value[kw, jw]),
                    excess=float(flat[kw * excess.shape[1] + jw]))
 
+
+
+# ----------------------------------------------------------------- families of checks
+# One function per family of the gate's checks (control/validation.py runs them in order).
+
+
+def grid_finding(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray, rate: float,
+                 rate_range: tuple[float, float], k0: int, n_total: int | None,
+                 max_duration: float) -> Finding | None:
+    """The first defect of the time grid, or None: the rate outside ``rate_range``, fewer
+    than 2 samples or a non-finite one, a motion longer than ``max_duration`` [s], or a
+    sample off t_k = k / rate (samples k0 .. of a motion of ``n_total``)."""
+    n = len(t)
+    lo, _hi = rate_range
+    if not (math.isfinite(rate) and rate_range[0] <= rate <= rate_range[1]):
+        return Finding(check="rate", kind="defect", unit="Hz", bound=lo, count=1, first_t=0.0,
+                       first_where="header", first_value=float(rate), worst_t=0.0,
+                       worst_where="header", worst_value=float(rate))
+    if n < 2 or not np.all(np.isfinite(np.c_[t, th, v, a])):
+        return Finding(check="samples", kind="defect", unit="", bound=2, count=1, first_t=0.0,
+                       first_where="file", first_value=float(n), worst_t=0.0,
+                       worst_where="file", worst_value=n)
+    grid = (k0 + np.arange(n)) / rate
+    if (k0 + (n_total or n) - 1) / rate > max_duration:
+        return Finding(check="duration", kind="defect", unit="s", bound=max_duration,
+                       count=1, first_t=float(t[-1]), first_where="file",
+                       first_value=float(grid[-1]), worst_t=float(t[-1]),
+                       worst_where="file", worst_value=float(grid[-1]))
+    err = np.abs(t - grid)
+    return finding("time grid (t_k = k / rate)", "defect", "s", TIME_TOL,
+                   err - TIME_TOL - 1e-12 * grid, err, t, ["time"])
+
+
+def rest_findings(t: np.ndarray, v: np.ndarray, a: np.ndarray,
+                  rest: tuple[bool, bool]) -> list[Finding]:
+    """At rest (zero velocity and acceleration) at the start and the end where ``rest``
+    says the motion starts or ends in these samples."""
+    out = []
+    n = len(t)
+    for k, end in [e for e, on in zip(((0, "start"), (n - 1, "end")), rest, strict=True)
+                   if on]:
+        for arr, bound, what, unit in ((v, REST_VELOCITY_TOL, "velocity", "rad/s"),
+                                       (a, REST_ACCELERATION_TOL, "acceleration", "rad/s^2")):
+            f = finding(f"at rest at the {end} ({what})", "defect", unit, bound,
+                        np.abs(arr[k:k + 1]) - bound, arr[k:k + 1], t[k:k + 1], JOINTS)
+            if f:
+                out.append(f)
+    return out
+
+
+def consistency_findings(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray,
+                         tol: Tolerances) -> tuple[list[Finding], np.ndarray]:
+    """(the jumps: positions, rates and accelerations that no motion within the jerk
+    limit connects (:class:`Tolerances`), |jerk| (n-1, 9) between the samples)."""
+    dt = tol.dt
+    d_th, d_v, d_a = np.diff(th, axis=0), np.diff(v, axis=0), np.diff(a, axis=0)
+    fwd = d_th - v[:-1] * dt - a[:-1] * dt**2 / 2
+    bwd = d_th - v[1:] * dt + a[1:] * dt**2 / 2
+    pos_err = np.maximum(np.abs(fwd), np.abs(bwd))
+    vel_err = np.abs(d_v - (a[:-1] + a[1:]) * dt / 2)
+    out = []
+    for check, e, bound, unit in (
+            ("position/velocity consistency", pos_err, tol.position, "rad"),
+            ("velocity/acceleration consistency", vel_err, tol.velocity, "rad/s")):
+        f = finding(check, "defect", unit, bound, e - bound, e, t[:-1], JOINTS)
+        if f:
+            out.append(f)
+    return out, np.abs(d_a) / dt
+
+
+def platform_findings(t: np.ndarray, cfg: Any, quat: np.ndarray,
+                      platform: np.ndarray | None) -> list[Finding]:
+    """The file's platform columns (position, quaternion, cranks) against the forward
+    kinematics of its joints ``cfg`` (quaternions ``quat``); none without columns."""
+    if platform is None:
+        return []
+    platform = np.asarray(platform, dtype=float)
+    dq = np.abs(np.einsum("ni,ni->n", platform[:, 3:7], quat))
+    ang = 2 * np.arccos(np.clip(dq, -1.0, 1.0))
+    errs = np.c_[np.abs(platform[:, 0:3] - cfg.position).max(axis=1), ang,
+                 np.abs(platform[:, 7:10] - cfg.psi).max(axis=1),
+                 np.abs(np.linalg.norm(platform[:, 3:7], axis=1) - 1.0)]
+    f = finding("platform columns vs forward kinematics", "defect", "m or rad", POSE_TOL,
+                errs - POSE_TOL, errs, t, ["position", "orientation", "psi",
+                                           "quaternion norm"])
+    return [f] if f else []
+
+
+def feedforward_findings(t: np.ndarray, tau: np.ndarray, tau_file: np.ndarray | None
+                         ) -> tuple[list[Finding], float | None]:
+    """(the file's feed-forward torques against Pinocchio's ``tau``, the largest error
+    [N m]); nothing without them."""
+    if tau_file is None:
+        return [], None
+    ff = np.abs(np.asarray(tau_file, dtype=float) - tau)
+    f = finding("feed-forward torque vs Pinocchio", "defect", "N m", FEEDFORWARD_TOL,
+                ff - FEEDFORWARD_TOL, ff, t, JOINTS)
+    return ([f] if f else []), float(np.nan_to_num(ff, nan=np.inf).max())
+
+
+def tcp_findings(lim: Limits, t: np.ndarray, cfg: Any, v: np.ndarray, t_all: np.ndarray,
+                 mid: tuple[Any, np.ndarray] | None
+                 ) -> tuple[list[Finding], np.ndarray, np.ndarray]:
+    """(the platform-space limits, the tool centre point's speed at every point, its
+    acceleration at the samples): the speed from the actuated rates, the acceleration
+    the finite difference of its vector (:mod:`sixplus3.kinematics.tcp`); ``mid``: the
+    midpoints' configurations and rates."""
+    v_tcp = tcp_velocity(cfg, v)
+    tcp_a = tcp_acceleration(v_tcp, t)
+    tcp_v = np.linalg.norm(v_tcp, axis=1)
+    if mid is not None:
+        tcp_v = np.r_[tcp_v, np.linalg.norm(tcp_velocity(*mid), axis=1)]
+    out = []
+    for name, unit, cap, val, tt in (("tcp speed", "m/s", lim.tcp_speed, tcp_v, t_all),
+                                      ("tcp acceleration (samples)", "m/s^2",
+                                       lim.tcp_acceleration, tcp_a, t)):
+        f = finding(name, "limit", unit, cap, cap_excess(val, cap), val, tt, ["tcp"])
+        if f:
+            out.append(f)
+    return out, tcp_v, tcp_a
 
 def failed(n: int, robot: Robot, findings: list[Finding], tol: dict) -> ValidationReport:
     """The report of a motion refused before its limits were measured."""

@@ -38,10 +38,16 @@ from sixplus3.control.findings import (  # noqa: F401 - Tolerances, Finding, ...
     REST_VELOCITY_TOL,
     TIME_TOL,
     Tolerances,
+    consistency_findings,
     failed,
+    feedforward_findings,
     finding,
+    grid_finding,
     interval_findings,
     limit_findings,
+    platform_findings,
+    rest_findings,
+    tcp_findings,
 )
 from sixplus3.control.interval import hermite, hermite_midpoints, resample  # noqa: F401
 from sixplus3.control.motion_input import (  # noqa: E402,F401 - re-exported
@@ -54,7 +60,6 @@ from sixplus3.control.offload import OFFLOAD_SHARE, Offload
 from sixplus3.control.report import Finding, ValidationReport  # noqa: F401 - re-exported
 from sixplus3.control.trajectory_file import (
     COLUMNS,
-    JOINTS,
     check_robot,
     columns,
     parse,
@@ -64,13 +69,11 @@ from sixplus3.control.trajectory_file import (
 from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.checks import (
-    cap_excess,
     range_excess,
 )
 from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import robot_fk_batch
 from sixplus3.kinematics.spherical import spherical_tilts
-from sixplus3.kinematics.tcp import tcp_acceleration, tcp_velocity
 from sixplus3.robot_description.hardware import judged_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -215,57 +218,19 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
     """:func:`validate_motion` of samples k0 .. k0 + len(t) - 1 of a motion of
     ``n_total`` samples; ``rest``: whether this window holds the start / the end."""
     n = len(t)
-    findings: list[Finding] = []
     f: Finding | None
     # ------------------------------------------------------------ grid and rate
-    lo, hi = rate_range
-    if not (math.isfinite(rate) and lo <= rate <= hi):
-        f = Finding(check="rate", kind="defect", unit="Hz", bound=lo, count=1, first_t=0.0,
-                    first_where="header", first_value=float(rate), worst_t=0.0,
-                    worst_where="header", worst_value=float(rate))
-        return failed(n, robot, [f], {})
-    dt = 1.0 / rate
-    tol = Tolerances(dt, lim.jerk)
-    tol_d = tol.as_dict()
-    if n < 2 or not np.all(np.isfinite(np.c_[t, th, v, a])):
-        f = Finding(check="samples", kind="defect", unit="", bound=2, count=1, first_t=0.0,
-                    first_where="file", first_value=float(n), worst_t=0.0,
-                    worst_where="file", worst_value=n)
-        return failed(n, robot, [f], tol_d)
-    grid = (k0 + np.arange(n)) / rate
-    if (k0 + (n_total or n) - 1) / rate > MAX_DURATION:
-        f = Finding(check="duration", kind="defect", unit="s", bound=MAX_DURATION, count=1,
-                    first_t=float(t[-1]), first_where="file", first_value=float(grid[-1]),
-                    worst_t=float(t[-1]), worst_where="file", worst_value=float(grid[-1]))
-        return failed(n, robot, [f], tol_d)
-    err = np.abs(t - grid)
-    g = finding("time grid (t_k = k / rate)", "defect", "s", TIME_TOL,
-                 err - TIME_TOL - 1e-12 * grid, err, t, ["time"])
-    if g is not None:
-        return failed(n, robot, [g], tol_d)
-    # ------------------------------------------------------------ rest at both ends
-    for k, end in [e for e, on in zip(((0, "start"), (n - 1, "end")), rest, strict=True)
-                   if on]:
-        for arr, bound, what, unit in ((v, REST_VELOCITY_TOL, "velocity", "rad/s"),
-                                       (a, REST_ACCELERATION_TOL, "acceleration", "rad/s^2")):
-            f = finding(f"at rest at the {end} ({what})", "defect", unit, bound,
-                         np.abs(arr[k:k + 1]) - bound, arr[k:k + 1], t[k:k + 1], JOINTS)
-            if f:
-                findings.append(f)
-    # ------------------------------------------------------------ consistency (no jumps)
-    d_th, d_v, d_a = np.diff(th, axis=0), np.diff(v, axis=0), np.diff(a, axis=0)
-    fwd = d_th - v[:-1] * dt - a[:-1] * dt**2 / 2
-    bwd = d_th - v[1:] * dt + a[1:] * dt**2 / 2
-    pos_err = np.maximum(np.abs(fwd), np.abs(bwd))
-    vel_err = np.abs(d_v - (a[:-1] + a[1:]) * dt / 2)
+    grid = grid_finding(t, th, v, a, rate, rate_range, k0, n_total, MAX_DURATION)
+    tol = Tolerances(1.0 / rate if math.isfinite(rate) and rate > 0 else math.nan, lim.jerk)
+    tol_d = tol.as_dict() if grid is None or grid.check != "rate" else {}
+    if grid is not None:
+        return failed(n, robot, [grid], tol_d)
+    dt = tol.dt
+    # ------------------------------------------------------------ rest, consistency
+    findings = rest_findings(t, v, a, rest)
+    jumps, jerk = consistency_findings(t, th, v, a, tol)
+    findings += jumps
     t_int = t[:-1]
-    for check, e, bound, unit in (
-            ("position/velocity consistency", pos_err, tol.position, "rad"),
-            ("velocity/acceleration consistency", vel_err, tol.velocity, "rad/s")):
-        f = finding(check, "defect", unit, bound, e - bound, e, t_int, JOINTS)
-        if f:
-            findings.append(f)
-    jerk = np.abs(d_a) / dt
     # ------------------------------------------------------------ forward kinematics
     # a worker for the dynamics, forked now if this process may fork (control/offload.py)
     offload = Offload(robot, n + (n - 1 if midpoints else 0))
@@ -316,18 +281,7 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
         if f:
             findings.append(f)
         quat = rot.quat_from_matrix(fk.rotation)
-        if platform is not None:
-            platform = np.asarray(platform, dtype=float)
-            dq = np.abs(np.einsum("ni,ni->n", platform[:, 3:7], quat))
-            ang = 2 * np.arccos(np.clip(dq, -1.0, 1.0))
-            errs = np.c_[np.abs(platform[:, 0:3] - cfg.position).max(axis=1), ang,
-                         np.abs(platform[:, 7:10] - cfg.psi).max(axis=1),
-                         np.abs(np.linalg.norm(platform[:, 3:7], axis=1) - 1.0)]
-            f = finding("platform columns vs forward kinematics", "defect", "m or rad",
-                         POSE_TOL, errs - POSE_TOL, errs, t,
-                         ["position", "orientation", "psi", "quaternion norm"])
-            if f:
-                findings.append(f)
+        findings += platform_findings(t, cfg, quat, platform)
         if mid_finding is not None:
             findings.append(mid_finding)
         sph = np.vstack([spherical_tilts(c).reshape(len(c), 9) for c in cfg_points])
@@ -346,31 +300,14 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
                                      offload.inertia[:n_all] if fkm is not None else None,
                                      extremes)
         findings += between.findings
-        if tau_file is not None:
-            ff = np.abs(np.asarray(tau_file, dtype=float) - tau)
-            ff_err = float(np.nan_to_num(ff, nan=np.inf).max())
-            f = finding("feed-forward torque vs Pinocchio", "defect", "N m", FEEDFORWARD_TOL,
-                         ff - FEEDFORWARD_TOL, ff, t, JOINTS)
-            if f:
-                findings.append(f)
-        else:
-            ff_err = None
+        ff_findings, ff_err = feedforward_findings(t, tau, tau_file)
+        findings += ff_findings
         # ------------------------------------------------------------ limits everywhere
         findings += limit_findings(lim, cfg_points, tau_all, v_all, a_all, t_all, rcond_all,
                                     jerk, t_int, sph, clear)
-        # the tool centre point: its speed at every point, its acceleration at the
-        # samples (the finite difference of the speed's vector, kinematics.tcp.tcp_rates)
-        v_tcp = tcp_velocity(cfg, v)
-        tcp_a = tcp_acceleration(v_tcp, t)
-        tcp_v = np.linalg.norm(v_tcp, axis=1)
-        if fkm is not None:
-            tcp_v = np.r_[tcp_v, np.linalg.norm(tcp_velocity(fkm.cfg, vm), axis=1)]
-        for name, unit, cap, val, tt in (("tcp speed", "m/s", lim.tcp_speed, tcp_v, t_all),
-                                          ("tcp acceleration (samples)", "m/s^2",
-                                           lim.tcp_acceleration, tcp_a, t)):
-            f = finding(name, "limit", unit, cap, cap_excess(val, cap), val, tt, ["tcp"])
-            if f:
-                findings.append(f)
+        tcp, tcp_v, tcp_a = tcp_findings(lim, t, cfg, v, t_all,
+                                         None if fkm is None else (fkm.cfg, vm))
+        findings += tcp
         tilt = float(sph.max())
         min_clear = float(clear.min())
         th_all = np.vstack([c.theta for c in cfg_points])
