@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from sixplus3.control.drive_log import to_drive_units
+from sixplus3.control.report import ValidationReport
 from sixplus3.errors import ValidationFailed
 from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
@@ -147,7 +148,8 @@ def dense_rate_for(rate: float) -> float:
     return rate * math.ceil(RATE_RANGE[0] / rate - 1e-9)
 
 
-def _check_interpolated(rep, robot: Robot, rate: float):
+def _check_interpolated(rep: ValidationReport, robot: Robot,
+                        rate: float) -> tuple[Any, ...]:
     """(t, theta, theta_dot, theta_ddot, tau, report at the points, report of the dense
     motion) of the validated motion of ``rep`` resampled at ``rate``."""
     from sixplus3.control.validation import INTERPOLATED_RATE_RANGE, resample, validate_motion
@@ -161,7 +163,7 @@ def _check_interpolated(rep, robot: Robot, rate: float):
     return t, th, v, a, again.tau, again, dense_rep
 
 
-def decimate(rep, robot: Robot, rate: float):
+def decimate(rep: ValidationReport, robot: Robot, rate: float) -> tuple[Any, ...]:
     """The validated motion of ``rep`` (a report of :func:`validate_file`) resampled at the
     lower ``rate`` [Hz] on the gate's quintic Hermite interpolant of its samples (at a
     whole fraction of the file's rate these are exactly every m-th sample), the resting
@@ -176,6 +178,7 @@ def decimate(rep, robot: Robot, rate: float):
     InputError."""
     from sixplus3.control.validation import INTERPOLATED_RATE_RANGE, check_rate
 
+    assert rep.header is not None  # a report of validate_file
     r0 = float(rep.header["rate_hz"])
     # at most the file's rate
     rate = check_rate(rate, (INTERPOLATED_RATE_RANGE[0], r0), name="--rate")
@@ -197,10 +200,12 @@ SAFE_RATE_LADDER = (10.0, 20.0, 25.0, 40.0, 50.0, 80.0, 100.0, 125.0, 200.0, 250
                     500.0, 1000.0, 2000.0, 2500.0, 5000.0, 10000.0)
 
 
-def lowest_safe_rate(rep, robot: Robot, failed_rate: float) -> float | None:
+def lowest_safe_rate(rep: ValidationReport, robot: Robot,
+                     failed_rate: float) -> float | None:
     """The lowest rate of :data:`SAFE_RATE_LADDER` above ``failed_rate`` that is a whole
     fraction of the file's rate r0 and whose interpolated motion passes the gate, or
     None if only r0 itself does."""
+    assert rep.header is not None  # a report of validate_file
     r0 = float(rep.header["rate_hz"])
     for r in SAFE_RATE_LADDER:
         m = r0 / r

@@ -135,7 +135,7 @@ def _finish_metadata(bag: Path, distro: str) -> None:
     atomic_write(meta, yaml.safe_dump(doc, sort_keys=False).encode())
 
 
-def _rosbags():
+def _rosbags() -> tuple[Any, Any, Any]:
     try:
         from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.typesys import Stores, get_typestore
@@ -145,7 +145,7 @@ def _rosbags():
     return Writer, StoragePlugin, get_typestore(Stores.ROS2_HUMBLE)
 
 
-def _stamp(types, ns: int):
+def _stamp(types: Any, ns: int) -> Any:
     return types["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000,
                                                  nanosec=ns % 1_000_000_000)
 
@@ -254,7 +254,7 @@ def write_rosbag2(path: str | Path, robot: Robot, out_dir: str | Path,
     return out
 
 
-def _trajectory(T, msg: dict, start_ns: int):
+def _trajectory(T: Any, msg: dict, start_ns: int) -> Any:
     """A JointTrajectory message of the typestore from the mapping of
     :func:`ros2_joint_trajectory`."""
     Duration = T["builtin_interfaces/msg/Duration"]

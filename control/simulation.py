@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from sixplus3.control.report import ValidationReport
 from sixplus3.errors import InputError
 from sixplus3.robot_description.mjcf import TIMESTEP, build_mjcf
 from sixplus3.robot_description.model import closed_loop_model
@@ -39,7 +40,7 @@ from sixplus3.robot_description.urdf import actuated_joint_names, closure_pairs
 KP, KD = 300.0, 6.0
 
 
-def _mujoco():
+def _mujoco() -> Any:
     try:
         import mujoco
     except ImportError:  # pragma: no cover - depends on the install
@@ -279,12 +280,13 @@ def simulate(robot: Robot, q0: np.ndarray, theta: np.ndarray, theta_dot: np.ndar
         max_closure_residual_m=res, timestep_s=timestep)
 
 
-def first_configuration(robot: Robot, rep) -> np.ndarray:
+def first_configuration(robot: Robot, rep: ValidationReport) -> np.ndarray:
     """Pinocchio configuration of a validated report's first sample (its platform pose
     and crank angles from the validator's own forward kinematics)."""
     from sixplus3.kinematics.robot import robot_ik
     from sixplus3.kinematics.rotations import matrix_from_quat
 
+    assert rep.quaternion is not None and rep.position is not None and rep.psi is not None
     R = matrix_from_quat(rep.quaternion[0])[0]
     cfg = robot_ik(rep.position[0], R, rep.psi[0], robot)
     return np.asarray(cfg.q[0])
@@ -292,7 +294,8 @@ def first_configuration(robot: Robot, rep) -> np.ndarray:
 
 def simulate_file(path: str | Path, robot: Robot, kp: float = KP,
                   kd: float = KD, feedforward_scale: float = 1.0,
-                  torque_hold: str = DEFAULT_TORQUE_HOLD):
+                  torque_hold: str = DEFAULT_TORQUE_HOLD
+                  ) -> tuple[ValidationReport, Any]:
     """Validate a trajectory file, then replay it in MuJoCo: (validation, simulation).
 
     Only a file that passes the gate is simulated: with a defect (exit code 2) or a
@@ -333,7 +336,7 @@ class EngineCheck:
                 "messages": self.messages}
 
 
-def engine_check(robot: Robot, rep, kp: float = KP, kd: float = KD,
+def engine_check(robot: Robot, rep: ValidationReport, kp: float = KP, kd: float = KD,
                  torque_hold: str = DEFAULT_TORQUE_HOLD) -> EngineCheck:
     """Check a validated report's file in MuJoCo: its feed-forward torques against
     MuJoCo's constrained inverse dynamics on every sample (a defect beyond the

@@ -11,7 +11,7 @@ from sixplus3.dynamics.regressor import N_BODY, N_MOTOR, Layout
 from sixplus3.errors import InputError
 from sixplus3.robot_description.masses import BODY_LINKS, BodyInertial, BodyInertials
 from sixplus3.robot_description.model import closed_loop_model
-from sixplus3.robot_description.physical import MotorModel
+from sixplus3.robot_description.physical import MotorModel, Payload
 from sixplus3.robot_description.robot import Robot, require_robot
 
 
@@ -20,7 +20,6 @@ def link_inertials(robot: Robot) -> dict[str, BodyInertial]:
     model has it (the link frame is its joint's frame; the payload is not a link)."""
     from dataclasses import replace
 
-    from sixplus3.robot_description.physical import Payload
 
     bare = robot if robot.payload.mass == 0.0 else replace(robot, payload=Payload())
     model = closed_loop_model(bare).model
@@ -91,7 +90,7 @@ def per_joint_motors(motors: MotorModel, armature: np.ndarray, viscous: np.ndarr
                    joint_coulomb=tuple(float(x) for x in coulomb))
 
 
-def _payload_parameters(pl) -> np.ndarray:
+def _payload_parameters(pl: Payload) -> np.ndarray:
     """The payload's 10 parameters in the platform frame (Pinocchio's order)."""
     import pinocchio as pin
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -23,7 +24,8 @@ class Resolution:
     at_rest: np.ndarray  # (6,)
 
 
-def resolution(robot: Robot, position, rotation=None, psi=None, gain: float = 150.0,
+def resolution(robot: Robot, position: Any, rotation: Any = None, psi: Any = None,
+               gain: float = 150.0,
                monitor_noise: float = 0.005, model_sigma: float = MODEL_SIGMA,
                n_sigma: float = N_SIGMA) -> Resolution:
     """The force resolution at one pose (home orientation and cranks by default)."""

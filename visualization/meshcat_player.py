@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -48,9 +49,10 @@ FOCUS_FRACTION = 0.55
 FLOOR_Z = -0.05
 
 
-def frames_from_samples(robot: Robot, t, position, quaternion, psi, fps: float = 30.0,
-                        min_seconds: float = 3.0, title: str = "sixplus3",
-                        theta_dot=None, waypoints=None) -> Frames:
+def frames_from_samples(robot: Robot, t: Any, position: Any, quaternion: Any, psi: Any,
+                        fps: float = 30.0, min_seconds: float = 3.0,
+                        title: str = "sixplus3", theta_dot: Any = None,
+                        waypoints: Any = None) -> Frames:
     """Tree configurations at ``fps``, slowed down so the animation lasts >= min_seconds.
 
     The platform path is kept for a trace; with ``theta_dot`` the samples at rest inside
@@ -73,7 +75,7 @@ def frames_from_samples(robot: Robot, t, position, quaternion, psi, fps: float =
 
 
 @functools.lru_cache(maxsize=1)
-def _server():
+def _server() -> Any:
     """The one meshcat server of this process (meshcat-python #87)."""
     import contextlib
     import io
@@ -87,7 +89,7 @@ def _server():
     return vis
 
 
-def _frame_camera(vis, robot: Robot) -> None:
+def _frame_camera(vis: Any, robot: Robot) -> None:
     """The camera orbits a point about halfway up the robot (base at z = 0, platform at
     its home height h), 1.9 h away, a little above it (meshcat's camera frame is y-up)."""
     import meshcat.transformations as tf
@@ -102,7 +104,7 @@ def _frame_camera(vis, robot: Robot) -> None:
 _LOADED: dict[str, object] = {}
 
 
-def _viewer(robot: Robot):
+def _viewer(robot: Robot) -> tuple[Any, Any]:
     """The server with ``robot`` loaded (its URDF visuals; reloaded for another robot)."""
     import pinocchio as pin
     from pinocchio.visualize import MeshcatVisualizer
@@ -119,7 +121,7 @@ def _viewer(robot: Robot):
     return vis, _LOADED["viz"]
 
 
-def animate(frames: Frames):
+def animate(frames: Frames) -> Any:
     """Load the animation into the (single) viewer; returns the meshcat Visualizer."""
     import meshcat.animation
 
@@ -138,7 +140,7 @@ def animate(frames: Frames):
     return vis
 
 
-def _overlay(vis, frames: Frames) -> None:
+def _overlay(vis: Any, frames: Frames) -> None:
     """The floor, the platform centre's path as a line, a small sphere at each marked
     point (magenta: at rest) and at each waypoint (green)."""
     import meshcat.geometry as g

@@ -9,6 +9,7 @@ the nine joints share a panel, a leg is a colour and a joint (A, B, C) a line st
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -38,9 +39,10 @@ def subtitle(robot: Robot, limits: Limits, planned_torque: float | None = None) 
                                    + ", ".join(parts), 96))
 
 
-def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, quaternion,
-                    psi, torque_limit: float, margin: float, title: str = "",
-                    theta_dot=None, theta_ddot=None, planned_torque: float | None = None,
+def plot_trajectory(robot: Robot, out_dir: str | Path, t: Any, theta: Any, tau: Any,
+                    position: Any, quaternion: Any, psi: Any, torque_limit: float,
+                    margin: float, title: str = "", theta_dot: Any = None,
+                    theta_ddot: Any = None, planned_torque: float | None = None,
                     limits: Limits | None = None) -> list[str]:
     """Write <title>_torques.png, <title>_margins.png, <title>_joints.png,
     <title>_platform.png and, with the rates given, <title>_rates.png into ``out_dir``
@@ -66,7 +68,8 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t, theta, tau, position, 
     styles = [{"color": "tab:blue", "ls": "-"}, {"color": "tab:green", "ls": "--"},
               {"color": "tab:purple", "ls": "-."}]
 
-    def per_leg(values, ylabel: str, hw: float, fname: str, what: str, planned=None):
+    def per_leg(values: Any, ylabel: str, hw: float, fname: str, what: str,
+                planned: float | None = None) -> str:
         fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
         for i, ax in enumerate(axes):
             for j in range(3 * i, 3 * i + 3):
