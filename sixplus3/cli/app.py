@@ -124,7 +124,7 @@ def _set_level(ctx: click.Context, param: click.Parameter, value: bool) -> bool:
     return value
 
 
-def verbosity(f):
+def verbosity(f: Any) -> Any:
     """``--quiet`` / ``--verbose`` (:mod:`sixplus3.progress`) on a long-running command."""
     f = click.option("-v", "--verbose", is_flag=True, expose_value=False, is_eager=True,
                      callback=_set_level,

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from typing import Any
 
 import click
 
@@ -16,7 +17,7 @@ def design() -> None:
     """Optimal leg design and workspace (paper §V)."""
 
 
-def _reading_option(f):
+def _reading_option(f: Any) -> Any:
     return click.option("--reading", default="paper-mirror", show_default=True,
                         help="Reading of the paper's conventions (see docs/design.md): "
                         "one of " + ", ".join(_reading_names()))(f)
@@ -27,7 +28,7 @@ def _reading_names() -> list[str]:
     return ["spec", "paper-match", "paper-mirror", "spec-no-theta-limit"]
 
 
-def _reading(name: str):
+def _reading(name: str) -> Any:
     from sixplus3.design.readings import READINGS
 
     if name not in READINGS:

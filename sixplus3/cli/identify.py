@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+from typing import Any
 
 import click
 
@@ -62,7 +63,7 @@ def excite(out_dir: str, duration: float, candidates: int, waypoints: int, reach
                f"base regressor {ex.condition:.4g}{versus}; log det {ex.log_det:.1f}")
 
 
-def _examples_condition(robot) -> float:
+def _examples_condition(robot: Any) -> float:
     """The condition number of the examples' base regressor, stacked (each example
     planned; a comparison for the excitation)."""
     import math

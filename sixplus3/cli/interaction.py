@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from typing import Any
 
 import click
 
@@ -67,7 +68,7 @@ def wrench(log: str, out_file: str | None, at: str, gain: float, noise: float,
                "error or a force on a crank)")
 
 
-def _load_parameters(path: str):
+def _load_parameters(path: str) -> Any:
     import io
 
     import numpy as np
@@ -85,7 +86,7 @@ def _load_parameters(path: str):
                          valid="identify estimate --report DIR's parameters.npz") from None
 
 
-def _csv(est) -> str:
+def _csv(est: Any) -> str:
     cols = ["t", "fx", "fy", "fz", "mx", "my", "mz"]
     head = cols + [f"std_{c}" for c in cols[1:]] + [f"band_{c}" for c in cols[1:]] + \
         ["crank0", "crank1", "crank2", "contact"]
@@ -97,7 +98,7 @@ def _csv(est) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _plot(est, path: str, name: str) -> None:
+def _plot(est: Any, path: str, name: str) -> None:
     import matplotlib
 
     matplotlib.use("Agg")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import click
 
@@ -15,7 +16,7 @@ def _check_rate(rate: float) -> None:
     check_rate(rate, name="--rate")
 
 
-def _load_task_or_example(task_file: str):
+def _load_task_or_example(task_file: str) -> Any:
     """A task file, or the name of an installed example (when no such file exists)."""
     from pathlib import Path
 
@@ -27,7 +28,7 @@ def _load_task_or_example(task_file: str):
     return load_task(task_file)
 
 
-def _run_plan(task, out_dir: str, rate: float, html: bool, locked: bool) -> None:
+def _run_plan(task: Any, out_dir: str, rate: float, html: bool, locked: bool) -> None:
     from sixplus3.control.pipeline import run_plan
     from sixplus3.planner.ocp import PlannerOptions
     from sixplus3.progress import ConsoleProgress

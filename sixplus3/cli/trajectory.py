@@ -7,7 +7,7 @@ import json
 import math
 import os
 import sys
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -45,7 +45,7 @@ _gain_options = [
 ]
 
 
-def _gains(f):
+def _gains(f: Any) -> Any:
     for opt in reversed(_gain_options):
         f = opt(f)
     return f
@@ -210,7 +210,8 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
     sys.exit(0 if sim.within_torque_limit else 1)
 
 
-def _simulate_plant(csv_file: str, robot, plant_file: str | None, log_file: str | None,
+def _simulate_plant(csv_file: str, robot: Any, plant_file: str | None,
+                    log_file: str | None,
                     seed: int, noise: float, hold: float, force: bool, kp: float,
                     kd: float, as_json: bool, wrench_file: str | None = None) -> None:
     from sixplus3.control.drive_log import write_log
