@@ -7,6 +7,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from sixplus3.cli import main
@@ -30,11 +31,30 @@ def test_help_does_not_import_the_heavy_libraries() -> None:
 
 
 def test_leg_accepts_negative_numbers_and_prints_a_report() -> None:
-    res = run("leg", "-0.1", "0.4", "0.2", "--force", "0", "-5", "0")
+    """The printed report carries the numbers of the JSON form (the library's), and the
+    torques add up to the moment of f about the actuated axis."""
+    import re
+
+    args = ["leg", "-0.1", "0.4", "0.2", "--force", "0", "-5", "0"]
+    res = run(*args)
     assert res.exit_code == 0, res.output
-    for word in ("theta   [rad]", "theta   [deg]", "theta_s", "det J", "det K", "margins",
-                 "singularity: none", "tau [N m]", "tau_ext"):
-        assert word in res.output
+    out = json.loads(run(*args, "--json").output)
+    text = res.output
+
+    def numbers(label: str) -> list[float]:
+        line = next(ln for ln in text.splitlines() if ln.strip().startswith(label))
+        return [float(x) for x in re.findall(r"[-+]\d+\.\d+(?:e[-+]\d+)?", line)]
+
+    np.testing.assert_allclose(numbers("theta   [rad]"), out["theta"], atol=5e-7)
+    np.testing.assert_allclose(numbers("theta   [deg]"), np.degrees(out["theta"]), atol=5e-4)
+    tau = numbers("tau [N m]")
+    np.testing.assert_allclose(tau, out["tau"], atol=5e-5)
+    assert abs(sum(tau) - np.cross([-0.1, 0.4, 0.2], [0, -5, 0])[0]) < 2e-4
+    tau_ext = float(re.search(r"tau_ext = ([0-9.]+) N m", text).group(1))
+    assert tau_ext == pytest.approx(out["tau_ext"], abs=5e-5)
+    # over the 10 N m limit, and said so
+    assert tau_ext > 10.0 and "OVER the robot's 10 N m torque limit" in text
+    assert f"singularity: {out['singularity']}" in text
 
 
 def test_leg_json_contract_and_physics() -> None:
@@ -63,9 +83,25 @@ def test_leg_unreachable_exits_2_with_one_line() -> None:
 
 
 def test_report_prints_the_leg_report() -> None:
+    """The report's areas are the library's (design.workspace.usable_area in the robot's
+    own reading) on the same grid, and each is a subset of the one before."""
+    import re
+
+    from sixplus3.design.report import reading_of
+    from sixplus3.design.workspace import usable_area
+    from sixplus3.robot_description.geometry import LegLoad
+    from sixplus3.robot_description.robot import Robot
+
     res = run("report", "--ws-step", "0.02")
     assert res.exit_code == 0, res.output
-    assert "design half-plane" in res.output and "tau_ext <= 10 N m" in res.output
+    areas = [float(a) for a in re.findall(r"([0-9.]+) m\^2", res.output)]
+    robot = Robot.default()
+    rd = reading_of(robot.mode.name)
+    want = usable_area(robot.leg, 0.02, robot.mode, LegLoad(torque_limit=10.0),
+                       rd.theta_max, rd.theta_zero, rd.theta_direction)
+    assert areas[:4] == pytest.approx([want.disk_area, want.reachable_area,
+                                       want.theta_ok_area, want.usable_area], abs=6e-6)
+    assert areas[0] >= areas[1] >= areas[2] >= areas[3] > 0.0
 
 
 def test_robot_check_reports_the_model() -> None:
