@@ -51,7 +51,7 @@ def main() -> None:
     args = ap.parse_args()
     if any(n < 2 or n > 1_100_000 for n in args.samples):
         ap.error("--samples must be in [2, 1100000]")
-    from sixplus3.control.validation import validate_and_write
+    from sixplus3.control.gate.validation import validate_and_write
     from sixplus3.robot_description.robot import Robot
 
     robot = Robot.default()

@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from sixplus3 import examples
+from sixplus3.control.drive.plant import TORQUE_NOISE, run_on_plant
 from sixplus3.control.pipeline import run_plan
-from sixplus3.control.plant import TORQUE_NOISE, run_on_plant
 from sixplus3.identification.excite import ExcitationSettings, excite
 from sixplus3.identification.identify import check, identify
 from sixplus3.identification.plants import perturbed_plant

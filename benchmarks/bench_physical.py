@@ -19,9 +19,9 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from sixplus3.control.drive.simulation import engine_check
+from sixplus3.control.gate.validation import validate_file
 from sixplus3.control.pipeline import run_plan
-from sixplus3.control.simulation import engine_check
-from sixplus3.control.validation import validate_file
 from sixplus3.dynamics.codegen import ensure_optimised
 from sixplus3.errors import Sixplus3Error
 from sixplus3.planner.analysis import largest_tilt

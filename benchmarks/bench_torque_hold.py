@@ -11,8 +11,8 @@ import tempfile
 from pathlib import Path
 
 from sixplus3 import examples
+from sixplus3.control.drive.simulation import simulate_file
 from sixplus3.control.pipeline import run_plan
-from sixplus3.control.simulation import simulate_file
 from sixplus3.robot_description.robot import Robot
 
 if __name__ == "__main__":

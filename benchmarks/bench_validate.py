@@ -8,7 +8,7 @@ the trajectory file at 1 kHz, then times the command a user runs, ``sixplus3 val
 FILE``, as a subprocess (wall time, including the interpreter start-up and imports), and
 the library call ``validate_file`` inside one process.  Every check runs, midpoints
 included.  The command is timed twice: as shipped (a forked worker shares the dynamics,
-control/offload.py ``Offload``) and in one process (``SIXPLUS3_NO_FORK=1``); the
+control/gate/offload.py ``Offload``) and in one process (``SIXPLUS3_NO_FORK=1``); the
 in-process library call runs in one process too (numba's threads are started there).
 """
 
@@ -30,8 +30,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
+    from sixplus3.control.gate.validation import validate_file
     from sixplus3.control.pipeline import run_plan
-    from sixplus3.control.validation import validate_file
     from sixplus3.planner.task import load_task, task_from_dict
     from sixplus3.robot_description.robot import Robot
 

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.smoothing import Smoothed, check_rate, smooth
-from sixplus3.control.trajectory_file import check_samples, output_path
-from sixplus3.control.validation import ValidationReport, validate_and_write
+from sixplus3.control.drive.smoothing import Smoothed, check_rate, smooth
+from sixplus3.control.file.trajectory_file import check_samples, output_path
+from sixplus3.control.gate.validation import ValidationReport, validate_and_write
 from sixplus3.errors import TrajectoryFileError, ValidationFailed
 from sixplus3.planner.ocp import PlannerOptions, Solution, plan_problem
 from sixplus3.planner.problem import Problem

@@ -1,8 +1,8 @@
 """The gate's verdict: one :class:`Finding` per failed check (named fields: where it
 first failed, where it failed worst) and the :class:`ValidationReport` of a motion.
 
-Data only: :mod:`sixplus3.control.findings` makes the findings, and
-:mod:`sixplus3.control.validation` the reports."""
+Data only: :mod:`sixplus3.control.gate.findings` makes the findings, and
+:mod:`sixplus3.control.gate.validation` the reports."""
 
 from __future__ import annotations
 
@@ -64,7 +64,7 @@ class ValidationReport:
     max_torque_rate: float | None = None
     duration: float | None = None  # [s]
     #: max |jerk| of the interpolant over the intervals / (C_JERK x the jerk limit): above
-    #: 1 no motion within the jerk limit has these samples (control/interval.py)
+    #: 1 no motion within the jerk limit has these samples (control/gate/interval.py)
     max_interpolant_jerk_ratio: float = 0.0
     header: dict | None = field(default=None, repr=False)  # validate_file only
     #: the samples validated, exactly as read (validate_file): send these

@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.smoothing import smooth
-from sixplus3.control.validation import validate_and_write
+from sixplus3.control.drive.smoothing import smooth
+from sixplus3.control.gate.validation import validate_and_write
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InfeasibleTaskError, InputError, Sixplus3Error
 from sixplus3.identification.base import BaseParameters, base_parameters

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
-from sixplus3.control.drive_log import DriveLog
+from sixplus3.control.drive.drive_log import DriveLog
 from sixplus3.errors import InputError
 
 ORDER = 4

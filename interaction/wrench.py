@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control.drive_log import DriveLog
+from sixplus3.control.drive.drive_log import DriveLog
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError
 from sixplus3.kinematics.robot import ik_jacobian, robot_fk, robot_fk_batch

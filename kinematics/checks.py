@@ -12,7 +12,7 @@ tolerances.
 An excess > 0 is a violation.  Every check applies these functions: the planner's
 dense re-check (:func:`measure_limits`, called by
 :func:`sixplus3.planner.solution.dense_check`), the file gate
-(:mod:`sixplus3.control.validation`), the static checks (:func:`pose_masks`) and the
+(:mod:`sixplus3.control.gate.validation`), the static checks (:func:`pose_masks`) and the
 atlas's compiled kernel (its actuated range from :func:`actuated_bounds`).
 """
 

@@ -31,7 +31,7 @@ class PlannerOptions:
     # IPOPT's constr_viol_tol, also for an acceptable stop (IPOPT's default there is
     # 1e-2): the largest residual of a row left in a returned solution: [rad] or [m] in
     # the integration rows, [10 N m] in the dynamics rows (ROW_SCALE).  The written
-    # torques are Pinocchio's, not these variables (control/validation.py)
+    # torques are Pinocchio's, not these variables (control/gate/validation.py)
     constr_viol_tol: float = 1e-4
     regularisation: float = 1e-4
     verbose: bool = False

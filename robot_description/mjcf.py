@@ -18,7 +18,7 @@ frames away and knows no loop closures (docs/libraries.md).  What is written:
 - the actuators limited to the robot's torque limit (``ctrlrange`` and ``forcerange``),
   the actuated hinges to its actuated range (``range``), when ``limits`` (the default);
 - a ``home`` keyframe when ``keyframe`` is given (qpos of the assembled home pose and the
-  holding torques as ctrl: :func:`sixplus3.control.simulation.export_mjcf` computes
+  holding torques as ctrl: :func:`sixplus3.control.drive.simulation.export_mjcf` computes
   them), so that the file starts assembled instead of at MuJoCo's qpos0, where the
   closures are 0.26 m open;
 - gravity from the robot's mounting; contacts off by default (the clearance is a

@@ -82,7 +82,7 @@ BREAKS: dict[str, tuple[str, str, str, list[str]]] = {
         ["tests/test_planner_structure.py::"
          "test_the_lifted_torque_balance_is_todays_where_its_closures_hold"]),
     "the gate's torque cap with its own tolerance": (
-        "control/findings.py",
+        "control/gate/findings.py",
         '    out.append(finding("torque", "limit", "N m", lim.torque, '
         'cap_excess(atau, lim.torque),',
         '    out.append(finding("torque", "limit", "N m", lim.torque, '

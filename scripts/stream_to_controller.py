@@ -4,7 +4,7 @@
                                          [--speed 0.5] [--dry-run] [--robot ROBOT.yaml]
 
 The same as ``sixplus3 feed``: the file is read once and its bytes are validated by the
-library (:func:`sixplus3.control.feed.prepare_feed`); the samples sent are exactly the
+library (:func:`sixplus3.control.drive.feed.prepare_feed`); the samples sent are exactly the
 validated ones (or, with --speed < 1, a real retiming of them, validated again).  A bad
 file exits 2, a violated limit 1, and nothing is sent.  Each sample is one UDP datagram
 (JSON: t, positions, velocities, accelerations, feed-forward torques, in the URDF joint

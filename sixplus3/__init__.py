@@ -48,12 +48,12 @@ _API = {
     "PlannerOptions": "sixplus3.planner.ocp",
     "Solution": "sixplus3.planner.ocp",
     "plan": "sixplus3.planner.ocp",
-    "smooth": "sixplus3.control.smoothing",
-    "ValidationReport": "sixplus3.control.validation",
-    "validate_joint_trajectory": "sixplus3.control.validation",
-    "validate_file": "sixplus3.control.validation",
-    "read_trajectory": "sixplus3.control.trajectory_file",
-    "write_trajectory": "sixplus3.control.trajectory_file",
+    "smooth": "sixplus3.control.drive.smoothing",
+    "ValidationReport": "sixplus3.control.gate.validation",
+    "validate_joint_trajectory": "sixplus3.control.gate.validation",
+    "validate_file": "sixplus3.control.gate.validation",
+    "read_trajectory": "sixplus3.control.file.trajectory_file",
+    "write_trajectory": "sixplus3.control.file.trajectory_file",
     "run_plan": "sixplus3.control.pipeline",
     "Sixplus3Error": "sixplus3.errors",
 }
@@ -78,14 +78,14 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
-    from sixplus3.control.pipeline import run_plan
-    from sixplus3.control.smoothing import smooth
-    from sixplus3.control.trajectory_file import read_trajectory, write_trajectory
-    from sixplus3.control.validation import (
+    from sixplus3.control.drive.smoothing import smooth
+    from sixplus3.control.file.trajectory_file import read_trajectory, write_trajectory
+    from sixplus3.control.gate.validation import (
         ValidationReport,
         validate_file,
         validate_joint_trajectory,
     )
+    from sixplus3.control.pipeline import run_plan
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.errors import Sixplus3Error
     from sixplus3.kinematics.leg import leg_ik

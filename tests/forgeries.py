@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sixplus3.control import trajectory_file as tf
-from sixplus3.control.trajectory_file import COLUMNS, JOINTS, encode
+from sixplus3.control.file import trajectory_file as tf
+from sixplus3.control.file.trajectory_file import COLUMNS, JOINTS, encode
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import home, robot_fk_batch

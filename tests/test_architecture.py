@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from sixplus3.control import validation
-from sixplus3.control.trajectory_file import COLUMNS, columns, samples_array
+from sixplus3.control.file.trajectory_file import COLUMNS, columns, samples_array
+from sixplus3.control.gate import validation
 from sixplus3.errors import InputError
 from sixplus3.kinematics import checks
 from sixplus3.kinematics.robot import home, robot_fk_batch
@@ -201,16 +201,20 @@ def test_the_atlas_grid_takes_its_height_range() -> None:
 
 
 def test_strict_types_cover_every_module_the_curated_api_exports_from() -> None:
-    """pyproject's strict mypy override (disallow_untyped_defs, run by `make lint`) lists
-    exactly the modules ``sixplus3.__all__`` exports from."""
+    """pyproject's strict mypy overrides (disallow_untyped_defs, run by `make lint`): one
+    lists exactly the modules ``sixplus3.__all__`` exports from; the other makes whole
+    packages strict (``pkg.*``), package by package."""
     import tomllib
 
     import sixplus3
 
     cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["mypy"]
     strict = [o for o in cfg["overrides"] if o.get("disallow_untyped_defs")]
-    assert len(strict) == 1
-    assert sorted(strict[0]["module"]) == sorted(set(sixplus3._API.values()))
+    modules = [o for o in strict if not any(m.endswith(".*") for m in o["module"])]
+    packages = [o for o in strict if all(m.endswith(".*") for m in o["module"])]
+    assert len(modules) == 1 and len(packages) == 1 and len(strict) == 2
+    assert sorted(modules[0]["module"]) == sorted(set(sixplus3._API.values()))
+    assert "sixplus3.control.*" in packages[0]["module"]
     assert cfg.get("check_untyped_defs") is True
 
 

@@ -12,9 +12,9 @@ import yaml
 from click.testing import CliRunner
 
 from sixplus3.cli import main
-from sixplus3.control.exports import drive_table, export_file
+from sixplus3.control.file.trajectory_file import columns, read_trajectory
+from sixplus3.control.formats.exports import drive_table, export_file
 from sixplus3.control.pipeline import run_plan
-from sixplus3.control.trajectory_file import columns, read_trajectory
 from sixplus3.errors import GeometryError, InputError, TrajectoryFileError
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.physical import MotorModel
@@ -112,7 +112,7 @@ def test_the_ros2_yaml_reads_back_exactly_for_any_floats() -> None:
     """The hand-written YAML (a long motion's yaml.safe_dump held 2.8 GB) reads back with
     PyYAML as the message itself, for floats PyYAML 1.1 is fussy about (1e-05 without a
     '.', -0.0, subnormals, 1e16, 1e300)."""
-    from sixplus3.control.exports import ros2_joint_trajectory, ros2_yaml
+    from sixplus3.control.formats.exports import ros2_joint_trajectory, ros2_yaml
 
     rng = np.random.default_rng(1)
     n = 40
@@ -125,7 +125,7 @@ def test_the_ros2_yaml_reads_back_exactly_for_any_floats() -> None:
 
 
 def test_read_trajectory_names_its_columns(planned) -> None:
-    from sixplus3.control.trajectory_file import COLUMNS
+    from sixplus3.control.file.trajectory_file import COLUMNS
     from sixplus3.errors import InputError
 
     path, data = planned
@@ -162,7 +162,7 @@ def test_the_rosbag2_export_reads_back_in_rosbags(planned, tmp_path) -> None:
     from rosbags.rosbag2 import Reader
     from rosbags.typesys import Stores, get_typestore
 
-    from sixplus3.control.rosbag import revolute_joints
+    from sixplus3.control.formats.rosbag import revolute_joints
 
     path, data = planned
     out = tmp_path / "bag"
@@ -204,7 +204,7 @@ def test_the_rosbag2_export_reads_back_in_rosbags(planned, tmp_path) -> None:
     again = CliRunner().invoke(main, ["export", str(path), "--format", "rosbag2", "-o",
                                       str(out)])
     assert again.exit_code == 2 and "directory" in again.output  # never written over
-    from sixplus3.control.rosbag import write_rosbag2
+    from sixplus3.control.formats.rosbag import write_rosbag2
     from sixplus3.errors import InputError
 
     with pytest.raises(InputError, match="exists"):
@@ -219,8 +219,8 @@ def test_decimation_is_validated_again_and_the_goal_form_wraps_it(planned, tmp_p
     new points again: a rate either gives a valid trajectory or is refused for what the
     interpolation does between the points (exit 1), never silently.  --goal wraps the
     trajectory into a FollowJointTrajectory goal."""
-    from sixplus3.control.exports import decimate
-    from sixplus3.control.validation import validate_file
+    from sixplus3.control.formats.exports import decimate
+    from sixplus3.control.gate.validation import validate_file
     from sixplus3.errors import InputError, ValidationFailed
 
     path, data = planned

@@ -25,17 +25,17 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sixplus3.cli import main as cli
-from sixplus3.control import interval
-from sixplus3.control import trajectory_file as tf
-from sixplus3.control.feed import prepare_feed
-from sixplus3.control.pipeline import run_plan
-from sixplus3.control.trajectory_file import COLUMNS, JOINTS, columns, encode, parse
-from sixplus3.control.validation import (
+from sixplus3.control.drive.feed import prepare_feed
+from sixplus3.control.file import trajectory_file as tf
+from sixplus3.control.file.trajectory_file import COLUMNS, JOINTS, columns, encode, parse
+from sixplus3.control.gate import interval
+from sixplus3.control.gate.validation import (
     RATE_RANGE,
     validate_bytes,
     validate_file,
     validate_motion,
 )
+from sixplus3.control.pipeline import run_plan
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed
 from sixplus3.planner.task import task_from_dict
@@ -81,8 +81,8 @@ def cli_validate(path: Path):
 # ------------------------------------------------------------------ the valid file
 _WORKER_SCRIPT = """
 import json, os, sys
-import sixplus3.control.offload as O
-import sixplus3.control.validation as V
+import sixplus3.control.gate.offload as O
+import sixplus3.control.gate.validation as V
 from sixplus3.robot_description.robot import Robot
 
 O.OFFLOAD_MIN_POINTS = 10  # this short motion gets a worker too
@@ -111,10 +111,10 @@ print(json.dumps({"forks": forks, "tau": rep.tau.tolist(), "summary": rep.summar
 
 def test_the_dynamics_worker_changes_nothing(valid, monkeypatch) -> None:
     """The validator shares the dynamics with a forked worker process when it may
-    (control/offload.py, Offload): in a fresh process, where numba has not started
+    (control/gate/offload.py, Offload): in a fresh process, where numba has not started
     its threads.  The report is the one computed in a single process, exactly, and
     when the worker dies the parent computes its ranges itself."""
-    import sixplus3.control.offload as O
+    import sixplus3.control.gate.offload as O
 
     path = valid[0]
     monkeypatch.setattr(O, "OFFLOAD_MIN_POINTS", 10**9)  # here: one process
@@ -387,7 +387,7 @@ def test_a_hostile_task_name_is_refused_before_the_solve(tmp_path, monkeypatch) 
 WRITER = r"""
 import sys, time
 from pathlib import Path
-from sixplus3.control import trajectory_file as tf
+from sixplus3.control.file import trajectory_file as tf
 path, a, b = Path(sys.argv[1]), Path(sys.argv[2]).read_bytes(), Path(sys.argv[3]).read_bytes()
 print("ready", flush=True)
 k = 0
@@ -460,7 +460,7 @@ def test_a_concurrent_writer_loses_cleanly(valid, tmp_path) -> None:
     with tf._exclusive(target):  # another writer holds the name
         r = subprocess.run([sys.executable, "-c",
                             "import sys; from pathlib import Path; "
-                            "from sixplus3.control import trajectory_file as tf; "
+                            "from sixplus3.control.file import trajectory_file as tf; "
                             "p = Path(sys.argv[1])\n"
                             "try:\n    with tf._exclusive(p): tf.write_atomically(p, b'x')\n"
                             "except tf.TrajectoryFileError as e:\n    print('lost', e)",

@@ -1,7 +1,7 @@
 """The attack audit's cases (issue: the gate can be beaten), as tests.
 
 - the motion between samples: zig-zag forgeries at every accepted rate, the interval
-  bounds of control/interval.py against dense evaluation (polynomials) and against
+  bounds of control/gate/interval.py against dense evaluation (polynomials) and against
   Pinocchio's torques inside the intervals of real plans;
 - one parse: duplicate keys, non-canonical line 1, overflowing and Python-only numbers;
 - bounded resources and types at the door;
@@ -26,12 +26,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sixplus3.cli import main as cli
-from sixplus3.control import interval
-from sixplus3.control import trajectory_file as tf
-from sixplus3.control.feed import check_start, prepare_feed, retime
+from sixplus3.control.drive.feed import check_start, prepare_feed, retime
+from sixplus3.control.file import trajectory_file as tf
+from sixplus3.control.file.trajectory_file import COLUMNS, JOINTS, encode, parse
+from sixplus3.control.gate import interval
+from sixplus3.control.gate.validation import RATE_RANGE, validate_bytes, validate_motion
 from sixplus3.control.pipeline import run_plan
-from sixplus3.control.trajectory_file import COLUMNS, JOINTS, encode, parse
-from sixplus3.control.validation import RATE_RANGE, validate_bytes, validate_motion
 from sixplus3.errors import InputError, Sixplus3Error, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics.robot import robot_fk_batch
 from sixplus3.planner.task import task_from_dict
@@ -289,7 +289,7 @@ def test_task_limits_are_range_checked(limits, tmp_path) -> None:
 
 @pytest.mark.parametrize("path", [None, "a\x00b", 3, b"x"])
 def test_bad_paths_are_named_errors(path) -> None:
-    from sixplus3.control.validation import validate_file
+    from sixplus3.control.gate.validation import validate_file
 
     with pytest.raises(Sixplus3Error):
         validate_file(path, ROBOT)
@@ -395,7 +395,7 @@ def test_a_zigzag_within_the_jerk_bound_is_judged_by_its_motion(tmp_path) -> Non
     and 2.3 N m between the samples, while every sample and midpoint holds 0.45 N m.
     Accepted for the robot, refused (exit 1, a limit) for one whose torque limit is
     2 N m, by validate and simulate alike: only the bound between the samples sees it."""
-    from sixplus3.control.simulation import simulate_file
+    from sixplus3.control.drive.simulation import simulate_file
 
     assert code(zigzag(1000.0, 3.5e-6)) == 0
     path = tmp_path / "z.csv"
@@ -414,7 +414,7 @@ def test_a_zigzag_within_the_jerk_bound_is_judged_by_its_motion(tmp_path) -> Non
 
 def test_a_long_motion_is_validated_in_windows_with_the_same_verdict(planned,
                                                                     monkeypatch) -> None:
-    import sixplus3.control.validation as V
+    import sixplus3.control.gate.validation as V
 
     _, raw, _, _ = planned
     whole = validate_bytes(raw, ROBOT)
@@ -611,7 +611,7 @@ def _no_contact_by_sampling(path, robot, name: str) -> None:
     minimum minus half the sampling pitch is a lower bound of the true clearance."""
     from scipy.spatial.transform import Rotation
 
-    from sixplus3.control.trajectory_file import read_trajectory
+    from sixplus3.control.file.trajectory_file import read_trajectory
     from sixplus3.kinematics import collision
     from sixplus3.kinematics.robot import robot_ik
 
@@ -649,7 +649,7 @@ def test_every_example_at_the_lowest_rate_is_within_the_limit_in_mujoco(tmp_path
     # (the planned share: 0.9 of the limit)
     pytest.importorskip("mujoco")
     from sixplus3 import examples
-    from sixplus3.control.simulation import simulate_file
+    from sixplus3.control.drive.simulation import simulate_file
 
     peaks = {}
     for name in examples.names():
@@ -684,7 +684,7 @@ def _export_at_the_lowest_rate_is_within_the_limit(path: Path, robot: Robot,
     batched bound), stays within the torque limit."""
     import re
 
-    from sixplus3.control.exports import export_file
+    from sixplus3.control.formats.exports import export_file
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.kinematics.robot import robot_fk
 
@@ -716,7 +716,7 @@ def _export_at_the_lowest_rate_is_within_the_limit(path: Path, robot: Robot,
 
 
 def test_held_torque_and_the_exports_and_feed_that_use_it(planned, tmp_path) -> None:
-    from sixplus3.control.exports import export_file
+    from sixplus3.control.formats.exports import export_file
 
     tau = np.arange(12.0).reshape(4, 3)
     np.testing.assert_array_equal(interval.held_torque(tau, "sample"), tau)

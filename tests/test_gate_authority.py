@@ -13,9 +13,9 @@ import yaml
 from click.testing import CliRunner
 
 from sixplus3.cli import main as cli
+from sixplus3.control.file.trajectory_file import read_trajectory
+from sixplus3.control.gate.validation import validate_and_write, validate_file
 from sixplus3.control.pipeline import run_plan
-from sixplus3.control.trajectory_file import read_trajectory
-from sixplus3.control.validation import validate_and_write, validate_file
 from sixplus3.errors import GeometryError, InputError, TaskError
 from sixplus3.fileio import parse_yaml
 from sixplus3.planner.task import Task, Waypoint, task_from_dict
@@ -118,7 +118,7 @@ def test_people_limits_hold_whatever_the_header_says(tmp_path, planned) -> None:
 
 # ----------------------------------------------------------------- exports
 def test_export_at_a_low_rate_is_refused_with_the_lowest_safe_rate(planned, tmp_path) -> None:
-    from sixplus3.control.exports import dense_rate_for, densify
+    from sixplus3.control.formats.exports import dense_rate_for, densify
 
     assert dense_rate_for(10.0) == 1000.0 and dense_rate_for(300.0) == 1200.0
     t = np.arange(3) / 10.0

@@ -12,7 +12,13 @@ import yaml
 from click.testing import CliRunner
 
 from sixplus3.cli import main as cli
-from sixplus3.control.drive_log import DriveLog, kinematic_hash, parse_log, read_log, write_log
+from sixplus3.control.drive.drive_log import (
+    DriveLog,
+    kinematic_hash,
+    parse_log,
+    read_log,
+    write_log,
+)
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import layout, parameters, regressor_batch
 from sixplus3.errors import GeometryError, InputError
@@ -82,7 +88,7 @@ def test_base_parameters() -> None:
 # ----------------------------------------------------------------- the robot's bodies
 def test_per_body_inertials_and_per_joint_motors_reach_every_model() -> None:
     pytest.importorskip("mujoco")
-    from sixplus3.control.simulation import mujoco_inverse_dynamics
+    from sixplus3.control.drive.simulation import mujoco_inverse_dynamics
     from sixplus3.dynamics.symbolic import home_x, setup_parameters, structure, symbolic_robot
 
     plant = perturbed_plant(ROBOT, 4)
@@ -183,7 +189,7 @@ def test_a_log_reads_and_its_bad_forms_are_refused() -> None:
 
 
 def test_logs_round_trip_in_joint_and_drive_units(tmp_path) -> None:
-    from sixplus3.control.exports import drive_table
+    from sixplus3.control.formats.exports import drive_table
 
     rng = np.random.default_rng(2)
     t = np.arange(400) / 1000.0
@@ -251,7 +257,7 @@ def test_identified_plants_predict_unseen_plans(excitation, validation_plan, see
     (the torque monitor's noise and the 0.1 % quantisation), where the nominal model is
     far off; the identified robot file plans at once (the same compiled model)."""
     pytest.importorskip("mujoco")
-    from sixplus3.control.plant import TORQUE_NOISE, run_on_plant
+    from sixplus3.control.drive.plant import TORQUE_NOISE, run_on_plant
     from sixplus3.identification.identify import check, identify
 
     plant = perturbed_plant(ROBOT, seed)
@@ -280,8 +286,8 @@ def test_the_identified_robot_plans_within_the_limit_on_the_plant(excitation, tm
     compilation (the identified robot shares the nominal one's compiled model)."""
     pytest.importorskip("mujoco")
     from sixplus3 import examples
+    from sixplus3.control.drive.plant import run_on_plant
     from sixplus3.control.pipeline import run_plan
-    from sixplus3.control.plant import run_on_plant
     from sixplus3.dynamics import codegen
     from sixplus3.identification.identify import identify
 
@@ -393,8 +399,8 @@ def test_the_wrench_on_a_perturbed_plant_with_its_identified_robot(excitation, t
     push is estimated inside the band the estimate states, and better than with the
     nominal model."""
     pytest.importorskip("mujoco")
+    from sixplus3.control.drive.plant import WrenchProfile, run_on_plant
     from sixplus3.control.pipeline import run_plan
-    from sixplus3.control.plant import WrenchProfile, run_on_plant
     from sixplus3.identification.identify import identify
     from sixplus3.interaction.wrench import estimate
     from sixplus3.planner.task import task_from_dict

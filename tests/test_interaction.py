@@ -8,7 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from sixplus3.cli import main as cli
-from sixplus3.control.drive_log import DriveLog
+from sixplus3.control.drive.drive_log import DriveLog
 from sixplus3.errors import InputError
 from sixplus3.interaction.wrench import SingleState, StateModel, WrenchStream, estimate
 from sixplus3.robot_description.robot import Robot
@@ -44,7 +44,7 @@ def slow_file(tmp_path_factory):
 
 
 def _profile(t_on: float, t_off: float, w: np.ndarray):
-    from sixplus3.control.plant import WrenchProfile
+    from sixplus3.control.drive.plant import WrenchProfile
 
     return WrenchProfile(t=np.array([0.0, t_on, t_off]), wrench=np.array([np.zeros(6), w,
                                                                            np.zeros(6)]))
@@ -69,7 +69,7 @@ def test_two_jacobians_agree() -> None:
 
 def test_a_push_and_a_twist_held_at_home(hold_file) -> None:
     pytest.importorskip("mujoco")
-    from sixplus3.control.plant import run_on_plant
+    from sixplus3.control.drive.plant import run_on_plant
 
     run = run_on_plant(hold_file, ROBOT, ROBOT, seed=1, hold=1.6,
                        wrench=_profile(0.6, 1.4, PUSH))
@@ -93,7 +93,7 @@ def test_a_push_and_a_twist_held_at_home(hold_file) -> None:
 
 def test_a_push_during_a_slow_plan(slow_file) -> None:
     pytest.importorskip("mujoco")
-    from sixplus3.control.plant import run_on_plant
+    from sixplus3.control.drive.plant import run_on_plant
 
     w = np.array([0.0, 8.0, -5.0, 0.0, 0.0, 0.3])
     run = run_on_plant(slow_file, ROBOT, ROBOT, seed=3, hold=0.5, wrench=_profile(0.15, 0.6, w))
@@ -113,7 +113,7 @@ def test_stiff_static_friction_stays_inside_the_band(hold_file) -> None:
     """A plant whose joints stick (Coulomb friction x5): a hold cannot tell a push from
     friction; the estimate stays inside its band, which says how wide it is."""
     pytest.importorskip("mujoco")
-    from sixplus3.control.plant import run_on_plant
+    from sixplus3.control.drive.plant import run_on_plant
     from sixplus3.robot_description.physical import MotorModel
 
     sticky = ROBOT.replace(motors=MotorModel(coulomb=0.5))
@@ -182,8 +182,8 @@ def test_the_parameters_confidence_widens_the_uncertainty(hold_file, tmp_path) -
     parameters' confidence at that state (never less than without it), and the CLI
     takes the report's parameters.npz."""
     pytest.importorskip("mujoco")
-    from sixplus3.control.drive_log import write_log
-    from sixplus3.control.plant import run_on_plant
+    from sixplus3.control.drive.drive_log import write_log
+    from sixplus3.control.drive.plant import run_on_plant
     from sixplus3.identification.base import base_parameters
 
     run = run_on_plant(hold_file, ROBOT, ROBOT, seed=4, hold=0.5)

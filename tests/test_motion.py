@@ -10,9 +10,9 @@ import pytest
 from click.testing import CliRunner
 
 from sixplus3.cli import main
+from sixplus3.control.file.trajectory_file import columns, read_trajectory
+from sixplus3.control.gate.validation import validate_file
 from sixplus3.control.pipeline import run_plan
-from sixplus3.control.trajectory_file import columns, read_trajectory
-from sixplus3.control.validation import validate_file
 from sixplus3.errors import InfeasibleTaskError, TaskError
 from sixplus3.kinematics.robot import robot_fk, robot_ik
 from sixplus3.kinematics.rotations import matrix_from_quat
@@ -182,7 +182,7 @@ def test_smoothing_keeps_the_tightened_speed_and_acceleration(tmp_path) -> None:
     """Between its nodes the plan's interpolation can exceed the node bounds a little;
     the uniform stretch covers speed and acceleration, not only jerk (a 0.35 rad/s,
     1.5 rad/s^2 combined task once failed the gate by 0.06 %)."""
-    from sixplus3.control.smoothing import smooth
+    from sixplus3.control.drive.smoothing import smooth
     from sixplus3.examples import load
 
     src = load("combined").source

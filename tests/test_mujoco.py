@@ -19,15 +19,15 @@ import pytest
 from click.testing import CliRunner
 
 from sixplus3.cli import main
-from sixplus3.control.pipeline import run_plan
-from sixplus3.control.simulation import (
+from sixplus3.control.drive.simulation import (
     MujocoRobot,
     engine_check,
     mujoco_inverse_dynamics,
     simulate_file,
 )
-from sixplus3.control.trajectory_file import columns
-from sixplus3.control.validation import FEEDFORWARD_TOL, validate_file
+from sixplus3.control.file.trajectory_file import columns
+from sixplus3.control.gate.validation import FEEDFORWARD_TOL, validate_file
+from sixplus3.control.pipeline import run_plan
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError
 from sixplus3.examples import load as load_example

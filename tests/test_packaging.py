@@ -110,7 +110,7 @@ def test_the_layers_contract_holds_and_catches_an_upward_import(tmp_path) -> Non
     # acyclic-packages contract names it
     (tree / "sixplus3" / "kinematics" / "_upward.py").unlink()
     (tree / "sixplus3" / "control" / "_cycle.py").write_text(
-        "from sixplus3.control import validation\n")
+        "from sixplus3.control.gate import validation\n")
     with open(tree / "sixplus3" / "control" / "report.py", "a") as f:
         f.write("\ndef _back():\n    from sixplus3.control import _cycle\n    return _cycle\n")
     cyc = mod.run(tree, capture_output=True, text=True)

@@ -14,10 +14,15 @@ import pytest
 from click.testing import CliRunner
 
 from sixplus3.cli import main
+from sixplus3.control.drive.smoothing import smooth
+from sixplus3.control.file.trajectory_file import (
+    COLUMNS,
+    columns,
+    read_trajectory,
+    write_trajectory,
+)
+from sixplus3.control.gate.validation import validate_joint_trajectory
 from sixplus3.control.pipeline import run_plan
-from sixplus3.control.smoothing import smooth
-from sixplus3.control.trajectory_file import COLUMNS, columns, read_trajectory, write_trajectory
-from sixplus3.control.validation import validate_joint_trajectory
 from sixplus3.errors import TrajectoryFileError
 from sixplus3.planner.ocp import plan
 from sixplus3.planner.task import task_from_dict

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sixplus3.control.gate.validation import validate_file
 from sixplus3.control.pipeline import run_plan
-from sixplus3.control.validation import validate_file
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.planner import strategy
 from sixplus3.planner.baseline import baseline_plan, line_check

@@ -16,8 +16,8 @@ from click.testing import CliRunner
 from scipy.spatial.transform import Rotation
 
 from sixplus3.cli import main as cli
-from sixplus3.control.trajectory_file import read_trajectory, write_trajectory
-from sixplus3.control.validation import validate_file, validate_joint_trajectory
+from sixplus3.control.file.trajectory_file import read_trajectory, write_trajectory
+from sixplus3.control.gate.validation import validate_file, validate_joint_trajectory
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import GeometryError, LimitError, TrajectoryFileError

@@ -14,7 +14,7 @@ import yaml
 from click.testing import CliRunner
 
 from sixplus3.cli import main
-from sixplus3.control.rosbag import DISTROS, revolute_joints
+from sixplus3.control.formats.rosbag import DISTROS, revolute_joints
 from sixplus3.robot_description.robot import Robot
 
 ROBOT = Robot.default()

@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
+from sixplus3.control.file.trajectory_file import read_trajectory
+from sixplus3.control.gate.validation import validate_file, validate_motion
 from sixplus3.control.pipeline import run_plan
-from sixplus3.control.trajectory_file import read_trajectory
-from sixplus3.control.validation import validate_file, validate_motion
 from sixplus3.errors import LimitError
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.tcp import tcp_rates, tcp_velocity

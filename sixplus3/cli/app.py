@@ -154,7 +154,7 @@ def check_output(out_path: str | None, inputs: tuple[str | None, ...] = (),
             fail(f"{out_path} is this command's input {src}: write the output elsewhere")
     if force or not os.path.isfile(out_path):
         return
-    from sixplus3.control.file_format import FORMAT
+    from sixplus3.control.file.file_format import FORMAT
 
     try:
         with open(out_path, "rb") as fh:
@@ -181,7 +181,7 @@ def emit(text: str, out_file: str | None, inputs: tuple[str | None, ...] = (),
 
 class _StrictNumber(click.ParamType):
     """A number on the command line in the files' one strict decimal grammar
-    (:data:`sixplus3.control.trajectory_parse.NUMBER`: no '1_000', 'inf', 'nan', '0x10')."""
+    (:data:`sixplus3.control.file.trajectory_parse.NUMBER`: no '1_000', 'inf', 'nan', '0x10')."""
 
     def __init__(self, integer: bool) -> None:
         self.integer = integer
@@ -191,7 +191,7 @@ class _StrictNumber(click.ParamType):
                 ctx: click.Context | None) -> Any:
         import re
 
-        from sixplus3.control.trajectory_parse import NUMBER
+        from sixplus3.control.file.trajectory_parse import NUMBER
 
         if isinstance(value, (int, float)) and not isinstance(value, bool):
             return int(value) if self.integer else float(value)

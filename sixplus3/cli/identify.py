@@ -71,7 +71,7 @@ def _examples_condition(robot: Any) -> float:
     import numpy as np
 
     from sixplus3 import examples
-    from sixplus3.control.smoothing import smooth
+    from sixplus3.control.drive.smoothing import smooth
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.identification.base import base_parameters
     from sixplus3.identification.estimate import condition_number
@@ -114,7 +114,7 @@ def estimate(logs: tuple[str, ...], out_file: str, report_dir: str | None,
     (physically consistent; every command takes it with --robot)."""
     import os
 
-    from sixplus3.control.drive_log import read_log
+    from sixplus3.control.drive.drive_log import read_log
     from sixplus3.identification.estimate import PRIOR_WEIGHT
     from sixplus3.identification.identify import identify as run_identify
     from sixplus3.identification.report import write_report, write_robot
@@ -169,7 +169,7 @@ def estimate(logs: tuple[str, ...], out_file: str, report_dir: str | None,
 def check_cmd(log: str, cutoff: float | None, as_json: bool) -> None:
     """Per-joint RMS of the measured minus the predicted torque of the robot (--robot)
     on a log: compare the nominal and an identified robot on a new log."""
-    from sixplus3.control.drive_log import read_log
+    from sixplus3.control.drive.drive_log import read_log
     from sixplus3.identification.identify import check as run_check
 
     robot = current_robot()

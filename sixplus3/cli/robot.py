@@ -235,7 +235,7 @@ def robot_export(fmt: str, out_file: str | None, contacts: bool, ros2_control: b
             click.echo(f"note: the URDF names {CLOSURES_PATH.name}; -o FILE writes it "
                        "beside FILE", err=True)
     elif fmt == "mjcf":
-        from sixplus3.control.simulation import export_mjcf
+        from sixplus3.control.drive.simulation import export_mjcf
 
         text = export_mjcf(robot, contacts=contacts)
     else:

@@ -74,7 +74,7 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
     # of spinning on the core the dynamics worker needs (0.95 -> 0.86 s, BENCHMARKS.md).
     # Read once, when numba first starts its threads: that is later, in validate_file.
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    from sixplus3.control.validation import validate_file
+    from sixplus3.control.gate.validation import validate_file
     from sixplus3.robot_description.hardware import envelope_record
 
     robot = _task_robot(task_file)
@@ -94,7 +94,7 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
     code = rep.exit_code
     eng = None
     if with_sim and code != 2:
-        from sixplus3.control.simulation import engine_check
+        from sixplus3.control.drive.simulation import engine_check
 
         eng = engine_check(robot, rep, kp, kd)
         out["mujoco"] = eng.summary()
@@ -114,7 +114,7 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
             click.echo(f"  torque rate between samples: max {rep.max_torque_rate:.0f} N m/s "
                        f"(reported, not a gate limit: the planner bounds it at "
                        f"{limits.torque_rate:g} N m/s between its own nodes)")
-        from sixplus3.control.trajectory_file import REPORTED_ONLY
+        from sixplus3.control.file.trajectory_file import REPORTED_ONLY
         from sixplus3.robot_description.limits import TCP_ACCELERATION_NONE, TCP_SPEED_NONE
 
         none = {"tcp_speed": TCP_SPEED_NONE, "tcp_acceleration": TCP_ACCELERATION_NONE}
@@ -178,7 +178,7 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
     that peak is over the hardware limit.  With --plant, the file runs on that robot (a
     virtual prototype) and --log writes what its drives measured.
     """
-    from sixplus3.control.simulation import simulate_file
+    from sixplus3.control.drive.simulation import simulate_file
 
     robot = _task_robot(task_file)
     if plant_file is not None or log_file is not None or wrench_file is not None:
@@ -214,8 +214,8 @@ def _simulate_plant(csv_file: str, robot: Any, plant_file: str | None,
                     log_file: str | None,
                     seed: int, noise: float, hold: float, force: bool, kp: float,
                     kd: float, as_json: bool, wrench_file: str | None = None) -> None:
-    from sixplus3.control.drive_log import write_log
-    from sixplus3.control.plant import run_on_plant
+    from sixplus3.control.drive.drive_log import write_log
+    from sixplus3.control.drive.plant import run_on_plant
     from sixplus3.robot_description.robot import load_robot
 
     if plant_file is None or log_file is None:
@@ -227,7 +227,7 @@ def _simulate_plant(csv_file: str, robot: Any, plant_file: str | None,
     plant = load_robot(plant_file)
     profile = None
     if wrench_file is not None:
-        from sixplus3.control.plant import read_wrench_profile
+        from sixplus3.control.drive.plant import read_wrench_profile
 
         profile = read_wrench_profile(wrench_file)
     run = run_on_plant(csv_file, robot, plant, seed=seed, kp=kp, kd=kd, torque_noise=noise,
@@ -285,10 +285,10 @@ def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | N
     for a violated limit, 2 for a bad file: nothing is written).  With --rate, the
     motion a controller interpolates through the exported points is validated as it
     will run (docs/validation.md, "Exports")."""
-    from sixplus3.control.exports import export_file
+    from sixplus3.control.formats.exports import export_file
 
     if fmt == "rosbag2":
-        from sixplus3.control.rosbag import write_rosbag2
+        from sixplus3.control.formats.rosbag import write_rosbag2
 
         if out_file is None:
             fail("--format rosbag2 writes a directory: give it with -o DIR")
@@ -338,7 +338,13 @@ def feed(csv_file: str, udp: str, speed: float, dry_run: bool,
     Exit codes: 0 sent; 1 a limit is violated; 2 bad input, a bad file, or a file that
     does not start at --start-theta (nothing sent).
     """
-    from sixplus3.control.feed import check_speed, parse_address, prepare_feed, send, udp_sender
+    from sixplus3.control.drive.feed import (
+        check_speed,
+        parse_address,
+        prepare_feed,
+        send,
+        udp_sender,
+    )
 
     address = parse_address(udp)
     check_speed(speed)
@@ -393,8 +399,8 @@ def play(csv_file: str, html_out: str | None, no_wait: bool, unsafe: bool,
     from dataclasses import replace
     from pathlib import Path
 
-    from sixplus3.control.trajectory_file import read_trajectory
-    from sixplus3.control.validation import validate_file
+    from sixplus3.control.file.trajectory_file import read_trajectory
+    from sixplus3.control.gate.validation import validate_file
     from sixplus3.visualization.meshcat_player import (
         animate,
         frames_from_samples,

@@ -12,11 +12,11 @@ fails it) and writes a bag directory with, on the file's time grid:
 - ``/tf`` (``tf2_msgs/msg/TFMessage``), one per sample: ``base_link`` → ``platform``
   (the URDF's floating joint, which ``robot_state_publisher`` does not publish);
 - ``/joint_trajectory`` (``trajectory_msgs/msg/JointTrajectory``), once at the start:
-  the nine actuated joints (:func:`sixplus3.control.exports.ros2_joint_trajectory`).
+  the nine actuated joints (:func:`sixplus3.control.formats.exports.ros2_joint_trajectory`).
 
 With ``robot_state_publisher`` fed the URDF, RViz shows the whole robot move: the bag
 directory also holds ``robot.urdf``, ``sixplus3.rviz`` and ``replay.launch.py``
-(:mod:`sixplus3.control.ros_replay`).  Message types are ROS 2 Humble's (the ``rosbags``
+(:mod:`sixplus3.control.formats.ros_replay`).  Message types are ROS 2 Humble's (the ``rosbags``
 library's type store); the ``rosbags`` package is optional (``pip install
 'sixplus3[ros]'``).  The directory is written beside its final name and renamed into
 place when complete; an existing output is never replaced.
@@ -171,10 +171,10 @@ def write_rosbag2(path: str | Path, robot: Robot, out_dir: str | Path,
     data (module doc).  Raises :class:`ValidationFailed` for a file that fails the gate
     and :class:`InputError` for an existing output, a bad distribution or start time,
     or a missing ``rosbags``."""
-    from sixplus3.control.exports import ros2_joint_trajectory
-    from sixplus3.control.ros_replay import write_replay_files
-    from sixplus3.control.trajectory_file import columns
-    from sixplus3.control.validation import validate_file
+    from sixplus3.control.file.trajectory_file import columns
+    from sixplus3.control.formats.exports import ros2_joint_trajectory
+    from sixplus3.control.formats.ros_replay import write_replay_files
+    from sixplus3.control.gate.validation import validate_file
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.kinematics.robot import robot_ik
     from sixplus3.kinematics.rotations import matrix_from_quat

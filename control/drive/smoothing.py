@@ -25,7 +25,7 @@ segments with exact knot targets gave motions 5-60x longer that failed validatio
 (torque 31-94 N m, measured on a small task with the jerk limit at 0.5-0.9x the plan's).
 The planner bounds the jerk itself (docs/planner.md), so the stretch is 1 unless the
 limits were tightened after planning.  The result is always re-validated with the full
-dynamics before anything is written (:mod:`sixplus3.control.validation`).
+dynamics before anything is written (:mod:`sixplus3.control.gate.validation`).
 """
 
 from __future__ import annotations
@@ -37,8 +37,8 @@ from typing import Any
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
-from sixplus3.control.trajectory_file import check_samples
-from sixplus3.control.validation import check_rate
+from sixplus3.control.file.trajectory_file import check_samples
+from sixplus3.control.gate.validation import check_rate
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InputError, SmoothingError
 from sixplus3.planner.solution import Solution, actuated_profile

@@ -12,7 +12,7 @@ reads (for the robot of the invocation) and converts exactly those samples.
   128 KiB limit for one argument (a 0.14 s motion at 1 kHz is already ~135 KB): for
   longer motions use ``--rate`` (fewer points, validated again), the FollowJointTrajectory
   goal (:func:`follow_joint_trajectory_goal`) from a node, or the rosbag2 export
-  (:mod:`sixplus3.control.rosbag`).
+  (:mod:`sixplus3.control.formats.rosbag`).
 - **Drive** (:func:`drive_table`): the same samples in the units of servo drives in
   cyclic synchronous position or torque mode (e.g. Yaskawa SGD7S in CSP/CST), per axis:
   position in encoder counts of the motor, velocity in counts/s, torque in 0.1 % of the
@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control.drive_log import to_drive_units
+from sixplus3.control.drive.drive_log import to_drive_units
 from sixplus3.control.report import ValidationReport
 from sixplus3.errors import ValidationFailed
 from sixplus3.robot_description.robot import Robot
@@ -114,7 +114,7 @@ def drive_units(robot: Robot) -> dict[str, Any]:
 def drive_table(robot: Robot, t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
                 tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(position counts, velocity counts/s, torque in 0.1 % of rated), each (n, 9) int64,
-    of joint-side samples (:func:`sixplus3.control.drive_log.to_drive_units`: the one
+    of joint-side samples (:func:`sixplus3.control.drive.drive_log.to_drive_units`: the one
     conversion, also the logs')."""
     counts, vel, torque = to_drive_units(robot, theta, theta_dot, tau)
     assert vel is not None
@@ -128,7 +128,7 @@ def densify(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray,
     (what a JointTrajectoryController makes of positions, velocities and accelerations),
     sampled at ``dense_rate``, a whole multiple of ``rate``: (t, theta, theta_dot,
     theta_ddot, x_seed), every exported point one of the dense samples."""
-    from sixplus3.control.interval import hermite
+    from sixplus3.control.gate.interval import hermite
 
     m = int(round(dense_rate / rate))
     n = len(t)
@@ -143,7 +143,7 @@ def densify(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray,
 def dense_rate_for(rate: float) -> float:
     """The rate the interpolated motion between exported points is checked at: the
     lowest whole multiple of ``rate`` of at least 1 kHz (the gate's own contract)."""
-    from sixplus3.control.validation import RATE_RANGE
+    from sixplus3.control.gate.validation import RATE_RANGE
 
     return rate * math.ceil(RATE_RANGE[0] / rate - 1e-9)
 
@@ -152,7 +152,7 @@ def _check_interpolated(rep: ValidationReport, robot: Robot,
                         rate: float) -> tuple[Any, ...]:
     """(t, theta, theta_dot, theta_ddot, tau, report at the points, report of the dense
     motion) of the validated motion of ``rep`` resampled at ``rate``."""
-    from sixplus3.control.validation import INTERPOLATED_RATE_RANGE, resample, validate_motion
+    from sixplus3.control.gate.validation import INTERPOLATED_RATE_RANGE, resample, validate_motion
 
     t, th, v, a, x = resample(rep, rate)
     again = validate_motion(t, th, v, a, robot, rate, x, rate_range=INTERPOLATED_RATE_RANGE)
@@ -176,7 +176,7 @@ def decimate(rep: ValidationReport, robot: Robot, rate: float) -> tuple[Any, ...
     failed check and the lowest safe rate among the file rate's whole fractions.
     Returns (t, theta, theta_dot, theta_ddot, tau, report); raises ValidationFailed or
     InputError."""
-    from sixplus3.control.validation import INTERPOLATED_RATE_RANGE, check_rate
+    from sixplus3.control.gate.validation import INTERPOLATED_RATE_RANGE, check_rate
 
     assert rep.header is not None  # a report of validate_file
     r0 = float(rep.header["rate_hz"])
@@ -239,9 +239,9 @@ def export_file(path: str | Path, robot: Robot, fmt: str,
     ROS 2 forms, whose controllers interpolate between points).  ``rate`` (ROS 2 forms):
     decimate to this rate first (:func:`decimate`, validated again); ``goal``: the ROS 2
     forms as a FollowJointTrajectory goal (:func:`follow_joint_trajectory_goal`)."""
-    from sixplus3.control.interval import check_torque_hold, held_torque
-    from sixplus3.control.trajectory_file import columns
-    from sixplus3.control.validation import validate_file
+    from sixplus3.control.file.trajectory_file import columns
+    from sixplus3.control.gate.interval import check_torque_hold, held_torque
+    from sixplus3.control.gate.validation import validate_file
     from sixplus3.errors import InputError
 
     if fmt not in FORMATS:

@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sixplus3.control.file_format import columns
+from sixplus3.control.file.file_format import columns
 from sixplus3.kinematics.rotations import rotvec_from_quat
 
 if TYPE_CHECKING:
@@ -285,7 +285,7 @@ def held_torque(tau: np.ndarray, hold: str) -> np.ndarray:
 def resample(rep: ValidationReport, rate: float, speed: float = 1.0
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The validated motion of ``rep`` (a report of
-    :func:`~sixplus3.control.validation.validate_file`) at ``rate`` [Hz], replayed at
+    :func:`~sixplus3.control.gate.validation.validate_file`) at ``rate`` [Hz], replayed at
     ``speed`` (time x 1/speed, rates x speed, accelerations x speed^2), on the quintic
     Hermite interpolant of its samples; the resting end is held until the next point of
     the new grid.  Returns (t, theta, theta_dot, theta_ddot, x_seed), the last the

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from sixplus3.control.trajectory_file import MAX_SAMPLES
+from sixplus3.control.file.trajectory_file import MAX_SAMPLES
 from sixplus3.errors import InputError
 from sixplus3.fileio import short_repr
 
@@ -41,7 +41,7 @@ def check_motion_arrays(t: object, theta: object, theta_dot: object, theta_ddot:
     """Refuse, before anything is allocated per sample, a motion the gate does not take:
     a rate that is not a real number (a string, a bool), arrays that are missing, not
     real numbers (complex, objects) or longer than the file format's cap of
-    :data:`~sixplus3.control.trajectory_file.MAX_SAMPLES` samples."""
+    :data:`~sixplus3.control.file.trajectory_file.MAX_SAMPLES` samples."""
     if isinstance(rate, bool) or not isinstance(rate, (int, float, np.integer, np.floating)):
         raise InputError(f"rate must be a number [Hz], got {type(rate).__name__}",
                          value=short_repr(rate, 40), valid=f"a number in {RATE_RANGE} Hz")

@@ -1,7 +1,7 @@
 """The trajectory file format: its name, columns, units, size cap, canonical header JSON
 and integrity digest (docs/validation.md).  The layer under the reader
-(:mod:`sixplus3.control.trajectory_parse`) and the writer
-(:mod:`sixplus3.control.trajectory_file`, which re-exports these names)."""
+(:mod:`sixplus3.control.file.trajectory_parse`) and the writer
+(:mod:`sixplus3.control.file.trajectory_file`, which re-exports these names)."""
 
 from __future__ import annotations
 

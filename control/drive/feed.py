@@ -1,7 +1,7 @@
 """The offline feed: read a trajectory file once, validate those bytes, send those samples.
 
 :func:`prepare_feed` reads the file's bytes once and validates them
-(:func:`~sixplus3.control.validation.validate_bytes`); what is sent is exactly the
+(:func:`~sixplus3.control.gate.validation.validate_bytes`); what is sent is exactly the
 validated samples, so a file swapped or edited after the check changes nothing.  A
 slower replay (``speed`` < 1) is a real retiming done here: the motion is resampled at
 the controller rate on the quintic Hermite interpolant of the validated samples with
@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.interval import check_torque_hold, held_torque
-from sixplus3.control.trajectory_file import JOINTS, check_samples, columns, read_bytes
-from sixplus3.control.validation import (
+from sixplus3.control.file.trajectory_file import JOINTS, check_samples, columns, read_bytes
+from sixplus3.control.gate.interval import check_torque_hold, held_torque
+from sixplus3.control.gate.validation import (
     RATE_RANGE,
     ValidationReport,
     resample,
@@ -49,7 +49,7 @@ class FeedPlan:
     theta_dot: np.ndarray  # (n, 9) [rad/s]
     theta_ddot: np.ndarray  # (n, 9) [rad/s^2]
     tau: np.ndarray  # (n, 9) feed-forward [N m] sent: the validated torques, held
-    #: as ``torque_hold`` says (control/interval.py, held_torque)
+    #: as ``torque_hold`` says (control/gate/interval.py, held_torque)
     rate: float
     speed: float
     report: ValidationReport  # the validation of exactly these samples

@@ -29,8 +29,16 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control import interval
-from sixplus3.control.findings import (  # noqa: F401 - Tolerances, Finding, ... re-exported
+from sixplus3.control.file.trajectory_file import (
+    COLUMNS,
+    check_robot,
+    columns,
+    parse,
+    read_bytes,
+    samples_fingerprint,
+)
+from sixplus3.control.gate import interval
+from sixplus3.control.gate.findings import (  # noqa: F401 - Tolerances, Finding, ... re-exported
     BRANCH_TOL,
     FEEDFORWARD_TOL,
     POSE_TOL,
@@ -49,23 +57,15 @@ from sixplus3.control.findings import (  # noqa: F401 - Tolerances, Finding, ...
     rest_findings,
     tcp_findings,
 )
-from sixplus3.control.interval import hermite, hermite_midpoints, resample  # noqa: F401
-from sixplus3.control.motion_input import (  # noqa: E402,F401 - re-exported
+from sixplus3.control.gate.interval import hermite, hermite_midpoints, resample  # noqa: F401
+from sixplus3.control.gate.motion_input import (  # noqa: E402,F401 - re-exported
     INTERPOLATED_RATE_RANGE,
     RATE_RANGE,
     check_motion_arrays,
     check_rate,
 )
-from sixplus3.control.offload import OFFLOAD_SHARE, Offload
+from sixplus3.control.gate.offload import OFFLOAD_SHARE, Offload
 from sixplus3.control.report import Finding, ValidationReport  # noqa: F401 - re-exported
-from sixplus3.control.trajectory_file import (
-    COLUMNS,
-    check_robot,
-    columns,
-    parse,
-    read_bytes,
-    samples_fingerprint,
-)
 from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.checks import (
@@ -232,7 +232,7 @@ def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray
     findings += jumps
     t_int = t[:-1]
     # ------------------------------------------------------------ forward kinematics
-    # a worker for the dynamics, forked now if this process may fork (control/offload.py)
+    # a worker for the dynamics, forked now if this process may fork (control/gate/offload.py)
     offload = Offload(robot, n + (n - 1 if midpoints else 0))
     try:
         x_guess = np.asarray(x_guess, dtype=float)
@@ -399,7 +399,7 @@ def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
     write it as one atomic trajectory file: (path, report).  Raises
     :class:`~sixplus3.errors.ValidationFailed` (exit code 1 or 2, every finding) and
     writes nothing otherwise."""
-    from sixplus3.control.trajectory_file import write_trajectory
+    from sixplus3.control.file.trajectory_file import write_trajectory
 
     rep = validate_joint_trajectory(theta, theta_dot, theta_ddot, robot, rate, x_guess,
                                     limits, t=t)

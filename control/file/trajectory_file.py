@@ -1,7 +1,7 @@
 """Trajectory files for the controller: one file, one atomic unit, one integrity digest.
 
-Three modules: :mod:`~sixplus3.control.file_format` (names, columns, the canonical
-header and the digest), :mod:`~sixplus3.control.trajectory_parse` (reading the bytes one
+Three modules: :mod:`~sixplus3.control.file.file_format` (names, columns, the canonical
+header and the digest), :mod:`~sixplus3.control.file.trajectory_parse` (reading the bytes one
 way only) and this one (writing, reading a file for a robot, and the names of both
 re-exported, so ``trajectory_file.parse`` and ``trajectory_file.COLUMNS`` keep working).
 
@@ -51,7 +51,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from sixplus3 import fileio
-from sixplus3.control.file_format import (
+from sixplus3.control.file.file_format import (
     _JOINT_COLUMNS,  # noqa: F401 - the file's names, re-exported
     COLUMN_UNITS,
     COLUMNS,
@@ -66,7 +66,7 @@ from sixplus3.control.file_format import (
     columns,
     digest,
 )
-from sixplus3.control.trajectory_parse import (  # noqa: F401 - re-exported
+from sixplus3.control.file.trajectory_parse import (  # noqa: F401 - re-exported
     MAX_HEADER_DEPTH,
     NUMBER,
     header_number,
@@ -233,10 +233,10 @@ def write_trajectory(path: str | Path, t: np.ndarray, theta: np.ndarray,
                      meta: dict) -> Path:
     """Write the validated trajectory of ``robot`` to ``path`` (one atomic file).
 
-    ``report`` must be the passed :class:`~sixplus3.control.validation.ValidationReport`
+    ``report`` must be the passed :class:`~sixplus3.control.gate.validation.ValidationReport`
     of exactly these samples, at its rate, for this robot (its fingerprint of the
     samples and rate is recomputed here); anything else is refused and nothing is
-    written.  :func:`sixplus3.control.validation.validate_and_write` validates and
+    written.  :func:`sixplus3.control.gate.validation.validate_and_write` validates and
     writes in one call.  ``meta`` adds header fields (task, planner, smoothing
     statistics); it may not set the fields the writer owns (:data:`RESERVED`), except
     ``rate_hz`` equal to the validated rate.

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from sixplus3 import fileio
-from sixplus3.control.file_format import COLUMNS, FORMAT, MAX_BYTES, _canonical, digest
+from sixplus3.control.file.file_format import COLUMNS, FORMAT, MAX_BYTES, _canonical, digest
 from sixplus3.errors import TrajectoryFileError
 
 #: One number of a sample row: the decimal grammar that C's strtod, numpy and pandas

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control.trajectory_parse import NUMBER
+from sixplus3.control.file.trajectory_parse import NUMBER
 from sixplus3.errors import InputError
 from sixplus3.fileio import atomic_write, read_bytes, short_repr
 from sixplus3.robot_description.robot import Robot

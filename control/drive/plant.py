@@ -13,7 +13,7 @@ drive's torque resolution, and holds it over the tick.  An optional external wre
 the platform (a person's push: :class:`WrenchProfile`) acts through MuJoCo's
 ``xfrc_applied``.
 
-The log (:mod:`sixplus3.control.drive_log`) holds what the drive saw: the encoder angle
+The log (:mod:`sixplus3.control.drive.drive_log`) holds what the drive saw: the encoder angle
 quantised to one count of the motor's encoder (20 bit per motor turn through the belt:
 2.8 microrad at the joint), and the torque it applied, quantised to 0.1 % of the motor's
 rated torque (0.0106 N m at the joint) plus a seeded Gaussian noise of the torque
@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.drive_log import DriveLog
-from sixplus3.control.simulation import KD, KP, MujocoRobot, first_configuration
+from sixplus3.control.drive.drive_log import DriveLog
+from sixplus3.control.drive.simulation import KD, KP, MujocoRobot, first_configuration
 from sixplus3.errors import InputError
 from sixplus3.robot_description.mjcf import TIMESTEP
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -59,7 +59,7 @@ def read_wrench_profile(path: str | Path) -> WrenchProfile:
     times increasing, every value a finite number (|f| <= 500 N, |m| <= 50 N m)."""
     import re
 
-    from sixplus3.control.trajectory_parse import NUMBER
+    from sixplus3.control.file.trajectory_parse import NUMBER
     from sixplus3.fileio import read_text
 
     num = re.compile(NUMBER)
@@ -105,9 +105,9 @@ def run_on_plant(path: str | Path, model: Robot, plant: Robot, seed: int = 0,
     """Validate ``path`` for the planning ``model`` (the gate: only a valid file runs),
     then run it on ``plant`` in MuJoCo and log it (module doc).  ``hold`` [s]: keep
     commanding the last sample this long after the motion (a hold at rest)."""
-    from sixplus3.control.interval import held_torque
-    from sixplus3.control.trajectory_file import columns
-    from sixplus3.control.validation import validate_file
+    from sixplus3.control.file.trajectory_file import columns
+    from sixplus3.control.gate.interval import held_torque
+    from sixplus3.control.gate.validation import validate_file
     from sixplus3.errors import ValidationFailed
 
     model, plant = require_robot(model), require_robot(plant)

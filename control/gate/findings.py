@@ -1,7 +1,7 @@
 """The gate's findings: the consistency tolerances, one :class:`Finding` (of
 :mod:`sixplus3.control.report`) per failed check, and the findings of the limits on
 samples, midpoints and whole intervals, each by the one limit rule
-(:mod:`sixplus3.kinematics.checks`).  :mod:`sixplus3.control.validation` runs the checks
+(:mod:`sixplus3.kinematics.checks`).  :mod:`sixplus3.control.gate.validation` runs the checks
 and re-exports these names."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control import interval
-from sixplus3.control.file_format import JOINTS
+from sixplus3.control.file.file_format import JOINTS
+from sixplus3.control.gate import interval
 from sixplus3.control.report import Finding, ValidationReport
 from sixplus3.kinematics.checks import (
     RCOND_MIN,
@@ -93,7 +93,7 @@ def finding(check: str, kind: str, unit: str, bound: float, excess: np.ndarray,
 
 
 # ----------------------------------------------------------------- families of checks
-# One function per family of the gate's checks (control/validation.py runs them in order).
+# One function per family of the gate's checks (control/gate/validation.py runs them in order).
 
 
 def grid_finding(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray, rate: float,
@@ -236,7 +236,7 @@ def interval_findings(lim: Limits, dt: float, th: np.ndarray, v: np.ndarray, a: 
                        t_int: np.ndarray, tau_all: np.ndarray, n: int,
                        inertia: np.ndarray | None,
                        ext: dict[str, tuple[np.ndarray, np.ndarray]]) -> Between:
-    """The interpolant over every whole interval (control/interval.py): its jerk against
+    """The interpolant over every whole interval (control/gate/interval.py): its jerk against
     what a motion within the jerk limit allows (a defect above), its velocity and
     acceleration exactly (``ext``: :func:`interval.rate_extremes`), and the torque bound
     (with the midpoints' dynamics)."""

@@ -239,7 +239,7 @@ def simulate(robot: Robot, q0: np.ndarray, theta: np.ndarray, theta_dot: np.ndar
     kp = _check("kp", kp, 0.0, 1e5)
     kd = _check("kd", kd, 0.0, 1e4)
     s = _check("feedforward_scale", feedforward_scale, 0.0, 2.0)
-    from sixplus3.control.validation import check_rate
+    from sixplus3.control.gate.validation import check_rate
 
     rate = check_rate(rate, name="rate")
     n_sub = round(1.0 / (rate * timestep))
@@ -300,11 +300,11 @@ def simulate_file(path: str | Path, robot: Robot, kp: float = KP,
 
     Only a file that passes the gate is simulated: with a defect (exit code 2) or a
     violated limit (exit code 1), the simulation is None.  ``torque_hold``: the
-    feed-forward held over each tick (:func:`sixplus3.control.interval.held_torque`).
+    feed-forward held over each tick (:func:`sixplus3.control.gate.interval.held_torque`).
     """
-    from sixplus3.control.interval import check_torque_hold, held_torque
-    from sixplus3.control.trajectory_file import columns
-    from sixplus3.control.validation import validate_file
+    from sixplus3.control.file.trajectory_file import columns
+    from sixplus3.control.gate.interval import check_torque_hold, held_torque
+    from sixplus3.control.gate.validation import validate_file
 
     robot = require_robot(robot)
     check_torque_hold(torque_hold)  # a bad mode is refused before the work
@@ -342,8 +342,8 @@ def engine_check(robot: Robot, rep: ValidationReport, kp: float = KP, kd: float 
     MuJoCo's constrained inverse dynamics on every sample (a defect beyond the
     validator's feed-forward tolerance), then the closed-loop replay's peak total torque
     against the hardware limit (a violation above it)."""
-    from sixplus3.control.trajectory_file import columns
-    from sixplus3.control.validation import FEEDFORWARD_TOL
+    from sixplus3.control.file.trajectory_file import columns
+    from sixplus3.control.gate.validation import FEEDFORWARD_TOL
     from sixplus3.kinematics.robot import robot_ik
     from sixplus3.kinematics.rotations import matrix_from_quat
 
@@ -355,7 +355,7 @@ def engine_check(robot: Robot, rep: ValidationReport, kp: float = KP, kd: float 
     tau, res = mujoco_inverse_dynamics(robot, q, columns(data, "vel"), columns(data, "acc"))
     ff = float(np.abs(tau - columns(data, "tau")).max())
     rate = float(rep.header["rate_hz"]) if rep.header else float("nan")
-    from sixplus3.control.interval import held_torque
+    from sixplus3.control.gate.interval import held_torque
 
     sim = simulate(robot, q[0], columns(data, "pos"), columns(data, "vel"),
                    held_torque(columns(data, "tau"), torque_hold), rate, kp, kd)

@@ -1,0 +1,1 @@
+"""The trajectory file: its format (columns, units), its parser and its atomic writer."""
