@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -48,7 +49,7 @@ from sixplus3.robot_description.urdf import _f, _vec, actuated_joint_names, clos
 TIMESTEP = 1e-4
 
 
-def _v(v) -> str:
+def _v(v: Sequence[float] | np.ndarray) -> str:
     return _vec(np.asarray(v, dtype=float).ravel())
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -293,7 +294,7 @@ class ClosedLoopModel:
         return float(sum(inertia.mass for inertia in self.model.inertias))
 
 
-def pose_yourdfpy(urdf, clm: ClosedLoopModel, q: np.ndarray) -> None:
+def pose_yourdfpy(urdf: Any, clm: ClosedLoopModel, q: np.ndarray) -> None:
     """Pose a ``yourdfpy.URDF`` of this robot at Pinocchio's q (nq,): the platform's
     floating joint through its origin (``update_cfg`` ignores floating values), every
     revolute joint through ``update_cfg``.  Tested: the closure frame pairs coincide and

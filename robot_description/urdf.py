@@ -26,6 +26,7 @@ import argparse
 import math
 import sys
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -55,6 +56,9 @@ BASE_GAP, BASE_WIDTH, BASE_THICKNESS, BASE_Z = 0.015, 0.05, 0.02, -0.04
 JOINT_SPHERE = 0.014
 
 
+#: A point or direction [m]: three numbers.
+Point = Sequence[float] | np.ndarray
+
 def actuated_joint_names() -> list[str]:
     """The 9 actuated joints, legs 0..2, each in the order A, B, C."""
     return [f"leg{i}_{s}" for i in range(NUM_LEGS) for s in "ABC"]
@@ -69,11 +73,12 @@ def _f(x: float) -> str:
     return repr(float(x)) if x != 0 else "0"
 
 
-def _vec(v) -> str:
+def _vec(v: Point) -> str:
     return " ".join(_f(x) for x in v)
 
 
-def _rod_inertia(mass: float, start: Any, end: Any, radius: float):
+def _rod_inertia(mass: float, start: Any, end: Any,
+                 radius: float) -> tuple[np.ndarray, np.ndarray]:
     """COM and inertia tensor (about the COM, link axes) of a uniform rod."""
     start, end = np.asarray(start, float), np.asarray(end, float)
     axis = end - start
@@ -93,13 +98,15 @@ class _Builder:
     inertials: BodyInertials | None = None
 
     # ------------------------------------------------------------------ elements
-    def link(self, name: str, mass: float = 0.0, com=(0, 0, 0), inertia=None) -> ET.Element:
+    def link(self, name: str, mass: float = 0.0, com: Point = (0, 0, 0),
+             inertia: np.ndarray | None = None) -> ET.Element:
         own = self.inertials.get(name) if self.inertials is not None else None
         if own is not None:  # a lab's or an identification's values replace the model
             mass, com, inertia = own.mass, own.com, own.inertia_matrix
         return self._link(name, mass, com, inertia)
 
-    def _link(self, name: str, mass: float = 0.0, com=(0, 0, 0), inertia=None) -> ET.Element:
+    def _link(self, name: str, mass: float = 0.0, com: Point = (0, 0, 0),
+              inertia: np.ndarray | None = None) -> ET.Element:
         """A link; a massless one states its zero mass and inertia: a link without
         ``<inertial>`` is given 1 kg by PyBullet's importer (the 22 frame links made the
         robot 23.9 kg there), while Pinocchio and MuJoCo (which fuses static bodies)
@@ -114,7 +121,8 @@ class _Builder:
                       izz=_f(inn[2, 2]))
         return el
 
-    def rod_link(self, name: str, mass: float, start, end, material: str,
+    def rod_link(self, name: str, mass: float, start: Point, end: Point,
+                 material: str,
                  radius: float = ROD_RADIUS, collision: float | None = None) -> ET.Element:
         if self.masses.point_mass:
             el = self.link(name)
@@ -124,7 +132,8 @@ class _Builder:
         self.cylinder(el, start, end, radius, material, collision)
         return el
 
-    def cylinder(self, link: ET.Element, start, end, radius: float, material: str,
+    def cylinder(self, link: ET.Element, start: Point, end: Point, radius: float,
+                 material: str,
                  collision: float | None = None) -> None:
         """A visual cylinder from ``start`` to ``end``; with ``collision`` (a radius
         [m]), also the collision model's body (robot.collision, kinematics.collision) as
@@ -135,13 +144,14 @@ class _Builder:
         if collision is not None:
             self.collision_cylinder(link, start, end, collision)
 
-    def collision_cylinder(self, link: ET.Element, start, end, radius: float) -> None:
+    def collision_cylinder(self, link: ET.Element, start: Point, end: Point,
+                           radius: float) -> None:
         """A collision cylinder only (a body of the collision model that has no visual of
         its own)."""
         self._cylinder_element(link, "collision", start, end, radius)
 
     @staticmethod
-    def _cylinder_element(link: ET.Element, tag: str, start, end,
+    def _cylinder_element(link: ET.Element, tag: str, start: Point, end: Point,
                           radius: float) -> ET.Element:
         """A ``tag`` (visual or collision) cylinder of ``radius`` from ``start`` to
         ``end``: the URDF cylinder's axis (z) rotated onto the segment, pitch then yaw."""
@@ -157,16 +167,19 @@ class _Builder:
                       length=_f(length))
         return el
 
-    def sphere(self, link: ET.Element, center, radius: float, material: str) -> None:
+    def sphere(self, link: ET.Element, center: Point, radius: float,
+               material: str) -> None:
         vis = ET.SubElement(link, "visual")
         ET.SubElement(vis, "origin", xyz=_vec(center), rpy="0 0 0")
         geo = ET.SubElement(vis, "geometry")
         ET.SubElement(geo, "sphere", radius=_f(radius))
         ET.SubElement(vis, "material", name=material)
 
-    def joint(self, name: str, kind: str, parent: str, child: str, xyz=(0, 0, 0),
-              rpy=(0, 0, 0), axis=None, limits=None, effort=0.0, velocity=0.0,
-              dynamics=None) -> None:
+    def joint(self, name: str, kind: str, parent: str, child: str,
+              xyz: Point = (0, 0, 0), rpy: Point = (0, 0, 0),
+              axis: Point | None = None, limits: tuple[float, float] | None = None,
+              effort: float = 0.0, velocity: float = 0.0,
+              dynamics: tuple[float, float] | None = None) -> None:
         el = ET.SubElement(self.root, "joint", name=name, type=kind)
         ET.SubElement(el, "parent", link=parent)
         ET.SubElement(el, "child", link=child)
@@ -179,13 +192,14 @@ class _Builder:
         if dynamics is not None:
             ET.SubElement(el, "dynamics", damping=_f(dynamics[0]), friction=_f(dynamics[1]))
 
-    def frame(self, name: str, parent: str, xyz) -> None:
+    def frame(self, name: str, parent: str, xyz: Point) -> None:
         """A massless frame link on ``parent`` (Pinocchio turns it into a frame)."""
         self.link(name)
         self.joint(f"{name}_fixed", "fixed", parent, name, xyz=xyz)
 
-    def passive(self, name: str, parent: str, child: str, axis, xyz=(0, 0, 0),
-                rpy=(0, 0, 0), limit: float = math.pi) -> None:
+    def passive(self, name: str, parent: str, child: str, axis: Point,
+                xyz: Point = (0, 0, 0), rpy: Point = (0, 0, 0),
+                limit: float = math.pi) -> None:
         self.joint(name, "revolute", parent, child, xyz=xyz, rpy=rpy, axis=axis,
                    limits=(-limit, limit), effort=0.0, velocity=100.0)
 
@@ -251,7 +265,7 @@ def build_urdf(robot: Robot) -> str:
         x = geom.leg_rotation(i)[:, 0]
         yaw = (0.0, 0.0, geom.leg_yaw(i))
         mot = robot.motors
-        act = {"limits": (lim.theta_min, lim.theta_max), "effort": lim.torque,
+        act: dict[str, Any] = {"limits": (lim.theta_min, lim.theta_max), "effort": lim.torque,
                "velocity": lim.velocity,
                "dynamics": (mot.viscous_per_joint[3 * i], mot.coulomb_per_joint[3 * i])}
         b.cylinder(base, A - (leg.l7 + 0.03) * x, A + (leg.l6 + 0.03) * x, 0.012, "motor")
