@@ -9,12 +9,14 @@ pairs a soft minimum that never exceeds the true minimum.  Used by
 
 from __future__ import annotations
 
+from typing import Any
+
 import casadi as ca
 
 from sixplus3.robot_description.robot import Robot
 
 
-def segment_distance(p1, q1, p2, q2):
+def segment_distance(p1: Any, q1: Any, p2: Any, q2: Any) -> Any:
     """Distance between segments [p1, q1] and [p2, q2] with CasADi symbols: the same
     closest-point formula as :func:`kinematics.collision._segment_distance`."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
@@ -22,7 +24,7 @@ def segment_distance(p1, q1, p2, q2):
     f, c, b = ca.dot(d2, r), ca.dot(d1, r), ca.dot(d1, d2)
     den = a * e - b * b
 
-    def clip01(v):
+    def clip01(v: Any) -> Any:
         return ca.fmin(ca.fmax(v, 0), 1)
 
     s = ca.if_else(den > 1e-14, clip01((b * f - c * e) / ca.fmax(den, 1e-300)), 0)
@@ -43,7 +45,7 @@ PAIR_MARGIN = 0.02
 FAR = 1.0
 
 
-def clearance_rows(caps, robot: Robot) -> ca.SX:
+def clearance_rows(caps: Any, robot: Robot) -> ca.SX:
     """(3,) smooth lower bounds on the collision model's clearance [m]
     (:mod:`sixplus3.kinematics.collision`: same bodies and radii): the bodies of the
     legs (links and hubs), the platform against the legs and hubs, the platform above

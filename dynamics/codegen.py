@@ -41,6 +41,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import casadi as ca
 
@@ -226,7 +227,8 @@ def _build(sources: dict[str, str], directory: Path, optimised: bool = False
     return libs
 
 
-def _start_foreground(cc: str, name: str, src: str, lib: Path, flags: tuple[str, ...]):
+def _start_foreground(cc: str, name: str, src: str, lib: Path,
+                      flags: tuple[str, ...]) -> Any:
     """Start compiling ``src`` into ``lib`` (a job for :func:`_finish`)."""
     fd, c_path = tempfile.mkstemp(suffix=".c", prefix=f"{name}_", dir=lib.parent)
     with os.fdopen(fd, "w") as fh:
@@ -237,7 +239,7 @@ def _start_foreground(cc: str, name: str, src: str, lib: Path, flags: tuple[str,
         stderr=subprocess.STDOUT))
 
 
-def _finish(job) -> str | None:
+def _finish(job: Any) -> str | None:
     """Wait for a compile job; rename its library into place (atomic: a library is
     either whole or absent) and remove its temporary files.  Returns the compiler's
     error text, or None."""

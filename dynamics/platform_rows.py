@@ -9,6 +9,7 @@ every plan's official margin is re-checked.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import casadi as ca
 
@@ -16,7 +17,7 @@ from sixplus3.errors import SingularityError
 from sixplus3.robot_description.robot import NUM_LEGS, RobotGeometry
 
 
-def platform_line_det(psi, geom: RobotGeometry):
+def platform_line_det(psi: Any, geom: RobotGeometry) -> Any:
     """det of the platform's crank-line matrix B, divided by its value at psi = 90 deg.
 
     In the platform plane the crank rates eliminate, leaving the three lines along the
@@ -36,7 +37,7 @@ def platform_line_det(psi, geom: RobotGeometry):
     return ca.det(ca.vertcat(*rows))
 
 
-def platform_line_det_normalised(psi, geom: RobotGeometry):
+def platform_line_det_normalised(psi: Any, geom: RobotGeometry) -> Any:
     """:func:`platform_line_det` divided by its value at psi = 90 deg (this platform's
     reference, computed from its geometry), so that 1 is the nominal platform."""
     ref = float(ca.DM(platform_line_det([math.pi / 2] * NUM_LEGS, geom)))

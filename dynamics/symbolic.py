@@ -46,7 +46,7 @@ from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, req
 NX = 9  # minimal coordinates: p (3), r (3), psi (3)
 
 
-def rotvec_matrix(r):
+def rotvec_matrix(r: Any) -> Any:
     """R = exp([r]x) (Rodrigues), smooth at r = 0 (series branch below |r|^2 = 1e-8)."""
     a = ca.dot(r, r)
     th = ca.sqrt(a + 1e-30)
@@ -56,7 +56,7 @@ def rotvec_matrix(r):
     return ca.SX.eye(3) + A * K + B * (K @ K)
 
 
-def _solve_rus(rx, ry, rz, crank, link, sign):
+def _solve_rus(rx: Any, ry: Any, rz: Any, crank: float, link: float, sign: int) -> Any:
     """cos/sin of the crank angle (kinematics._leg_kernel._solve_rus, symbolically).
 
     Returns (c, s, q2) with q2 = r^2 - k^2 >= 0 the reachability measure.
@@ -68,7 +68,7 @@ def _solve_rus(rx, ry, rz, crank, link, sign):
     return (ry * k - rz * q) / r2, (rz * k + ry * q) / r2, q2
 
 
-def _angle(c, s):
+def _angle(c: Any, s: Any) -> Any:
     """Actuated angle in (-90, 270] deg, continuous through 0..270 (cut: pointing down)."""
     return math.pi / 2 + ca.atan2(-c, s)
 
@@ -98,7 +98,7 @@ class SymbolicRobot:
                  "clearance": (67, 70)}
 
 
-def _leg_symbolic(p_leg, geom: RobotGeometry, mode: AssemblyMode):
+def _leg_symbolic(p_leg: Any, geom: RobotGeometry, mode: AssemblyMode) -> dict[str, Any]:
     """Closed-form IK of one leg with CasADi symbols; returns a dict of expressions."""
     lg = geom.leg
     s1_, s3_, s2_, s4_ = mode.signs
@@ -123,7 +123,7 @@ def _leg_symbolic(p_leg, geom: RobotGeometry, mode: AssemblyMode):
     ts2 = ca.atan2(sp * c1 - cp * s1, cp * c1 + sp * s1)
     ts3 = ca.atan2(ss3, cs3)
 
-    def u_angles(c, s, w):
+    def u_angles(c: Any, s: Any, w: Any) -> Any:
         uy = c * w[1] + s * w[2]
         uz = -s * w[1] + c * w[2]
         return ca.atan2(uz, uy), ca.atan2(-w[0], ca.sqrt(uy * uy + uz * uz + 1e-30))
@@ -151,7 +151,7 @@ def _leg_symbolic(p_leg, geom: RobotGeometry, mode: AssemblyMode):
     j1 = ne[0] * (r0 + r1) + ca.dot(ne, w) * r2
     j2 = nf[0] * (r0 + r1) + ca.dot(nf, w) * r2
 
-    def unit(vv):
+    def unit(vv: Any) -> Any:
         return vv / ca.sqrt(ca.dot(vv, vv) + 1e-30)
 
     det_hat = ca.dot(unit(pd), ca.cross(unit(j1), unit(j2)))

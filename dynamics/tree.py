@@ -19,12 +19,12 @@ SETUP_BODIES = 3
 N_BODY_PARAMETERS = 10
 
 
-def _rx(q):
+def _rx(q: Any) -> Any:
     c, s = ca.cos(q), ca.sin(q)
     return ca.vertcat(ca.horzcat(1, 0, 0), ca.horzcat(0, c, -s), ca.horzcat(0, s, c))
 
 
-def _rz(q):
+def _rz(q: Any) -> Any:
     c, s = ca.cos(q), ca.sin(q)
     return ca.vertcat(ca.horzcat(c, -s, 0), ca.horzcat(s, c, 0), ca.horzcat(0, 0, 1))
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -43,8 +44,8 @@ def _psi_grid(robot: Robot, locked: bool, step_deg: float = 7.5) -> np.ndarray:
     return np.stack(np.meshgrid(ax, ax, ax, indexing="ij"), -1).reshape(-1, 3)
 
 
-def static_feasible(robot: Robot, position, rotation, limits: Limits, locked: bool,
-                    dyn: ClosedLoopDynamics | None = None):
+def static_feasible(robot: Robot, position: Any, rotation: Any, limits: Limits, locked: bool,
+                    dyn: ClosedLoopDynamics | None = None) -> Any:
     """(feasible, psi, min margin, max |tau_g|, binding limit) at one pose."""
     dyn = dyn or ClosedLoopDynamics(robot)
     psis = _psi_grid(robot, locked)
@@ -75,7 +76,8 @@ def static_feasible(robot: Robot, position, rotation, limits: Limits, locked: bo
 
 
 def largest_tilt(robot: Robot, axis: str = "x", locked: bool = False,
-                 limits: Limits | None = None, position=None, resolution_deg: float = 0.5,
+                 limits: Limits | None = None, position: Any = None,
+                 resolution_deg: float = 0.5,
                  max_deg: float = 120.0) -> TiltResult:
     """Bisection on the tilt angle about ``axis`` ("x" or "y") at ``position`` [m]
     (default: the robot's home), within ``limits`` (default: the robot's)."""
@@ -88,7 +90,7 @@ def largest_tilt(robot: Robot, axis: str = "x", locked: bool = False,
     pos = np.asarray(robot.home_position if position is None else position, dtype=float)
     vec = {"x": np.array([1.0, 0, 0]), "y": np.array([0, 1.0, 0])}[axis]
 
-    def test(deg):
+    def test(deg: float) -> Any:
         R = Rotation.from_rotvec(np.radians(deg) * vec).as_matrix()
         return static_feasible(robot, pos, R, limits, locked, dyn)
 

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -45,6 +46,11 @@ from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.planner.solution import Solution, actuated_profile, sample_cubic, stretch_factors
 from sixplus3.planner.toppra_baseline import toppra_trajectory
+from sixplus3.robot_description.limits import Limits
+from sixplus3.robot_description.robot import Robot
+
+if TYPE_CHECKING:
+    from sixplus3.planner.problem import Problem
 
 #: node spacing of the baseline plan [s]
 NODE_STEP = 2.5e-3
@@ -52,7 +58,8 @@ NODE_STEP = 2.5e-3
 TARGET = 0.99
 
 
-def line_check(robot, limits, xa: np.ndarray, xb: np.ndarray, points: int = 101) -> str | None:
+def line_check(robot: Robot, limits: Limits, xa: np.ndarray, xb: np.ndarray,
+               points: int = 101) -> str | None:
     """None if the straight line xa -> xb (minimal coordinates) is admissible at
     ``points`` points, else the first reason it is not."""
     s = np.linspace(0.0, 1.0, points)[:, None]
@@ -73,7 +80,8 @@ def line_check(robot, limits, xa: np.ndarray, xb: np.ndarray, points: int = 101)
     return None
 
 
-def _smoothed_profile(traj, d: np.ndarray, duration: float, width: float, step: float):
+def _smoothed_profile(traj: Any, d: np.ndarray, duration: float, width: float,
+                      step: float) -> tuple[np.ndarray, ...]:
     """Node times and (s, s', s'') of the window-averaged TOPP-RA profile, integrated
     exactly from the node accelerations and corrected to end at rest at s = 1."""
     total = duration + width
@@ -81,7 +89,7 @@ def _smoothed_profile(traj, d: np.ndarray, duration: float, width: float, step: 
     t = np.linspace(0.0, total, n + 1)
     h = t[1] - t[0]
 
-    def rate(times):  # s'(t) of the TOPP-RA motion, 0 outside [0, duration]
+    def rate(times: np.ndarray) -> np.ndarray:  # s'(t) of TOPP-RA, 0 outside [0, duration]
         inside = (times >= 0.0) & (times <= duration)
         out = np.zeros_like(times)
         if inside.any():
@@ -92,7 +100,7 @@ def _smoothed_profile(traj, d: np.ndarray, duration: float, width: float, step: 
     u = (rate(t) - rate(t - width)) / width
     u[0] = u[-1] = 0.0
 
-    def integrate(u):
+    def integrate(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         v = np.r_[0.0, np.cumsum(h * (u[:-1] + u[1:]) / 2)]
         s = np.r_[0.0, np.cumsum(h * v[:-1] + h**2 * (2 * u[:-1] + u[1:]) / 6)]
         return s, v
@@ -105,7 +113,9 @@ def _smoothed_profile(traj, d: np.ndarray, duration: float, width: float, step: 
     return t, s / s[-1], v / s[-1], u / s[-1]
 
 
-def _stretch_needed(robot, limits, xa, d, t, s, v, u, target: float) -> float:
+def _stretch_needed(robot: Robot, limits: Limits, xa: np.ndarray, d: np.ndarray,
+                    t: np.ndarray, s: np.ndarray, v: np.ndarray, u: np.ndarray,
+                    target: float) -> float:
     """Smallest uniform time stretch a bringing the segment within ``target`` of the
     velocity, acceleration, torque, jerk and torque-rate limits (4x grid)."""
     tt = np.linspace(0.0, t[-1], 4 * (len(t) - 1) + 1)
@@ -137,8 +147,8 @@ def _stretch_needed(robot, limits, xa, d, t, s, v, u, target: float) -> float:
     return a
 
 
-def baseline_plan(problem, psi_wp: np.ndarray, step: float = NODE_STEP,
-                  target: float = TARGET):
+def baseline_plan(problem: Problem, psi_wp: np.ndarray, step: float = NODE_STEP,
+                  target: float = TARGET) -> tuple[Solution | None, str]:
     """(Solution or None, reason): the baseline plan of ``problem`` (a
     :class:`planner.problem.Problem`) with the crank angles ``psi_wp`` at its waypoints."""
 

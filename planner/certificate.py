@@ -49,6 +49,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
@@ -56,6 +57,9 @@ import numpy as np
 from sixplus3.errors import InputError
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
+
+if TYPE_CHECKING:
+    from sixplus3.planner.solution import Solution
 
 #: default number of grid intervals of a certificate (at least 4 per node interval)
 GRID = 600
@@ -79,7 +83,8 @@ class PathCoefficients:
     coulomb: np.ndarray  # (n, 9)
     coulomb_velocity: float
 
-    def rates(self, v, v2, a, col=lambda m: m, tanh=np.tanh):
+    def rates(self, v: Any, v2: Any, a: Any, col: Any = lambda m: m,
+              tanh: Any = np.tanh) -> tuple[Any, Any]:
         """(theta_ddot, tau) of the re-timing (v, v^2, a): numeric with (n, 1) arrays, or
         CasADi expressions of one joint with ``col`` picking its column as a DM and
         ``tanh`` = ``ca.tanh`` (the one formula of both, :func:`retime_path`)."""
@@ -185,7 +190,7 @@ def retime_path(robot: Robot, limits: Limits, s: np.ndarray, path: Callable,
     v2_mid = v2[:-1] + dsm * (3 * Acc[:-1] + Acc[1:]) / 4
     v_mid = ca.sqrt(v2_mid)
 
-    def interleave(nodes, mids):
+    def interleave(nodes: Any, mids: Any) -> Any:
         out = ca.SX.zeros(2 * n - 1, 1)
         out[0::2], out[1::2] = nodes, mids
         return out
@@ -195,7 +200,7 @@ def retime_path(robot: Robot, limits: Limits, s: np.ndarray, path: Callable,
     dt = 2 * half / (Va[:-1] + Va[1:])  # (2M,) the half intervals' durations
     rows, lo, hi = [], [], []
 
-    def add(expr, bound_lo, bound_hi):
+    def add(expr: Any, bound_lo: Any, bound_hi: Any) -> None:
         rows.append(expr)
         lo.append(np.full(expr.numel(), bound_lo))
         hi.append(np.full(expr.numel(), bound_hi))
@@ -241,7 +246,7 @@ def retime_path(robot: Robot, limits: Limits, s: np.ndarray, path: Callable,
                     t=t_all, v=v_all, a=a_all, jerk_limited=jerk)
 
 
-def plan_grid(sol, points: int = GRID) -> np.ndarray:
+def plan_grid(sol: Solution, points: int = GRID) -> np.ndarray:
     """A grid of about ``points`` intervals over the plan's time that refines every node
     interval uniformly (at least 4 parts each)."""
     per = max(4, math.ceil(points / (len(sol.t) - 1)))
@@ -250,7 +255,7 @@ def plan_grid(sol, points: int = GRID) -> np.ndarray:
     return np.r_[np.concatenate(parts), sol.t[-1]]
 
 
-def certify(sol, limits: Limits | None = None, points: int = GRID,
+def certify(sol: Solution, limits: Limits | None = None, points: int = GRID,
             jerk: bool = True) -> Retiming:
     """The fastest re-timing of the plan ``sol`` (a :class:`planner.solution.Solution`)
     along its own path, under ``limits`` (default: the limits it was planned to).

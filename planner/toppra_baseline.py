@@ -14,6 +14,7 @@ limits by ~14%); callers re-check the result.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import toppra as ta
@@ -24,6 +25,9 @@ from toppra.constraint.linear_constraint import canlinear_colloc_to_interpolate
 from sixplus3.errors import InfeasibleTaskError, InputError
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
+
+if TYPE_CHECKING:
+    from sixplus3.planner.solution import Solution
 
 PATH_SCALE = 0.1
 
@@ -56,7 +60,8 @@ def toppra_time(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: int = 
     return ToppraResult(float(traj.duration), gridpoints, t, traj(t))
 
 
-def toppra_trajectory(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: int = 400):
+def toppra_trajectory(robot: Robot, xs: np.ndarray, limits: Limits,
+                      gridpoints: int = 400) -> Any:
     """TOPP-RA's trajectory object (``traj(t, order)``) for the path through the samples
     xs (m, 9), at rest at both ends; raises InfeasibleTaskError (limit "toppra") if it
     finds none."""
@@ -84,13 +89,13 @@ def toppra_trajectory(robot: Robot, xs: np.ndarray, limits: Limits, gridpoints: 
     return traj
 
 
-def grid_inv_dyn(robot: Robot):
+def grid_inv_dyn(robot: Robot) -> Any:
     """TOPP-RA's inverse dynamics over a grid: (q, qd, qdd), (m, 9) each, to the (m, 27)
     rows [tau; theta_ddot; theta_dot^2], in one mapped call of the planner's compiled
     profile function (:func:`planner.solution.actuated_profile`)."""
     from sixplus3.planner.solution import actuated_profile
 
-    def inv_dyn(q, qd, qdd):
+    def inv_dyn(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         thd, thdd, tau, _ = actuated_profile(robot, q, qd, qdd)
         return np.vstack([tau, thdd, thd**2]).T
 
@@ -109,13 +114,13 @@ class _GridSecondOrderConstraint(constraint.SecondOrderConstraint):
     (m, dof) arrays to (m, k).
     """
 
-    def __init__(self, grid_inv_dyn, F: np.ndarray, g: np.ndarray, dof: int) -> None:
+    def __init__(self, grid_inv_dyn: Any, F: np.ndarray, g: np.ndarray, dof: int) -> None:
         super().__init__(lambda q, qd, qdd: grid_inv_dyn(q[None], qd[None], qdd[None])[0],
                          lambda q: F, lambda q: g, dof,
                          discretization_scheme=constraint.DiscretizationType.Interpolation)
         self._grid_inv_dyn, self._F, self._g = grid_inv_dyn, F, g
 
-    def compute_constraint_params(self, path, gridpoints):
+    def compute_constraint_params(self, path: Any, gridpoints: np.ndarray) -> Any:
         if path.dof != self.dof:
             raise InputError(f"constraint dof {self.dof} != path dof {path.dof}",
                              value=path.dof, valid=str(self.dof))
@@ -130,7 +135,7 @@ class _GridSecondOrderConstraint(constraint.SecondOrderConstraint):
         return canlinear_colloc_to_interpolate(a, b, c, F, g, None, None, gridpoints)
 
 
-def rest_splits(sol, rel: float = 1e-3) -> np.ndarray:
+def rest_splits(sol: Solution, rel: float = 1e-3) -> np.ndarray:
     """Times [s] where a planned motion comes to rest: its ends and every interior node
     with |x_dot| <= rel * max |x_dot|.  A path that stops and reverses there (a tilt and
     back) has a cusp, where no spline through its samples is the same path; TOPP-RA is
@@ -140,7 +145,8 @@ def rest_splits(sol, rel: float = 1e-3) -> np.ndarray:
     return np.unique(np.r_[0.0, sol.t[stops], sol.t[-1]])
 
 
-def toppra_along(sol, limits: Limits | None = None, gridpoints: int = 800, samples: int = 201,
+def toppra_along(sol: Solution, limits: Limits | None = None, gridpoints: int = 800,
+                 samples: int = 201,
                  cranks: float | np.ndarray | None = None) -> float:
     """TOPP-RA duration [s] along the geometric path of a planned motion (``sol``: a
     :class:`planner.solution.Solution`), summed over its rest-to-rest pieces.
