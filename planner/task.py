@@ -194,6 +194,18 @@ class Task:
         if not isinstance(self.limits, dict):
             raise TaskError("task limits must be a mapping of name to value",
                             value=type(self.limits).__name__, valid="a dict")
+        # checked here, where a Task is built (task_from_dict's schema, or
+        # dataclasses.replace, which skips the schema), and nowhere else
+        n = self.nodes_per_segment
+        if n is not None and (isinstance(n, bool) or not isinstance(n, int) or not 4 <= n <= 60):
+            raise TaskError(f"task field nodes_per_segment must be an integer in [4, 60], got "
+                            f"{n!r}", value=n, valid="[4, 60]")
+        for name, lo, hi in (("duration", 0.0, 600.0), ("speed", 0.0, 1.0)):
+            v = getattr(self, name)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
+                                  or not lo < v <= hi):
+                raise TaskError(f"task field {name} must be in ({lo:g}, {hi:g}], got {v!r}",
+                                value=v, valid=f"({lo:g}, {hi:g}]")
 
     @property
     def segment_nodes(self) -> int:
