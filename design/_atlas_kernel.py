@@ -26,6 +26,7 @@ Packed inputs (:func:`pack`):
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
@@ -48,6 +49,9 @@ from sixplus3.kinematics._leg_kernel import (
     jacobian_point,
 )
 
+if TYPE_CHECKING:
+    from sixplus3.robot_description.robot import Robot
+
 NL = 3  # legs
 _P_C, _P_L, _P_TMIN, _P_TMAX, _P_COS_SPH, _P_MARGIN, _P_BASE, _P_PLATE = range(8)
 # the links of a leg in the collision model: AD, DP, BG, GE, CH, HF (kinematics.collision)
@@ -55,7 +59,7 @@ _NSEG = 6
 _NBODY = 30  # kinematics.collision.N_BODIES: 18 links, 3 hubs, 9 platform bodies
 
 
-def pack(robot) -> tuple[np.ndarray, ...]:
+def pack(robot: Robot) -> tuple[np.ndarray, ...]:
     """(legc, par, geo, mode, ref, hubs, radii, pairs, base) of a
     :class:`~robot_description.robot.Robot`."""
     from sixplus3.kinematics import collision

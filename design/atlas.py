@@ -140,7 +140,8 @@ class _Checker:
                                    indexing="ij"), axis=-1).reshape(-1, 3)
         return _kernel.platform_margins(tri, *self.packed[:2]).reshape(G, G, G)
 
-    def _full(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray, platform: np.ndarray):
+    def _full(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray,
+              platform: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Checks of (n, k) candidate crank choices psi (n, k, 3) with platform margins
         ``platform`` (n, k): (stage (n, k) = number of checks 1-7 passed, margin (n, k):
         the smallest margin where all pass, else -inf).
@@ -155,7 +156,7 @@ class _Checker:
         return self._torque(pos, R, psi, stage, margin)
 
     def _torque(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray, stage: np.ndarray,
-                margin_all: np.ndarray):
+                margin_all: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Check 7 on candidates psi (n, k, 3) with the results (stage, margin) of 1-6."""
         n, k = psi.shape[:2]
         # torque, lazily: best candidate first, then the next best where it fails
@@ -194,7 +195,8 @@ class _Checker:
         return (np.abs(np.asarray(tau0)).T
                 + self.accel * np.linalg.norm(A, axis=2).T)
 
-    def admissible(self, pos: np.ndarray, R: np.ndarray, free: bool):
+    def admissible(self, pos: np.ndarray, R: np.ndarray,
+                   free: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(ok (n,), psi (n, 3) [rad] of the chosen candidate, binding code (n,))."""
         n = len(pos)
         self.evaluations += n
@@ -235,7 +237,8 @@ class _Checker:
         return self._pick(cand, stage, margin, dead)
 
     @staticmethod
-    def _pick(cand: np.ndarray, stage: np.ndarray, margin: np.ndarray, dead: np.ndarray):
+    def _pick(cand: np.ndarray, stage: np.ndarray, margin: np.ndarray,
+              dead: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         n = len(cand)
         best = np.argmax(margin, axis=1)
         ok = margin[np.arange(n), best] > -np.inf

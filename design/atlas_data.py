@@ -132,7 +132,8 @@ def position_grid(robot: Robot, step: float,
     return xs, ys, zs
 
 
-def build_dataset(robot: Robot, st: AtlasSettings, xs, ys, zs, cat: dict, shape: tuple,
+def build_dataset(robot: Robot, st: AtlasSettings, xs: np.ndarray, ys: np.ndarray,
+                  zs: np.ndarray, cat: dict, shape: tuple,
              wall: float, npos: int, workers: int | None) -> xr.Dataset:
     from importlib.metadata import PackageNotFoundError, version
 

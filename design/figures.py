@@ -16,10 +16,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from sixplus3.design.cow import (
+    COW,
     JOINT_RESOLUTION,
     LIMIT_SETS,
     PAPER_RATIO,
@@ -46,7 +48,8 @@ class FigureSummary:
     paper_resolution_m: float = 8.4e-6
 
 
-def _grid_image(geometry: LegGeometry, step: float):
+def _grid_image(geometry: LegGeometry,
+                step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Full (not halved) half-plane grid as an image: X (nx, ny), Y, flat points, mask."""
     r, l1 = geometry.dp, geometry.l1
     xs = np.arange(-r + step / 2, r, step)
@@ -57,7 +60,7 @@ def _grid_image(geometry: LegGeometry, step: float):
     return X, Y, pts, inside
 
 
-def _disk_outline(ax, geometry: LegGeometry) -> None:
+def _disk_outline(ax: Any, geometry: LegGeometry) -> None:
     t = np.linspace(0, 2 * np.pi, 400)
     ax.plot(geometry.dp * np.cos(t), geometry.l1 + geometry.dp * np.sin(t), "k-", lw=0.6)
     ax.set_aspect("equal")
@@ -175,7 +178,8 @@ def cow_robot(reading: Reading, design: tuple[float, float, float] = PAPER_DESIG
                         name=f"reading {reading.name}")
 
 
-def _cow_figure(plt, cow, path: Path, ratios: dict[str, float], reading: Reading) -> str:
+def _cow_figure(plt: Any, cow: COW, path: Path, ratios: dict[str, float],
+                reading: Reading) -> str:
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -207,7 +208,7 @@ def layout_study(base: Robot, settings: LayoutSettings | None = None,
     return LayoutStudy(tuple(points), st, base)
 
 
-def plot_study(study: LayoutStudy, path) -> None:
+def plot_study(study: LayoutStudy, path: str | Path) -> None:
     """The figure: interference-free 2 g COW volume against the axis turn (the best
     phase at each turn), one curve per leg, written atomically."""
     import matplotlib

@@ -180,7 +180,7 @@ def _cube(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
 
 
 def _run(designs: np.ndarray, reading: Reading, grid: Grid, chunk: int,
-         progress: Callable[[int], None] | None):
+         progress: Callable[[int], None] | None) -> tuple[np.ndarray, np.ndarray]:
     areas, work = np.empty(len(designs)), np.empty(len(designs), dtype=np.int64)
     for s in range(0, len(designs), chunk):
         a, w = evaluate(designs[s:s + chunk], reading, grid)

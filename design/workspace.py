@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from sixplus3.errors import InputError
-from sixplus3.kinematics.leg import DEFAULT_MODE, AssemblyMode, LegEval, leg_eval_packed
+from sixplus3.kinematics.leg import DEFAULT_MODE, AssemblyMode, LegEval, LegState, leg_eval_packed
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 
 #: The paper's design limit on the actuated angles [rad].
@@ -58,7 +59,7 @@ def counted(ev: LegEval, load: LegLoad, theta_max: float = THETA_MAX) -> np.ndar
     return ev.ok & theta_within(ev.theta, theta_max) & (ev.tau_ext <= load.torque_limit)
 
 
-def counted_reading(ev, load: LegLoad, reading) -> np.ndarray:
+def counted_reading(ev: LegEval | LegState, load: LegLoad, reading: Any) -> np.ndarray:
     """:func:`counted` under a :class:`design.search.Reading`'s angle convention."""
     return (ev.ok & theta_within(ev.theta, reading.theta_max, reading.theta_zero,
                                  reading.theta_direction)

@@ -25,10 +25,15 @@ legs' links with the base plate (the same rule: (270, 360) deg is where the base
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from sixplus3.kinematics import _geometry_kernel
 from sixplus3.robot_description.robot import NUM_LEGS, Robot
+
+if TYPE_CHECKING:
+    from sixplus3.kinematics.robot import RobotConfig
 
 #: The links of a leg, in order, with their end points: A-D, D-P, B-G, G-E, C-H, H-F.
 LEG_LINKS = ("AD", "DP", "BG", "GE", "CH", "HF")
@@ -119,7 +124,7 @@ def platform_segments(robot: Robot, position: np.ndarray, rotation: np.ndarray,
     return out
 
 
-def capsules(cfg) -> np.ndarray:
+def capsules(cfg: RobotConfig) -> np.ndarray:
     """(n, 30, 2, 3) every body's segment in the robot frame [m] (order of BODIES), of a
     :class:`~sixplus3.kinematics.robot.RobotConfig`."""
     robot = cfg.robot
@@ -142,7 +147,7 @@ def capsules(cfg) -> np.ndarray:
     return out
 
 
-def clearance(cfg, rows: np.ndarray | None = None) -> np.ndarray:
+def clearance(cfg: RobotConfig, rows: np.ndarray | None = None) -> np.ndarray:
     """(n,) the smallest clearance of the collision model [m]: surface distance between
     the bodies of every pair of :data:`PAIRS` and height of the platform's bodies above
     the base plate; negative where they overlap.  Unsolved rows (and rows outside
@@ -156,7 +161,7 @@ def clearance(cfg, rows: np.ndarray | None = None) -> np.ndarray:
     return out
 
 
-def closest(cfg, k: int = 0) -> tuple[str, str, float]:
+def closest(cfg: RobotConfig, k: int = 0) -> tuple[str, str, float]:
     """The closest pair of bodies of sample ``k``: (body, body or "base plate",
     clearance [m]) -- what an interference error names."""
     caps = np.ascontiguousarray(capsules(cfg.take(np.arange(len(cfg)) == k)))
@@ -202,7 +207,8 @@ def check_layout(robot: Robot) -> None:
             f"{-d * 1e3:.1f} mm (collision model, docs/robot.md)")
 
 
-def _segment_distance(p1, q1, p2, q2):
+def _segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray,
+                      q2: np.ndarray) -> np.ndarray:
     """(n,) distance between segments [p1, q1] and [p2, q2] (batched, (n, 3) each): the
     numpy reference of the compiled kernel ``_geometry_kernel.segment_distance``."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2

@@ -39,7 +39,7 @@ def _spherical_reference(robot: Robot) -> np.ndarray:
     return ref
 
 
-def _body_frames(cfg: RobotConfig):
+def _body_frames(cfg: RobotConfig) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
     """World rotations (n, 3, 3) of leg body, distal B, distal C, platform crank i."""
     out = []
     geom = cfg.robot.geometry
