@@ -188,7 +188,7 @@ def test_plots_show_excursions_legs_and_which_robot(planned, tmp_path, monkeypat
     sm = smooth(res.solution)
     figs = {}
 
-    def keep(fig, path):
+    def keep(fig, path, **kw):
         figs[Path(path).stem.split("_", 1)[-1]] = [
             (ax.get_title(), [line.get_ydata() for line in ax.get_lines()],
              [line.get_color() for line in ax.get_lines()]) for ax in fig.axes]
@@ -197,7 +197,7 @@ def test_plots_show_excursions_legs_and_which_robot(planned, tmp_path, monkeypat
         plt.close(fig)
         return str(path)
 
-    monkeypatch.setattr(plots, "_save", keep)
+    monkeypatch.setattr(plots, "save_figure", keep)
     robot = Robot.default()
     plots.plot_trajectory(robot, tmp_path, sm.t, sm.theta, rep.tau, rep.position,
                           rep.quaternion, rep.psi, 10.0, 0.05, "small",
