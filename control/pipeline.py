@@ -133,7 +133,9 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
     files: list[str] = []
     stem = csv_path.stem
     if plots:
-        from sixplus3.visualization.plots import plot_trajectory
+        from sixplus3.visualization.plots import (
+            plot_trajectory,  # deferred: matplotlib loads only when plots are asked for
+        )
 
         files = plot_trajectory(robot, out, sm.t, sm.theta, rep.tau, rep.position,
                                 rep.quaternion, rep.psi, robot.limits.torque,
@@ -143,7 +145,11 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
         say(f"  plots: {', '.join(Path(f).name for f in files)}")
     html_path = None
     if html:
-        from sixplus3.visualization.meshcat_player import frames_from_samples, write_html
+        # deferred: meshcat loads only when the page is asked for
+        from sixplus3.visualization.meshcat_player import (
+            frames_from_samples,
+            write_html,
+        )
 
         wps = (sol.task or task).waypoints
         frames = frames_from_samples(robot, sm.t, rep.position, rep.quaternion, rep.psi,

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit, prange
 
+from sixplus3.kinematics import collision
 from sixplus3.kinematics._geometry_kernel import pose_clearance
 from sixplus3.kinematics._leg_kernel import (
     MARGIN_I,
@@ -48,6 +49,8 @@ from sixplus3.kinematics._leg_kernel import (
     ik_point,
     jacobian_point,
 )
+from sixplus3.kinematics.checks import actuated_bounds
+from sixplus3.kinematics.spherical import spherical_reference
 
 if TYPE_CHECKING:
     from sixplus3.robot_description.robot import Robot
@@ -62,8 +65,6 @@ _NBODY = 30  # kinematics.collision.N_BODIES: 18 links, 3 hubs, 9 platform bodie
 def pack(robot: Robot) -> tuple[np.ndarray, ...]:
     """(legc, par, geo, mode, ref, hubs, radii, pairs, base) of a
     :class:`~robot_description.robot.Robot`."""
-    from sixplus3.kinematics import collision
-    from sixplus3.kinematics.spherical import spherical_reference
 
     g, lim = robot.geometry, robot.limits
     legc = np.zeros((NL, 16))
@@ -72,7 +73,6 @@ def pack(robot: Robot) -> tuple[np.ndarray, ...]:
         legc[i, 9:12] = g.leg_origin(i)
         legc[i, 12:15] = g.crank_axis_position(i)
         legc[i, 15] = g.crank_axis_angle(i)
-    from sixplus3.kinematics.checks import actuated_bounds
 
     par = np.array([g.platform_crank, math.hypot(g.platform_radius, g.platform_crank),
                     *actuated_bounds(lim), math.cos(lim.spherical), lim.margin,

@@ -58,6 +58,7 @@ symbolic statics (:func:`dynamics.symbolic.holding_function`, checked against Pi
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -85,6 +86,13 @@ from sixplus3.design.atlas_data import (
     volumes,
 )
 from sixplus3.design.cluster import check_scheduler, check_workers, map_tasks
+from sixplus3.dynamics import codegen
+from sixplus3.dynamics.symbolic import (
+    acceleration_function,
+    holding_function,
+    setup_parameters,
+    structure,
+)
 from sixplus3.errors import InputError
 from sixplus3.kinematics.rotations import matrix_from_rotvec, rotvec_from_matrix
 from sixplus3.robot_description.geometry import GRAVITY
@@ -109,13 +117,6 @@ class _Checker:
     """Admissibility of batches of poses for one robot (module doc)."""
 
     def __init__(self, robot: Robot, psi_step_deg: float, accel_g: float = 0.0):
-        from sixplus3.dynamics import codegen
-        from sixplus3.dynamics.symbolic import (
-            acceleration_function,
-            holding_function,
-            setup_parameters,
-            structure,
-        )
 
         self.robot = robot
         self.lim = robot.limits
@@ -350,6 +351,7 @@ def _chunk_task(shared: tuple[Robot, AtlasSettings], positions: np.ndarray,
     would oversubscribe the cores (measured: 3-9x slower with 2 workers on 2 cores), so a
     task runs it on one thread.
     """
+    # deferred: numba loads only when this runs
     import numba
 
     robot, settings = shared
@@ -389,7 +391,6 @@ def compute_atlas(robot: Robot, settings: AtlasSettings | None = None,
     ``chunk``: positions per Dask task.  ``grid``: (xs, ys, zs) [m] instead of
     :func:`position_grid`.  ``progress``: True for a tqdm bar, or a callback(done, total).
     """
-    import time
 
     robot = require_robot(robot)
     st = (settings or AtlasSettings()).check()

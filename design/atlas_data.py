@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -19,7 +20,7 @@ from numpy.typing import ArrayLike
 
 from sixplus3.design import _atlas_kernel as _kernel
 from sixplus3.errors import InputError
-from sixplus3.fileio import save_figure
+from sixplus3.fileio import atomic_write_with, save_figure
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
 from sixplus3.robot_description.robot import Robot
 
@@ -135,8 +136,8 @@ def position_grid(robot: Robot, step: float,
 def build_dataset(robot: Robot, st: AtlasSettings, xs: np.ndarray, ys: np.ndarray,
                   zs: np.ndarray, cat: dict, shape: tuple,
              wall: float, npos: int, workers: int | None) -> xr.Dataset:
-    from importlib.metadata import PackageNotFoundError, version
 
+    # deferred: xarray (optional) loads only when this runs
     import xarray as xr
 
     try:
@@ -243,13 +244,13 @@ def save(ds: xr.Dataset, path: str | Path) -> Path:
     if not path.parent.is_dir():
         raise InputError(f"output directory {str(path.parent)!r} does not exist",
                          value=str(path.parent), valid="an existing directory")
-    from sixplus3.fileio import atomic_write_with
 
     atomic_write_with(path, lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
     return path
 
 
 def load(path: str | Path) -> xr.Dataset:
+    # deferred: xarray (optional) loads only when this runs
     import xarray as xr
 
     return xr.load_dataset(path, engine="h5netcdf")
@@ -259,9 +260,11 @@ def figures(ds: xr.Dataset, out_dir: str | Path, robot: Robot | None = None,
             polar: dict | None = None, layers: int = 6) -> list[Path]:
     """Per-layer maps of the all-direction tilt (free vs locked), the volume-vs-tilt
     curve, and the polar plot at home (``polar`` from :func:`home_polar`)."""
+    # deferred: matplotlib loads only when this runs
     import matplotlib
 
     matplotlib.use("Agg")
+    # deferred: matplotlib loads only when this runs
     import matplotlib.pyplot as plt
 
     out = Path(out_dir)

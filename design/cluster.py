@@ -10,9 +10,14 @@ anything else is a scheduler address (``tcp://host:8786``), checked by
 
 from __future__ import annotations
 
+import logging
 import re
+import signal
+import threading
 from collections.abc import Callable, Sequence
 from typing import Any
+
+from tqdm import tqdm
 
 from sixplus3.errors import InputError
 
@@ -45,9 +50,8 @@ def check_workers(workers: int) -> None:
 
 
 def _local_cluster(workers: int) -> Any:
-    import signal
-    import threading
 
+    # deferred: Dask (optional) loads only when this runs
     from dask.distributed import LocalCluster
 
     main = threading.current_thread() is threading.main_thread()
@@ -65,7 +69,6 @@ def _quiet_close(client: Any, cluster: Any) -> None:
     silenced: a worker connection closing while the cluster shuts down is logged by
     ``distributed`` as a CommClosedError with its traceback, which is no error of the
     run (the results are in)."""
-    import logging
 
     names = ("distributed", "distributed.core", "distributed.comm", "distributed.nanny",
              "distributed.worker", "distributed.scheduler", "distributed.client",
@@ -94,8 +97,6 @@ def map_tasks(fn: Callable[..., Any], items: Sequence[Any], shared: Any,
     bar = None
     total = len(items)
     if progress is True:
-        from tqdm import tqdm
-
         bar = tqdm(total=total, unit="task", desc=desc, leave=False)
 
     def tick(done: int) -> None:
@@ -111,6 +112,7 @@ def map_tasks(fn: Callable[..., Any], items: Sequence[Any], shared: Any,
                 out[i] = fn(shared, item)
                 tick(i + 1)
             return out
+        # deferred: Dask (optional) loads only when this runs
         from dask.distributed import Client, as_completed
 
         cluster = _local_cluster(workers) if scheduler is None else None

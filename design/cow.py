@@ -36,6 +36,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy import ndimage
 from scipy.spatial import ConvexHull
 
 from sixplus3.design.workspace import theta_within
@@ -186,7 +187,6 @@ def home_in_cow(robot: Robot, step: float = 0.01,
     Depth is the Euclidean distance transform of the COW mask on a cubic grid of pitch
     ``step`` (scipy.ndimage), i.e. the distance to the nearest position outside it.
     """
-    from scipy import ndimage
 
     robot = require_robot(robot)
     cow = compute_cow(robot, step=step, z_step=step, extent=extent, z_max=z_max,
@@ -234,7 +234,6 @@ def deepest_point(robot: Robot, step: float = 0.01, extent: float = 0.4,
     limit set, at the robot's margin) on a cubic grid of pitch ``step`` [m]: (point,
     its distance to the COW's boundary [m], the COW's volume [L]).  Ties go to the point
     nearest the central axis, then the lowest."""
-    from scipy import ndimage
 
     cow = compute_cow(robot, step=step, z_step=step, extent=extent, z_max=z_max,
                       margin=robot.limits.margin, z_min=0.0)

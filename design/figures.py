@@ -28,6 +28,7 @@ from sixplus3.design.cow import (
     compute_cow,
     encoder_resolution,
 )
+from sixplus3.design.readings import READINGS
 from sixplus3.design.search import PAPER_DESIGN, Reading
 from sixplus3.design.workspace import counted_reading, halfplane_grid
 from sixplus3.fileio import save_figure
@@ -71,15 +72,15 @@ def _disk_outline(ax: Any, geometry: LegGeometry) -> None:
 def make_figures(out_dir: str | Path, reading: Reading | None = None,
                  design: tuple[float, float, float] = PAPER_DESIGN, ws_step: float = 0.0025,
                  cow_step: float = 0.01, cow_z_step: float = 0.05) -> FigureSummary:
+    # deferred: matplotlib loads only when this runs
     import matplotlib
 
     matplotlib.use("Agg")
+    # deferred: matplotlib loads only when this runs
     import matplotlib.pyplot as plt
     from matplotlib.colors import SymLogNorm, TwoSlopeNorm
 
     if reading is None:
-        from sixplus3.design.readings import READINGS
-
         reading = READINGS["paper-mirror"]
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -180,6 +181,7 @@ def cow_robot(reading: Reading, design: tuple[float, float, float] = PAPER_DESIG
 
 def _cow_figure(plt: Any, cow: COW, path: Path, ratios: dict[str, float],
                 reading: Reading) -> str:
+    # deferred: matplotlib loads only when this runs
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 

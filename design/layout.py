@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sixplus3 import fileio
 from sixplus3.design.cluster import map_tasks
 from sixplus3.design.cow import PAPER_RATIO, compute_cow
 from sixplus3.errors import InputError
@@ -211,12 +212,13 @@ def layout_study(base: Robot, settings: LayoutSettings | None = None,
 def plot_study(study: LayoutStudy, path: str | Path) -> None:
     """The figure: interference-free 2 g COW volume against the axis turn (the best
     phase at each turn), one curve per leg, written atomically."""
+    # deferred: matplotlib loads only when this runs
     import matplotlib
 
     matplotlib.use("Agg")
+    # deferred: matplotlib loads only when this runs
     import matplotlib.pyplot as plt
 
-    from sixplus3 import fileio
 
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     for leg in dict.fromkeys(p.leg for p in study.points):

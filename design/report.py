@@ -9,12 +9,18 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from sixplus3.design.cow import home_in_cow
+from sixplus3.design.readings import READINGS
 from sixplus3.design.search import Reading
 from sixplus3.design.workspace import usable_area
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError
+from sixplus3.kinematics import collision
 from sixplus3.kinematics.leg import leg_ik
+from sixplus3.kinematics.robot import home
+from sixplus3.kinematics.spherical import spherical_tilts
 from sixplus3.robot_description.geometry import LegLoad
 from sixplus3.robot_description.robot import Robot, require_robot
+from sixplus3.robot_description.urdf import check as urdf_stale
 
 
 def leg_report(robot: Robot, ws_step: float = 0.005) -> str:
@@ -96,7 +102,6 @@ def reading_of(mode: str) -> Reading:
     """The reading of the paper's conventions in assembly mode ``mode``
     (:data:`design.readings.READINGS`: paper-match for ++--, paper-mirror for -+++, ours
     for ++++); ours for any other mode."""
-    from sixplus3.design.readings import READINGS
 
     return next((r for r in READINGS.values() if r.mode == mode
                  and r.theta_max < 2 * math.pi), READINGS["spec"])
@@ -106,11 +111,6 @@ def robot_check(robot: Robot) -> RobotCheck:
     """Build the robot's URDF + closures model and check its home pose: the closures'
     rank and mobility, the residual, margins, tilts, gravity torques, mass, layout and
     clearance at home, and whether home lies in the robot's COW (2 cm grid)."""
-    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-    from sixplus3.kinematics import collision
-    from sixplus3.kinematics.robot import home
-    from sixplus3.kinematics.spherical import spherical_tilts
-    from sixplus3.robot_description.urdf import check as urdf_stale
 
     robot = require_robot(robot)
     dyn = ClosedLoopDynamics(robot)

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
+from tqdm import tqdm
 
 from sixplus3.design import _kernel
 from sixplus3.design.workspace import halfplane_grid
@@ -228,8 +229,6 @@ def optimize(coarse_step: float = 0.01, fine_step: float = 0.001, ws_step: float
     coarse = _cube(coarse_axis, coarse_axis, coarse_axis)
     bar = None
     if progress is True:
-        from tqdm import tqdm
-
         bar = tqdm(total=len(coarse), desc="coarse designs", unit="design", leave=False)
         tick = bar.update
     else:
@@ -246,7 +245,6 @@ def optimize(coarse_step: float = 0.01, fine_step: float = 0.001, ws_step: float
     fine = np.unique(np.vstack(boxes), axis=0)  # sorted: ties keep (l2, l4, ex) order
     if bar is not None:
         bar.close()
-        from tqdm import tqdm
 
         bar = tqdm(total=len(fine), desc="fine designs", unit="design", leave=False)
         tick = bar.update

@@ -13,6 +13,8 @@ from typing import Any
 
 import casadi as ca
 
+from sixplus3.kinematics.collision import BASE_BODIES, PAIR_FAMILY, PAIRS, radii
+from sixplus3.kinematics.near import near_pairs
 from sixplus3.robot_description.robot import Robot
 
 
@@ -54,8 +56,6 @@ def clearance_rows(caps: Any, robot: Robot) -> ca.SX:
     contact in :func:`~sixplus3.kinematics.near.near_pairs`'s sample (all 333 make
     a C file gcc needs 15 GB to optimise); the dense check and the gate measure every
     pair."""
-    from sixplus3.kinematics.collision import BASE_BODIES, PAIR_FAMILY, PAIRS, radii
-    from sixplus3.kinematics.near import near_pairs
 
     r = radii(robot)
     pair_idx, base_idx = near_pairs(robot, PAIR_MARGIN)

@@ -44,8 +44,11 @@ from pathlib import Path
 from typing import Any
 
 import casadi as ca
+from tqdm import tqdm
 
+from sixplus3 import progress
 from sixplus3.cache import cached
+from sixplus3.dynamics.symbolic import profile_function, setup_parameters, structure, symbolic_robot
 from sixplus3.robot_description.robot import Robot
 
 log = logging.getLogger(__name__)
@@ -205,7 +208,6 @@ def _build(sources: dict[str, str], directory: Path, optimised: bool = False
         libs[name] = quick
         if not quick.exists():
             jobs.append(_start_foreground(cc, name, src, quick, QUICK_CFLAGS))
-    from sixplus3 import progress
 
     if (jobs or waiting) and progress.level() != progress.QUIET:  # quiet: waits below
         what = "an optimised" if optimised else "a quick"
@@ -304,7 +306,6 @@ def compiled_small(f: ca.Function, key: str) -> ca.Function:
 def compiled_profile(robot: Robot) -> tuple[ca.Function, ca.DM]:
     """(f, p): :func:`dynamics.symbolic.profile_function` compiled (:func:`compiled_small`),
     and ``robot``'s setup parameters to pass as its last input.  Cached per process."""
-    from sixplus3.dynamics.symbolic import profile_function, setup_parameters, structure
 
     def make() -> tuple[ca.Function, ca.DM]:
         return (compiled_small(profile_function(robot), structure(robot).hash),
@@ -317,7 +318,6 @@ def _wait_with_progress(procs: list[subprocess.Popen], libs: list[Path]) -> None
     """Wait for the compilers (and background builds of ``libs``), showing the elapsed
     time (a tqdm line on a terminal, a line every 30 s otherwise) so a first run never
     looks hung."""
-    from tqdm import tqdm
 
     start = time.monotonic()
     tty = sys.stderr.isatty()
@@ -352,7 +352,6 @@ def compiled_functions(robot: Robot) -> dict[str, ca.Function]:
     if not codegen_enabled():
         log.info("planner code generation disabled or no C compiler: interpreted functions")
         return {}
-    from sixplus3.dynamics.symbolic import structure
 
     libs = cached(("compiled", structure(robot).hash), lambda: _compiled(robot))
     if not libs:
@@ -363,7 +362,6 @@ def compiled_functions(robot: Robot) -> dict[str, ca.Function]:
 def _with_setup(robot: Robot, libs: dict[str, ca.Function]) -> dict[str, ca.Function]:
     """The libraries with this robot's setup parameters (payload, mounting, motors)
     fixed: one library serves every setup of a structure."""
-    from sixplus3.dynamics.symbolic import symbolic_robot
 
     params = ca.DM(symbolic_robot(robot).params)
     out = {}
@@ -383,7 +381,6 @@ _LOADED: dict[str, dict[str, Path]] = {}
 def loaded_libraries(robot: Robot) -> dict[str, Path]:
     """The compiled library files this process loaded for ``robot``'s structure (empty
     when it runs interpreted)."""
-    from sixplus3.dynamics.symbolic import structure
 
     if not compiled_functions(robot):
         return {}
@@ -391,7 +388,6 @@ def loaded_libraries(robot: Robot) -> dict[str, Path]:
 
 
 def _compiled(robot: Robot, optimised: bool = False) -> dict[str, ca.Function]:
-    from sixplus3.dynamics.symbolic import structure, symbolic_robot
 
     sr = symbolic_robot(robot)
     sources = {name: _source(getattr(sr, f"{name}_p")) for name in COMPILED}
@@ -415,7 +411,6 @@ def ensure_optimised(robot: Robot) -> bool:
     already loaded the quick build."""
     if not codegen_enabled():
         return False
-    from sixplus3.dynamics.symbolic import structure
 
     cached(("compiled", structure(robot).hash), lambda: _compiled(robot, True))
     compiled_profile(robot)  # the small profile function too (a few seconds, once)
@@ -425,7 +420,6 @@ def ensure_optimised(robot: Robot) -> bool:
 def build_kind(robot: Robot) -> str:
     """"optimised", "quick" or "interpreted": what this process's planner runs for
     ``robot``'s structure (loading it if not yet loaded)."""
-    from sixplus3.dynamics.symbolic import structure
 
     if not compiled_functions(robot):
         return "interpreted"

@@ -29,6 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from sixplus3.dynamics.closed_loop import SINGULAR_RCOND, ClosedLoopDynamics
+from sixplus3.robot_description.urdf import actuated_joint_names
 
 #: Pinocchio's order of a body's ten inertial parameters.
 BODY_PARAMETERS = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
@@ -73,7 +74,6 @@ def body_links(model: pin.Model) -> tuple[str, ...]:
 
 
 def layout(dyn: ClosedLoopDynamics) -> Layout:
-    from sixplus3.robot_description.urdf import actuated_joint_names
 
     return Layout(bodies=body_links(dyn.model), joints=tuple(actuated_joint_names()))
 

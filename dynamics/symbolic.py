@@ -38,6 +38,7 @@ from sixplus3.dynamics.tree import (
     tree_forces,
     tree_placements,
 )
+from sixplus3.kinematics.collision import hub_segments
 from sixplus3.kinematics.spherical import spherical_reference
 from sixplus3.robot_description.assembly import AssemblyMode
 from sixplus3.robot_description.model import closed_loop_model
@@ -396,7 +397,6 @@ def _build(robot: Robot) -> _Core:
 
     margins_out = [ca.vertcat(*type1), ca.vertcat(*type2),
                    platform_line_det_normalised(psi, geom)]
-    from sixplus3.kinematics.collision import hub_segments
 
     hubs = [(ca.DM(h[0]), ca.DM(h[1])) for h in hub_segments(robot)]
     R_i = [p + R @ ca.DM(geom.crank_axis_position(i)) for i in range(NUM_LEGS)]

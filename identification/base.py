@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from sixplus3.cache import cached
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import Layout, layout, regressor_batch
 from sixplus3.errors import InputError
@@ -154,7 +155,6 @@ def random_states(robot: Robot, n: int, seed: int = 0
 def base_parameters(robot: Robot, n: int = BASE_SAMPLES, seed: int = 0) -> BaseParameters:
     """The base parameters of ``robot``'s structure (module doc), from ``n`` random
     states (cached per process by the robot's hash)."""
-    from sixplus3.cache import cached
 
     return cached(("base-parameters", f"{robot.hash}:{n}:{seed}"),
                   lambda: _base_parameters(robot, n, seed))

@@ -173,6 +173,7 @@ def consistent(Wb: np.ndarray, tau: np.ndarray, weights: np.ndarray, base: BaseP
                pi0: np.ndarray, prior_weight: float = PRIOR_WEIGHT) -> Consistent:
     """The physically consistent full parameters (module doc, 4): minimise
     ||w (W_b B pi - tau)||^2 + prior over pi, subject to the LMIs."""
+    # deferred: cvxpy loads only when this runs
     import cvxpy as cp
 
     lay = base.layout

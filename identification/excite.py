@@ -29,7 +29,7 @@ from sixplus3.control.drive.smoothing import smooth
 from sixplus3.control.gate.validation import validate_and_write
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InfeasibleTaskError, InputError, Sixplus3Error
-from sixplus3.identification.base import BaseParameters, base_parameters
+from sixplus3.identification.base import BaseParameters, base_parameters, stacked_regressor
 from sixplus3.identification.estimate import condition_number
 from sixplus3.planner.ocp import plan
 from sixplus3.planner.task import task_from_dict
@@ -115,7 +115,6 @@ def _tour_task(robot: Robot, rng: np.random.Generator, st: ExcitationSettings,
 
 def base_regressor(dyn: ClosedLoopDynamics, base: BaseParameters, theta: np.ndarray,
                theta_dot: np.ndarray, theta_ddot: np.ndarray, rate: float) -> np.ndarray:
-    from sixplus3.identification.base import stacked_regressor
 
     step = max(1, int(round(rate / SCORE_RATE)))
     sl = slice(0, None, step)

@@ -4,10 +4,11 @@ prototype, and the conversion between a robot's bodies and the regressor's param
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
-from sixplus3.dynamics.regressor import N_BODY, N_MOTOR, Layout
+from sixplus3.dynamics.regressor import N_BODY, N_MOTOR, Layout, body_links
 from sixplus3.errors import InputError
 from sixplus3.robot_description.masses import BODY_LINKS, BodyInertial, BodyInertials
 from sixplus3.robot_description.model import closed_loop_model
@@ -18,12 +19,10 @@ from sixplus3.robot_description.robot import Robot, require_robot
 def link_inertials(robot: Robot) -> dict[str, BodyInertial]:
     """Each moving link's (mass, com, inertia about the com) as the robot's Pinocchio
     model has it (the link frame is its joint's frame; the payload is not a link)."""
-    from dataclasses import replace
 
 
     bare = robot if robot.payload.mass == 0.0 else replace(robot, payload=Payload())
     model = closed_loop_model(bare).model
-    from sixplus3.dynamics.regressor import body_links
 
     out = {}
     for j, link in enumerate(body_links(model), 1):
@@ -83,7 +82,6 @@ def robot_with_parameters(robot: Robot, pi: np.ndarray, layout: Layout,
 def per_joint_motors(motors: MotorModel, armature: np.ndarray, viscous: np.ndarray,
                      coulomb: np.ndarray) -> MotorModel:
     """``motors`` with each joint's rotor inertia at the joint and friction set."""
-    from dataclasses import replace
 
     return replace(motors, joint_armature=tuple(float(x) for x in armature),
                    joint_viscous=tuple(float(x) for x in viscous),
@@ -92,6 +90,7 @@ def per_joint_motors(motors: MotorModel, armature: np.ndarray, viscous: np.ndarr
 
 def _payload_parameters(pl: Payload) -> np.ndarray:
     """The payload's 10 parameters in the platform frame (Pinocchio's order)."""
+    # deferred: Pinocchio loads only when this runs
     import pinocchio as pin
 
     Y = pin.Inertia(pl.mass, np.asarray(pl.com), pl.inertia_matrix)

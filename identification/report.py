@@ -12,11 +12,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from sixplus3.control.drive.drive_log import DriveLog
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import parameters
 from sixplus3.fileio import atomic_write, save_figure
+from sixplus3.identification.base import base_parameters
 from sixplus3.identification.identify import V_MIN, Identification, check, dataset
 from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
@@ -24,7 +26,6 @@ from sixplus3.robot_description.urdf import actuated_joint_names
 
 def robot_yaml(robot: Robot, header: str = "") -> str:
     """The robot as a robot file (YAML, :meth:`Robot.as_dict`'s structure)."""
-    import yaml
 
     lines = "".join(f"# {ln}\n" for ln in header.splitlines())
     return lines + yaml.safe_dump(robot.as_dict(), sort_keys=False, default_flow_style=None)
@@ -90,12 +91,13 @@ def save_parameters(path: Path, idf: Identification) -> None:
 
 
 def _plot_torques(path: Path, log: DriveLog, robot: Robot, nominal: Robot) -> None:
+    # deferred: matplotlib loads only when this runs
     import matplotlib
 
     matplotlib.use("Agg")
+    # deferred: matplotlib loads only when this runs
     import matplotlib.pyplot as plt
 
-    from sixplus3.identification.base import base_parameters
 
     base = base_parameters(robot)
     ds = dataset([log], robot, base, v_min=-1.0)  # every row, in order (n, 9)

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from sixplus3.errors import Sixplus3Error
+from sixplus3.fileio import save_figure
 from sixplus3.interaction.wrench import MODEL_SIGMA, N_SIGMA, torque_sigma
 from sixplus3.kinematics.robot import ik_jacobian, robot_ik
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -49,7 +51,6 @@ def resolution_map(robot: Robot, z: float | None = None, half: float = 0.15,
     resolution at rest and while moving, on the plane z (home by default) of the
     constant-orientation workspace (home orientation and cranks); NaN where the pose is
     unreachable or singular."""
-    from sixplus3.errors import Sixplus3Error
 
     robot = require_robot(robot)
     z = robot.home_position[2] if z is None else z
@@ -69,12 +70,13 @@ def resolution_map(robot: Robot, z: float | None = None, half: float = 0.15,
 
 def plot_resolution_map(robot: Robot, path: str, z: float | None = None,
                         step: float = 0.01) -> dict:
+    # deferred: matplotlib loads only when this runs
     import matplotlib
 
     matplotlib.use("Agg")
+    # deferred: matplotlib loads only when this runs
     import matplotlib.pyplot as plt
 
-    from sixplus3.fileio import save_figure
 
     xs, ys, F = resolution_map(robot, z, step=step)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))

@@ -37,10 +37,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy import signal
+from scipy.linalg import lapack
 
 from sixplus3.control.drive.drive_log import DriveLog
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError
+from sixplus3.identification.base import base_parameters, stacked_regressor, states_of
+from sixplus3.identification.signals import filter_log
 from sixplus3.kinematics.robot import ik_jacobian, robot_fk, robot_fk_batch
 from sixplus3.kinematics.rotations import rotvec_from_matrix
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -146,6 +150,7 @@ class SingleState:
     torque at zero acceleration."""
 
     def __init__(self, robot: Robot) -> None:
+        # deferred: Pinocchio loads only when this runs
         import pinocchio as pin
 
         self.robot = require_robot(robot)
@@ -164,7 +169,6 @@ class SingleState:
     def state(self, theta: np.ndarray, theta_dot: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(J (9, 9), M (9, 9), h (9,), tcp offset (3,)) of one sample."""
-        from scipy.linalg import lapack
 
         pin, dyn = self._pin, self.dyn
         hint = self._q
@@ -235,7 +239,6 @@ def estimate(log: DriveLog, robot: Robot, gain: float = GAIN, at: str = "centre"
     base columns, the covariance of the base parameters) of an identification
     (``--report DIR``'s ``parameters.npz``): each sample's torque variance then adds
     Y_b Sigma Y_b^T, the parameters' confidence at that state."""
-    from scipy import signal
 
     robot = require_robot(robot)
     for name, v, lo, hi in (("gain", gain, 1.0, 2000.0), ("model_sigma", model_sigma, 0.0,
@@ -287,8 +290,6 @@ def estimate(log: DriveLog, robot: Robot, gain: float = GAIN, at: str = "centre"
     contact = np.any(np.abs(w) > n_sigma * std + band, axis=1)
     out_direct = None
     if direct:
-        from sixplus3.identification.signals import filter_log
-
         f = filter_log(log, decimate=False, coulomb_velocity=None)
         sm2 = StateModel(robot)
         J2, _, _, off2 = sm2.states(f.theta, f.theta_dot)
@@ -315,7 +316,6 @@ def parameter_variance(robot: Robot, theta: np.ndarray, theta_dot: np.ndarray,
     """(n, 9) the variance of each joint's model torque from the base parameters'
     covariance: diag(Y_b Sigma Y_b^T) at each sample (its acceleration taken as zero: a
     hold's or a slow motion's dominant terms, gravity and friction)."""
-    from sixplus3.identification.base import base_parameters, stacked_regressor
 
     index, cov = (np.asarray(x, dtype=float) for x in parameter_cov)
     base = base_parameters(robot)
@@ -329,8 +329,6 @@ def parameter_variance(robot: Robot, theta: np.ndarray, theta_dot: np.ndarray,
     step = 2000
     for i in range(0, len(theta), step):
         sl = slice(i, i + step)
-        from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-
         Wb = base.reduce(stacked_regressor(ClosedLoopDynamics(robot), theta[sl],
                                            theta_dot[sl], np.zeros_like(theta_dot[sl])))
         out[sl] = np.einsum("nja,ab,njb->nj", Wb, cov, Wb)
@@ -338,7 +336,6 @@ def parameter_variance(robot: Robot, theta: np.ndarray, theta_dot: np.ndarray,
 
 
 def _configs(robot: Robot, theta: np.ndarray) -> np.ndarray:
-    from sixplus3.identification.base import states_of
 
     q, _ = states_of(robot, theta)
     return q
@@ -366,7 +363,7 @@ class WrenchStream:
     def __init__(self, robot: Robot, rate: float, gain: float = GAIN,
                  monitor_noise: float = 0.005, model_sigma: float = MODEL_SIGMA,
                  v_band: float = V_BAND, n_sigma: float = N_SIGMA) -> None:
-        from scipy import signal
+        # deferred: threadpoolctl loads only when this runs
         from threadpoolctl import threadpool_limits
 
         self.robot = require_robot(robot)

@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike
 from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import RobotConfig
 from sixplus3.kinematics.spherical import spherical_tilts
+from sixplus3.kinematics.tcp import tcp_rates
 from sixplus3.robot_description.limits import Limits
 
 #: The crank (redundant joint) range the planner and the static analyses search [rad].
@@ -134,8 +135,6 @@ def measure_limits(cfg: RobotConfig, tau: np.ndarray, theta: np.ndarray, theta_d
                           f"{math.degrees(limits.theta_max):g}] deg")
     tcp_v = tcp_a = float("nan")
     if times is not None:
-        from sixplus3.kinematics.tcp import tcp_rates
-
         sp, ac = tcp_rates(cfg, theta_dot, times)
         tcp_v, tcp_a = float(sp.max()), float(ac.max())
         if cap_excess(tcp_v, limits.tcp_speed) > 0:

@@ -29,7 +29,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from sixplus3.errors import GeometryError
 from sixplus3.kinematics import _geometry_kernel
+from sixplus3.kinematics.robot import home
 from sixplus3.robot_description.robot import NUM_LEGS, Robot
 
 if TYPE_CHECKING:
@@ -193,8 +195,6 @@ def check_layout(robot: Robot) -> None:
     built, e.g. an axis turn that makes the legs collide), naming the pair and the
     overlap: :class:`~sixplus3.errors.GeometryError`.  A home the legs cannot reach is
     refused too (UnreachableError)."""
-    from sixplus3.errors import GeometryError
-    from sixplus3.kinematics.robot import home
 
     h = home(robot)
     c = float(clearance(h)[0])

@@ -17,7 +17,7 @@ angular columns scaled by the platform radius and crank columns by the crank len
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -84,7 +84,6 @@ class RobotConfig:
     def take(self, mask: np.ndarray) -> RobotConfig:
         """The rows ``mask`` ((n,) bool) as a new RobotConfig (for costly checks that
         only the surviving rows need)."""
-        from dataclasses import fields, replace
 
         def cut(obj: Any) -> Any:
             return replace(obj, **{f.name: getattr(obj, f.name)[mask] for f in fields(obj)
@@ -317,6 +316,7 @@ def robot_fk(theta: ArrayLike, robot: Robot | None, q_hint: ArrayLike | None = N
     closure residual does not drop below ``tol`` [m] within ``max_iter`` Gauss-Newton
     steps.
     """
+    # deferred: Pinocchio loads only when this runs
     import pinocchio as pin
 
     if model is not None and model.robot is not None:

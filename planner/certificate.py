@@ -55,6 +55,7 @@ import casadi as ca
 import numpy as np
 
 from sixplus3.errors import InputError
+from sixplus3.planner.solution import actuated_profile
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
@@ -110,7 +111,6 @@ def path_coefficients(robot: Robot, x: np.ndarray, xp: np.ndarray,
     """The exact dependence of the actuated rates and torques on (v, a) along the path
     with samples x(s), x'(s), x''(s), each (n, 9), from the planner's compiled model
     (:func:`planner.solution.actuated_profile`, which agrees with Pinocchio)."""
-    from sixplus3.planner.solution import actuated_profile
 
     m = robot.motors
     zero = np.zeros_like(x)

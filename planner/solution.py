@@ -10,12 +10,14 @@ CasADi expressions used inside the optimisation.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.dynamics.codegen import build_kind, compiled_profile
 from sixplus3.kinematics.checks import measure_limits
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.planner.options import PlannerOptions
@@ -109,9 +111,7 @@ class Solution:
         """The trajectory file's ``planner`` header field: how this plan was found (status,
         source, build, timings, iterations, solves, time scale, segment times, residuals,
         active limits, the dense check, the options).  Built here, once."""
-        from dataclasses import asdict
 
-        from sixplus3.dynamics.codegen import build_kind
 
         return {"status": self.status, "source": self.source,
                 "compiled": build_kind(self.robot),
@@ -165,7 +165,6 @@ def actuated_profile(robot: Robot, x: np.ndarray, xd: np.ndarray,
     motion, with ``robot``'s CasADi model (:func:`dynamics.symbolic.profile_function`,
     compiled: ~20x faster than the interpreted functions on 400 samples, the same
     numbers, BENCHMARKS.md)."""
-    from sixplus3.dynamics.codegen import compiled_profile
 
     f, p = compiled_profile(robot)
     out = f.map(len(x))(x.T, xd.T, xdd.T, p)
@@ -198,7 +197,6 @@ def dense_check(sol: Solution, factor: int = 10) -> DenseCheck:
     the optimisation; the same rule as the file validation
     (:func:`sixplus3.kinematics.checks.measure_limits`), against ``sol.limits``.
     """
-    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 
     n = (len(sol.t) - 1) * factor + 1
     times = np.linspace(0.0, sol.t[-1], n)

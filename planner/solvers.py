@@ -20,6 +20,7 @@ import casadi as ca
 import numpy as np
 
 from sixplus3.cache import BoundedCache
+from sixplus3.dynamics.codegen import compiled_functions, single_threaded_solver_blas
 from sixplus3.errors import InputError
 from sixplus3.planner.options import PlannerOptions
 from sixplus3.planner.tcp_rows import tcp_function
@@ -164,7 +165,6 @@ def ipopt_solver(problem: Problem, warm_start: bool = False) -> SolverEntry:
     task-specific value is a bound or a parameter; a task with platform-space limits
     adds their rows (:mod:`sixplus3.planner.tcp_rows`).
     """
-    from sixplus3.dynamics.codegen import compiled_functions
 
     opt = problem.options
     compiled = compiled_functions(problem.robot)
@@ -176,7 +176,6 @@ def ipopt_solver(problem: Problem, warm_start: bool = False) -> SolverEntry:
 
 def _build(problem: Problem, compiled: dict[str, ca.Function],
            warm_start: bool) -> SolverEntry:
-    from sixplus3.dynamics.codegen import single_threaded_solver_blas
 
     opt = problem.options
     node = compiled.get("node", problem.sr.node)

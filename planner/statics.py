@@ -14,9 +14,11 @@ from typing import Any
 
 import numpy as np
 
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InfeasibleTaskError
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN, pose_masks
-from sixplus3.kinematics.collision import clearance
+from sixplus3.kinematics.collision import clearance, closest
+from sixplus3.kinematics.leg import failing_chain, status_reason
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.planner.task import Task, Waypoint
 from sixplus3.robot_description.limits import Limits
@@ -51,7 +53,6 @@ def static_candidates(robot: Robot, limits: Limits, wp: Waypoint,
 def choose_static_psi(task: Task, robot: Robot, lim: Limits, locked: bool,
                       at_rest: set[int]) -> np.ndarray:
     """Per waypoint, crank angles maximising the smallest margin; raises naming the limit."""
-    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 
     dyn = ClosedLoopDynamics(robot)
     out = []
@@ -62,7 +63,6 @@ def choose_static_psi(task: Task, robot: Robot, lim: Limits, locked: bool,
         if not cfg.ok.any():
             st = next(int(s) for s in cfg.leg_status[0] if s)
             leg = int(np.flatnonzero(cfg.leg_status[0])[0])
-            from sixplus3.kinematics.leg import failing_chain, status_reason
 
             raise InfeasibleTaskError(
                 f"{where} is outside the workspace: leg {leg} {failing_chain(st)} chain: "
@@ -81,8 +81,6 @@ def choose_static_psi(task: Task, robot: Robot, lim: Limits, locked: bool,
                 "every crank choice", k, "spherical joints",
                 value=wp.position.tolist(), valid=f"<= {math.degrees(lim.spherical):g} deg")
         if not clear_ok.any():
-            from sixplus3.kinematics.collision import closest
-
             c = clearance(cfg, sph_ok)
             a, b, d = closest(cfg, int(np.argmax(c)))
             raise InfeasibleTaskError(

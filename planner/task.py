@@ -52,8 +52,9 @@ import jsonschema
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from sixplus3.errors import GeometryError, InputError, TaskError
+from sixplus3.errors import ConvergenceError, GeometryError, InputError, TaskError
 from sixplus3.fileio import read_yaml, short_repr
+from sixplus3.kinematics.robot import robot_fk
 from sixplus3.planner.waypoint import Waypoint
 from sixplus3.robot_description.hardware import PEOPLE_LIMITS, effective_limits, people_limits
 from sixplus3.robot_description.limits import Limits
@@ -248,9 +249,6 @@ class Task:
             wps = [Waypoint(*robot.tool.platform_pose(wp.position, wp.rotation), wp.psi,
                             wp.stop, wp.dwell) for wp in wps]
         if self.start_theta is not None:
-            from sixplus3.errors import ConvergenceError
-            from sixplus3.kinematics.robot import robot_fk
-
             try:
                 fk = robot_fk(self.start_theta, robot)
             except ConvergenceError as exc:

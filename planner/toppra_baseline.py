@@ -23,6 +23,7 @@ import toppra.constraint as constraint
 from toppra.constraint.linear_constraint import canlinear_colloc_to_interpolate
 
 from sixplus3.errors import InfeasibleTaskError, InputError
+from sixplus3.planner.solution import actuated_profile
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
@@ -93,7 +94,6 @@ def grid_inv_dyn(robot: Robot) -> Any:
     """TOPP-RA's inverse dynamics over a grid: (q, qd, qdd), (m, 9) each, to the (m, 27)
     rows [tau; theta_ddot; theta_dot^2], in one mapped call of the planner's compiled
     profile function (:func:`planner.solution.actuated_profile`)."""
-    from sixplus3.planner.solution import actuated_profile
 
     def inv_dyn(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         thd, thdd, tau, _ = actuated_profile(robot, q, qd, qdd)

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from sixplus3.errors import GeometryError, LimitError
+from sixplus3.fileio import parse_yaml, read_bytes
 from sixplus3.robot_description.limits import Limits
 
 
@@ -241,7 +242,6 @@ def hardware_from_dict(doc: object, origin: str) -> Hardware:
 
 def load_hardware(path: str | Path) -> Hardware:
     """The site hardware file at ``path`` (YAML or JSON); its SHA-256 is its origin."""
-    from sixplus3.fileio import parse_yaml, read_bytes
 
     raw = read_bytes(path, "hardware file")
     try:

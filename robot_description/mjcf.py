@@ -41,6 +41,7 @@ import numpy as np
 import pinocchio as pin
 
 from sixplus3.cache import cached
+from sixplus3.errors import InputError
 from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import Robot, require_robot
 from sixplus3.robot_description.urdf import _f, _vec, actuated_joint_names, closure_pairs
@@ -89,8 +90,6 @@ def build_mjcf(robot: Robot, timestep: float = TIMESTEP,
     between the links of different legs (module doc)."""
     robot = require_robot(robot)
     if not (math.isfinite(timestep) and 1e-6 <= timestep <= 1e-2):
-        from sixplus3.errors import InputError
-
         raise InputError(f"timestep {timestep!r} s out of range", value=timestep,
                          valid="[1e-6, 1e-2] s")
     clm = closed_loop_model(robot)
@@ -199,7 +198,6 @@ def build_mjcf(robot: Robot, timestep: float = TIMESTEP,
         qpos, ctrl = (np.asarray(k, dtype=float).ravel() for k in keyframe)
         if qpos.shape != (m.nq,) or ctrl.shape != (len(act),) or not (
                 np.isfinite(qpos).all() and np.isfinite(ctrl).all()):
-            from sixplus3.errors import InputError
 
             raise InputError("the keyframe must be finite qpos of the model and 9 torques",
                              value=(qpos.shape, ctrl.shape), valid=f"({m.nq},), (9,)")

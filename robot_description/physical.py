@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from sixplus3.errors import GeometryError
 from sixplus3.robot_description.hardware import check_motors
@@ -244,7 +245,6 @@ class Tool:
     @property
     def rotation(self) -> np.ndarray:
         """R_platform_tcp (3, 3)."""
-        from scipy.spatial.transform import Rotation
 
         return Rotation.from_euler("xyz", self.rpy).as_matrix()  # Rz(y) Ry(p) Rx(r)
 

@@ -29,7 +29,8 @@ from typing import Any
 import numpy as np
 
 from sixplus3 import fileio
-from sixplus3.errors import GeometryError
+from sixplus3.errors import GeometryError, InputError
+from sixplus3.fileio import read_yaml
 from sixplus3.robot_description.assembly import AssemblyMode
 from sixplus3.robot_description.collision import CollisionModel
 from sixplus3.robot_description.geometry import GRAVITY, LegGeometry
@@ -438,8 +439,6 @@ def require_robot(robot: object) -> Robot:
     """``robot`` itself if it is a :class:`Robot`, else an InputError: library functions
     take their robot explicitly (only the CLI and ``sixplus3.plan`` choose the default)."""
     if not isinstance(robot, Robot):
-        from sixplus3.errors import InputError
-
         raise InputError("robot must be a Robot (Robot.default(), load_robot)",
                          value=type(robot).__name__, valid="a Robot")
     return robot
@@ -448,6 +447,5 @@ def require_robot(robot: object) -> Robot:
 def load_robot(path: str | Path) -> Robot:
     """A robot from a YAML or JSON file of :meth:`Robot.as_dict`'s structure (missing
     keys keep the defaults; unknown keys are refused)."""
-    from sixplus3.fileio import read_yaml
 
     return Robot.from_dict(read_yaml(path, "robot file"))

@@ -14,6 +14,8 @@ from collections import OrderedDict
 from collections.abc import Callable, Hashable
 from typing import Any, Generic, TypeVar
 
+from sixplus3.errors import InputError
+
 V = TypeVar("V")
 
 
@@ -26,8 +28,6 @@ class BoundedCache(Generic[V]):
 
     def __init__(self, size: int) -> None:
         if isinstance(size, bool) or not isinstance(size, int) or size < 1:
-            from sixplus3.errors import InputError
-
             raise InputError(f"cache size must be a positive integer, got {size!r}",
                              value=size, valid=">= 1")
         self.size = size

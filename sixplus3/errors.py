@@ -123,6 +123,7 @@ class ValidationFailed(Sixplus3Error):
 def as_float_array(value: object, name: str, valid: str) -> np.ndarray:
     """``numpy.asarray(value, dtype=float)``, or an :class:`InputError` naming ``name``
     and ``valid`` for anything that is not numbers (None, text, a mapping, ragged lists)."""
+    # deferred: errors stay importable without numpy (--help)
     import numpy as np
 
     try:

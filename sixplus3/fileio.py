@@ -20,6 +20,7 @@ import contextlib
 import errno
 import os
 import re
+import stat
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -227,7 +228,6 @@ UMASK = _umask()
 def _check_target(path: Path) -> None:
     """Only a regular file, a link (replaced itself, never followed) or nothing may be at
     ``path``, in an existing directory."""
-    import stat
 
     try:
         mode = os.lstat(path).st_mode

@@ -19,6 +19,7 @@ IPOPT iterations reach it through CasADi's ``iteration_callback`` (see
 
 from __future__ import annotations
 
+import shutil
 import sys
 from typing import Any, Protocol, TextIO, runtime_checkable
 
@@ -84,8 +85,7 @@ class ConsoleProgress:
             print(f"    {line}", file=self.stream, flush=True)
         else:
             if self._bar is None:
-                import shutil
-
+                # deferred: the progress lines load tqdm only when drawn (--help)
                 from tqdm import tqdm
 
                 # a terminal that reports a 0 x 0 size (a bare pty) would hide the line

@@ -260,3 +260,34 @@ def test_each_rule_lives_in_one_place() -> None:
                         found[call].add(str(path.relative_to(root)))
     for call, allowed in ONE_PLACE.items():
         assert found[call] and found[call] <= allowed, (call, found[call] - allowed)
+
+
+def test_every_import_inside_a_function_says_why() -> None:
+    """An import inside a library function defers a heavy or optional library (or keeps
+    `--help` light), and says so in a `# deferred: ...` comment just above or on it;
+    every other import is at the top of its module (the CLI is exempt: its commands
+    import inside themselves so that `--help` loads no numpy)."""
+    root = Path(__file__).parents[1]
+    folders = ["robot_description", "kinematics", "dynamics", "planner", "control",
+               "design", "visualization", "identification", "interaction"]
+    files = [p for f in folders for p in (root / f).rglob("*.py")]
+    files += list((root / "sixplus3").glob("*.py"))
+    missing = []
+    for path in files:
+        src = path.read_text()
+        lines = src.splitlines()
+        tree = ast.parse(src)
+        parents = {ch: node for node in ast.walk(tree) for ch in ast.iter_child_nodes(node)}
+        for node in ast.walk(tree):
+            if not isinstance(node, (ast.Import, ast.ImportFrom)):
+                continue
+            anc, in_function, type_only = parents.get(node), False, False
+            while anc is not None:
+                in_function |= isinstance(anc, (ast.FunctionDef, ast.AsyncFunctionDef))
+                type_only |= isinstance(anc, ast.If) and "TYPE_CHECKING" in ast.unparse(anc.test)
+                anc = parents.get(anc)
+            if in_function and not type_only:
+                i = node.lineno - 1
+                if "# deferred:" not in " ".join(lines[max(0, i - 3):node.end_lineno]):
+                    missing.append(f"{path.relative_to(root)}:{node.lineno}")
+    assert not missing, missing

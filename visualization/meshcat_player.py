@@ -9,7 +9,10 @@ meshcat-python #87): one visualizer per process, reused.
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import html
+import io
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,6 +20,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from sixplus3.fileio import atomic_write
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import Robot
@@ -77,9 +81,8 @@ def frames_from_samples(robot: Robot, t: Any, position: Any, quaternion: Any, ps
 @functools.lru_cache(maxsize=1)
 def _server() -> Any:
     """The one meshcat server of this process (meshcat-python #87)."""
-    import contextlib
-    import io
 
+    # deferred: meshcat loads only when this runs
     import meshcat
 
     # meshcat prints its server's URL on creation: a dead URL when only a page is
@@ -92,6 +95,7 @@ def _server() -> Any:
 def _frame_camera(vis: Any, robot: Robot) -> None:
     """The camera orbits a point about halfway up the robot (base at z = 0, platform at
     its home height h), 1.9 h away, a little above it (meshcat's camera frame is y-up)."""
+    # deferred: meshcat loads only when this runs
     import meshcat.transformations as tf
 
     h = max(float(robot.home_position[2]), 0.1)
@@ -106,6 +110,7 @@ _LOADED: dict[str, object] = {}
 
 def _viewer(robot: Robot) -> tuple[Any, Any]:
     """The server with ``robot`` loaded (its URDF visuals; reloaded for another robot)."""
+    # deferred: Pinocchio loads only when this runs
     import pinocchio as pin
     from pinocchio.visualize import MeshcatVisualizer
 
@@ -123,6 +128,7 @@ def _viewer(robot: Robot) -> tuple[Any, Any]:
 
 def animate(frames: Frames) -> Any:
     """Load the animation into the (single) viewer; returns the meshcat Visualizer."""
+    # deferred: meshcat loads only when this runs
     import meshcat.animation
 
     vis, viz = _viewer(frames.robot)
@@ -143,6 +149,7 @@ def animate(frames: Frames) -> Any:
 def _overlay(vis: Any, frames: Frames) -> None:
     """The floor, the platform centre's path as a line, a small sphere at each marked
     point (magenta: at rest) and at each waypoint (green)."""
+    # deferred: meshcat loads only when this runs
     import meshcat.geometry as g
     import meshcat.transformations as tf
 
@@ -177,9 +184,7 @@ def _distinct(points: np.ndarray, tol: float = 1e-4) -> list[np.ndarray]:
 
 def write_html(frames: Frames, out: str | Path) -> Path:
     """A self-contained page (JS inlined, no network) with the animation; atomic."""
-    import html
 
-    from sixplus3.fileio import atomic_write
 
     vis = animate(frames)
     out = Path(out)

@@ -8,6 +8,7 @@ the nine joints share a panel, a leg is a colour and a joint (A, B, C) a line st
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +34,6 @@ def subtitle(robot: Robot, limits: Limits, planned_torque: float | None = None) 
              f"margin {limits.margin:g}"]
     if limits.has_tcp:
         parts.append(f"platform {limits.tcp_speed:g} m/s, {limits.tcp_acceleration:g} m/s^2")
-    import textwrap
 
     return "\n".join(textwrap.wrap(f"robot {robot.name} ({robot.hash[:8]}); limits: "
                                    + ", ".join(parts), 96))
@@ -52,9 +52,11 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t: Any, theta: Any, tau: 
     with the hardware limits (red, dashed) and the torque planned to (orange, dotted);
     legends sit outside the axes so that no limit line is hidden.  ``limits``: those the
     file was planned to (default: the robot's), named in every title."""
+    # deferred: matplotlib loads only when this runs
     import matplotlib
 
     matplotlib.use("Agg")
+    # deferred: matplotlib loads only when this runs
     import matplotlib.pyplot as plt
 
     out = Path(out_dir)

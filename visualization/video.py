@@ -23,6 +23,8 @@ from typing import Any
 import numpy as np
 
 from sixplus3.errors import InputError
+from sixplus3.fileio import atomic_write
+from sixplus3.visualization.meshcat_player import write_html
 
 #: The largest number of frames one video renders (about a minute at 20 fps).
 MAX_FRAMES = 1200
@@ -59,6 +61,7 @@ class _DevTools:
     """A minimal DevTools-protocol client of one page of a headless Chromium."""
 
     def __init__(self, url: str, size: tuple[int, int], timeout: float = 60.0) -> None:
+        # deferred: websockets (optional) loads only when this runs
         from websockets.sync.client import connect
 
         self.profile = tempfile.mkdtemp(prefix="sixplus3-chromium-")
@@ -143,10 +146,9 @@ def render_video(frames: Any, out: str | Path, fps: float = 20.0,
     """Write the playback of ``frames`` (:class:`~.meshcat_player.Frames`) as an MP4 or a
     GIF (by ``out``'s suffix), atomically; returns its path.  ``size``: pixels, each a
     multiple of 8 (the video codec's blocks)."""
+    # deferred: imageio (optional) loads only when this runs
     import imageio.v3 as iio
 
-    from sixplus3.fileio import atomic_write
-    from sixplus3.visualization.meshcat_player import write_html
 
     out = Path(out)
     if out.suffix.lower() not in SUFFIXES:

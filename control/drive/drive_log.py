@@ -241,6 +241,7 @@ def read_bag_log(path: Path, robot: Robot, topic: str = "/joint_states") -> Driv
     """A log from a rosbag2 bag's ``sensor_msgs/JointState`` messages (positions and
     efforts of the nine actuated joints by name; stamps from the headers)."""
     try:
+        # deferred: rosbags (optional) loads only when this runs
         from rosbags.highlevel import AnyReader
     except ImportError:  # pragma: no cover - depends on the install
         raise InputError("reading bags needs rosbags: pip install 'sixplus3[ros]'",

@@ -33,6 +33,7 @@ from sixplus3.control.gate.validation import (
     validate_motion,
 )
 from sixplus3.errors import InputError, ValidationFailed
+from sixplus3.kinematics.robot import home, robot_fk_batch
 from sixplus3.kinematics.rotations import rotvec_from_quat
 from sixplus3.robot_description.robot import Robot
 
@@ -119,7 +120,6 @@ def robot_pose_from_home(robot: Robot, theta: np.ndarray) -> np.ndarray | None:
     angles ``theta``, on the assembly branch of its home pose: forward kinematics
     continued along the straight path in joint space from home (the robot was assembled
     at home and moves continuously).  None if the continuation fails."""
-    from sixplus3.kinematics.robot import home, robot_fk_batch
 
     h = home(robot)
     x = np.r_[np.asarray(robot.home_position), np.zeros(3), np.asarray(robot.home_psi)]

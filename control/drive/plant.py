@@ -23,6 +23,7 @@ monitor (``torque_noise``, default 0.005 N m).
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,7 +31,14 @@ import numpy as np
 
 from sixplus3.control.drive.drive_log import DriveLog
 from sixplus3.control.drive.simulation import KD, KP, MujocoRobot, first_configuration
-from sixplus3.errors import InputError
+from sixplus3.control.file.trajectory_file import columns
+from sixplus3.control.file.trajectory_parse import NUMBER
+from sixplus3.control.gate.interval import held_torque
+from sixplus3.control.gate.validation import validate_file
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.errors import InputError, ValidationFailed
+from sixplus3.fileio import read_text
+from sixplus3.kinematics.robot import home
 from sixplus3.robot_description.mjcf import TIMESTEP
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -57,10 +65,7 @@ class WrenchProfile:
 def read_wrench_profile(path: str | Path) -> WrenchProfile:
     """A wrench profile CSV: a header ``t,fx,fy,fz,mx,my,mz`` (``#`` comments allowed),
     times increasing, every value a finite number (|f| <= 500 N, |m| <= 50 N m)."""
-    import re
 
-    from sixplus3.control.file.trajectory_parse import NUMBER
-    from sixplus3.fileio import read_text
 
     num = re.compile(NUMBER)
     lines = [ln.strip() for ln in read_text(path, "wrench profile").splitlines()]
@@ -105,10 +110,6 @@ def run_on_plant(path: str | Path, model: Robot, plant: Robot, seed: int = 0,
     """Validate ``path`` for the planning ``model`` (the gate: only a valid file runs),
     then run it on ``plant`` in MuJoCo and log it (module doc).  ``hold`` [s]: keep
     commanding the last sample this long after the motion (a hold at rest)."""
-    from sixplus3.control.file.trajectory_file import columns
-    from sixplus3.control.gate.interval import held_torque
-    from sixplus3.control.gate.validation import validate_file
-    from sixplus3.errors import ValidationFailed
 
     model, plant = require_robot(model), require_robot(plant)
     if plant.geometry != model.geometry or plant.mode != model.mode:
@@ -190,8 +191,6 @@ def run_jog(plant: Robot, amplitude: float = 0.1, each: float = 1.2,
     joint angles (quantised to a count) and the applied torques; write it in the drive's
     units with the plant's own offsets and directions (``write_log(..., units="drive")``)
     to get what the drives would report."""
-    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-    from sixplus3.kinematics.robot import home
 
     plant = require_robot(plant)
     for name, v, lo, hi in (("amplitude", amplitude, 0.0, 0.5), ("each", each, 0.2, 30.0),

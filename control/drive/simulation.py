@@ -28,9 +28,15 @@ from typing import Any
 
 import numpy as np
 
+from sixplus3.control.file.trajectory_file import columns
+from sixplus3.control.gate.interval import check_torque_hold, held_torque
+from sixplus3.control.gate.validation import FEEDFORWARD_TOL, check_rate, validate_file
 from sixplus3.control.report import ValidationReport
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError
-from sixplus3.robot_description.mjcf import TIMESTEP, build_mjcf
+from sixplus3.kinematics.robot import home, robot_ik
+from sixplus3.kinematics.rotations import matrix_from_quat
+from sixplus3.robot_description.mjcf import TIMESTEP, build_mjcf, qpos_from_q
 from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import Robot, require_robot
 from sixplus3.robot_description.urdf import actuated_joint_names, closure_pairs
@@ -42,6 +48,7 @@ KP, KD = 300.0, 6.0
 
 def _mujoco() -> Any:
     try:
+        # deferred: MuJoCo loads only when this runs
         import mujoco
     except ImportError:  # pragma: no cover - depends on the install
         raise InputError("MuJoCo is not installed: pip install 'sixplus3[sim]'",
@@ -210,9 +217,6 @@ def export_mjcf(robot: Robot, contacts: bool = False) -> str:
     whose ctrl holds it against gravity (Pinocchio's closed-loop holding torques);
     ``contacts`` between the links of different legs.  ``mujoco.mj_resetDataKeyframe(m,
     d, 0)`` starts it assembled."""
-    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-    from sixplus3.kinematics.robot import home
-    from sixplus3.robot_description.mjcf import qpos_from_q
 
     robot = require_robot(robot)
     q = home(robot).q[0]
@@ -239,7 +243,6 @@ def simulate(robot: Robot, q0: np.ndarray, theta: np.ndarray, theta_dot: np.ndar
     kp = _check("kp", kp, 0.0, 1e5)
     kd = _check("kd", kd, 0.0, 1e4)
     s = _check("feedforward_scale", feedforward_scale, 0.0, 2.0)
-    from sixplus3.control.gate.validation import check_rate
 
     rate = check_rate(rate, name="rate")
     n_sub = round(1.0 / (rate * timestep))
@@ -283,8 +286,6 @@ def simulate(robot: Robot, q0: np.ndarray, theta: np.ndarray, theta_dot: np.ndar
 def first_configuration(robot: Robot, rep: ValidationReport) -> np.ndarray:
     """Pinocchio configuration of a validated report's first sample (its platform pose
     and crank angles from the validator's own forward kinematics)."""
-    from sixplus3.kinematics.robot import robot_ik
-    from sixplus3.kinematics.rotations import matrix_from_quat
 
     assert rep.quaternion is not None and rep.position is not None and rep.psi is not None
     R = matrix_from_quat(rep.quaternion[0])[0]
@@ -302,9 +303,6 @@ def simulate_file(path: str | Path, robot: Robot, kp: float = KP,
     violated limit (exit code 1), the simulation is None.  ``torque_hold``: the
     feed-forward held over each tick (:func:`sixplus3.control.gate.interval.held_torque`).
     """
-    from sixplus3.control.file.trajectory_file import columns
-    from sixplus3.control.gate.interval import check_torque_hold, held_torque
-    from sixplus3.control.gate.validation import validate_file
 
     robot = require_robot(robot)
     check_torque_hold(torque_hold)  # a bad mode is refused before the work
@@ -342,10 +340,6 @@ def engine_check(robot: Robot, rep: ValidationReport, kp: float = KP, kd: float 
     MuJoCo's constrained inverse dynamics on every sample (a defect beyond the
     validator's feed-forward tolerance), then the closed-loop replay's peak total torque
     against the hardware limit (a violation above it)."""
-    from sixplus3.control.file.trajectory_file import columns
-    from sixplus3.control.gate.validation import FEEDFORWARD_TOL
-    from sixplus3.kinematics.robot import robot_ik
-    from sixplus3.kinematics.rotations import matrix_from_quat
 
     if rep.data is None or rep.position is None or rep.quaternion is None:
         raise InputError("engine_check needs a report of validate_file with its samples",
@@ -355,7 +349,6 @@ def engine_check(robot: Robot, rep: ValidationReport, kp: float = KP, kd: float 
     tau, res = mujoco_inverse_dynamics(robot, q, columns(data, "vel"), columns(data, "acc"))
     ff = float(np.abs(tau - columns(data, "tau")).max())
     rate = float(rep.header["rate_hz"]) if rep.header else float("nan")
-    from sixplus3.control.gate.interval import held_torque
 
     sim = simulate(robot, q[0], columns(data, "pos"), columns(data, "vel"),
                    held_torque(columns(data, "tau"), torque_hold), rate, kp, kd)

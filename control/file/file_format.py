@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from sixplus3.errors import InputError
 from sixplus3.robot_description.urdf import actuated_joint_names
 
 FORMAT = "sixplus3-trajectory/2"
@@ -106,7 +107,6 @@ def columns(data: np.ndarray, kind: str) -> np.ndarray:
         return data[:, _JOINT_COLUMNS[kind]]
     if kind in PLATFORM_BLOCKS:
         return data[:, PLATFORM_BLOCKS[kind]]
-    from sixplus3.errors import InputError
 
     raise InputError(f"no column kind {kind!r} in a trajectory file", value=kind,
                      valid=", ".join([*JOINT_KINDS, *PLATFORM_BLOCKS]))

@@ -404,6 +404,7 @@ class TrajectoryData(NamedTuple):
 
     def to_pandas(self, unit_names: bool = False) -> pd.DataFrame:
         try:
+            # deferred: pandas (optional) loads only when this runs
             import pandas as pd
         except ImportError:
             raise InputError("to_pandas needs pandas: pip install pandas", value=None,

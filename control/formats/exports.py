@@ -38,10 +38,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from sixplus3.control.drive.drive_log import to_drive_units
+from sixplus3.control.file.trajectory_file import columns
+from sixplus3.control.gate.interval import check_torque_hold, held_torque, hermite
+from sixplus3.control.gate.validation import (
+    INTERPOLATED_RATE_RANGE,
+    RATE_RANGE,
+    check_rate,
+    resample,
+    validate_file,
+    validate_motion,
+)
 from sixplus3.control.report import ValidationReport
-from sixplus3.errors import ValidationFailed
+from sixplus3.errors import InputError, ValidationFailed
 from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
 
@@ -128,7 +139,6 @@ def densify(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray,
     (what a JointTrajectoryController makes of positions, velocities and accelerations),
     sampled at ``dense_rate``, a whole multiple of ``rate``: (t, theta, theta_dot,
     theta_ddot, x_seed), every exported point one of the dense samples."""
-    from sixplus3.control.gate.interval import hermite
 
     m = int(round(dense_rate / rate))
     n = len(t)
@@ -143,7 +153,6 @@ def densify(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray,
 def dense_rate_for(rate: float) -> float:
     """The rate the interpolated motion between exported points is checked at: the
     lowest whole multiple of ``rate`` of at least 1 kHz (the gate's own contract)."""
-    from sixplus3.control.gate.validation import RATE_RANGE
 
     return rate * math.ceil(RATE_RANGE[0] / rate - 1e-9)
 
@@ -152,7 +161,6 @@ def _check_interpolated(rep: ValidationReport, robot: Robot,
                         rate: float) -> tuple[Any, ...]:
     """(t, theta, theta_dot, theta_ddot, tau, report at the points, report of the dense
     motion) of the validated motion of ``rep`` resampled at ``rate``."""
-    from sixplus3.control.gate.validation import INTERPOLATED_RATE_RANGE, resample, validate_motion
 
     t, th, v, a, x = resample(rep, rate)
     again = validate_motion(t, th, v, a, robot, rate, x, rate_range=INTERPOLATED_RATE_RANGE)
@@ -176,7 +184,6 @@ def decimate(rep: ValidationReport, robot: Robot, rate: float) -> tuple[Any, ...
     failed check and the lowest safe rate among the file rate's whole fractions.
     Returns (t, theta, theta_dot, theta_ddot, tau, report); raises ValidationFailed or
     InputError."""
-    from sixplus3.control.gate.validation import INTERPOLATED_RATE_RANGE, check_rate
 
     assert rep.header is not None  # a report of validate_file
     r0 = float(rep.header["rate_hz"])
@@ -239,10 +246,6 @@ def export_file(path: str | Path, robot: Robot, fmt: str,
     ROS 2 forms, whose controllers interpolate between points).  ``rate`` (ROS 2 forms):
     decimate to this rate first (:func:`decimate`, validated again); ``goal``: the ROS 2
     forms as a FollowJointTrajectory goal (:func:`follow_joint_trajectory_goal`)."""
-    from sixplus3.control.file.trajectory_file import columns
-    from sixplus3.control.gate.interval import check_torque_hold, held_torque
-    from sixplus3.control.gate.validation import validate_file
-    from sixplus3.errors import InputError
 
     if fmt not in FORMATS:
         raise InputError(f"unknown export format {fmt!r}", value=fmt,
@@ -271,8 +274,6 @@ def export_file(path: str | Path, robot: Robot, fmt: str,
         if fmt == "ros2-json":
             return json.dumps(msg) + "\n"
         if goal:
-            import yaml
-
             tolerances = {k: v for k, v in msg.items() if k != "trajectory"}
             body = ros2_yaml(msg["trajectory"])
             return ("trajectory:\n" + "".join(f"  {line}\n" for line in body.splitlines())

@@ -14,6 +14,7 @@ clock (``use_sim_time``): a motion of 0.1 s is watched at ``rate:=0.1`` or slowe
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from sixplus3.fileio import atomic_write
@@ -114,9 +115,8 @@ def write_replay_files(bag_dir: str | Path, robot: Robot, joint_names: list[str]
     """Write :data:`FILES` into ``bag_dir`` (each atomically): the robot's URDF, the RViz
     configuration and the launch file; ``joint_names`` (the bag's ``/joint_states``)
     must all be joints of the URDF."""
-    import xml.etree.ElementTree as ET
 
-    from sixplus3 import __version__
+    from sixplus3 import __version__  # deferred: the top-level package imports its parts lazily
 
     d = Path(bag_dir)
     urdf = robot_urdf(robot)

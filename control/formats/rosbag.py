@@ -43,8 +43,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
+from sixplus3.control.file.trajectory_file import columns
+from sixplus3.control.formats.exports import ros2_joint_trajectory
+from sixplus3.control.formats.ros_replay import write_replay_files
+from sixplus3.control.gate.validation import validate_file
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError, ValidationFailed
+from sixplus3.fileio import atomic_write
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.kinematics.rotations import matrix_from_quat
 from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import Robot
 
@@ -60,6 +69,7 @@ WRITER_VERSION = {"humble": 8, "jazzy": 9}
 def _qos() -> list[Any]:
     """The QoS offered on every topic (in the MCAP channels and the metadata): keep last
     10, reliable, volatile, automatic liveliness, durations unspecified (0)."""
+    # deferred: rosbags (optional) loads only when this runs
     from rosbags.interfaces import (
         Qos,
         QosDurability,
@@ -122,9 +132,7 @@ def humble_metadata(doc: dict[str, Any]) -> dict[str, Any]:
 
 def _finish_metadata(bag: Path, distro: str) -> None:
     """Rewrite the bag's ``metadata.yaml`` for ``distro`` (atomically)."""
-    import yaml
 
-    from sixplus3.fileio import atomic_write
 
     meta = bag / "metadata.yaml"
     doc = yaml.safe_load(meta.read_text())
@@ -137,6 +145,7 @@ def _finish_metadata(bag: Path, distro: str) -> None:
 
 def _rosbags() -> tuple[Any, Any, Any]:
     try:
+        # deferred: rosbags (optional) loads only when this runs
         from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.typesys import Stores, get_typestore
     except ImportError:
@@ -171,13 +180,6 @@ def write_rosbag2(path: str | Path, robot: Robot, out_dir: str | Path,
     data (module doc).  Raises :class:`ValidationFailed` for a file that fails the gate
     and :class:`InputError` for an existing output, a bad distribution or start time,
     or a missing ``rosbags``."""
-    from sixplus3.control.file.trajectory_file import columns
-    from sixplus3.control.formats.exports import ros2_joint_trajectory
-    from sixplus3.control.formats.ros_replay import write_replay_files
-    from sixplus3.control.gate.validation import validate_file
-    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-    from sixplus3.kinematics.robot import robot_ik
-    from sixplus3.kinematics.rotations import matrix_from_quat
 
     check_distro(distro)
     if start_ns is None:

@@ -48,6 +48,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from sixplus3.control.file.file_format import columns
+from sixplus3.errors import InputError
 from sixplus3.kinematics.rotations import rotvec_from_quat
 
 if TYPE_CHECKING:
@@ -264,8 +265,6 @@ TORQUE_HOLDS = ("sample", "mean")
 def check_torque_hold(hold: object) -> str:
     """``hold`` if it is one of :data:`TORQUE_HOLDS`, else an InputError naming them."""
     if hold not in TORQUE_HOLDS:
-        from sixplus3.errors import InputError
-
         raise InputError(f"torque hold must be one of {', '.join(TORQUE_HOLDS)}, got "
                          f"{hold!r}", value=hold, valid=", ".join(TORQUE_HOLDS))
     return str(hold)

@@ -163,6 +163,7 @@ def _may_fork() -> bool:
     if (sys.platform != "linux" or threading.active_count() != 1
             or os.environ.get("SIXPLUS3_NO_FORK", "") not in ("", "0")):
         return False
+    # deferred: numba loads only when this runs
     import numba
 
     try:

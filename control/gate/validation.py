@@ -36,6 +36,7 @@ from sixplus3.control.file.trajectory_file import (
     parse,
     read_bytes,
     samples_fingerprint,
+    write_trajectory,
 )
 from sixplus3.control.gate import interval
 from sixplus3.control.gate.findings import (  # noqa: F401 - Tolerances, Finding, ... re-exported
@@ -66,7 +67,7 @@ from sixplus3.control.gate.motion_input import (  # noqa: E402,F401 - re-exporte
 )
 from sixplus3.control.gate.offload import OFFLOAD_SHARE, Offload
 from sixplus3.control.report import Finding, ValidationReport  # noqa: F401 - re-exported
-from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed
+from sixplus3.errors import InputError, LimitError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.checks import (
     range_excess,
@@ -355,7 +356,6 @@ def _header_limits(header: dict, robot: Robot, name: str) -> Limits:
     limits (a task's, e.g. a tool centre point speed): the gate judges the file by them
     too.  A header can only make the gate stricter: a limit looser than the hardware's,
     an unknown one or a value of the wrong type is a forged or corrupted file."""
-    from sixplus3.errors import LimitError
 
     doc = header.get("limits", {})
     if not isinstance(doc, dict):
@@ -399,7 +399,6 @@ def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
     write it as one atomic trajectory file: (path, report).  Raises
     :class:`~sixplus3.errors.ValidationFailed` (exit code 1 or 2, every finding) and
     writes nothing otherwise."""
-    from sixplus3.control.file.trajectory_file import write_trajectory
 
     rep = validate_joint_trajectory(theta, theta_dot, theta_ddot, robot, rate, x_guess,
                                     limits, t=t)
