@@ -275,3 +275,17 @@ def test_names_are_printable_and_numbers_strict(tmp_path) -> None:
     for bad in ("1_000", "inf", "nan", "0x10", "1e3.5"):
         res = _run(["plan", "tilt30_x", "--rate", bad, "-o", str(tmp_path)])
         assert res.exit_code == 2 and "is not a number" in res.output, (bad, res.output)
+
+
+def test_no_command_writes_over_its_robot_file(tmp_path) -> None:
+    """The invocation's --robot file is an input of every command: an output named after
+    it is refused (exit 2, one line) and the file is kept."""
+    from sixplus3.identification.report import robot_yaml
+
+    path = tmp_path / "robot.yaml"
+    path.write_text(robot_yaml(ROBOT))
+    before = path.read_bytes()
+    res = _run(["--robot", str(path), "commission", "zero", "--counts", *["0"] * 9,
+                "-o", str(path)])
+    assert res.exit_code == 2 and "input" in res.output and "Traceback" not in res.output
+    assert path.read_bytes() == before

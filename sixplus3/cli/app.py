@@ -140,10 +140,13 @@ def check_output(out_path: str | None, inputs: tuple[str | None, ...] = (),
     """Refuse (exit 2) an output that is one of the command's inputs (the same path or
     the same file through a link), or, without ``force``, an existing trajectory file:
     no command replaces what it reads, or a validated trajectory, by another kind of
-    file."""
+    file.  The invocation's ``--robot`` file counts as an input of every command."""
     if out_path is None:
         return
-    for src in inputs:
+    ctx = click.get_current_context(silent=True)
+    robot_file = ((ctx.find_root().obj or {}).get("robot_file") if ctx is not None
+                  else None)
+    for src in (*inputs, robot_file):
         if src is None or not os.path.exists(src) or not os.path.exists(out_path):
             continue
         try:
