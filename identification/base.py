@@ -106,12 +106,27 @@ def states_of(robot: Robot, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def stacked_regressor(dyn: ClosedLoopDynamics, theta: np.ndarray, theta_dot: np.ndarray,
-                      theta_ddot: np.ndarray) -> np.ndarray:
+                      theta_ddot: np.ndarray, x_known: np.ndarray | None = None
+                      ) -> np.ndarray:
     """(n, 9, P) the regressor of n states of ``dyn``'s robot given by their actuated
     angles; a state whose forward kinematics fails or that is singular is an InputError
-    (a log that is not a motion of this robot)."""
+    (a log that is not a motion of this robot).
+
+    ``x_known`` (n, 9): the states' minimal coordinates when they are known (a planned
+    motion's own, not a log's): each sample's forward kinematics then starts there, and
+    a failure says that the plan, not a log, has no pose there."""
     assert dyn.robot is not None
-    q, ok = states_of(dyn.robot, theta)
+    if x_known is not None:
+        fk = robot_fk_batch(np.asarray(theta, float), np.asarray(x_known, float), dyn.robot,
+                            margins=False)
+        q, ok = fk.cfg.q, fk.converged
+        if not ok.all():
+            k = int(np.argmin(ok))
+            raise InputError(f"the planned state {k} has no pose of this robot near the "
+                             "plan's own (the smoothed motion left the plan's branch)",
+                             value=k, valid="states the planner produced")
+    else:
+        q, ok = states_of(dyn.robot, theta)
     if not ok.all():
         k = int(np.argmin(ok))
         raise InputError(f"no pose of this robot has the logged angles of sample {k} (is "

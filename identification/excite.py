@@ -114,11 +114,15 @@ def _tour_task(robot: Robot, rng: np.random.Generator, st: ExcitationSettings,
 
 
 def base_regressor(dyn: ClosedLoopDynamics, base: BaseParameters, theta: np.ndarray,
-               theta_dot: np.ndarray, theta_ddot: np.ndarray, rate: float) -> np.ndarray:
-
+                   theta_dot: np.ndarray, theta_ddot: np.ndarray, rate: float,
+                   x_known: np.ndarray | None = None) -> np.ndarray:
+    """The base regressor of a motion's samples at :data:`SCORE_RATE`; ``x_known``: the
+    planned motion's own minimal coordinates (no search for a pose, see
+    :func:`stacked_regressor`)."""
     step = max(1, int(round(rate / SCORE_RATE)))
     sl = slice(0, None, step)
-    Y = stacked_regressor(dyn, theta[sl], theta_dot[sl], theta_ddot[sl])
+    Y = stacked_regressor(dyn, theta[sl], theta_dot[sl], theta_ddot[sl],
+                          None if x_known is None else x_known[sl])
     return base.reduce(Y).reshape(-1, base.rank)
 
 
@@ -137,7 +141,13 @@ def plan_tours(robot: Robot, st: ExcitationSettings, base: BaseParameters,
             refused += 1
             say(f"  tour {k}: refused ({str(exc)[:100]})")
             continue
-        Wb = base_regressor(dyn, base, sm.theta, sm.theta_dot, sm.theta_ddot, st.rate)
+        try:  # the plan's own states: no forward kinematics search from a log
+            Wb = base_regressor(dyn, base, sm.theta, sm.theta_dot, sm.theta_ddot, st.rate,
+                                sm.x_guess)
+        except Sixplus3Error as exc:  # a tour that cannot be scored is skipped, and said
+            refused += 1
+            say(f"  tour {k}: planned but not scored, skipped ({str(exc)[:120]})")
+            continue
         tours.append(Tour(doc, sm.t, sm.theta, sm.theta_dot, sm.theta_ddot, sm.x_guess, Wb))
         say(f"  tour {k}: {sm.duration:.3f} s, condition {condition_number(Wb):.3g}")
     return tours, refused

@@ -20,6 +20,20 @@ def test_committed_files_match_the_generator() -> None:
     assert gen.main(["--check"]) == 0
 
 
+def test_generated_numbers_do_not_depend_on_the_last_bit() -> None:
+    """A fresh machine's numpy wrote 0.07059999999999998 where the committed file has
+    0.0706: the generator writes a stated precision and the check compares numbers."""
+    assert gen._f(0.07059999999999998) == gen._f(0.0706) == "0.0706"
+    assert gen._f(-0.0) == "0" and gen._f(1e-20) == "1e-20"
+    text = gen.URDF_PATH.read_text()
+    nudged = text.replace('"0.0706"', '"0.07059999999999998"')
+    assert nudged != text and gen.same_text(text, nudged)
+    # a real change is still seen: a number, a name, a missing number
+    assert not gen.same_text(text, text.replace('"0.0706"', '"0.0707"'))
+    assert not gen.same_text(text, text.replace("leg0_A", "leg0_X"))
+    assert not gen.same_text('xyz="1 2 3"', 'xyz="1 2"')
+
+
 def test_urdf_validates_in_yourdfpy() -> None:
     for path in (gen.URDF_PATH, gen.POINT_MASS_URDF_PATH):
         robot = yourdfpy.URDF.load(str(path))
