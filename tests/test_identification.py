@@ -243,6 +243,57 @@ def validation_plan(tmp_path_factory):
     return run_plan(task, out, ROBOT, html=False, plots=False).csv
 
 
+@pytest.fixture(scope="module")
+def fast_tour():
+    """Tour 7 of the default settings (seed 0): a fast tour (cranks at ~24 rad/s) whose
+    200 Hz scoring samples a forward kinematics search from a log could not follow, which
+    once ended `sixplus3 identify excite` with its defaults (issue 53)."""
+    from sixplus3.control.drive.smoothing import smooth
+    from sixplus3.identification.excite import ExcitationSettings, _tour_task
+    from sixplus3.planner.ocp import plan
+    from sixplus3.planner.task import task_from_dict
+
+    st = ExcitationSettings()
+    rng = np.random.default_rng(st.seed)
+    docs = [_tour_task(ROBOT, rng, st, k) for k in range(8)]
+    return docs[7], smooth(plan(task_from_dict(docs[7]), ROBOT), rate=st.rate)
+
+
+def test_a_fast_tour_is_scored_from_its_own_states(fast_tour) -> None:
+    from sixplus3.identification.excite import base_regressor
+
+    _, sm = fast_tour
+    base = base_parameters(ROBOT)
+    W = base_regressor(ClosedLoopDynamics(ROBOT), base, sm.theta, sm.theta_dot,
+                       sm.theta_ddot, 1000.0, sm.x_guess)
+    assert W.shape == (9 * len(range(0, len(sm.t), 5)), base.rank)
+    assert np.all(np.isfinite(W)) and np.abs(W).max() > 0
+
+
+def test_a_tour_that_cannot_be_scored_is_skipped_and_said(fast_tour, monkeypatch) -> None:
+    """A candidate whose scoring fails is skipped with its reason; the others go on."""
+    import sixplus3.identification.excite as ex
+
+    doc, sm = fast_tour
+    monkeypatch.setattr(ex, "plan", lambda task, robot: None)
+    monkeypatch.setattr(ex, "smooth", lambda sol, rate: sm)
+    real, calls = ex.base_regressor, []
+
+    def flaky(*args, **kw):
+        calls.append(1)
+        if len(calls) == 1:
+            raise InputError("the planned state 3 has no pose", value=3, valid="x")
+        return real(*args, **kw)
+
+    monkeypatch.setattr(ex, "base_regressor", flaky)
+    said: list[str] = []
+    tours, refused = ex.plan_tours(ROBOT, ex.ExcitationSettings(candidates=2),
+                                   base_parameters(ROBOT), said.append)
+    assert (len(tours), refused) == (1, 1)
+    assert "tour 0: planned but not scored, skipped" in said[0] and "no pose" in said[0]
+    assert "tour 1:" in said[1] and "condition" in said[1]
+
+
 def test_the_excitation_is_a_valid_file(excitation) -> None:
     res = CliRunner().invoke(cli, ["validate", str(excitation.path)])
     assert res.exit_code == 0, res.output
