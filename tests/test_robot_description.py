@@ -247,7 +247,15 @@ def test_export_urdf_writes_its_closures_and_a_ros2_control_block(tmp_path) -> N
     assert block is not None
     joints = block.findall("joint")
     assert [j.get("name") for j in joints] == gen.actuated_joint_names()
-    for j in joints:
+    from sixplus3.kinematics.robot import home
+
+    start = home(robot).theta[0]
+    for jk, j in enumerate(joints):
+        # mock hardware starts at the robot's home, not at 0 rad (issue 53.3)
+        states = {s.get("name"): float(s.find("param[@name='initial_value']").text)
+                  for s in j.findall("state_interface")}
+        assert states["position"] == pytest.approx(start[jk], abs=1e-14)
+        assert states["velocity"] == states["effort"] == 0.0
         cmd = j.find("command_interface")
         assert cmd.get("name") == "effort"
         lo, hi = (float(p.text) for p in cmd.findall("param"))
@@ -260,3 +268,40 @@ def test_export_urdf_writes_its_closures_and_a_ros2_control_block(tmp_path) -> N
         assert float(tr.find("joint/mechanical_reduction").text) == pytest.approx(72 / 34)
     plain = CliRunner().invoke(main, ["robot", "export", "urdf", "--contacts"])
     assert plain.exit_code == 2
+    assert "initial_value" not in gen.robot_urdf(robot)
+    with pytest.raises(ValueError, match="9 finite angles"):
+        gen.ros2_control_block(robot, initial=[0.0] * 8)
+
+
+def test_ros2_control_starts_at_a_trajectory_files_first_sample(tmp_path) -> None:
+    """`--start FILE`: the initial values are the file's first sample (here a hold at a
+    pose away from home, written by the gate's writer)."""
+    import xml.etree.ElementTree as ET
+
+    from click.testing import CliRunner
+
+    from sixplus3.cli import main
+    from sixplus3.control.gate.validation import validate_and_write
+    from sixplus3.kinematics.robot import robot_ik_pose
+    from sixplus3.kinematics.rotations import rotvec_from_matrix
+
+    robot = Robot.default()
+    cfg = robot_ik_pose(np.add(robot.home_position, [0.02, 0.0, 0.01]), (0.1, 0.0, 0.0),
+                        robot.home_psi, robot=robot)
+    n = 50
+    t = np.arange(n) / 1000.0
+    theta = np.tile(cfg.theta[0], (n, 1))
+    zeros = np.zeros_like(theta)
+    x = np.r_[cfg.position[0], np.reshape(rotvec_from_matrix(cfg.rotation[0]), -1), cfg.psi[0]]
+    path, _ = validate_and_write(tmp_path / "hold.csv", t, theta, zeros, zeros, robot,
+                                 1000.0, np.tile(x, (n, 1)))
+    out = tmp_path / "r.urdf"
+    res = CliRunner().invoke(main, ["robot", "export", "urdf", "--ros2-control", "--start",
+                                    str(path), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    block = ET.parse(out).getroot().find("ros2_control")
+    got = [float(j.find("state_interface[@name='position']/param").text)
+           for j in block.findall("joint")]
+    np.testing.assert_allclose(got, cfg.theta[0], atol=1e-14)
+    bad = CliRunner().invoke(main, ["robot", "export", "urdf", "--start", str(path)])
+    assert bad.exit_code == 2 and "--start goes with --ros2-control" in bad.output

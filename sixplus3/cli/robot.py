@@ -203,8 +203,14 @@ def robot_show(as_json: bool) -> None:
               help="MJCF: contacts between the links of different legs (off by default).")
 @click.option("--ros2-control", "ros2_control", is_flag=True,
               help="URDF: add a <ros2_control> block (effort interfaces, 72/34 "
-                   "transmissions, rotor inertia and friction as parameters).")
-def robot_export(fmt: str, out_file: str | None, contacts: bool, ros2_control: bool) -> None:
+                   "transmissions, rotor inertia and friction as parameters; every "
+                   "joint's initial_value at the robot's home, or at --start).")
+@click.option("--start", "start_file", default=None,
+              type=click.Path(exists=True, dir_okay=False),
+              help="With --ros2-control: the initial values are this trajectory file's "
+                   "first sample (a file of this robot, read through the gate's reader).")
+def robot_export(fmt: str, out_file: str | None, contacts: bool, ros2_control: bool,
+                 start_file: str | None) -> None:
     """Write the robot as URDF (tree; with -o the closures file it names,
     sixplus3_closures.yaml, beside it), MJCF (MuJoCo, closures included; a 'home'
     keyframe, assembled and held by its ctrl; actuator and joint limits) or YAML (its
@@ -212,6 +218,8 @@ def robot_export(fmt: str, out_file: str | None, contacts: bool, ros2_control: b
     robot = current_robot()
     if (contacts and fmt != "mjcf") or (ros2_control and fmt != "urdf"):
         fail("--contacts goes with mjcf and --ros2-control with urdf")
+    if start_file is not None and not ros2_control:
+        fail("--start goes with --ros2-control")
     if fmt == "urdf":
         from sixplus3.robot_description.urdf import (
             CLOSURES_PATH,
@@ -220,7 +228,18 @@ def robot_export(fmt: str, out_file: str | None, contacts: bool, ros2_control: b
             with_ros2_control,
         )
 
-        text = with_ros2_control(robot) if ros2_control else robot_urdf(robot)
+        if ros2_control:
+            if start_file is not None:
+                from sixplus3.control.file.trajectory_file import read_trajectory
+
+                initial = read_trajectory(start_file, robot).joints("pos")[0]
+            else:
+                from sixplus3.kinematics.robot import home
+
+                initial = home(robot).theta[0]
+            text = with_ros2_control(robot, initial=initial)
+        else:
+            text = robot_urdf(robot)
         if out_file is not None:
             from pathlib import Path
 
