@@ -37,6 +37,7 @@ from sixplus3.identification.estimate import (
 from sixplus3.identification.plants import robot_with_parameters
 from sixplus3.identification.signals import Filtered, filter_log
 from sixplus3.robot_description.robot import Robot, require_robot
+from sixplus3.robot_description.urdf import actuated_joint_names
 
 #: Rows of a joint slower than this are left out [rad/s] (module doc).
 V_MIN = 0.1
@@ -114,6 +115,7 @@ class Identification:
             "min_pseudo_inertia_eigenvalue": self.consistent.min_eigenvalue,
             "solver": self.consistent.solver, "seconds": self.seconds,
             "robot_hash": self.robot.hash, "notes": self.notes,
+            "not_measured": not_measured(self.residual_rms),
         }
 
     def table(self) -> list[dict[str, Any]]:
@@ -128,6 +130,14 @@ class Identification:
                         "relative_std_pct": float(rel[k]),
                         "consistent": float(self.beta_consistent[k])})
         return out
+
+
+def not_measured(values: Any, v_min: float = V_MIN) -> dict[str, str]:
+    """Why a per-joint figure is missing (NaN, ``null`` in JSON), by joint name."""
+    return {name: f"never moved faster than {v_min:g} rad/s: no rows (dry friction is not "
+                  "fitted at rest)"
+            for name, v in zip(actuated_joint_names(), values, strict=True)
+            if not math.isfinite(float(v))}
 
 
 def per_joint_rms(err: np.ndarray, joint: np.ndarray, n: int = 9) -> np.ndarray:

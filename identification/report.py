@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 from pathlib import Path
 from typing import Any
@@ -17,9 +16,15 @@ import yaml
 from sixplus3.control.drive.drive_log import DriveLog
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import parameters
-from sixplus3.fileio import atomic_write, save_figure
+from sixplus3.fileio import atomic_write, finite_or_none, save_figure, strict_json
 from sixplus3.identification.base import base_parameters
-from sixplus3.identification.identify import V_MIN, Identification, check, dataset
+from sixplus3.identification.identify import (
+    V_MIN,
+    Identification,
+    check,
+    dataset,
+    not_measured,
+)
 from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
 
@@ -67,7 +72,8 @@ def write_report(out_dir: str | Path, idf: Identification, logs: list[DriveLog],
         for label, rob in (("nominal", nominal), ("identified", idf.robot)):
             c = check(validation, rob)
             cv[label] = {"rms_n_m": c.rms.tolist(), "rms_all_n_m": c.rms_all,
-                         "peak_n_m": c.peak.tolist(), "rows": c.rows}
+                         "peak_n_m": c.peak.tolist(), "rows": c.rows,
+                         "not_measured": not_measured(c.rms)}
         summary["cross_validation"] = {"log": validation.name, **cv}
         name = f"torques_{Path(validation.name).stem[:60]}_validation.png"
         _plot_torques(out / name, validation, idf.robot, nominal)
@@ -76,7 +82,8 @@ def write_report(out_dir: str | Path, idf: Identification, logs: list[DriveLog],
         save_parameters(out / "parameters.npz", idf)
         files.append("parameters.npz")
     summary["files"] = files + ["summary.json"]
-    atomic_write(out / "summary.json", (json.dumps(summary, indent=1) + "\n").encode())
+    summary = finite_or_none(summary)  # strict JSON: null (with not_measured's reason)
+    atomic_write(out / "summary.json", (strict_json(summary, indent=1) + "\n").encode())
     return summary
 
 
@@ -117,7 +124,8 @@ def _plot_torques(path: Path, log: DriveLog, robot: Robot, nominal: Robot) -> No
         ax.fill_between(f.t, 0, 1, where=~moving, color="0.85", alpha=0.6, lw=0,
                         transform=ax.get_xaxis_transform(),
                         label=f"|rate| < {V_MIN:g} rad/s (dry friction: not fitted)")
-        ax.set_title(f"{name}: RMS error {rms:.4f} N m while moving", fontsize=9)
+        ax.set_title(f"{name}: RMS error {rms:.4f} N m while moving" if math.isfinite(rms)
+                     else f"{name}: no RMS (never faster than {V_MIN:g} rad/s)", fontsize=9)
         ax.grid(alpha=0.3)
         if j // 3 == 2:
             ax.set_xlabel("t [s]")

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import json
+import math
 import os
 import re
 import stat
@@ -247,6 +249,28 @@ def _fsync_dir(directory: Path) -> None:
         os.fsync(dfd)
     finally:
         os.close(dfd)
+
+
+def finite_or_none(obj: Any) -> Any:
+    """``obj`` with every NaN or infinite float (numpy's too) replaced by ``None``: JSON
+    has no NaN, and strict parsers (JavaScript's ``JSON.parse``) refuse the bare ``NaN``
+    that Python's json writes.  Say beside the ``null`` why there is no number."""
+    if isinstance(obj, dict):
+        return {k: finite_or_none(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_or_none(v) for v in obj]
+    if hasattr(obj, "tolist") and hasattr(obj, "dtype"):  # numpy array or scalar
+        return finite_or_none(obj.tolist())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def strict_json(obj: Any, indent: int | None = None) -> str:
+    """``obj`` as strict JSON (RFC 8259): non-finite numbers as ``null``
+    (:func:`finite_or_none`), numpy values as lists and numbers."""
+
+    return json.dumps(finite_or_none(obj), indent=indent, allow_nan=False)
 
 
 def atomic_write(path: str | Path, data: bytes) -> None:

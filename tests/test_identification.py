@@ -375,7 +375,14 @@ def test_cli_identify_estimate_and_check(excitation, validation_plan, tmp_path) 
     assert r.exit_code == 0, r.output
     import json
 
-    summary = json.loads(r.output)
+    def refuse(token: str) -> None:  # a strict parser (JavaScript's JSON.parse)
+        raise AssertionError(f"non-strict JSON constant {token}")
+
+    summary = json.loads(r.output, parse_constant=refuse)
+    written = json.loads((tmp_path / "rep" / "summary.json").read_text(),
+                         parse_constant=refuse)
+    assert written["cross_validation"]["identified"]["rms_all_n_m"] == pytest.approx(
+        summary["cross_validation"]["identified"]["rms_all_n_m"])
     cv = summary["cross_validation"]
     assert cv["identified"]["rms_all_n_m"] < 0.2 * cv["nominal"]["rms_all_n_m"]
     assert (tmp_path / "rep" / "parameters.csv").exists()
@@ -407,6 +414,26 @@ def test_cli_identify_estimate_and_check(excitation, validation_plan, tmp_path) 
     r = run.invoke(cli, ["identify", "estimate", str(bad), "-o", str(tmp_path / "x.yaml")])
     assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1, r.output
     assert not (tmp_path / "x.yaml").exists()
+
+
+def test_a_joint_that_never_moved_is_null_with_its_reason() -> None:
+    """A per-joint figure with no rows is NaN in the library and ``null`` in JSON, with
+    the reason beside it (issue 53.4)."""
+    import json
+
+    from sixplus3.cli.identify import _per_joint
+    from sixplus3.fileio import strict_json
+    from sixplus3.identification.identify import not_measured
+
+    rms = np.array([0.1, math.nan, 0.2, 0.3, 0.1, 0.1, 0.1, 0.1, math.inf])
+    why = not_measured(rms)
+    assert list(why) == ["leg0_B", "leg2_C"] and "never moved faster than" in why["leg0_B"]
+    text = strict_json({"rms": rms, "x": np.float64("nan"), "ok": 1.5, "why": why})
+    doc = json.loads(text, parse_constant=lambda c: pytest.fail(c))
+    assert doc["rms"][1] is None and doc["rms"][8] is None and doc["x"] is None
+    assert doc["rms"][0] == 0.1 and doc["ok"] == 1.5
+    assert "NaN" not in text and "Infinity" not in text
+    assert _per_joint(rms).split()[1] == "n/a" and "nan" not in _per_joint(rms)
 
 
 def test_a_rosbag2_joint_states_log(tmp_path) -> None:

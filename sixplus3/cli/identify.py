@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import math
 from typing import Any
 
 import click
@@ -142,24 +143,38 @@ def estimate(logs: tuple[str, ...], out_file: str, report_dir: str | None,
             (("nominal", robot), ("identified", idf.robot))}
     summary["robot_file"] = str(path)
     if as_json:
-        click.echo(json.dumps(summary, default=json_default))
+        from sixplus3.fileio import strict_json
+
+        click.echo(strict_json(summary))
         return
     cuts = ", ".join(f"{c:.0f}" for c in idf.cutoffs)
     click.echo(f"wrote {path}: {idf.base.rank} base parameters from {idf.rows} rows, "
                f"condition {idf.ls.condition:.4g}, filter {cuts} Hz, {idf.seconds:.1f} s")
     click.echo("  torque residual RMS per joint [N m]: identified "
-               + " ".join(f"{x:.4f}" for x in idf.residual_rms) + "; nominal "
-               + " ".join(f"{x:.4f}" for x in idf.nominal_rms))
+               + _per_joint(idf.residual_rms) + "; nominal " + _per_joint(idf.nominal_rms))
+    _say_not_measured(idf.residual_rms)
     if "cross_validation" in summary:
         cv = summary["cross_validation"]
         ident = cv["identified"]["rms_n_m"] if isinstance(cv["identified"], dict) \
             else cv["identified"]
         nom = cv["nominal"]["rms_n_m"] if isinstance(cv["nominal"], dict) else cv["nominal"]
         click.echo("  cross-validation on " + str(validation_log) + ": identified "
-                   + " ".join(f"{x:.4f}" for x in ident) + "; nominal "
-                   + " ".join(f"{x:.4f}" for x in nom))
+                   + _per_joint(ident) + "; nominal " + _per_joint(nom))
+        _say_not_measured(ident)
     if report_dir is not None:
         click.echo(f"  report: {report_dir}/summary.json, parameters.csv, plots")
+
+
+def _per_joint(values: Any) -> str:
+    """Nine figures; one that was not measured (NaN) reads n/a."""
+    return " ".join(f"{float(x):.4f}" if math.isfinite(float(x)) else "n/a" for x in values)
+
+
+def _say_not_measured(values: Any) -> None:
+    from sixplus3.identification.identify import not_measured
+
+    for name, why in not_measured([float(v) for v in values]).items():
+        click.echo(f"  {name}: n/a, {why}")
 
 
 @identify.command("check")
@@ -171,19 +186,24 @@ def check_cmd(log: str, cutoff: float | None, as_json: bool) -> None:
     on a log: compare the nominal and an identified robot on a new log."""
     from sixplus3.control.drive.drive_log import read_log
     from sixplus3.identification.identify import check as run_check
+    from sixplus3.identification.identify import not_measured
 
     robot = current_robot()
     c = run_check(read_log(log, robot), robot, cutoff)
     out = {"log": log, "robot": robot.name, "robot_hash": robot.hash,
            "rms_n_m": c.rms.tolist(), "peak_n_m": c.peak.tolist(), "rms_all_n_m": c.rms_all,
            "rows": c.rows, "cutoff_hz": c.cutoff_hz}
+    out["not_measured"] = not_measured(c.rms)
     if as_json:
-        click.echo(json.dumps(out, default=json_default))
+        from sixplus3.fileio import strict_json
+
+        click.echo(strict_json(out))
         return
     click.echo(f"{log} on robot {robot.name} ({robot.hash[:12]}): torque error RMS "
                f"{c.rms_all:.4f} N m over {c.rows} rows of moving joints (filter "
                f"{c.cutoff_hz:.0f} Hz)")
-    click.echo("  per joint [N m]: " + " ".join(f"{x:.4f}" for x in c.rms))
+    click.echo("  per joint [N m]: " + _per_joint(c.rms))
+    _say_not_measured(c.rms)
 
 
 @identify.command()
