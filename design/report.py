@@ -19,6 +19,7 @@ from sixplus3.kinematics.leg import leg_ik
 from sixplus3.kinematics.robot import home
 from sixplus3.kinematics.spherical import spherical_tilts
 from sixplus3.robot_description.geometry import LegLoad
+from sixplus3.robot_description.hardware import effective_limits, envelope_record
 from sixplus3.robot_description.robot import Robot, require_robot
 from sixplus3.robot_description.urdf import check as urdf_stale
 
@@ -147,7 +148,11 @@ def robot_check(robot: Robot) -> RobotCheck:
                         "depth_m": where.depth, "deepest_m": list(where.deepest),
                         "z_range_m": list(where.z_range), "volume_l": where.volume_l,
                         "grid_m": where.step},
+        # the site's envelope ($SIXPLUS3_HARDWARE or --hardware) and what it leaves
+        "envelope": envelope_record(),
+        "limits_in_force": effective_limits(robot).as_dict(),
     }
+    inforce = out["limits_in_force"]
     m = out["margins"]
     lines = (
         f"robot     {out['robot']}",
@@ -172,5 +177,7 @@ def robot_check(robot: Robot) -> RobotCheck:
         + f" | platform {m['platform']:.3f}",
         "tau_g     " + " ".join(f"{v:+.3f}" for v in tau) + "  N m (home)",
         f"mass      {out['total_mass_kg']:.3f} kg",
+        f"envelope  {out['envelope']['drive_train']} ({out['envelope']['origin']}); in "
+        f"force: torque {inforce['torque']:g} N m, rate {inforce['velocity']:g} rad/s",
     )
     return RobotCheck(out, lines, where.inside, where.line())

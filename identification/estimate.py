@@ -26,13 +26,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sixplus3.dynamics.regressor import N_BODY, N_MOTOR, Layout
-from sixplus3.errors import InputError
+from sixplus3.errors import InputError, check_number
 from sixplus3.identification.base import BaseParameters
 
 IRLS_ITERATIONS = 10
 HUBER_K = 1.345
 #: Default prior weight (relative to the mean information per scaled parameter).
 PRIOR_WEIGHT = 1e-7
+#: The prior weight's range: at MAX_PRIOR_WEIGHT the prior weighs as much as the data's
+#: mean information per parameter (beyond it the log would be ignored and the nominal
+#: robot written back, as 1e300 once did, saying nothing); below MIN_PRIOR_WEIGHT it no
+#: longer regularises the unexcited directions.
+MIN_PRIOR_WEIGHT, MAX_PRIOR_WEIGHT = 1e-12, 1.0
 #: The largest condition number of the weighted base regressor an estimate accepts.
 MAX_CONDITION = 1e4
 
@@ -178,10 +183,7 @@ def consistent(Wb: np.ndarray, tau: np.ndarray, weights: np.ndarray, base: BaseP
 
     lay = base.layout
     P = lay.size
-    if not (isinstance(prior_weight, (int, float)) and math.isfinite(prior_weight)
-            and prior_weight > 0):
-        raise InputError("the prior weight must be a positive number", value=prior_weight,
-                         valid="> 0")
+    check_number("the prior weight", prior_weight, MIN_PRIOR_WEIGHT, MAX_PRIOR_WEIGHT)
     B = base.matrix
     r = base.rank
     # compress the data term: ||w (Wb B pi - tau)||^2 = ||R_b B pi - c||^2 + const, with

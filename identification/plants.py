@@ -3,13 +3,12 @@ prototype, and the conversion between a robot's bodies and the regressor's param
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 import numpy as np
 
 from sixplus3.dynamics.regressor import N_BODY, N_MOTOR, Layout, body_links
-from sixplus3.errors import InputError
+from sixplus3.errors import InputError, check_number
 from sixplus3.robot_description.masses import BODY_LINKS, BodyInertial, BodyInertials
 from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.physical import MotorModel, Payload
@@ -104,11 +103,11 @@ def perturbed_plant(robot: Robot, seed: int, mass: float = 0.3, com: float = 0.0
     scaled by its own factor in [1 - mass, 1 + mass], its centre of mass moved by up to
     ``com`` [m] per axis, each joint's rotor inertia scaled in [1 - rotor, 1 + rotor],
     its viscous and Coulomb friction multiplied by a factor in [1, friction] (seeded)."""
-    for k, v, hi in (("mass", mass, 0.9), ("com", com, 0.05), ("rotor", rotor, 0.9),
-                     ("friction", friction, 10.0)):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
-                math.isfinite(v) and 0 <= v <= hi):
-            raise InputError(f"{k} must be in [0, {hi:g}]", value=v, valid=f"[0, {hi:g}]")
+    for k, v, lo, hi in (("mass", mass, 0.0, 0.9), ("com", com, 0.0, 0.05),
+                         ("rotor", rotor, 0.0, 0.9),
+                         ("friction", friction, 1.0, 10.0)):  # a factor in [1, friction]
+        check_number(k, v, lo, hi)
+    check_number("seed", seed, 0, 2 ** 32 - 1, integer=True)
     rng = np.random.default_rng(seed)
     bodies = {}
     for link, b in link_inertials(robot).items():

@@ -34,7 +34,7 @@ import numpy as np
 from scipy import signal
 
 from sixplus3.control.drive.drive_log import DriveLog
-from sixplus3.errors import InputError
+from sixplus3.errors import InputError, check_number
 
 ORDER = 4
 CUTOFF_FACTOR = 2.5
@@ -42,6 +42,9 @@ MIN_CUTOFF = 5.0
 RATE_PER_CUTOFF = 8.0
 SAMPLES_PER_CUTOFF = 5.0
 EDGE = 2.0
+#: The lowest cut-off a user may set [Hz]: below it the filter's edges (EDGE / fc s at
+#: each end) eat any log, and the filter's design is numerically singular (1e-9 Hz).
+LOWEST_CUTOFF = 1.0
 
 
 @dataclass
@@ -86,9 +89,7 @@ def choose_cutoff(log: DriveLog, cutoff: float | None = None) -> float:
     rate = log.rate
     if cutoff is None:
         cutoff = min(max(CUTOFF_FACTOR * bandwidth(log), MIN_CUTOFF), rate / RATE_PER_CUTOFF)
-    if not (isinstance(cutoff, (int, float)) and math.isfinite(cutoff) and cutoff > 0):
-        raise InputError(f"the cut-off must be a positive number [Hz], got {cutoff!r}",
-                         value=cutoff, valid="> 0 Hz")
+    cutoff = check_number("the cut-off [Hz]", cutoff, LOWEST_CUTOFF, math.inf)
     if rate < RATE_PER_CUTOFF * cutoff or rate < RATE_PER_CUTOFF * MIN_CUTOFF:
         need = RATE_PER_CUTOFF * max(cutoff, MIN_CUTOFF)
         raise InputError(f"{log.name}: its rate {rate:.6g} Hz is below what the filter "

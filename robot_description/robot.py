@@ -448,4 +448,11 @@ def load_robot(path: str | Path) -> Robot:
     """A robot from a YAML or JSON file of :meth:`Robot.as_dict`'s structure (missing
     keys keep the defaults; unknown keys are refused)."""
 
-    return Robot.from_dict(read_yaml(path, "robot file"))
+    robot = Robot.from_dict(read_yaml(path, "robot file"))
+    arm = robot.motors.armature_per_joint
+    if float(np.min(arm)) <= 0.0:  # a drive has a rotor; 0 is a model, not a measurement
+        raise GeometryError("motors rotor inertia at the joint", [float(a) for a in arm],
+                            "nine values in (0, 1] kg m^2 (every drive has a rotor)",
+                            "a robot file describes a built robot; a zero rotor "
+                            "inertia is not one")
+    return robot

@@ -10,6 +10,7 @@ a limit is reported by ``sixplus3 validate`` with exit code 1.
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -64,6 +65,30 @@ class LimitError(_NamedValueError):
     """
 
     what = "limit"
+
+
+def check_number(name: str, value: object, lo: float, hi: float, *,
+                 integer: bool = False, lo_open: bool = False) -> float:
+    """The one scalar range check: ``value`` a finite number (an integer with
+    ``integer``; never a bool; numpy scalars count) in [lo, hi] (``(lo, hi]`` with
+    ``lo_open``), returned as a float (an int with ``integer``); else an InputError
+    naming ``name`` and the valid range."""
+    left = "(" if lo_open else "["
+    valid = (f"an integer in {left}{lo:g}, {hi:g}]" if integer
+             else f"a number in {left}{lo:g}, {hi:g}]")
+    v: object = value
+    if not isinstance(v, (bool, int, float)) and hasattr(v, "item"):  # a numpy scalar
+        try:
+            v = v.item()
+        except (TypeError, ValueError):
+            pass
+    kinds: tuple[type, ...] = (int,) if integer else (int, float)
+    if isinstance(v, bool) or not isinstance(v, kinds):
+        raise InputError(f"{name} must be {valid}, got {value!r}", value=value, valid=valid)
+    x = float(v)  # type: ignore[arg-type]
+    if not (math.isfinite(x) and (lo < x if lo_open else lo <= x) and x <= hi):
+        raise InputError(f"{name} must be {valid}, got {value!r}", value=value, valid=valid)
+    return int(v) if integer else x  # type: ignore[call-overload]
 
 
 class TaskError(InputError):

@@ -169,6 +169,12 @@ def _node_size(node: yaml.Node, memo: dict[int, tuple[int, int]],
     return memo[key]
 
 
+#: What YAML's reader refuses: C0 controls but tab, LF and CR; DEL; C1 controls but NEL;
+#: the surrogates and the two non-characters (YAML 1.1, 5.1 "Character Set").
+_CONTROL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x84\x86-\x9f\ud800-\udfff"
+                      "\ufffe\uffff]")
+
+
 def parse_yaml(text: str, what: str, max_aliases: int = MAX_ALIASES,
                max_values: int = MAX_VALUES) -> Any:
     """Plain data from YAML text with bounded aliases, bounded expanded size and depth
@@ -177,7 +183,18 @@ def parse_yaml(text: str, what: str, max_aliases: int = MAX_ALIASES,
     if _nesting(text) > MAX_DEPTH:
         raise InputError(f"{what} nests deeper than {MAX_DEPTH} levels", value=">" +
                          str(MAX_DEPTH), valid=f"<= {MAX_DEPTH} levels")
-    loader = _Loader(text)
+    bad = _CONTROL.search(text)
+    if bad is not None:
+        line = text.count("\n", 0, bad.start()) + 1
+        raise InputError(f"{what} holds the control character {ord(bad.group()):#04x} at "
+                         f"line {line} (a YAML file holds printable text, tabs and "
+                         "newlines only)", value=f"{ord(bad.group()):#04x}",
+                         valid="printable characters, tab, newline")
+    try:
+        loader = _Loader(text)
+    except yaml.YAMLError as exc:  # the reader refuses what it cannot read
+        raise InputError(f"{what} is not valid YAML: {str(exc).splitlines()[0][:200]}",
+                         valid="YAML", value=None) from None
     loader.max_aliases = max_aliases
     try:
         node = loader.get_single_node()

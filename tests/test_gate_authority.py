@@ -130,6 +130,11 @@ def test_export_at_a_low_rate_is_refused_with_the_lowest_safe_rate(planned, tmp_
     assert res.exit_code in (0, 1), res.output
     if res.exit_code == 1:
         assert "lowest safe rate" in res.output and "Traceback" not in res.output
+    # a rate typed a hair off the file's own is the file's own (once refused with "at
+    # 1000 Hz fails ... the lowest safe rate is the file's own 1000 Hz")
+    near = _run(["export", str(planned), "--format", "ros2-json", "--rate", "999.9999999"])
+    same = _run(["export", str(planned), "--format", "ros2-json", "--rate", "1000"])
+    assert near.exit_code == same.exit_code == 0 and near.output == same.output
 
 
 def test_export_never_writes_over_its_input_or_a_trajectory(planned, tmp_path) -> None:

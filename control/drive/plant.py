@@ -36,7 +36,7 @@ from sixplus3.control.file.trajectory_parse import NUMBER
 from sixplus3.control.gate.interval import held_torque
 from sixplus3.control.gate.validation import validate_file
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.errors import InputError, ValidationFailed
+from sixplus3.errors import InputError, ValidationFailed, check_number
 from sixplus3.fileio import read_text
 from sixplus3.kinematics.robot import home
 from sixplus3.robot_description.mjcf import TIMESTEP
@@ -116,12 +116,9 @@ def run_on_plant(path: str | Path, model: Robot, plant: Robot, seed: int = 0,
         raise InputError("the plant must have the planning model's geometry and assembly "
                          "mode (what differs is what a lab measures)", value=None,
                          valid="the same geometry")
-    for name, v, lo, hi in (("torque_noise", torque_noise, 0.0, 1.0), ("hold", hold, 0.0,
-                                                                        60.0)):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
-                math.isfinite(v) and lo <= v <= hi):
-            raise InputError(f"{name} must be in [{lo:g}, {hi:g}], got {v!r}", value=v,
-                             valid=f"[{lo:g}, {hi:g}]")
+    check_number("torque_noise", torque_noise, 0.0, 1.0)
+    check_number("hold", hold, 0.0, 60.0)
+    check_number("seed", seed, 0, 2 ** 32 - 1, integer=True)
     rep = validate_file(path, model)
     if not rep.ok or rep.data is None or rep.header is None:
         raise ValidationFailed("not run on the plant: " + "; ".join(rep.messages()),

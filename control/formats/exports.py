@@ -171,6 +171,23 @@ def _check_interpolated(rep: ValidationReport, robot: Robot,
     return t, th, v, a, again.tau, again, dense_rep
 
 
+#: Relative distance within which an export rate is taken as the whole fraction of the
+#: file's rate it is next to.
+RATE_SNAP = 1e-6
+
+
+def snap_rate(rate: float, r0: float) -> float:
+    """``rate`` checked against the file's rate ``r0`` (at most r0); a rate typed within
+    :data:`RATE_SNAP` of a whole fraction of r0 is that fraction (999.9999999 is the
+    file's own 1000 Hz, not a rate whose grid cannot hold the motion)."""
+    rate = check_rate(rate, (INTERPOLATED_RATE_RANGE[0], r0 * (1 + RATE_SNAP)),
+                      name="--rate")
+    m = max(1, round(r0 / rate))
+    if abs(r0 / m - rate) <= RATE_SNAP * rate:
+        return float(r0 / m)
+    return float(rate)
+
+
 def decimate(rep: ValidationReport, robot: Robot, rate: float) -> tuple[Any, ...]:
     """The validated motion of ``rep`` (a report of :func:`validate_file`) resampled at the
     lower ``rate`` [Hz] on the gate's quintic Hermite interpolant of its samples (at a
@@ -188,15 +205,18 @@ def decimate(rep: ValidationReport, robot: Robot, rate: float) -> tuple[Any, ...
     assert rep.header is not None  # a report of validate_file
     r0 = float(rep.header["rate_hz"])
     # at most the file's rate
-    rate = check_rate(rate, (INTERPOLATED_RATE_RANGE[0], r0), name="--rate")
+    rate = snap_rate(rate, r0)
     t, th, v, a, tau, again, dense = _check_interpolated(rep, robot, rate)
     if not dense.ok:
         first = dense.messages()[0] if dense.messages() else "not a valid motion"
         safe = lowest_safe_rate(rep, robot, rate)
+        m = r0 / rate
+        whole = abs(m - round(m)) <= 1e-9
         raise ValidationFailed(
-            f"the motion a controller interpolates through the points at {rate:g} Hz "
-            f"fails the gate: {first}; the lowest safe rate is "
-            + (f"{safe:g} Hz" if safe else f"the file's own {r0:g} Hz"),
+            f"the motion a controller interpolates through the points at {rate:.12g} Hz"
+            + ("" if whole else f" (not a whole fraction of the file's {r0:.12g} Hz)")
+            + f" fails the gate: {first}; the lowest safe rate is "
+            + (f"{safe:.12g} Hz" if safe else f"the file's own, {r0:.12g} Hz"),
             dense.exit_code, dense)
     return t, th, v, a, tau, again
 
@@ -264,7 +284,8 @@ def export_file(path: str | Path, robot: Robot, fmt: str,
     t, th, thd, thdd = (data[:, 0], columns(data, "pos"), columns(data, "vel"),
                         columns(data, "acc"))
     tau = columns(data, "tau")
-    if rate is not None and rate != float((rep.header or {}).get("rate_hz", 0.0)):
+    r0 = float((rep.header or {}).get("rate_hz", 0.0))
+    if rate is not None and snap_rate(rate, r0) != r0:
         t, th, thd, thdd, tau, _ = decimate(rep, robot, rate)
     tau = held_torque(tau, torque_hold)
     if fmt.startswith("ros2"):

@@ -100,6 +100,8 @@ def main(ctx: click.Context, robot_file: str | None, hardware_file: str | None) 
     progress.set_level(progress.NORMAL)  # before a subcommand's --quiet / --verbose
     ctx.obj = {"robot_file": robot_file}
     hardware.use(None)
+    if hardware_file is None:  # $SIXPLUS3_HARDWARE, read here for every command
+        hardware_file = os.environ.get(hardware.ENV) or None
     if hardware_file is not None:  # an unreadable or raising file: exit 2 (_Group)
         hardware.use(hardware.load_hardware(hardware_file))
 

@@ -191,7 +191,14 @@ def robot_show(as_json: bool) -> None:
     if as_json:
         click.echo(json.dumps({**doc, "hash": robot.hash}, indent=1))
         return
+    from sixplus3.robot_description.hardware import effective_limits, envelope_record
+
+    env = envelope_record()
+    lim = effective_limits(robot)
     click.echo(robot.summary())
+    click.echo(f"in force: torque {lim.torque:g} N m, rate {lim.velocity:g} rad/s, "
+               f"acceleration {lim.acceleration:g} rad/s^2 (the robot's limits tightened "
+               f"by the envelope: {env['drive_train']}, {env['origin']})")
     click.echo(json.dumps({**doc, "hash": robot.hash}, indent=1))
 
 
