@@ -10,6 +10,7 @@ over random states) and pi_d the rest.  r is the number of identifiable combinat
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,7 +20,7 @@ from sixplus3.cache import cached
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import Layout, layout, regressor_batch
 from sixplus3.errors import InputError
-from sixplus3.kinematics.robot import robot_fk, robot_fk_batch, robot_ik_pose
+from sixplus3.kinematics.robot import RobotConfig, robot_fk, robot_fk_batch, robot_ik_pose
 from sixplus3.kinematics.rotations import rotvec_from_matrix
 from sixplus3.robot_description.robot import Robot
 
@@ -70,19 +71,21 @@ class BaseParameters:
         return " ".join(terms)
 
 
-def states_of(robot: Robot, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(q (n, nq), converged (n,)) of a sequence of actuated angles, by forward
-    kinematics on the robot's branch from home: :data:`CHUNK_FK` samples at a time, each
-    chunk seeded from the last solution before it; a chunk is kept up to its first sample
-    that does not converge or jumps from its neighbour (more than 5 cm or 0.1 rad), and
-    the rest is solved again from there (one sample at a time where it must)."""
+def poses_of(robot: Robot, theta: np.ndarray, chunk: int = CHUNK_FK
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """(x (n, 9) minimal coordinates, converged (n,)) of a sequence of actuated angles,
+    by forward kinematics on the robot's branch from home: ``chunk`` samples at a time,
+    each chunk seeded from the last solution before it; a chunk is kept up to its first
+    sample that does not converge or jumps from its neighbour (more than 5 cm or
+    0.1 rad), and the rest is solved again from there (one sample at a time where it
+    must)."""
     theta = np.asarray(theta, dtype=float)
     n = len(theta)
     first = robot_fk(theta[0], robot)
     x = np.r_[first.position, np.reshape(rotvec_from_matrix(first.rotation), -1), first.psi]
-    q = np.empty((n, len(first.q)))
+    xs = np.tile(x, (n, 1))
     ok = np.zeros(n, dtype=bool)
-    i, size = 0, CHUNK_FK
+    i, size = 0, chunk
     while i < n:
         sl = slice(i, min(n, i + size))
         m = sl.stop - sl.start
@@ -95,14 +98,38 @@ def states_of(robot: Robot, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 size = max(1, size // 4)
                 continue
             ok[i] = False  # this sample has no pose near the last: left unsolved
-            q[i] = fk.cfg.q[0]
+            xs[i] = x
             i += 1
             continue
-        q[i:i + k], ok[i:i + k] = fk.cfg.q[:k], True
+        xs[i:i + k], ok[i:i + k] = fk.x[:k], True
         x = fk.x[k - 1]
         i += k
-        size = CHUNK_FK
-    return q, ok
+        size = chunk
+    return xs, ok
+
+
+def states_of(robot: Robot, theta: np.ndarray, chunk: int = CHUNK_FK
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """(q (n, nq), converged (n,)) of a sequence of actuated angles (:func:`poses_of`,
+    then the configurations at the poses found, :func:`configurations`)."""
+    theta = np.asarray(theta, dtype=float)
+    x, ok = poses_of(robot, theta, chunk)
+    parts = [cfg.q for _, cfg, _ in configurations(robot, theta, x)]
+    return np.concatenate(parts), ok
+
+
+#: Samples per batch of the closed-form kinematics at known poses.
+BATCH_Q = 1024
+
+
+def configurations(robot: Robot, theta: np.ndarray, x: np.ndarray
+                   ) -> Iterator[tuple[slice, RobotConfig, np.ndarray]]:
+    """(samples, their RobotConfig, converged) at poses ``x`` that solve ``theta`` (from
+    :func:`poses_of`): one Newton check per sample, in batches of :data:`BATCH_Q`."""
+    for i in range(0, len(theta), BATCH_Q):
+        sl = slice(i, min(len(theta), i + BATCH_Q))
+        fk = robot_fk_batch(theta[sl], x[sl], robot, margins=False)
+        yield sl, fk.cfg, fk.converged
 
 
 def stacked_regressor(dyn: ClosedLoopDynamics, theta: np.ndarray, theta_dot: np.ndarray,

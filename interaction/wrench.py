@@ -43,9 +43,14 @@ from scipy.linalg import lapack
 from sixplus3.control.drive.drive_log import DriveLog
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError
-from sixplus3.identification.base import base_parameters, stacked_regressor, states_of
+from sixplus3.identification.base import (
+    base_parameters,
+    configurations,
+    poses_of,
+    stacked_regressor,
+)
 from sixplus3.identification.signals import filter_log
-from sixplus3.kinematics.robot import ik_jacobian, robot_fk, robot_fk_batch
+from sixplus3.kinematics.robot import ik_jacobian, robot_fk
 from sixplus3.kinematics.rotations import rotvec_from_matrix
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -58,6 +63,8 @@ MODEL_SIGMA = 0.01
 V_BAND = 0.1
 #: Contact when a component leaves N_SIGMA standard deviations plus its band.
 N_SIGMA = 4.0
+#: Samples tracked at a time by the pose search of a log (1 kHz: 0.1 s).
+CHUNK_STATES = 100
 #: Lowest log rate the observer takes [Hz].
 MIN_RATE = 200.0
 
@@ -110,35 +117,34 @@ class StateModel:
         fk = robot_fk(theta, self.robot)
         self._x = np.r_[fk.position, np.reshape(rotvec_from_matrix(fk.rotation), -1), fk.psi]
 
-    def states(self, theta: np.ndarray, theta_dot: np.ndarray, chunk: int = 8
+    def states(self, theta: np.ndarray, theta_dot: np.ndarray, chunk: int = CHUNK_STATES
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(J (n, 9, 9), M (n, 9, 9), h (n, 9), tcp offset (n, 3)) of the samples."""
+        """(J (n, 9, 9), M (n, 9, 9), h (n, 9), tcp offset (n, 3)) of the samples; the
+        configurations are kept in ``self.q`` (n, nq).  The poses are tracked ``chunk``
+        samples at a time (:func:`~sixplus3.identification.base.poses_of`), then the
+        Jacobians and the dynamics are evaluated in large batches."""
         theta = np.asarray(theta, dtype=float)
+        theta_dot = np.asarray(theta_dot, dtype=float)
         n = len(theta)
-        if self._x is None:
-            self.seed(theta[0])
+        x, ok = poses_of(self.robot, theta, chunk)
+        if not ok.all():
+            k = int(np.argmin(ok))
+            raise InputError(f"no pose of this robot has the logged angles of sample {k}",
+                             value=k, valid="angles of an assembly of this robot")
         J = np.empty((n, 9, 9))
         M = np.empty((n, 9, 9))
         h = np.empty((n, 9))
         off = np.empty((n, 3))
         tool = np.asarray(self.robot.tool.xyz)
-        for i in range(0, n, chunk):
-            sl = slice(i, min(n, i + chunk))
-            m = sl.stop - sl.start
-            assert self._x is not None
-            fk = robot_fk_batch(theta[sl], np.tile(self._x, (m, 1)), self.robot,
-                                margins=False)
-            if not fk.converged.all():
-                k = i + int(np.argmin(fk.converged))
-                raise InputError(f"no pose of this robot has the logged angles of sample {k}",
-                                 value=k, valid="angles of an assembly of this robot")
-            self._x = fk.x[-1]
-            J[sl] = ik_jacobian(fk.cfg)
-            inertia = np.empty((m, 9, 9))
-            h[sl], rc = self.dyn.actuated_inverse_dynamics_batch(
-                fk.cfg.q, theta_dot[sl], np.zeros((m, 9)), inertia=inertia)
-            M[sl] = inertia
-            off[sl] = np.einsum("nij,j->ni", fk.rotation, tool)
+        qs = []
+        for sl, cfg, _ in configurations(self.robot, theta, x):
+            J[sl] = ik_jacobian(cfg)
+            h[sl], _ = self.dyn.actuated_inverse_dynamics_batch(
+                cfg.q, theta_dot[sl], np.zeros((sl.stop - sl.start, 9)), inertia=M[sl])
+            off[sl] = np.einsum("nij,j->ni", cfg.rotation, tool)
+            qs.append(cfg.q)
+        self.q = np.concatenate(qs)
+        self._x = x[-1]
         return J, M, h, off
 
 
@@ -293,8 +299,7 @@ def estimate(log: DriveLog, robot: Robot, gain: float = GAIN, at: str = "centre"
         f = filter_log(log, decimate=False, coulomb_velocity=None)
         sm2 = StateModel(robot)
         J2, _, _, off2 = sm2.states(f.theta, f.theta_dot)
-        tau_m, _ = sm2.dyn.actuated_inverse_dynamics_batch(
-            _configs(robot, f.theta), f.theta_dot, f.theta_ddot)
+        tau_m, _ = sm2.dyn.actuated_inverse_dynamics_batch(sm2.q, f.theta_dot, f.theta_ddot)
         wd = np.einsum("nij,nj->ni", wrench_map(J2), tau_m - f.tau)[:, :6]
         if at == "tcp":
             wd = to_tcp(wd, off2)
@@ -333,12 +338,6 @@ def parameter_variance(robot: Robot, theta: np.ndarray, theta_dot: np.ndarray,
                                            theta_dot[sl], np.zeros_like(theta_dot[sl])))
         out[sl] = np.einsum("nja,ab,njb->nj", Wb, cov, Wb)
     return np.maximum(out, 0.0)
-
-
-def _configs(robot: Robot, theta: np.ndarray) -> np.ndarray:
-
-    q, _ = states_of(robot, theta)
-    return q
 
 
 __all__ = ["GAIN", "MODEL_SIGMA", "N_SIGMA", "StateModel", "V_BAND", "WrenchEstimate",

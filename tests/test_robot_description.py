@@ -248,6 +248,7 @@ def test_export_urdf_writes_its_closures_and_a_ros2_control_block(tmp_path) -> N
     joints = block.findall("joint")
     assert [j.get("name") for j in joints] == gen.actuated_joint_names()
     from sixplus3.kinematics.robot import home
+    from sixplus3.robot_description.ros2_control import ros2_control_block
 
     start = home(robot).theta[0]
     for jk, j in enumerate(joints):
@@ -270,7 +271,7 @@ def test_export_urdf_writes_its_closures_and_a_ros2_control_block(tmp_path) -> N
     assert plain.exit_code == 2
     assert "initial_value" not in gen.robot_urdf(robot)
     with pytest.raises(ValueError, match="9 finite angles"):
-        gen.ros2_control_block(robot, initial=[0.0] * 8)
+        ros2_control_block(robot, initial=[0.0] * 8)
 
 
 def test_ros2_control_starts_at_a_trajectory_files_first_sample(tmp_path) -> None:

@@ -232,10 +232,11 @@ def robot_export(fmt: str, out_file: str | None, contacts: bool, ros2_control: b
             CLOSURES_PATH,
             build_closures_yaml,
             robot_urdf,
-            with_ros2_control,
         )
 
         if ros2_control:
+            from sixplus3.robot_description.ros2_control import with_ros2_control
+
             if start_file is not None:
                 from sixplus3.control.file.trajectory_file import read_trajectory
 
