@@ -71,18 +71,26 @@ class BaseParameters:
         return " ".join(terms)
 
 
-def poses_of(robot: Robot, theta: np.ndarray, chunk: int = CHUNK_FK
+def poses_of(robot: Robot, theta: np.ndarray, chunk: int = CHUNK_FK,
+             start: np.ndarray | None = None, give_up: bool = False
              ) -> tuple[np.ndarray, np.ndarray]:
     """(x (n, 9) minimal coordinates, converged (n,)) of a sequence of actuated angles,
     by forward kinematics on the robot's branch from home: ``chunk`` samples at a time,
     each chunk seeded from the last solution before it; a chunk is kept up to its first
     sample that does not converge or jumps from its neighbour (more than 5 cm or
     0.1 rad), and the rest is solved again from there (one sample at a time where it
-    must)."""
+    must).  ``start``: the pose (9,) just before the first sample to follow from
+    (default: the forward kinematics of the first sample from home); ``give_up``: stop
+    at the first sample with no pose (the rest is left unsolved), for a caller that
+    only asks whether the whole sequence has one."""
     theta = np.asarray(theta, dtype=float)
     n = len(theta)
-    first = robot_fk(theta[0], robot)
-    x = np.r_[first.position, np.reshape(rotvec_from_matrix(first.rotation), -1), first.psi]
+    if start is None:
+        first = robot_fk(theta[0], robot)
+        x = np.r_[first.position, np.reshape(rotvec_from_matrix(first.rotation), -1),
+                  first.psi]
+    else:
+        x = np.array(start, dtype=float)
     xs = np.tile(x, (n, 1))
     ok = np.zeros(n, dtype=bool)
     i, size = 0, chunk
@@ -99,6 +107,8 @@ def poses_of(robot: Robot, theta: np.ndarray, chunk: int = CHUNK_FK
                 continue
             ok[i] = False  # this sample has no pose near the last: left unsolved
             xs[i] = x
+            if give_up:
+                break
             i += 1
             continue
         xs[i:i + k], ok[i:i + k] = fk.x[:k], True

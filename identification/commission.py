@@ -26,7 +26,7 @@ from sixplus3.control.drive.drive_log import JOINTS, DriveLog, counts_per_rad
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import N_BODY, N_MOTOR, parameters, regressor_batch
 from sixplus3.errors import InputError
-from sixplus3.identification.base import states_of
+from sixplus3.identification.base import configurations, poses_of
 from sixplus3.identification.signals import filter_log
 from sixplus3.kinematics.robot import home
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -45,6 +45,13 @@ JOG_CUTOFF = 20.0
 #: [s] between the samples the forward kinematics follows (a crank can turn several
 #: rad/s while one motor moves; FK seeds each sample from the last).
 FK_PERIOD = 0.004
+#: Samples the forward kinematics follows at a time (each chunk seeded from the last
+#: solution; a chunk that fails is split, identification.base.poses_of).
+FK_CHUNK = 64
+#: [rad] a reversal's mirrored angles further than this from the logged ones are
+#: followed again; nearer ones (a motor at rest at the pose, up to its noise) keep the
+#: logged pose as the Newton seed of their configuration.
+MOVED = 1e-3
 
 
 def known_pose(robot: Robot, theta_deg: np.ndarray | None = None) -> np.ndarray:
@@ -134,18 +141,18 @@ class Directions:
 
 
 def _column_errors(dyn: ClosedLoopDynamics, pi: np.ndarray, step: int, th: np.ndarray,
-                   thd: np.ndarray, thdd: np.ndarray, tau: np.ndarray,
+                   x: np.ndarray, thd: np.ndarray, thdd: np.ndarray, tau: np.ndarray,
                    coul: np.ndarray) -> np.ndarray:
     """(9,) RMS of the measured minus the model's torque per motor [N m], on every
-    ``step``-th sample (the forward kinematics follows every sample: a crank can turn
-    fast while a single motor moves)."""
+    ``step``-th sample, at the poses ``x`` (the forward kinematics followed every
+    sample: a crank can turn fast while a single motor moves)."""
     assert dyn.robot is not None
-    q, ok = states_of(dyn.robot, th)
-    if not ok.all():
-        raise InputError("no pose of this robot has these angles", value=None,
-                         valid="an assembly")
     sl = slice(None, None, step)
-    Y, _ = regressor_batch(dyn, q[sl], thd[sl], thdd[sl])
+    parts = list(configurations(dyn.robot, th[sl], x[sl]))
+    if not all(conv.all() for _, _, conv in parts):
+        return np.full(9, math.inf)  # no pose near the one followed: not this hypothesis
+    q = np.concatenate([cfg.q for _, cfg, _ in parts])
+    Y, _ = regressor_batch(dyn, q, thd[sl], thdd[sl])
     nb = dyn.model.njoints - 1
     idx = np.arange(9)
     Y[:, idx, N_BODY * nb + N_MOTOR * idx + 2] = coul[sl]
@@ -176,15 +183,28 @@ def check_directions(robot: Robot, log: DriveLog) -> Directions:
     dyn = ClosedLoopDynamics(robot)
     pi = parameters(dyn)
 
+    x_logged, ok_logged = poses_of(robot, th, FK_CHUNK)
+
     def errors(flip: set[int]) -> np.ndarray:
         s = np.ones(9)
         s[list(flip)] = -1.0
         th_h = np.where(s < 0, 2 * ref - th, th)
-        try:
-            return _column_errors(dyn, pi, step, th_h, s * thd, s * thdd, s * tau,
-                                  s * coul)
-        except InputError:  # no pose of the robot has those angles: not this hypothesis
+        if not flip:
+            x, ok = x_logged, ok_logged
+        else:
+            # a reversal changes only the samples where a flipped motor is off the pose
+            # (each motor is jogged in turn): follow those again, from the logged pose
+            # before them; the rest keep the logged poses
+            moved = np.flatnonzero(np.any(np.abs(th_h - th) > MOVED, axis=1))
+            x, ok = x_logged.copy(), ok_logged.copy()
+            if len(moved):
+                a, b = int(moved[0]), int(moved[-1]) + 1
+                start = x_logged[a - 1] if a > 0 and ok_logged[a - 1] else None
+                x[a:b], ok[a:b] = poses_of(robot, th_h[a:b], FK_CHUNK, start=start,
+                                           give_up=True)
+        if not ok.all():  # no pose of the robot has those angles: not this hypothesis
             return np.full(9, math.inf)
+        return _column_errors(dyn, pi, step, th_h, x, s * thd, s * thdd, s * tau, s * coul)
 
     as_logged = errors(set())
     if not np.all(np.isfinite(as_logged)):

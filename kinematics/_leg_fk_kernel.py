@@ -111,8 +111,7 @@ def fk_point(theta, geo, mode, seeds, out, scratch):
     return _failed(out, status)
 
 
-@njit(cache=True, parallel=True, fastmath=_FM, error_model="numpy")
-def fk_batch(thetas, geo, mode, seeds, mass_g, accel_g):
+def _fk_batch(thetas, geo, mode, seeds, mass_g, accel_g):
     """Forward kinematics of (n, 3) actuated angles; ``seeds`` is (n, k, 2)."""
     n = thetas.shape[0]
     out = np.zeros((n, NF))
@@ -122,3 +121,8 @@ def fk_batch(thetas, geo, mode, seeds, mass_g, accel_g):
         if st == STATUS_OK:
             jacobian_point(geo, mass_g, accel_g, out[i])
     return out
+
+
+#: Threaded for large batches, serial for small ones (see _leg_kernel.full_batch).
+fk_batch = njit(cache=True, parallel=True, fastmath=_FM, error_model="numpy")(_fk_batch)
+fk_batch_serial = njit(cache=True, fastmath=_FM, error_model="numpy")(_fk_batch)

@@ -364,8 +364,7 @@ def jacobian_point(geo, mass_g, accel_g, out, margin_ii=True):
     out[TAU_EXT] = max(t0, max(t1, t2))
 
 
-@njit(cache=True, parallel=True, fastmath=_FM, error_model="numpy")
-def full_batch(points, geo, mode, mass_g, accel_g):
+def _full_batch(points, geo, mode, mass_g, accel_g):
     """IK + Jacobians + statics for (n, 3) points; returns the (n, NF) field array."""
     n = points.shape[0]
     out = np.zeros((n, NF))
@@ -375,6 +374,14 @@ def full_batch(points, geo, mode, mass_g, accel_g):
         if st == STATUS_OK:
             jacobian_point(geo, mass_g, accel_g, row)
     return out
+
+
+#: Threaded for large batches; a small one (a few samples per call, e.g. forward
+#: kinematics following a log) runs serial: waking the thread pool costs ~1 ms per call
+#: on a loaded machine, a thousand times the work (``leg_ik`` picks, SERIAL_BELOW).
+full_batch = njit(cache=True, parallel=True, fastmath=_FM, error_model="numpy")(_full_batch)
+full_batch_serial = njit(cache=True, fastmath=_FM, error_model="numpy")(_full_batch)
+SERIAL_BELOW = 512
 
 
 # Compact output of the throughput kernel.

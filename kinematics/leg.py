@@ -184,7 +184,8 @@ def leg_ik(
     """Inverse kinematics, Jacobians and statics of (n, 3) points p [m] in the leg frame."""
     pts = _as_points(points)
     mg, ag = _mass_terms(load)
-    rows = kern.full_batch(pts, geometry.packed(), AssemblyMode.parse(mode).array(), mg, ag)
+    batch = kern.full_batch if len(pts) >= kern.SERIAL_BELOW else kern.full_batch_serial
+    rows = batch(pts, geometry.packed(), AssemblyMode.parse(mode).array(), mg, ag)
     return LegState._from_rows(rows)
 
 
@@ -296,8 +297,8 @@ def leg_fk(
         seeds = np.concatenate([hint[:, None, :], np.broadcast_to(base, (n, *base.shape))],
                                axis=1)
     mg, ag = _mass_terms(load)
-    rows = fk_kern.fk_batch(th, geometry.packed(), mode.array(), np.ascontiguousarray(seeds),
-                         mg, ag)
+    batch = fk_kern.fk_batch if n >= kern.SERIAL_BELOW else fk_kern.fk_batch_serial
+    rows = batch(th, geometry.packed(), mode.array(), np.ascontiguousarray(seeds), mg, ag)
     return LegState._from_rows(rows)
 
 
