@@ -9,6 +9,8 @@ over random states) and pi_d the rest.  r is the number of identifiable combinat
 
 from __future__ import annotations
 
+import hashlib
+import io
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -18,10 +20,18 @@ import scipy.linalg
 
 from sixplus3.cache import cached
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.dynamics.codegen import cache_dir
 from sixplus3.dynamics.regressor import Layout, layout, regressor_batch
-from sixplus3.errors import InputError
-from sixplus3.kinematics.robot import RobotConfig, robot_fk, robot_fk_batch, robot_ik_pose
-from sixplus3.kinematics.rotations import rotvec_from_matrix
+from sixplus3.errors import InputError, Sixplus3Error
+from sixplus3.fileio import atomic_write
+from sixplus3.kinematics.robot import (
+    RobotConfig,
+    ik_jacobian,
+    robot_fk,
+    robot_fk_batch,
+    robot_ik_pose,
+)
+from sixplus3.kinematics.rotations import matrix_from_rotvec, rotvec_from_matrix
 from sixplus3.robot_description.robot import Robot
 
 #: Relative threshold on |R_kk| / |R_00| of the pivoted QR for a base column.
@@ -29,7 +39,7 @@ RANK_TOL = 1e-8
 #: Random states stacked to find the base parameters.
 BASE_SAMPLES = 400
 #: Samples solved at once by the forward kinematics of a log (:func:`states_of`).
-CHUNK_FK = 16
+CHUNK_FK = 64
 
 
 @dataclass(frozen=True)
@@ -94,10 +104,19 @@ def poses_of(robot: Robot, theta: np.ndarray, chunk: int = CHUNK_FK,
     xs = np.tile(x, (n, 1))
     ok = np.zeros(n, dtype=bool)
     i, size = 0, chunk
+    dx_dtheta: np.ndarray | None = None  # at the last pose solved, for the seeds
+    th_last = theta[0]
     while i < n:
         sl = slice(i, min(n, i + size))
         m = sl.stop - sl.start
-        fk = robot_fk_batch(theta[sl], np.tile(x, (m, 1)), robot, margins=False)
+        seeds = np.tile(x, (m, 1))
+        if dx_dtheta is not None:  # first-order prediction from the last pose solved
+            d = (theta[sl] - th_last) @ dx_dtheta.T  # (m, 9): dp, d omega, d psi
+            seeds[:, 0:3] += d[:, 0:3]
+            seeds[:, 6:9] += d[:, 6:9]
+            R = matrix_from_rotvec(d[:, 3:6]) @ matrix_from_rotvec(x[3:6])
+            seeds[:, 3:6] = np.reshape(rotvec_from_matrix(R), (m, 3))
+        fk = robot_fk_batch(theta[sl], seeds, robot, margins=False)
         steps = np.abs(np.diff(np.vstack([x[None], fk.x]), axis=0)).max(axis=1)
         good = fk.converged & (steps < 0.1)
         k = m if good.all() else int(np.argmin(good))
@@ -113,6 +132,13 @@ def poses_of(robot: Robot, theta: np.ndarray, chunk: int = CHUNK_FK,
             continue
         xs[i:i + k], ok[i:i + k] = fk.x[:k], True
         x = fk.x[k - 1]
+        th_last = theta[i + k - 1]
+        last = np.zeros(m, dtype=bool)
+        last[k - 1] = True
+        try:
+            dx_dtheta = np.linalg.inv(ik_jacobian(fk.cfg.take(last))[0])
+        except np.linalg.LinAlgError:  # singular: seed from the pose alone
+            dx_dtheta = None
         i += k
         size = chunk
     return xs, ok
@@ -209,7 +235,38 @@ def base_parameters(robot: Robot, n: int = BASE_SAMPLES, seed: int = 0) -> BaseP
     states (cached per process by the robot's hash)."""
 
     return cached(("base-parameters", f"{robot.hash}:{n}:{seed}"),
-                  lambda: _base_parameters(robot, n, seed))
+                  lambda: _stored_base_parameters(robot, n, seed))
+
+
+#: Bump when :func:`_base_parameters` changes what it computes (the disk cache's key).
+BASE_FORMAT = 1
+
+
+def _stored_base_parameters(robot: Robot, n: int, seed: int) -> BaseParameters:
+    """:func:`_base_parameters`, kept on disk beside the compiled planner functions
+    (``codegen.cache_dir()``): the QR of 400 random states costs ~2 s, and every log
+    command needs it.  The file is keyed by the robot's hash, ``n``, ``seed`` and
+    :data:`BASE_FORMAT`; a missing, unreadable or inconsistent file is recomputed."""
+    key = hashlib.sha256(f"{robot.hash}:{n}:{seed}:{BASE_FORMAT}".encode()).hexdigest()[:24]
+    path = cache_dir() / f"base_parameters_{key}.npz"
+    lay = layout(ClosedLoopDynamics(robot))
+    try:
+        with np.load(path) as z:
+            idx, dep, K = z["index"], z["dependent"], z["K"]
+        if (idx.ndim == 1 and dep.ndim == 1 and K.shape == (len(idx), len(dep))
+                and len(idx) + len(dep) == lay.size and np.all(np.isfinite(K))):
+            return BaseParameters(layout=lay, index=idx, dependent=dep, K=K)
+    except (OSError, KeyError, ValueError):
+        pass
+    base = _base_parameters(robot, n, seed)
+    try:
+        buf = io.BytesIO()
+        np.savez(buf, index=base.index, dependent=base.dependent, K=base.K)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, buf.getvalue())
+    except (OSError, Sixplus3Error):  # a read-only cache: compute each time
+        pass
+    return base
 
 
 def _base_parameters(robot: Robot, n: int, seed: int) -> BaseParameters:

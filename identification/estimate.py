@@ -70,17 +70,49 @@ def condition_number(Wb: np.ndarray) -> float:
     return float(math.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else math.inf
 
 
-def _solve(Wb: np.ndarray, y: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Weighted least squares by the normal equations of the column-scaled system (its
-    condition number is below MAX_CONDITION, so its square is far from double
-    precision's limit): (beta, the Gram matrix A^T A of the weighted rows)."""
-    A = Wb * w[:, None]
-    s = np.linalg.norm(A, axis=0)
+def _solve_gram(G: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """beta of the normal equations G beta = b, solved column-scaled (each column of the
+    weighted system to unit norm: s = sqrt(diag G)); the scaled system's condition
+    number is below MAX_CONDITION, so its square is far from double precision's limit."""
+    s = np.sqrt(np.maximum(np.diag(G), 0.0))
     s[s == 0] = 1.0
-    As = A / s
-    G = As.T @ As
-    beta = np.linalg.solve(G, As.T @ (y * w)) / s
-    return beta, G * s[:, None] * s[None, :]
+    return np.linalg.solve(G / s[:, None] / s[None, :], b / s) / s
+
+
+class _Normal:
+    """The normal equations of ``Wb`` (N, r) and ``tau`` by joint: G_j = A_j^T A_j and
+    b_j = A_j^T tau_j, formed once (the only pass over all N rows).  A weighting that is
+    one weight per joint times a factor h_i <= 1 on some rows (Huber's down-weighted
+    outliers) is then G = sum_j w_j^2 G_j - sum_{h_i < 1} w_j^2 (1 - h_i) a_i a_i^T: each
+    IRLS step touches only its outliers, not the 10^5 rows of a long log."""
+
+    def __init__(self, Wb: np.ndarray, tau: np.ndarray, joint: np.ndarray, n: int) -> None:
+        self.Wb, self.tau, self.joint, self.n = Wb, tau, joint, n
+        r = Wb.shape[1]
+        self.G = np.zeros((n, r, r))
+        self.b = np.zeros((n, r))
+        for j in range(n):
+            rows = joint == j
+            if rows.any():
+                A = Wb[rows]
+                self.G[j] = A.T @ A
+                self.b[j] = A.T @ tau[rows]
+
+    def solve(self, wj: np.ndarray, h: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """(beta, the Gram matrix A^T A of the weighted rows) for the row weights
+        ``wj[joint] * sqrt(h)`` (h None: all ones)."""
+        w2 = np.asarray(wj, dtype=float) ** 2
+        G = np.einsum("j,jab->ab", w2, self.G)
+        b = w2 @ self.b
+        if h is not None:
+            out = np.flatnonzero(h < 1.0)
+            if len(out):
+                c = w2[self.joint[out]] * (1.0 - h[out])
+                A = self.Wb[out]
+                G = G - (A * c[:, None]).T @ A
+                b = b - A.T @ (c * self.tau[out])
+        return _solve_gram(G, b), G
 
 
 def least_squares(Wb: np.ndarray, tau: np.ndarray, joint: np.ndarray | None = None,
@@ -93,27 +125,30 @@ def least_squares(Wb: np.ndarray, tau: np.ndarray, joint: np.ndarray | None = No
         raise InputError(f"{N} equations for {r} base parameters: the log is too short",
                          value=N, valid=f"> {r} rows")
     joint = np.arange(N) % n_joints if joint is None else np.asarray(joint)
-    beta, _ = _solve(Wb, tau, np.ones(N))
+    ne = _Normal(Wb, tau, joint, n_joints)
+    beta, _ = ne.solve(np.ones(n_joints))
     res = tau - Wb @ beta
     sigma = _rms_by_joint(res, joint, n_joints)
     sigma = np.where(np.isfinite(sigma), sigma, 1.0)
     sigma = np.maximum(sigma, 1e-6 * max(float(sigma.max()), 1e-12))
-    w_joint = 1.0 / sigma[joint]
-    w = w_joint.copy()
+    wj = 1.0 / sigma
+    w_joint = wj[joint]
+    h: np.ndarray | None = None
     it = 0
     if robust:
         while it < IRLS_ITERATIONS:
             it += 1
-            beta, _ = _solve(Wb, tau, w)
+            beta, _ = ne.solve(wj, h)
             u = (tau - Wb @ beta) * w_joint
             s = 1.4826 * float(np.median(np.abs(u - np.median(u)))) or 1.0
             hub = np.minimum(1.0, HUBER_K * s / np.maximum(np.abs(u), 1e-300))
-            w_new = w_joint * np.sqrt(hub)
-            if np.max(np.abs(w_new - w)) <= 1e-6 * np.max(w):
-                w = w_new
+            old = np.ones_like(hub) if h is None else h
+            h = hub
+            if np.max(w_joint * np.abs(np.sqrt(hub) - np.sqrt(old))) <= \
+                    1e-6 * np.max(w_joint * np.sqrt(old)):
                 break
-            w = w_new
-    beta, gram = _solve(Wb, tau, w)
+    beta, gram = ne.solve(wj, h)
+    w = w_joint if h is None else w_joint * np.sqrt(h)
     res_w = (tau - Wb @ beta) * w
     dof = max(N - r, 1)
     s2 = float(res_w @ res_w) / dof

@@ -416,6 +416,22 @@ def test_cli_identify_estimate_and_check(excitation, validation_plan, tmp_path) 
     assert not (tmp_path / "x.yaml").exists()
 
 
+def test_least_squares_equals_a_weighted_lstsq_at_its_weights() -> None:
+    """The IRLS through per-joint normal equations and outlier corrections (one pass over
+    the rows) gives the weighted least-squares solution of its final weights, as numpy's
+    lstsq on the weighted rows computes it independently; heavy-tailed noise makes
+    Huber down-weight many rows."""
+    rng = np.random.default_rng(1)
+    N, r = 5000, 30
+    Wb = rng.normal(size=(N, r)) * np.logspace(0, 2, r)
+    tau = Wb @ rng.normal(size=r) + rng.standard_t(3, size=N) * 0.1
+    ls = least_squares(Wb, tau)
+    w = ls.weights
+    ref = np.linalg.lstsq(Wb * w[:, None], tau * w, rcond=None)[0]
+    np.testing.assert_allclose(ls.beta, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    assert ls.iterations >= 2 and np.sum(w < np.max(w) * 0.5) > 0.01 * N  # 104 here
+
+
 def test_a_joint_that_never_moved_is_null_with_its_reason() -> None:
     """A per-joint figure with no rows is NaN in the library and ``null`` in JSON, with
     the reason beside it (issue 53.4)."""
