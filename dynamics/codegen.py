@@ -60,6 +60,15 @@ CFLAGS = ("-O1", "-fPIC", "-shared")
 QUICK_CFLAGS = ("-O0", "-fPIC", "-shared")
 #: A background build's marker older than this is a dead build [s].
 BACKGROUND_STALE_S = 1200.0
+#: The optimised build's gcc peaked at 9.6 GB resident for the planner's node function
+#: (one robot structure; BENCHMARKS.md, "The background build's memory").  A background
+#: build starts only when the machine has BACKGROUND_MIN_AVAILABLE bytes available
+#: (MemAvailable), runs under an address-space cap of BACKGROUND_MAX_BYTES (``ulimit
+#: -v``: a build that would need more fails, and the quick build stays in use), and
+#: never beside another background build (one marker alive in the cache: none started).
+#: ``SIXPLUS3_BUILD_MEMORY_GB`` sets the cap (the minimum follows it).
+BACKGROUND_MAX_BYTES = 12 * 2 ** 30
+BACKGROUND_MIN_AVAILABLE = BACKGROUND_MAX_BYTES
 
 
 #: CasADi's private OpenBLAS (IPOPT's MUMPS calls it); its name inside the wheel
@@ -143,13 +152,48 @@ def _building(lib: Path) -> bool:
     return True
 
 
+def background_memory_cap() -> int:
+    """The background build's address-space cap [bytes] (:data:`BACKGROUND_MAX_BYTES`,
+    or ``$SIXPLUS3_BUILD_MEMORY_GB``; a value that is not a number in [1, 1024] is
+    ignored)."""
+    env = os.environ.get("SIXPLUS3_BUILD_MEMORY_GB", "")
+    try:
+        gb = float(env)
+    except ValueError:
+        return BACKGROUND_MAX_BYTES
+    return int(gb * 2 ** 30) if 1.0 <= gb <= 1024.0 else BACKGROUND_MAX_BYTES
+
+
+def memory_available(need: int) -> bool:
+    """Whether the kernel reports at least ``need`` bytes available (MemAvailable of
+    /proc/meminfo); True where it cannot be read (another platform)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024 >= need
+    except (OSError, ValueError, IndexError):
+        pass
+    return True
+
+
 def _start_background(cc: str, src: str, lib: Path, quick: Path) -> None:
     """Build ``lib`` (the optimised flags) in a detached, niced process that outlives
     this one: the source goes to a temporary file, the compiler writes a temporary
     library, and only a finished library is renamed into place (atomic), then the
     temporary files and the marker are removed.  Nothing is started if a build of this
     library is already running."""
-    if _building(lib):
+    if _building(lib) or any(_building(m.with_suffix(".so"))
+                             for m in lib.parent.glob("*.building")):
+        return  # one background build at a time, whatever the robot structure
+    cap = background_memory_cap()
+    if not memory_available(cap):
+        if progress.level() != progress.QUIET:
+            print(f"sixplus3: the optimised build is not started: less than "
+                  f"{cap / 2 ** 30:.0f} GiB of memory available (gcc peaks near 10 GB on "
+                  "it); the quick build stays in use (set SIXPLUS3_BUILD_MEMORY_GB, or "
+                  "run `python -c 'import sixplus3.dynamics.codegen as c; "
+                  "c.ensure_optimised(...)'` when the machine is free)", file=sys.stderr)
         return
     for left in lib.parent.glob(f"{lib.stem}_bg_*"):  # a dead build's source and output
         left.unlink(missing_ok=True)
@@ -162,15 +206,16 @@ def _start_background(cc: str, src: str, lib: Path, quick: Path) -> None:
     # the builder writes its pid into the marker (so a killed build is seen as dead),
     # compiles, renames the finished library into place, removes the quick library (a
     # process that loaded it keeps its mapping), then its temporary files and the marker
-    builder = ('echo $$ > "$MARK"; nice -n 10 "$@" >/dev/null 2>&1 && mv -f "$TMP" "$LIB" '
-               '&& rm -f "$QUICK"; rm -f "$C" "$TMP" "$MARK"')
+    builder = ('echo $$ > "$MARK"; ulimit -v "$CAP_KB"; nice -n 10 "$@" >/dev/null 2>&1 '
+               '&& mv -f "$TMP" "$LIB" && rm -f "$QUICK"; rm -f "$C" "$TMP" "$MARK"')
     # the outer shell starts the builder in the background and exits at once: the
     # builder is re-parented to init, so it outlives this process (and its Ctrl-C: a
     # new session)
     subprocess.run(["sh", "-c", 'sh -c "$BUILDER" sh "$@" >/dev/null 2>&1 </dev/null &',
                     "sh", cc, *CFLAGS, c_path, "-o", tmp],
                    env={**os.environ, "BUILDER": builder, "TMP": tmp, "LIB": str(lib),
-                        "C": c_path, "MARK": str(mark), "QUICK": str(quick)},
+                        "C": c_path, "MARK": str(mark), "QUICK": str(quick),
+                        "CAP_KB": str(cap // 1024)},
                    start_new_session=True, check=False)
 
 

@@ -146,3 +146,35 @@ def test_the_planner_runs_mumps_blas_on_one_thread_unless_the_user_says(env, exp
                          capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split()[-1] == expected
+
+
+def test_the_background_build_is_bounded_in_memory_and_alone(tmp_path, monkeypatch) -> None:
+    """Issue 53.7: gcc peaked at 9.6 GB on the optimised node function; two structures
+    at once took 5 GB each.  A background build starts only with enough memory
+    available, under an address-space cap, and never beside another one."""
+    started: list[dict] = []
+    real_available = codegen.memory_available
+
+    def fake_run(args, env=None, **kw):
+        started.append(env or {})
+
+    monkeypatch.setattr(codegen.subprocess, "run", fake_run)
+    lib, quick = tmp_path / "sixplus3_node_a.so", tmp_path / "sixplus3_node_a_q.so"
+    monkeypatch.setattr(codegen, "memory_available", lambda need: False)
+    codegen._start_background("gcc", "int x;", lib, quick)
+    assert started == [] and not lib.with_suffix(".building").exists()
+    monkeypatch.setattr(codegen, "memory_available", lambda need: True)
+    other = tmp_path / "sixplus3_node_b.building"  # another structure's build, alive
+    other.write_text(str(os.getpid()))
+    codegen._start_background("gcc", "int x;", lib, quick)
+    assert started == []
+    other.unlink()
+    codegen._start_background("gcc", "int x;", lib, quick)
+    assert len(started) == 1
+    assert int(started[0]["CAP_KB"]) * 1024 == codegen.BACKGROUND_MAX_BYTES
+    assert "ulimit -v" in started[0]["BUILDER"]
+    monkeypatch.setenv("SIXPLUS3_BUILD_MEMORY_GB", "6")
+    assert codegen.background_memory_cap() == 6 * 2 ** 30
+    monkeypatch.setenv("SIXPLUS3_BUILD_MEMORY_GB", "nonsense")
+    assert codegen.background_memory_cap() == codegen.BACKGROUND_MAX_BYTES
+    assert real_available(1) and not real_available(2 ** 60)
