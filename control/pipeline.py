@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -14,6 +15,7 @@ from sixplus3.control.file.trajectory_file import check_samples, output_path
 from sixplus3.control.gate.validation import ValidationReport, validate_and_write
 from sixplus3.errors import TrajectoryFileError, ValidationFailed
 from sixplus3.planner.ocp import PlannerOptions, Solution, plan_problem
+from sixplus3.planner.pfl import PFL_SAFETY, pfl_speed, task_regions
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.task import Task
 from sixplus3.progress import PlanProgress
@@ -48,10 +50,16 @@ def _silent(text: str) -> None:
     pass
 
 
+#: Plans a task with power and force limiting may take (each lowering the speed bound
+#: by what the gate found).
+PFL_TRIES = 3
+
+
 def run_plan(task: Task, out_dir: str | Path, robot: Robot,
              rate: float = 1000.0, html: bool = True, plots: bool = True,
              options: PlannerOptions | None = None,
-             progress: Callable[[str], None] | PlanProgress | None = None) -> PlanOutputs:
+             progress: Callable[[str], None] | PlanProgress | None = None,
+             _pfl_try: int = 0) -> PlanOutputs:
     """Plan ``task`` for ``robot`` and write the validated
     trajectory file ``out_dir/<name>.csv`` (and the page and plots beside it).
 
@@ -68,6 +76,16 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
         listener, say = progress, progress.stage
     elif progress is not None:
         say = progress
+    # power and force limiting (docs/safety.md): the tool centre point's speed bound for
+    # the task's and the site's body regions, as a tightening of the task's limits
+    regions = task_regions(task)
+    if regions and _pfl_try == 0:
+        bound = pfl_speed(task, task.robot_for(robot))
+        if bound is not None:
+            cap = min(bound, task.limits.get("tcp_speed", bound))
+            task = replace(task, limits={**task.limits, "tcp_speed": cap})
+            say(f"power and force limiting for {', '.join(r.name for r in regions)}: the "
+                f"tool centre point within {cap:.3f} m/s")
     # the task checked once, here: the arguments, its setup robot and its limits (a
     # looser limit than the hardware's is refused before anything is solved), all held
     # by the Problem
@@ -113,13 +131,28 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
         f"{sm.duration:.4f} s (+{100 * sm.added_fraction:.2f}%, time stretch "
         f"{sm.time_stretch:.4f}), max jerk {sm.max_jerk:.3g} rad/s^3")
     t2 = time.perf_counter()
-    meta = {"rate_hz": rate, "task": task.source, "planner": sol.header(),
+    meta: dict[str, Any] = {"rate_hz": rate, "task": task.source, "planner": sol.header(),
             "smoothing": sm.header()}
+    if regions:
+        meta["pfl"] = [r.name for r in regions]
     out.mkdir(parents=True, exist_ok=True)
     try:
         _, rep = validate_and_write(csv_path, sm.t, sm.theta, sm.theta_dot, sm.theta_ddot,
                                     robot, rate, sm.x_guess, sol.limits, meta)
     except ValidationFailed as exc:
+        failed = exc.report if isinstance(exc.report, ValidationReport) else None
+        found = failed.findings if failed is not None else []
+        ratio = failed.max_pfl_ratio if failed is not None else None
+        if (found and all(f.check.startswith("pfl ") for f in found) and ratio
+                and _pfl_try < PFL_TRIES and "tcp_speed" in task.limits):
+            # between the poses the bound was taken at, the effective mass was higher:
+            # lower the speed bound by what the gate found (energy goes as speed^2)
+            cap = task.limits["tcp_speed"] * PFL_SAFETY / float(np.sqrt(ratio))
+            say(f"  the gate's PFL check found {ratio:.3f} of the limit: planning again "
+                f"with the tool centre point within {cap:.3f} m/s")
+            return run_plan(replace(task, limits={**task.limits, "tcp_speed": cap}),
+                            out_dir, robot, rate, html, plots, options, progress,
+                            _pfl_try=_pfl_try + 1)
         raise TrajectoryFileError("the smoothed trajectory fails validation, nothing "
                                   "written: " + str(exc).split(": ", 1)[-1],
                                   value=str(exc)[:2000],

@@ -75,6 +75,10 @@ class ValidationReport:
     limits: dict | None = None  # the limits judged by (the robot's, or tighter)
     max_tcp_speed: float = 0.0  # [m/s] the tool centre point (samples and midpoints)
     max_tcp_acceleration: float = 0.0  # [m/s^2] (samples: finite difference)
+    #: the body regions judged for power and force limiting (ISO/TS 15066), and the
+    #: largest contact energy over them against its limit (<= 1 holds; docs/safety.md)
+    pfl: tuple[str, ...] = ()
+    max_pfl_ratio: float | None = None
 
     @property
     def defects(self) -> list[Finding]:
@@ -102,7 +106,7 @@ class ValidationReport:
                 "min_margin_leg_type2", "min_margin_platform", "min_clearance",
                 "max_spherical_tilt_deg", "theta_range_ok", "checked_points", "tolerances",
                 "max_torque_rate", "max_interpolant_jerk_ratio", "rate_hz", "limits",
-                "max_tcp_speed", "max_tcp_acceleration")
+                "max_tcp_speed", "max_tcp_acceleration", "pfl", "max_pfl_ratio")
         out = {k: getattr(self, k) for k in keys}
         out["exit_code"] = self.exit_code
         out["findings"] = self.messages()

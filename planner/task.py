@@ -11,6 +11,8 @@ Example (units: m and degrees in the file, SI inside)::
         psi: [90, 90, 90]           # optional crank angles [deg]; free otherwise
         stop: true                  # optional: come to rest here (v = 0, a = 0)
         dwell: 0.5                  # optional: then hold the pose [s] (implies stop)
+    pfl: [hand, lower_arm]          # optional: power and force limiting for these body
+                                    # regions (ISO/TS 15066; docs/safety.md)
     people: collaborative           # optional: a named set of platform limits for work
                                     # near people (hardware.PEOPLE_LIMITS), tightening
     limits:                         # optional: only tightens the robot's hardware limits
@@ -56,6 +58,7 @@ from sixplus3.errors import ConvergenceError, GeometryError, InputError, TaskErr
 from sixplus3.fileio import read_yaml, short_repr
 from sixplus3.kinematics.robot import robot_fk
 from sixplus3.planner.waypoint import Waypoint
+from sixplus3.robot_description.body_regions import REGIONS, regions
 from sixplus3.robot_description.hardware import PEOPLE_LIMITS, effective_limits, people_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.physical import Payload, Tool
@@ -109,6 +112,7 @@ SCHEMA = {
             },
         },
         "people": {"enum": sorted(PEOPLE_LIMITS)},
+        "pfl": {"type": "array", "items": {"enum": list(REGIONS)}, "maxItems": 12},
         "nodes_per_segment": {"type": "integer", "minimum": 4, "maximum": 60},
         "frame": {"enum": ["platform", "tcp"]},
         "start": {
@@ -180,6 +184,9 @@ class Task:
     #: within the limits); ``speed`` in (0, 1] is the minimum time divided by it
     duration: float | None = None
     speed: float | None = None
+    #: body regions (ISO/TS 15066) every contact must be safe for: power and force
+    #: limiting (docs/safety.md); the site's hardware file may require more
+    pfl: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         wps = self.waypoints
@@ -373,7 +380,8 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
                 start_psi=str(doc.get("start_psi", "home")),
                 end_psi=str(doc.get("end_psi", "start")),
                 duration=float(doc["duration"]) if "duration" in doc else None,
-                speed=float(doc["speed"]) if "speed" in doc else None)
+                speed=float(doc["speed"]) if "speed" in doc else None,
+                pfl=tuple(r.name for r in regions(doc.get("pfl", []))))
 
 
 def load_task(path: str | Path) -> Task:

@@ -30,8 +30,9 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sixplus3.errors import GeometryError, LimitError
+from sixplus3.errors import GeometryError, InputError, LimitError
 from sixplus3.fileio import parse_yaml, read_bytes
+from sixplus3.robot_description.body_regions import regions
 from sixplus3.robot_description.limits import Limits
 
 
@@ -121,9 +122,13 @@ class Hardware:
     drive_train: str = DEFAULT_DRIVE_TRAIN
     limits: Limits = field(default_factory=lambda: catalogue_envelope(DEFAULT_DRIVE_TRAIN))
     origin: str = "built-in catalogue"
+    #: the body regions every motion must be safe for (ISO/TS 15066 power and force
+    #: limiting, docs/safety.md): no task or file can drop them
+    pfl: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         drive_train(self.drive_train)
+        object.__setattr__(self, "pfl", tuple(r.name for r in regions(list(self.pfl))))
 
     def describe(self) -> str:
         return f"{self.drive_train} ({self.origin})"
@@ -214,7 +219,7 @@ def hardware_from_dict(doc: object, origin: str) -> Hardware:
     tightening of the catalogue's envelope)."""
     if not isinstance(doc, dict):
         raise GeometryError("hardware", type(doc).__name__, "a mapping")
-    known = {"drive_train", "people", "limits"}
+    known = {"drive_train", "people", "limits", "pfl"}
     extra = sorted(str(k) for k in doc if k not in known)
     if extra:
         raise GeometryError(f"hardware.{extra[0]}", "?", f"one of {sorted(known)}",
@@ -237,7 +242,15 @@ def hardware_from_dict(doc: object, origin: str) -> Hardware:
         raise GeometryError(f"hardware.limits.{exc.name}", exc.value,
                             f"{exc.valid} (catalogue {key})",
                             "a site file may tighten the catalogue, never raise it") from None
-    return Hardware(drive_train=key, limits=limits, origin=origin)
+    pfl = doc.get("pfl", [])
+    if not isinstance(pfl, list):
+        raise GeometryError("hardware.pfl", pfl, "a list of body regions "
+                            "(robot_description.body_regions.REGIONS)")
+    try:
+        names = tuple(r.name for r in regions(pfl))
+    except InputError as exc:
+        raise GeometryError("hardware.pfl", exc.value, str(exc.valid)) from None
+    return Hardware(drive_train=key, limits=limits, origin=origin, pfl=names)
 
 
 def load_hardware(path: str | Path) -> Hardware:
@@ -280,4 +293,4 @@ def envelope_record(hw: Hardware | None = None) -> dict[str, Any]:
     """What a report prints of the envelope: its drive train, origin and limits."""
     hw = active() if hw is None else hw
     return {"drive_train": hw.drive_train, "origin": hw.origin,
-            "limits": json.loads(json.dumps(hw.limits.as_dict()))}
+            "limits": json.loads(json.dumps(hw.limits.as_dict())), "pfl": list(hw.pfl)}

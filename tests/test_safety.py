@@ -131,3 +131,105 @@ def test_the_worst_direction_in_closed_form() -> None:
             assert ratio[0] == pytest.approx(1.0, rel=1e-9)
     A = point_inverse_mass(dyn, home(ROBOT))
     assert worst_speed(A, REGIONS["hand"])[0] == pytest.approx(1.566, abs=0.002)
+
+
+# ----------------------------------------------------------------- PFL in plans and the gate
+@pytest.fixture(scope="module")
+def plans(tmp_path_factory):
+    """A 12 cm move along x, planned free, for a hand and for the face (nodes kept few:
+    fast)."""
+    from sixplus3.control.pipeline import run_plan
+    from sixplus3.planner.task import task_from_dict
+
+    out = tmp_path_factory.mktemp("pfl")
+    doc = {"name": "move", "nodes_per_segment": 6, "waypoints": [
+        {"position": [-0.06, 0.0, 0.58]}, {"position": [0.06, 0.0, 0.58]}]}
+    free = run_plan(task_from_dict(doc), out / "free", ROBOT, html=False, plots=False)
+    hand = run_plan(task_from_dict({**doc, "pfl": ["hand"]}), out / "hand", ROBOT,
+                    html=False, plots=False)
+    face = run_plan(task_from_dict({**doc, "pfl": ["face"]}), out / "face", ROBOT,
+                    html=False, plots=False)
+    return free.csv, hand.csv, face.csv
+
+
+def test_a_pfl_plan_holds_the_limit_and_says_so(plans) -> None:
+    from sixplus3.control.gate.validation import validate_file
+
+    free, hand, face = (validate_file(p, ROBOT) for p in plans)
+    assert free.ok and free.pfl == () and free.max_pfl_ratio is None
+    assert hand.ok and hand.pfl == ("hand",) and hand.max_pfl_ratio <= 1.0
+    assert face.ok and face.pfl == ("face",) and face.max_pfl_ratio <= 1.0
+    assert hand.header["pfl"] == ["hand"] and face.header["pfl"] == ["face"]
+    # the face (65 N, no transient contact) needs a far slower plan than the hand
+    assert face.duration > 2.0 * hand.duration >= 2.0 * free.duration
+    # the free plan is faster than a hand allows (the next tests: its file breaks it)
+    assert free.max_tcp_speed > 1.8 > hand.max_tcp_speed
+
+
+def test_the_gate_refuses_a_file_that_names_a_set_and_breaks_it(plans, tmp_path) -> None:
+    from sixplus3.control.file.trajectory_file import read_trajectory
+    from sixplus3.control.gate.validation import validate_and_write
+    from sixplus3.errors import ValidationFailed
+    from sixplus3.kinematics.rotations import rotvec_from_quat
+
+    tr = read_trajectory(plans[0], ROBOT)
+    x = np.c_[tr.platform_position, rotvec_from_quat(tr.platform_quaternion), tr.psi]
+    args = (tr.t, tr.joints("pos"), tr.joints("vel"), tr.joints("acc"), ROBOT,
+            float(tr.header["rate_hz"]), x)
+    with pytest.raises(ValidationFailed) as err:
+        validate_and_write(tmp_path / "x.csv", *args, meta={"pfl": ["hand"]})
+    assert err.value.exit_code == 1 and "pfl hand" in str(err.value)
+    assert not (tmp_path / "x.csv").exists()
+    path, rep = validate_and_write(tmp_path / "y.csv", *args)  # names no set: written
+    assert rep.ok and path.exists()
+
+
+def test_a_site_requires_regions_no_file_can_drop(plans, tmp_path) -> None:
+    from click.testing import CliRunner
+
+    from sixplus3.cli import main as cli
+    from sixplus3.robot_description import hardware
+
+    site = tmp_path / "site.yaml"
+    site.write_text("pfl: [face]\n")
+    try:
+        res = CliRunner().invoke(cli, ["--hardware", str(site), "validate", str(plans[1])])
+        assert res.exit_code == 1 and "pfl face" in res.output, res.output
+        ok = CliRunner().invoke(cli, ["--hardware", str(site), "validate", str(plans[2])])
+        assert ok.exit_code == 0, ok.output
+        bad = tmp_path / "bad.yaml"
+        bad.write_text("pfl: [elbow]\n")
+        res = CliRunner().invoke(cli, ["--hardware", str(bad), "validate", str(plans[2])])
+        assert res.exit_code == 2 and "hardware.pfl" in res.output
+    finally:
+        hardware.use(None)
+
+
+def test_the_gates_ratio_is_bounded_by_the_directional_and_isotropic_forms(plans) -> None:
+    """The gate's worst-direction ratio, recomputed here sample by sample, lies between
+    the two-body model along the direction of motion (a lower bound: one direction of
+    all) and the isotropic bound |v|^2 / v_worst^2 (an upper bound: the worst direction
+    at the worst speed)."""
+    from sixplus3.control.gate.validation import validate_file
+    from sixplus3.kinematics.robot import robot_ik
+    from sixplus3.kinematics.rotations import matrix_from_quat
+    from sixplus3.kinematics.tcp import tcp_velocity
+
+    from sixplus3.control.file.file_format import columns
+
+    rep = validate_file(plans[0], ROBOT)
+    tr_v = columns(rep.data, "vel")
+    cfg = robot_ik(rep.position, matrix_from_quat(rep.quaternion), rep.psi, ROBOT,
+                   platform_margins=False)
+    A = point_inverse_mass(ClosedLoopDynamics(ROBOT), cfg)
+    v = tcp_velocity(cfg, tr_v)
+    hand = REGIONS["hand"]
+    ratio, _ = pfl_ratio(A, v, [hand])
+    speed = np.linalg.norm(v, axis=1)
+    moving = speed > 1e-3
+    m_v = effective_mass(A[moving], v[moving])
+    directional = (speed[moving] / np.array([hand.speed_limit(m) for m in m_v])) ** 2
+    isotropic = (speed / worst_speed(A, hand)) ** 2
+    assert np.all(ratio[moving] >= directional * (1 - 1e-9))
+    assert np.all(ratio <= isotropic * (1 + 1e-9))
+    assert ratio.max() > 1.0  # the free plan is too fast for a hand

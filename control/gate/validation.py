@@ -66,6 +66,7 @@ from sixplus3.control.gate.motion_input import (  # noqa: E402,F401 - re-exporte
     check_rate,
 )
 from sixplus3.control.gate.offload import OFFLOAD_SHARE, Offload
+from sixplus3.control.gate.pfl import judged_regions, pfl_check
 from sixplus3.control.report import Finding, ValidationReport  # noqa: F401 - re-exported
 from sixplus3.errors import InputError, LimitError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
@@ -75,6 +76,7 @@ from sixplus3.kinematics.checks import (
 from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import robot_fk_batch
 from sixplus3.kinematics.spherical import spherical_tilts
+from sixplus3.robot_description.body_regions import BodyRegion, names_of
 from sixplus3.robot_description.hardware import judged_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -384,11 +386,26 @@ def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory",
     limits = judged_limits(robot, _header_limits(header, robot, name), limits)
     x_guess = np.c_[columns(data, "position"),
                     rot.rotvec_from_quat(columns(data, "quaternion")), columns(data, "psi")]
+    try:  # the file's own PFL set (what it was planned for) and the site's
+        judged = judged_regions(header.get("pfl"))
+    except InputError as exc:
+        raise TrajectoryFileError(f"{name}: header pfl: {exc}", value=exc.value,
+                                  valid=exc.valid) from None
     rep = validate_motion(data[:, 0], columns(data, "pos"), columns(data, "vel"),
                           columns(data, "acc"), robot, rate, x_guess, limits=limits,
                           platform=columns(data, "platform"), tau_file=columns(data, "tau"))
+    _add_pfl(rep, robot, data[:, 0], columns(data, "vel"), judged)
     rep.header, rep.data = header, data
     return rep
+
+
+def _add_pfl(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np.ndarray,
+             judged: tuple[BodyRegion, ...]) -> None:
+    """The power and force limiting check (control/gate/pfl.py) into ``rep``."""
+    found = pfl_check(rep, robot, t, theta_dot, judged)
+    if found:
+        rep.findings = list(rep.findings) + found
+        rep.ok = False
 
 
 def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
@@ -400,14 +417,19 @@ def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
     :class:`~sixplus3.errors.ValidationFailed` (exit code 1 or 2, every finding) and
     writes nothing otherwise."""
 
+    meta = dict(meta or {})
+    judged = judged_regions(meta.get("pfl"))
     rep = validate_joint_trajectory(theta, theta_dot, theta_ddot, robot, rate, x_guess,
                                     limits, t=t)
+    _add_pfl(rep, robot, np.asarray(t, dtype=float), np.asarray(theta_dot, dtype=float),
+             judged)
+    if judged:
+        meta["pfl"] = names_of(judged)  # the header names what the file was judged for
     if not rep.ok:
         raise ValidationFailed("the trajectory fails validation, nothing written: "
                                + "; ".join(rep.messages()), rep.exit_code, rep)
     lim = judged_limits(robot, limits)
-    out = write_trajectory(path, t, theta, theta_dot, theta_ddot, rep, robot, lim,
-                           meta or {})
+    out = write_trajectory(path, t, theta, theta_dot, theta_ddot, rep, robot, lim, meta)
     return out, rep
 
 

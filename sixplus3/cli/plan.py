@@ -51,13 +51,27 @@ def _run_plan(task: Any, out_dir: str, rate: float, html: bool, locked: bool) ->
 @click.option("--rate", default=1000.0, show_default=True, type=FLOAT, help="Controller rate [Hz].")
 @click.option("--no-html", is_flag=True, help="Skip the MeshCat page.")
 @click.option("--locked", is_flag=True, help="Lock the crank angles at their home angles.")
+@click.option("--pfl", "pfl", default=None, metavar="REGION[,REGION...]",
+              help="Power and force limiting (ISO/TS 15066) for these body regions, added "
+                   "to the task's: skull, face, neck, back, chest, abdomen, pelvis, "
+                   "upper_arm, lower_arm, hand, thigh, lower_leg (docs/safety.md).")
 @verbosity
-def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool) -> None:
+def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool,
+         pfl: str | None) -> None:
     """Plan TASK_FILE (YAML, or the name of an installed example such as tilt60_x):
     plan -> smooth -> validate -> the trajectory file, its MeshCat page and plots."""
 
     _check_rate(rate)
     task = _load_task_or_example(task_file)
+    if pfl is not None:
+        from dataclasses import replace
+
+        from sixplus3.robot_description.body_regions import regions
+
+        names = [r.name for r in regions(list(task.pfl) + [r.name for r in regions(pfl)])]
+        if not names:
+            fail("--pfl names no body region")
+        task = replace(task, pfl=tuple(names))
     _run_plan(task, out_dir, rate, not no_html, locked)  # limits checked before the solve
 
 

@@ -1,0 +1,78 @@
+"""The gate's power and force limiting check (docs/safety.md): from the file's own
+samples, recomputed independently of the planner, the tool centre point's largest
+contact energy over every direction and every body region named, against what the
+region's spring holds at its ISO/TS 15066 limit.
+
+The regions judged are the union of the file's header (``pfl``: the set it was planned
+for) and the site's hardware file (``pfl``: the set the site requires, which no file can
+drop).  The configurations come from the gate's own forward kinematics (the report's
+platform pose and crank angles), the velocity from the actuated rates through the IK
+Jacobian, the effective mass from Pinocchio's reduced inertia (rotors included).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sixplus3.control.gate.findings import finding
+from sixplus3.control.report import Finding, ValidationReport
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.dynamics.effective_mass import pfl_ratio, point_inverse_mass
+from sixplus3.errors import InputError
+from sixplus3.kinematics import rotations as rot
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.kinematics.tcp import tcp_velocity
+from sixplus3.robot_description import hardware
+from sixplus3.robot_description.body_regions import BodyRegion, names_of, regions
+from sixplus3.robot_description.robot import Robot
+
+#: Points evaluated at a time (the reduced inertia of each: one Pinocchio pass).
+CHUNK = 4096
+
+
+def judged_regions(*named: object) -> tuple[BodyRegion, ...]:
+    """The regions named by each of ``named`` (a header's list, a task's, ...) and those
+    the site's hardware file requires, without repeats, in the standard's order."""
+    names: list[str] = list(hardware.active().pfl)
+    for n in named:
+        if n is None:
+            continue
+        if not isinstance(n, (list, tuple)):
+            raise InputError(f"pfl must be a list of body region names, got {n!r}",
+                             value=n, valid="a list of region names")
+        names += [str(x) for x in n]
+    return regions(names)
+
+
+def pfl_check(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np.ndarray,
+              judged: tuple[BodyRegion, ...]) -> list[Finding]:
+    """The findings of the PFL check on the samples of a report whose forward kinematics
+    went through (``rep.position``, ``rep.quaternion``, ``rep.psi``); sets
+    ``rep.pfl`` and ``rep.max_pfl_ratio``.  No region: nothing checked."""
+    if not judged or rep.position is None or rep.quaternion is None or rep.psi is None:
+        return []
+    dyn = ClosedLoopDynamics(robot)
+    n = len(rep.position)
+    ratio = np.empty(n)
+    worst = np.zeros(n, dtype=int)
+    for i in range(0, n, CHUNK):
+        sl = slice(i, min(n, i + CHUNK))
+        R = rot.matrix_from_quat(rep.quaternion[sl])
+        cfg = robot_ik(rep.position[sl], R, rep.psi[sl], robot, platform_margins=False)
+        A = point_inverse_mass(dyn, cfg)
+        v = tcp_velocity(cfg, theta_dot[sl])
+        ratio[sl], worst[sl] = pfl_ratio(A, v, judged)
+    ratio = np.nan_to_num(ratio, nan=np.inf)
+    rep.pfl = tuple(names_of(judged))
+    rep.max_pfl_ratio = float(ratio.max())
+    out = []
+    for k, region in enumerate(judged):
+        mine = np.where(worst == k, ratio, 0.0)
+        f = finding(f"pfl {region.name} (contact energy / ISO/TS 15066 limit)", "limit", "",
+                    1.0, mine - 1.0, mine, t, ["tcp"])
+        if f:
+            out.append(f)
+    return out
+
+
+__all__ = ["judged_regions", "pfl_check"]

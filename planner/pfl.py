@@ -1,0 +1,66 @@
+"""Power and force limiting in the plan (docs/safety.md): the tool centre point's speed
+bound that keeps every contact with the named body regions within ISO/TS 15066.
+
+The planner bounds the tool centre point's speed at every node and midpoint (its
+platform rows, :mod:`sixplus3.planner.tcp_rows`).  For power and force limiting that
+bound is the largest speed in any direction that keeps the worst direction's contact
+energy within the region's limit (:func:`sixplus3.dynamics.effective_mass.worst_speed`),
+taken at the task's poses (the waypoints and points between them, cranks at the
+waypoints' or home's) and lowered by :data:`PFL_SAFETY` for the poses in between.  The
+gate then recomputes the exact, direction-aware condition on every sample of the
+smoothed file (control/gate/pfl.py); a plan that breaks it is re-planned with the bound
+lowered by the ratio found (control/pipeline.py), so a file that is written holds it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.dynamics.effective_mass import point_inverse_mass, worst_speed
+from sixplus3.kinematics import rotations as rot
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.planner.task import Task
+from sixplus3.robot_description import hardware
+from sixplus3.robot_description.body_regions import BodyRegion, regions
+from sixplus3.robot_description.robot import Robot
+
+#: The bound at the task's poses, lowered for the poses the plan passes in between.
+PFL_SAFETY = 0.95
+#: Points per segment between waypoints at which the bound is evaluated.
+POINTS = 8
+
+
+def task_regions(task: Task) -> tuple[BodyRegion, ...]:
+    """The task's regions and the site's (the site's cannot be dropped)."""
+    return regions(list(task.pfl) + list(hardware.active().pfl))
+
+
+def pfl_speed(task: Task, robot: Robot) -> float | None:
+    """The tool centre point's speed bound [m/s] for the task's regions (module doc);
+    None without regions.  ``robot``: the robot with the task's setup (its tool)."""
+    regs = task_regions(task)
+    if not regs:
+        return None
+    wps = task.resolved(robot).waypoints
+    pos, rots, psi = [], [], []
+    home_psi = np.asarray(robot.home_psi, dtype=float)
+    for a, b in zip(wps[:-1], wps[1:], strict=True):
+        ra = rot.rotvec_from_matrix(np.asarray(a.rotation))
+        rb = rot.rotvec_from_matrix(np.asarray(b.rotation))
+        pa = home_psi if a.psi is None else np.asarray(a.psi)
+        pb = home_psi if b.psi is None else np.asarray(b.psi)
+        for s in np.linspace(0.0, 1.0, POINTS + 1):
+            pos.append((1 - s) * np.asarray(a.position) + s * np.asarray(b.position))
+            rots.append(np.reshape((1 - s) * ra + s * rb, 3))
+            psi.append((1 - s) * pa + s * pb)
+    R = rot.matrix_from_rotvec(np.array(rots))
+    cfg = robot_ik(np.array(pos), R, np.array(psi), robot, platform_margins=False)
+    if not cfg.ok.any():
+        return None
+    cfg = cfg.take(cfg.ok)
+    A = point_inverse_mass(ClosedLoopDynamics(robot), cfg)
+    return PFL_SAFETY * float(min(worst_speed(A, r).min() for r in regs))
+
+
+__all__ = ["PFL_SAFETY", "pfl_speed", "task_regions"]
