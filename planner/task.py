@@ -11,10 +11,8 @@ Example (units: m and degrees in the file, SI inside)::
         psi: [90, 90, 90]           # optional crank angles [deg]; free otherwise
         stop: true                  # optional: come to rest here (v = 0, a = 0)
         dwell: 0.5                  # optional: then hold the pose [s] (implies stop)
-    pfl: [hand, lower_arm]          # optional: power and force limiting for these body
-                                    # regions (ISO/TS 15066; docs/safety.md)
-    people: collaborative           # optional: a named set of platform limits for work
-                                    # near people (hardware.PEOPLE_LIMITS), tightening
+    pfl: [hand, lower_arm]          # optional: power and force limiting (docs/safety.md)
+    people: collaborative           # optional: named platform limits (PEOPLE_LIMITS)
     limits:                         # optional: only tightens the robot's hardware limits
       torque: 9                     # |tau| [N m]            (robot: 10)
       velocity: 10                  # |theta_dot| [rad/s]    (robot: 14.8)
@@ -184,9 +182,7 @@ class Task:
     #: within the limits); ``speed`` in (0, 1] is the minimum time divided by it
     duration: float | None = None
     speed: float | None = None
-    #: body regions (ISO/TS 15066) every contact must be safe for: power and force
-    #: limiting (docs/safety.md); the site's hardware file may require more
-    pfl: tuple[str, ...] = ()
+    pfl: tuple[str, ...] = ()  #: body regions for power and force limiting (docs/safety.md)
 
     def __post_init__(self) -> None:
         wps = self.waypoints
@@ -380,8 +376,8 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
                 start_psi=str(doc.get("start_psi", "home")),
                 end_psi=str(doc.get("end_psi", "start")),
                 duration=float(doc["duration"]) if "duration" in doc else None,
-                speed=float(doc["speed"]) if "speed" in doc else None,
-                pfl=tuple(r.name for r in regions(doc.get("pfl", []))))
+                speed=float(doc["speed"]) if "speed" in doc else None, pfl=tuple(
+                    r.name for r in regions(doc.get("pfl", []))))
 
 
 def load_task(path: str | Path) -> Task:

@@ -210,12 +210,11 @@ def test_the_gates_ratio_is_bounded_by_the_directional_and_isotropic_forms(plans
     the two-body model along the direction of motion (a lower bound: one direction of
     all) and the isotropic bound |v|^2 / v_worst^2 (an upper bound: the worst direction
     at the worst speed)."""
+    from sixplus3.control.file.file_format import columns
     from sixplus3.control.gate.validation import validate_file
     from sixplus3.kinematics.robot import robot_ik
     from sixplus3.kinematics.rotations import matrix_from_quat
     from sixplus3.kinematics.tcp import tcp_velocity
-
-    from sixplus3.control.file.file_format import columns
 
     rep = validate_file(plans[0], ROBOT)
     tr_v = columns(rep.data, "vel")

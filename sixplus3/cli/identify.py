@@ -167,13 +167,15 @@ def estimate(logs: tuple[str, ...], out_file: str, report_dir: str | None,
 
 def _per_joint(values: Any) -> str:
     """Nine figures; one that was not measured (NaN) reads n/a."""
-    return " ".join(f"{float(x):.4f}" if math.isfinite(float(x)) else "n/a" for x in values)
+    return " ".join(f"{float(x):.4f}" if x is not None and math.isfinite(float(x)) else "n/a"
+                    for x in values)
 
 
 def _say_not_measured(values: Any) -> None:
     from sixplus3.identification.identify import not_measured
 
-    for name, why in not_measured([float(v) for v in values]).items():
+    for name, why in not_measured([math.nan if v is None else float(v)
+                                   for v in values]).items():
         click.echo(f"  {name}: n/a, {why}")
 
 
