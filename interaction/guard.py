@@ -1,0 +1,363 @@
+"""The contact guard: one object a controller steps each tick (docs/safety.md, "The
+guard").  It follows a validated trajectory file, estimates the external torque from
+the drives alone with a momentum observer, and on a contact stops along the path as fast
+as the torque limits allow; a clamp (the force stays after the stop) is released by
+retracting along the path until the force is gone; then it holds.
+
+Nothing is solved online.  At construction, from the file (the gate's own reading of
+it) and Pinocchio, for every sample k of the path theta(s) (s the file's time):
+
+- the reduced inertia M_k, the gravity torque g_k, a_k = M_k theta'_k and
+  b_k = tau_k - g_k, so that moving along the path with path speed sd = ds/dt and
+  sdd needs tau = a_k sdd + b_k sd^2 + g_k (time scaling of the path: exact for the
+  inertial and centripetal terms, the friction taken with them);
+- the deceleration the torque limits allow there, beta_k (both at full speed and at
+  rest, within ``torque_share`` of the limit and within the acceleration limit), made
+  the smallest over the distance a stop from there covers: a stop is a table look-up;
+- the IK Jacobian J_k, for the wrench at the platform centre w = (J_k^T r)[0:6].
+
+Each tick: the measured rate (the encoder's difference), the observer
+r = K (p - p_0 - sum (tau - h + Mdot thetadot + r) dt) with p = M_k thetadot and
+h = b_k sd^2 + g_k - a_k sdd (the model's torque without the inertial share of the
+measured rate), and a contact when a joint's |r| leaves its threshold: ``n_sigma`` times
+the torque noise through the observer, plus ``model_error`` times what the model has to
+know at that instant (the inertial and bias torques: the threshold grows with the
+motion), plus the dry friction band.
+
+``step`` never raises: a non-finite or wrong-sized input, a jump, or any failure
+inside is a safe stop (mode ``hold`` at the last good reference, gravity feed-forward),
+said in ``cmd.mode`` and kept in :attr:`ContactGuard.events`.  Every feed-forward is
+clipped to the hardware envelope.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sixplus3.control.file.trajectory_file import columns
+from sixplus3.control.gate.validation import validate_file
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.errors import InputError, ValidationFailed, check_number
+from sixplus3.kinematics import rotations as rot
+from sixplus3.kinematics.robot import ik_jacobian, robot_ik
+from sixplus3.robot_description.hardware import effective_limits
+from sixplus3.robot_description.robot import Robot, require_robot
+
+#: Observer gain [1/s] (a step reaches 95 % in 3 / K = 6 ms).
+GAIN = 500.0
+#: Share of the torque limit a stop may use for its feed-forward (the rest: the PD).
+TORQUE_SHARE = 0.95
+#: Relative model error the threshold allows on the torques the model predicts.
+MODEL_ERROR = 0.1
+#: Standard deviations of the observer's noise in the threshold.
+N_SIGMA = 5.0
+#: The dry friction's share of the threshold, in the model's Coulomb torques: at a
+#: reversal the plant's true dry friction swings over its whole band (+-f_c, both signs)
+#: where the model's smooth law passes zero, and a plant's f_c is known to a few tens of
+#: percent.
+FRICTION_BAND = 2.5
+#: Ticks a joint must stay beyond its threshold to be a contact.
+DEBOUNCE = 2
+#: A largest jump between two measured samples [rad] (beyond it: a faulty reading).
+MAX_JUMP = 0.05
+#: After a stop, the force that stays for this long [s] is a clamp.
+CLAMP_WAIT = 0.02
+#: [rad] the measured angles this far behind the reference, with a force on: blocked.
+BLOCKED = 0.004
+#: Retract speed along the path, as a share of the plan's path speed.
+RETRACT_SPEED = 0.3
+#: The longest retract [samples of the path]: then the guard comes to rest and holds.
+RETRACT_SAMPLES = 40
+#: The force is gone when every joint stays within its threshold this long [s].
+RELEASED = 0.03
+
+
+@dataclass(frozen=True)
+class GuardCommand:
+    """What the drive applies: tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref -
+    theta_dot).  ``mode``: follow, stop, retract, hold or done; ``wrench`` (6): the
+    estimated wrench at the platform centre, base frame [N, N m]."""
+
+    theta_ref: np.ndarray
+    theta_dot_ref: np.ndarray
+    tau_ff: np.ndarray
+    mode: str
+    contact: bool
+    wrench: np.ndarray
+
+
+class ContactGuard:
+    """Steps a trajectory file with contact detection and reaction (module doc).
+
+    ``robot`` None: the robot the file was planned for (its header); a file of another
+    robot than ``robot`` is refused here (the gate's check).  ``step(theta, tau)`` is
+    called once per tick from the file's t = 0 with the measured actuated angles (9,
+    rad) and the torque applied over the previous tick (9, N m; at the first call the
+    file's first feed-forward)."""
+
+    def __init__(self, robot: Robot | None, trajectory_file: str | Path,
+                 rate_hz: float = 1000.0, gain: float = GAIN,
+                 model_error: float = MODEL_ERROR, n_sigma: float = N_SIGMA,
+                 torque_noise: float = 0.01, torque_share: float = TORQUE_SHARE) -> None:
+        if robot is None:
+            from sixplus3.control.file.trajectory_file import read_bytes
+            from sixplus3.control.file.trajectory_parse import parse
+
+            header, _ = parse(read_bytes(trajectory_file), Path(trajectory_file).name)
+            rec = header.get("robot")
+            if not isinstance(rec, dict) or not isinstance(rec.get("parameters"), dict):
+                raise InputError("the file's header names no robot: give the robot",
+                                 value=None, valid="a header with robot.parameters")
+            robot = Robot.from_dict(rec["parameters"])
+        self.robot = require_robot(robot)
+        self.rate = check_number("rate_hz", rate_hz, 100.0, 20000.0)
+        self.gain = check_number("gain", gain, 10.0, 5000.0)
+        self.model_error = check_number("model_error", model_error, 0.0, 1.0)
+        self.n_sigma = check_number("n_sigma", n_sigma, 0.0, 100.0)
+        share = check_number("torque_share", torque_share, 0.1, 1.0)
+        rep = validate_file(trajectory_file, self.robot)
+        if not rep.ok or rep.data is None or rep.header is None:
+            raise ValidationFailed("the guard runs only a valid file: "
+                                   + "; ".join(rep.messages()), rep.exit_code, rep)
+        file_rate = float(rep.header["rate_hz"])
+        if abs(file_rate - self.rate) > 1e-6 * self.rate:
+            raise InputError(f"the file is sampled at {file_rate:g} Hz, the guard ticks at "
+                             f"{self.rate:g} Hz", value=self.rate, valid=f"{file_rate:g} Hz")
+        data = rep.data
+        self.lim = effective_limits(self.robot)
+        self.theta = columns(data, "pos")
+        self.theta_d = columns(data, "vel")
+        tau = columns(data, "tau")
+        n = self.n = len(self.theta)
+        dyn = ClosedLoopDynamics(self.robot)
+        assert rep.position is not None and rep.quaternion is not None and rep.psi is not None
+        cfg = robot_ik(rep.position, rot.matrix_from_quat(rep.quaternion), rep.psi, self.robot,
+                       platform_margins=False)
+        self.M = np.empty((n, 9, 9))
+        self.g, _ = dyn.actuated_inverse_dynamics_batch(cfg.q, np.zeros((n, 9)),
+                                                        np.zeros((n, 9)), inertia=self.M)
+        self.a = np.einsum("nij,nj->ni", self.M, self.theta_d)
+        self.b = tau - self.g
+        # the velocity terms alone (Coriolis, centripetal, friction), for the observer
+        tau_v, _ = dyn.actuated_inverse_dynamics_batch(cfg.q, self.theta_d, np.zeros((n, 9)))
+        # without the friction: evaluated at the measured rate each tick (its sign
+        # follows the motion, a retract's too)
+        self.c = tau_v - self.g - self.robot.motors.friction(self.theta_d)
+        self.J = ik_jacobian(cfg)
+        self.dt = 1.0 / self.rate
+        self.beta = self._stop_table(share)
+        # the threshold: the observer's noise, the model's share, the dry friction band
+        s_obs = torque_noise * math.sqrt(self.gain * self.dt / 2.0)
+        fc = self.robot.motors.coulomb_per_joint
+        self.thr_base = self.n_sigma * max(s_obs, 1e-4) + FRICTION_BAND * fc + 0.02
+        self.thr_g = self.model_error * np.abs(self.g)
+        self.thr_k = self.model_error * (np.abs(self.c) + np.abs(
+            np.einsum("nij,nj->ni", self.M, columns(data, "acc"))))
+        self.events: list[str] = []
+        self._reset()
+
+    # ------------------------------------------------------------------ offline
+    def _stop_table(self, share: float) -> np.ndarray:
+        """beta_k [1/s]: the path deceleration the limits allow from sample k, the
+        smallest over the distance the stop covers (module doc)."""
+        cap = share * self.lim.torque
+        lo = np.zeros(self.n)
+        hi = np.full(self.n, np.inf)
+        for c in (self.b + self.g, self.g):  # at full path speed, at rest
+            # |c - beta a| <= cap: per joint an interval of beta (a = 0: c alone decides)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                e1, e2 = (c - cap) / self.a, (c + cap) / self.a
+            lo_j = np.where(self.a > 0, e1, np.where(self.a < 0, e2, -np.inf))
+            hi_j = np.where(self.a > 0, e2, np.where(self.a < 0, e1, np.inf))
+            lo = np.maximum(lo, np.nan_to_num(lo_j, nan=-np.inf).max(axis=1))
+            hi = np.minimum(hi, np.nan_to_num(hi_j, nan=np.inf).min(axis=1))
+        # the largest deceleration within the torque limits; where none is (the plan
+        # itself uses more than the share), the one that needs the least torque
+        beta = np.where(hi >= lo, hi, lo)
+        vmax = np.abs(self.theta_d).max(axis=1)
+        with np.errstate(divide="ignore"):
+            beta = np.minimum(beta, self.lim.acceleration / np.maximum(vmax, 1e-9))
+        beta = np.clip(beta, 1.0, 1e4)
+        # the smallest over the stop's own distance (s from 1 to 0 at beta: 1 / (2 beta))
+        out = beta.copy()
+        for k in range(self.n):
+            w = int(math.ceil(self.rate / (2.0 * beta[k]))) + 1
+            out[k] = beta[k: k + w].min()
+        return out
+
+    def _blocked(self) -> bool:
+        """The measured angles lag the reference by more than BLOCKED while the
+        observer sees a force: the platform is held."""
+        return (self._prev is not None and self._over > 0
+                and float(np.abs(self._last_ref - self._prev).max()) > BLOCKED)
+
+    def _nearest(self, s: float) -> float:
+        """The path position, at or before ``s``, nearest to the measured angles."""
+        assert self._prev is not None
+        k = int(min(max(s, 0.0), self.n - 1.0))
+        lo = max(0, k - int(self.rate * 0.2))
+        d = np.abs(self.theta[lo:k + 1] - self._prev).max(axis=1)
+        return float(lo + int(np.argmin(d)))
+
+    # ------------------------------------------------------------------ online
+    def _reset(self) -> None:
+        self.s = 0.0  # path position [samples]
+        self.sd = 1.0  # path speed [file seconds per second]
+        self.mode = "follow"
+        self._prev: np.ndarray | None = None
+        self._vel = np.zeros(9)
+        self._p0: np.ndarray | None = None
+        self._integral = np.zeros(9)
+        self._r = np.zeros(9)
+        self._over = 0
+        self._since = 0.0
+        self._quiet = 0.0
+        self._contact = False
+        self._last_ref = self.theta[0].copy()
+        self._M_prev = self.M[0]
+        self._sdd = 0.0
+        self._retract_from = 0.0
+        self.t = 0.0
+
+    def _at(self, arr: np.ndarray) -> np.ndarray:
+        k = min(max(self.s, 0.0), self.n - 1.0)
+        i = int(k)
+        j = min(i + 1, self.n - 1)
+        f = k - i
+        return (1.0 - f) * arr[i] + f * arr[j]
+
+    def _command(self, sdd: float, contact: bool, wrench: np.ndarray) -> GuardCommand:
+        th = self._at(self.theta)
+        thd = self._at(self.theta_d) * self.sd
+        ff = self._at(self.a) * sdd + self._at(self.b) * self.sd ** 2 + self._at(self.g)
+        cap = self.lim.torque
+        ff = np.clip(np.nan_to_num(ff, nan=0.0), -cap, cap)
+        self._last_ref = th
+        return GuardCommand(th, thd, ff, self.mode, contact, wrench)
+
+    def _safe_hold(self, why: str) -> GuardCommand:
+        if not self.events or self.events[-1] != why:
+            self.events.append(f"t={self.t:.4f} s: {why}")
+        self.mode, self.sd = "hold", 0.0
+        g = np.clip(self._at(self.g), -self.lim.torque, self.lim.torque)
+        return GuardCommand(self._last_ref.copy(), np.zeros(9), g, "hold", self._contact,
+                            np.zeros(6))
+
+    def step(self, theta: object, tau: object) -> GuardCommand:
+        """One tick (class doc); never raises."""
+        try:
+            return self._step(theta, tau)
+        except Exception as exc:  # noqa: BLE001 - the loop must never see an exception
+            return self._safe_hold(f"internal failure, holding: {type(exc).__name__}: "
+                                   f"{str(exc)[:120]}")
+
+    def _step(self, theta: object, tau: object) -> GuardCommand:
+        th = np.asarray(theta, dtype=float).reshape(-1)
+        tq = np.asarray(tau, dtype=float).reshape(-1)
+        if th.shape != (9,) or tq.shape != (9,) or not (np.all(np.isfinite(th))
+                                                        and np.all(np.isfinite(tq))):
+            return self._safe_hold("a measured angle or torque is not 9 finite numbers")
+        dt = self.dt
+        if self._prev is not None and np.abs(th - self._prev).max() > MAX_JUMP:
+            return self._safe_hold(f"the measured angles jumped by "
+                                   f"{np.abs(th - self._prev).max():.3f} rad in one tick")
+        if self._prev is None:  # the first tick: no torque has acted yet
+            self._prev = th.copy()
+            self._p0 = self.M[0] @ self._vel
+            self.t += dt
+            return self._advance(False, np.zeros(6))
+        self._vel = (th - self._prev) / dt  # the encoder's difference: the rate at t - dt/2
+        self._prev = th.copy()
+        k = int(round(min(max(self.s, 0.0), self.n - 1.0)))
+        M = self.M[k]
+        p = M @ self._vel
+        if self._p0 is None:
+            self._p0 = p.copy()
+        h = self.c[k] * self.sd ** 2 + self.g[k] + self.robot.motors.friction(self._vel)
+        mdot = (M - self._M_prev) @ self._vel / dt
+        self._M_prev = M
+        step = (tq - h + mdot + self._r) * dt
+        self._integral += step
+        # the momentum of the measured rate is the one half a tick ago: compare it with
+        # the integral up to then (no lag of half a tick: K dt/2 M thetaddot otherwise)
+        self._r = self.gain * (p - self._p0 - (self._integral - 0.5 * step))
+        thr = self.thr_base + self.thr_g[k] + self.thr_k[k] * max(
+            self.sd ** 2, abs(self._sdd) / max(float(self.beta[k]), 1.0))
+        over = bool(np.any(np.abs(self._r) > thr))
+        self._over = self._over + 1 if over else 0
+        wrench = (self.J[k].T @ self._r)[:6]
+        if self._over >= DEBOUNCE and not self._contact and self.mode == "follow":
+            self._contact = True
+            self.mode = "stop"
+            self.events.append(f"t={self.t:.4f} s: contact, joint residual "
+                               f"{np.abs(self._r).max():.3f} N m; stopping")
+        self.t += dt
+        return self._advance(over, wrench)
+
+    def _advance(self, over: bool, wrench: np.ndarray) -> GuardCommand:
+        dt = self.dt
+        k = int(round(min(max(self.s, 0.0), self.n - 1.0)))
+        sdd = 0.0
+        if self.mode == "follow":
+            self.s += self.rate * dt * self.sd
+            if self.s >= self.n - 1:
+                self.s, self.sd, self.mode = self.n - 1.0, 0.0, "done"
+        elif self.mode == "stop" and self._blocked():
+            # the platform no longer follows its reference while the force is on: a
+            # body is held against something (a clamp). Advancing the reference would
+            # only press harder: take the reference back to where the robot is, at rest
+            self.s = self._nearest(self.s)
+            self.sd, self._since, self._quiet = 0.0, 0.0, 0.0
+            self._retract_from = self.s
+            self.mode = "retract"
+            self.events.append(f"t={self.t:.4f} s: blocked while stopping (a clamp): "
+                               "retracting along the path")
+        elif self.mode == "stop":
+            beta = float(self.beta[k])
+            sdd = -beta
+            self.sd = max(0.0, self.sd - beta * dt)
+            self.s = min(self.n - 1.0, self.s + self.rate * dt * self.sd)
+            if self.sd <= 0.0:
+                self._since += dt
+                self._quiet = self._quiet + dt if not over else 0.0
+                if self._quiet >= RELEASED:
+                    self.mode = "hold"
+                    self.events.append(f"t={self.t:.4f} s: stopped, the force is gone: "
+                                       "holding")
+                elif self._since >= CLAMP_WAIT:
+                    self.mode = "retract"
+                    self._retract_from = self.s
+                    self.events.append(f"t={self.t:.4f} s: the force stays after the stop "
+                                       "(a clamp): retracting along the path")
+        elif self.mode == "retract":
+            beta = float(self.beta[k])
+            if self.sd > -RETRACT_SPEED:
+                sdd = -beta
+                self.sd = max(-RETRACT_SPEED, self.sd - beta * dt)
+            self.s = max(0.0, self.s + self.rate * dt * self.sd)
+            self._quiet = self._quiet + dt if not over else 0.0
+            self._since += dt
+            back = self._retract_from - self.s
+            if self._quiet >= RELEASED or self.s <= 0.0 or back >= RETRACT_SAMPLES:
+                self.mode = "settle"  # come to rest, then hold
+                self.events.append(f"t={self.t:.4f} s: released: coming to rest")
+        elif self.mode == "settle":
+            beta = float(self.beta[k])
+            sdd = beta
+            self.sd = min(0.0, self.sd + beta * dt)
+            self.s = max(0.0, self.s + self.rate * dt * self.sd)
+            if self.sd >= 0.0:
+                self.mode = "hold"
+                self.events.append(f"t={self.t:.4f} s: at rest: holding")
+        self._sdd = sdd
+        mode_out = "retract" if self.mode == "settle" else self.mode
+        cmd = self._command(sdd, self._contact, wrench)
+        return GuardCommand(cmd.theta_ref, cmd.theta_dot_ref, cmd.tau_ff, mode_out,
+                            cmd.contact, cmd.wrench)
+
+
+__all__ = ["ContactGuard", "GuardCommand"]

@@ -1,0 +1,281 @@
+"""A person in the virtual prototype (docs/safety.md, "A simulated person"): a body
+region in the platform's way, as ISO/TS 15066's two-body model, with the trajectory run
+on a MuJoCo plant by the drives, the :class:`~sixplus3.interaction.guard.ContactGuard`
+in the loop or not.
+
+The region is a plane through the tool centre point's planned position at the contact
+instant ``at``, facing the motion along the normal n (default: the direction of the
+planned velocity there).  Its surface is a spring of the region's constant k; a free
+region (``kind: free``, a transient contact) is a mass m_H on that spring, pushed
+along n; a clamped one (``kind: clamp``) is backed by a wall.  The force
+F = k max(0, (p - p_s).n - x_H) acts on the platform at the point (MuJoCo's
+``xfrc_applied``, along -n); it is the model's force, not MuJoCo's contact solver's.
+
+A contact file (YAML): ``region`` (a body region name), ``kind`` (free or clamp),
+``at`` [s] (the file's time of contact), optional ``normal`` [3] (base frame) and
+``point`` (tcp or centre; default tcp).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sixplus3.control.drive.plant import TORQUE_NOISE
+from sixplus3.control.drive.simulation import KD, KP, MujocoRobot, first_configuration
+from sixplus3.control.file.trajectory_file import columns
+from sixplus3.control.gate.interval import held_torque
+from sixplus3.control.gate.validation import validate_file
+from sixplus3.errors import InputError, ValidationFailed, check_number
+from sixplus3.fileio import read_yaml
+from sixplus3.interaction.guard import ContactGuard
+from sixplus3.kinematics import rotations as rot
+from sixplus3.kinematics.robot import ik_jacobian, robot_ik
+from sixplus3.kinematics.tcp import tcp_velocity
+from sixplus3.robot_description.body_regions import REGIONS, BodyRegion
+from sixplus3.robot_description.mjcf import TIMESTEP
+from sixplus3.robot_description.robot import Robot, require_robot
+
+#: A stopped point: its speed along the normal at most this [m/s].
+STOPPED = 0.01
+#: The transient phase: the first this many seconds after the onset of contact.
+TRANSIENT = 0.05
+
+
+@dataclass(frozen=True)
+class Contact:
+    region: BodyRegion
+    kind: str  # "free" or "clamp"
+    at: float  # [s] the file's time of contact
+    normal: tuple[float, float, float] | None = None  # base frame; None: along the motion
+    point: str = "tcp"
+
+
+def contact_from_dict(doc: object, name: str = "contact") -> Contact:
+    if not isinstance(doc, dict):
+        raise InputError(f"{name} must be a mapping (region, kind, at, normal, point)",
+                         value=type(doc).__name__, valid="a mapping")
+    extra = sorted(set(doc) - {"region", "kind", "at", "normal", "point"})
+    if extra:
+        raise InputError(f"{name}: unknown key {extra[0]!r}", value=extra[0],
+                         valid="region, kind, at, normal, point")
+    region = doc.get("region")
+    if region not in REGIONS:
+        raise InputError(f"{name}: region must be one of {', '.join(REGIONS)}, got "
+                         f"{region!r}", value=region, valid=", ".join(REGIONS))
+    kind = doc.get("kind", "free")
+    if kind not in ("free", "clamp"):
+        raise InputError(f"{name}: kind must be free or clamp, got {kind!r}", value=kind,
+                         valid="free or clamp")
+    at = check_number(f"{name}: at [s]", doc.get("at"), 0.0, 600.0)
+    normal = doc.get("normal")
+    nv: tuple[float, float, float] | None = None
+    if normal is not None:
+        if not (isinstance(normal, list) and len(normal) == 3):
+            raise InputError(f"{name}: normal must be 3 numbers", value=normal,
+                             valid="[nx, ny, nz]")
+        vals = [check_number(f"{name}: normal", x, -1e3, 1e3) for x in normal]
+        norm = math.sqrt(sum(x * x for x in vals))
+        if norm < 1e-9:
+            raise InputError(f"{name}: normal must not be zero", value=normal,
+                             valid="a non-zero vector")
+        nv = (vals[0] / norm, vals[1] / norm, vals[2] / norm)
+    point = doc.get("point", "tcp")
+    if point not in ("tcp", "centre"):
+        raise InputError(f"{name}: point must be tcp or centre, got {point!r}", value=point,
+                         valid="tcp or centre")
+    return Contact(REGIONS[str(region)], str(kind), at, nv, str(point))
+
+
+def read_contact(path: str | Path) -> Contact:
+    return contact_from_dict(read_yaml(path, "contact file"), f"contact file {Path(path).name}")
+
+
+@dataclass
+class ContactRun:
+    """What the contact did (module doc); forces [N], times [s], speeds [m/s]."""
+
+    region: str
+    kind: str
+    guard: bool
+    speed: float  # the point's speed along n at the onset of contact
+    onset: float | None  # when the force first rose (None: no contact happened)
+    peak_transient: float  # largest force within TRANSIENT of the onset
+    quasi_static: float  # the force at the end of the run
+    limit_transient: float
+    limit_quasi_static: float
+    detection_delay: float | None  # the guard's first contact flag after the onset
+    stop_time: float | None  # the point stopped (or moving away) after the onset
+    false_alarm: bool  # the guard flagged before any force
+    peak_command: float  # [N m] the largest |tau_ff + PD| the drives were asked for
+    modes: list[str] = field(default_factory=list)
+    events: list[str] = field(default_factory=list)
+
+    @property
+    def within_limits(self) -> bool:
+        return (self.peak_transient <= self.limit_transient
+                and self.quasi_static <= self.limit_quasi_static)
+
+    def summary(self) -> dict[str, Any]:
+        out = {k: getattr(self, k) for k in (
+            "region", "kind", "guard", "speed", "onset", "peak_transient", "quasi_static",
+            "limit_transient", "limit_quasi_static", "detection_delay", "stop_time",
+            "false_alarm", "peak_command", "modes", "events")}
+        out["within_limits"] = self.within_limits
+        return out
+
+
+def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact | None,
+                guard: bool = True, kp: float = KP, kd: float = KD, seed: int = 0,
+                after: float = 0.5, torque_noise: float = TORQUE_NOISE,
+                timestep: float = TIMESTEP) -> ContactRun:
+    """Run the file on ``plant`` with the person ``contact`` (None: nobody, for false
+    alarms) in the way (module doc), the guard in the loop (``guard``) or the plan
+    followed as it is, for ``after`` seconds past the contact (or the file's end)."""
+    model, plant = require_robot(model), require_robot(plant)
+    check_number("after", after, 0.0, 30.0)
+    check_number("kp", kp, 0.0, 1e5)
+    check_number("kd", kd, 0.0, 1e4)
+    check_number("seed", seed, 0, 2 ** 32 - 1, integer=True)
+    rep = validate_file(path, model)
+    if not rep.ok or rep.data is None or rep.header is None:
+        raise ValidationFailed("not run: " + "; ".join(rep.messages()), rep.exit_code, rep)
+    rate = float(rep.header["rate_hz"])
+    data = rep.data
+    t_file = data[:, 0]
+    n_file = len(t_file)
+    theta_ref, vel_ref = columns(data, "pos"), columns(data, "vel")
+    ff_file = held_torque(columns(data, "tau"), "mean")
+    assert rep.position is not None and rep.quaternion is not None and rep.psi is not None
+    cfg = robot_ik(rep.position, rot.matrix_from_quat(rep.quaternion), rep.psi, model,
+                   platform_margins=False)
+    tool = np.asarray(model.tool.xyz if (contact is None or contact.point == "tcp")
+                      else (0.0, 0.0, 0.0), dtype=float)
+    if contact is not None and contact.at > t_file[-1]:
+        raise InputError(f"the contact at {contact.at:g} s is after the file's end "
+                         f"({t_file[-1]:g} s)", value=contact.at,
+                         valid=f"[0, {t_file[-1]:g}] s")
+    n = n_file + int(round(after * rate))
+    if contact is not None:
+        n = min(n, int(round((contact.at + after) * rate)) + 1)
+        k_c = int(round(contact.at * rate))
+        R_c = rot.matrix_from_quat(rep.quaternion[k_c:k_c + 1])[0]
+        p_s = rep.position[k_c] + R_c @ tool
+        if contact.normal is not None:
+            normal = np.asarray(contact.normal, dtype=float)
+        else:
+            one = cfg.take(np.arange(n_file) == k_c)
+            rates = columns(data, "vel")[k_c:k_c + 1]
+            if contact.point == "tcp":
+                v = tcp_velocity(one, rates)
+            else:  # the centre's velocity: the first three of J^-1 theta_dot
+                v = np.linalg.solve(ik_jacobian(one), rates[:, :, None])[:, 0:3, 0]
+            sp = float(np.linalg.norm(v[0]))
+            if sp < 1e-6:
+                raise InputError(f"the point does not move at {contact.at:g} s: give the "
+                                 "contact's normal", value=contact.at, valid="a moving instant")
+            normal = v[0] / sp
+    k_on = 0  # the body region is there from when the point last approached it
+    if contact is not None:
+        R_all = rot.matrix_from_quat(rep.quaternion)
+        planned = rep.position + np.einsum("nij,j->ni", R_all, tool)
+        ahead = (planned[:k_c + 1] - p_s) @ normal <= 1e-9
+        k_on = k_c
+        while k_on > 0 and ahead[k_on - 1]:
+            k_on -= 1
+    g = ContactGuard(model, path, rate) if guard else None
+    sim = MujocoRobot(plant, timestep)
+    mj, m, d = sim.mj, sim.model, sim.data
+    sim.set_state(first_configuration(model, rep), np.zeros(9))
+    mot = plant.motors
+    counts = mot.gear_ratio * 2 ** mot.encoder_bits / (2 * math.pi)
+    t_unit = mot.gear_ratio * mot.rated_torque / 1000.0
+    cap = model.limits.torque
+    rng = np.random.default_rng(seed)
+    body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, "platform_free")
+    n_sub = round(1.0 / (rate * timestep))
+    x_h, v_h = 0.0, 0.0  # the body region's displacement along n, and its rate
+    armed = False  # the point has been outside the region since it appeared
+    force = np.zeros(n)
+    speed_n = np.zeros(n)
+    flags = np.zeros(n, dtype=bool)
+    modes: list[str] = []
+    applied = ff_file[0].copy()
+    peak_cmd = 0.0
+    for k in range(n):
+        th_meas = np.rint(d.qpos[sim.act_qpos] * counts) / counts
+        thd = d.qvel[sim.act_dof].copy()
+        measured_tau = np.rint((applied + rng.normal(0.0, torque_noise, 9)) / t_unit) * t_unit
+        if g is not None:
+            cmd = g.step(th_meas, measured_tau if k else ff_file[0])
+            ref, vref, ff = cmd.theta_ref, cmd.theta_dot_ref, cmd.tau_ff
+            flags[k] = cmd.contact
+            if not modes or modes[-1] != cmd.mode:
+                modes.append(cmd.mode)
+        else:
+            j = min(k, n_file - 1)
+            ref, vref = theta_ref[j], vel_ref[j] if k < n_file else np.zeros(9)
+            ff = ff_file[j] if k < n_file else columns(data, "tau")[-1]
+        u = ff + kp * (ref - th_meas) + kd * (vref - thd)
+        peak_cmd = max(peak_cmd, float(np.abs(u).max()))
+        applied = np.rint(np.clip(u, -cap, cap) / t_unit) * t_unit  # the drive saturates
+        d.ctrl[:] = applied
+        for _ in range(n_sub):
+            d.xfrc_applied[body] = 0.0
+            if contact is not None and k >= k_on:
+                R = d.xmat[body].reshape(3, 3)
+                p = d.xpos[body] + R @ tool
+                depth = float((p - p_s) @ normal) - x_h
+                armed = armed or depth <= 0.0
+                f = contact.region.stiffness * depth if (depth > 0 and armed) else 0.0
+                if contact.kind == "free":  # the region's mass on its spring
+                    v_h += f / contact.region.mass * timestep
+                    x_h += v_h * timestep
+                fv = -f * normal
+                d.xfrc_applied[body, :3] = fv
+                d.xfrc_applied[body, 3:] = np.cross(p - d.xipos[body], fv)
+                force[k] = max(force[k], f)
+            mj.mj_step(m, d)
+        if contact is not None:
+            jac = np.zeros((3, m.nv))
+            R = d.xmat[body].reshape(3, 3)
+            mj.mj_jac(m, d, jac, None, d.xpos[body] + R @ tool, body)
+            speed_n[k] = float((jac @ d.qvel) @ normal)
+    return _outcome(contact, guard, rate, force, speed_n, flags, modes, peak_cmd,
+                    g.events if g is not None else [])
+
+
+def _outcome(contact: Contact | None, guard: bool, rate: float, force: np.ndarray,
+             speed_n: np.ndarray, flags: np.ndarray, modes: list[str], peak_cmd: float,
+             events: list[str]) -> ContactRun:
+    touched = np.flatnonzero(force > 0.0)
+    onset = None if len(touched) == 0 else int(touched[0])
+    first_flag = np.flatnonzero(flags)
+    false_alarm = bool(len(first_flag) and (onset is None or first_flag[0] < onset))
+    region = contact.region if contact is not None else REGIONS["hand"]
+    out = ContactRun(region=region.name if contact is not None else "none",
+                     kind=contact.kind if contact is not None else "none", guard=guard,
+                     speed=0.0, onset=None, peak_transient=0.0,
+                     quasi_static=float(force[-1]) if len(force) else 0.0,
+                     limit_transient=region.transient_force,
+                     limit_quasi_static=region.force, detection_delay=None, stop_time=None,
+                     false_alarm=false_alarm, peak_command=peak_cmd, modes=modes,
+                     events=list(events))
+    if onset is None:
+        return out
+    out.onset = onset / rate
+    out.speed = float(speed_n[max(onset - 1, 0)])
+    win = int(round(TRANSIENT * rate))
+    out.peak_transient = float(force[onset:onset + win + 1].max())
+    later = np.flatnonzero(flags[onset:])
+    out.detection_delay = None if len(later) == 0 else later[0] / rate
+    stopped = np.flatnonzero(speed_n[onset:] <= STOPPED)
+    out.stop_time = None if len(stopped) == 0 else stopped[0] / rate
+    return out
+
+
+__all__ = ["Contact", "ContactRun", "contact_from_dict", "read_contact", "run_contact"]

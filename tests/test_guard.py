@@ -1,0 +1,102 @@
+"""The contact guard (interaction/guard.py) against the MuJoCo plant with a simulated
+person (interaction/person.py): no false alarm without a touch, a free contact detected
+within milliseconds and below its limit on a PFL plan, a clamp released by a stiff drive,
+and a step that never raises and never commands beyond the envelope."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sixplus3.identification.plants import perturbed_plant
+from sixplus3.robot_description.robot import Robot
+
+ROBOT = Robot.default()
+pytest.importorskip("mujoco")
+
+
+@pytest.fixture(scope="module")
+def hand_plan(tmp_path_factory):
+    """A 12 cm move along x and back, planned for a hand's contact."""
+    from sixplus3.control.pipeline import run_plan
+    from sixplus3.planner.task import task_from_dict
+
+    out = tmp_path_factory.mktemp("guard")
+    doc = {"name": "move", "nodes_per_segment": 6, "pfl": ["hand"], "waypoints": [
+        {"position": [-0.06, 0.0, 0.58]}, {"position": [0.06, 0.0, 0.58]},
+        {"position": [-0.06, 0.0, 0.58]}]}
+    return run_plan(task_from_dict(doc), out, ROBOT, html=False, plots=False).csv
+
+
+@pytest.mark.parametrize("plant", ["nominal", "near"])
+def test_no_false_alarm_without_a_touch(hand_plan, plant) -> None:
+    """The plan followed to its end and held, with nobody there: never a contact, on
+    the nominal plant and on one whose masses, rotors and friction differ by a few
+    percent (what an identified robot leaves: docs/identification.md)."""
+    from sixplus3.interaction.person import run_contact
+
+    p = ROBOT if plant == "nominal" else perturbed_plant(ROBOT, 7, mass=0.05, rotor=0.05,
+                                                          friction=1.2)
+    for kp, kd in ((300.0, 6.0), (3000.0, 30.0)):
+        res = run_contact(hand_plan, ROBOT, p, None, guard=True, kp=kp, kd=kd, after=0.3)
+        assert not res.false_alarm and res.modes == ["follow", "done"], res.events
+
+
+@pytest.mark.parametrize("kp, kd", [(300.0, 6.0), (3000.0, 30.0)], ids=["soft", "stiff"])
+def test_a_free_hand_is_hit_below_its_limit_and_the_guard_stops(hand_plan, kp, kd) -> None:
+    from sixplus3.interaction.person import contact_from_dict, run_contact
+
+    c = contact_from_dict({"region": "hand", "kind": "free", "at": 0.12})
+    res = run_contact(hand_plan, ROBOT, ROBOT, c, guard=True, kp=kp, kd=kd, after=0.3)
+    assert res.speed > 0.9  # a fast contact (0.98 m/s here): 4x the blanket 0.25 m/s
+    assert res.peak_transient <= res.limit_transient, res.summary()
+    assert res.detection_delay is not None and res.detection_delay <= 0.010
+    assert res.stop_time is not None and res.stop_time <= 0.025
+    assert res.modes[:2] == ["follow", "stop"] and not res.false_alarm
+
+
+def test_a_clamp_is_released_by_a_stiff_drive(hand_plan) -> None:
+    """Clamped against a wall, a stiff drive that only follows its plan keeps pressing;
+    the guard sees the platform blocked, retracts along the path and lets go."""
+    from sixplus3.interaction.person import contact_from_dict, run_contact
+
+    c = contact_from_dict({"region": "hand", "kind": "clamp", "at": 0.12})
+    blind = run_contact(hand_plan, ROBOT, ROBOT, c, guard=False, kp=3000.0, kd=30.0,
+                        after=0.3)
+    guarded = run_contact(hand_plan, ROBOT, ROBOT, c, guard=True, kp=3000.0, kd=30.0,
+                          after=0.3)
+    assert guarded.detection_delay is not None and guarded.detection_delay <= 0.010
+    assert "retract" in guarded.modes and guarded.modes[-1] == "hold", guarded.events
+    assert guarded.quasi_static == 0.0 < blind.quasi_static
+    assert guarded.quasi_static <= guarded.limit_quasi_static
+
+
+def test_step_never_raises_and_stays_in_the_envelope(hand_plan) -> None:
+    from sixplus3.interaction.guard import ContactGuard
+
+    g = ContactGuard(None, hand_plan)  # the robot from the file's header
+    cap = g.lim.torque
+    th0 = g.theta[0]
+    cmd = g.step(th0, g.b[0] + g.g[0])
+    assert cmd.mode == "follow" and cmd.tau_ff.shape == (9,) and cmd.wrench.shape == (6,)
+    rng = np.random.default_rng(0)
+    bad_inputs = [np.full(9, np.nan), np.zeros(8), "nonsense", None, th0 + 1.0,
+                  np.full(9, np.inf), [[1, 2], [3]]]
+    for bad in bad_inputs:
+        cmd = g.step(bad, np.zeros(9))
+        assert cmd.mode == "hold" and np.all(np.abs(cmd.tau_ff) <= cap)
+        assert np.all(np.isfinite(cmd.theta_ref)) and np.all(cmd.theta_dot_ref == 0.0)
+    for _ in range(200):
+        cmd = g.step(th0 + rng.normal(0, 0.01, 9), rng.normal(0, 50, 9))
+        assert np.all(np.abs(cmd.tau_ff) <= cap) and np.all(np.isfinite(cmd.tau_ff))
+    assert any("not 9 finite numbers" in e or "jumped" in e for e in g.events)
+
+
+def test_a_file_of_another_robot_is_refused(hand_plan) -> None:
+    from sixplus3.errors import Sixplus3Error
+    from sixplus3.interaction.guard import ContactGuard
+
+    with pytest.raises(Sixplus3Error):
+        ContactGuard(Robot.named("compact"), hand_plan)
+    with pytest.raises(Sixplus3Error):
+        ContactGuard(ROBOT, hand_plan, rate_hz=500.0)
