@@ -52,7 +52,7 @@ GAIN = 500.0
 #: Share of the torque limit a stop may use for its feed-forward (the rest: the PD).
 TORQUE_SHARE = 0.95
 #: Relative model error the threshold allows on the torques the model predicts.
-MODEL_ERROR = 0.1
+MODEL_ERROR = 0.15
 #: Standard deviations of the observer's noise in the threshold.
 N_SIGMA = 5.0
 #: The dry friction's share of the threshold, in the model's Coulomb torques: at a
@@ -155,8 +155,10 @@ class ContactGuard:
         fc = self.robot.motors.coulomb_per_joint
         self.thr_base = self.n_sigma * max(s_obs, 1e-4) + FRICTION_BAND * fc + 0.02
         self.thr_g = self.model_error * np.abs(self.g)
-        self.thr_k = self.model_error * (np.abs(self.c) + np.abs(
-            np.einsum("nij,nj->ni", self.M, columns(data, "acc"))))
+        # |M| |thetaddot|, not |M thetaddot|: an error in the inertia does not cancel
+        # between joints the way the nominal terms may
+        self.thr_k = self.model_error * (np.abs(self.c) + np.einsum(
+            "nij,nj->ni", np.abs(self.M), np.abs(columns(data, "acc"))))
         self.events: list[str] = []
         self._reset()
 

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from sixplus3.control.drive.drive_log import DriveLog
 from sixplus3.control.drive.plant import TORQUE_NOISE
 from sixplus3.control.drive.simulation import KD, KP, MujocoRobot, first_configuration
 from sixplus3.control.file.trajectory_file import columns
@@ -114,6 +115,7 @@ class ContactRun:
     peak_command: float  # [N m] the largest |tau_ff + PD| the drives were asked for
     modes: list[str] = field(default_factory=list)
     events: list[str] = field(default_factory=list)
+    log: DriveLog | None = field(default=None, repr=False)  # what the drives measured
 
     @property
     def within_limits(self) -> bool:
@@ -206,10 +208,12 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     modes: list[str] = []
     applied = ff_file[0].copy()
     peak_cmd = 0.0
+    th_log, tau_log = np.empty((n, 9)), np.empty((n, 9))
     for k in range(n):
         th_meas = np.rint(d.qpos[sim.act_qpos] * counts) / counts
         thd = d.qvel[sim.act_dof].copy()
         measured_tau = np.rint((applied + rng.normal(0.0, torque_noise, 9)) / t_unit) * t_unit
+        th_log[k], tau_log[k] = th_meas, measured_tau
         if g is not None:
             cmd = g.step(th_meas, measured_tau if k else ff_file[0])
             ref, vref, ff = cmd.theta_ref, cmd.theta_dot_ref, cmd.tau_ff
@@ -245,8 +249,14 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
             R = d.xmat[body].reshape(3, 3)
             mj.mj_jac(m, d, jac, None, d.xpos[body] + R @ tool, body)
             speed_n[k] = float((jac @ d.qvel) @ normal)
-    return _outcome(contact, guard, rate, force, speed_n, flags, modes, peak_cmd,
-                    g.events if g is not None else [])
+    run = _outcome(contact, guard, rate, force, speed_n, flags, modes, peak_cmd,
+                   g.events if g is not None else [])
+    run.log = DriveLog(t=np.arange(n) / rate, theta=th_log, tau=tau_log, name=Path(path).name,
+                       meta={"plant": plant.name, "seed": seed, "torque_noise": torque_noise,
+                             "guard": guard, "contact": None if contact is None else
+                             {"region": contact.region.name, "kind": contact.kind,
+                              "at": contact.at}})
+    return run
 
 
 def _outcome(contact: Contact | None, guard: bool, rate: float, force: np.ndarray,
