@@ -38,7 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.file.trajectory_file import columns
+from sixplus3.control.file.trajectory_file import columns, read_bytes
+from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.gate.validation import validate_file
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError, ValidationFailed, check_number
@@ -104,9 +105,6 @@ class ContactGuard:
                  model_error: float = MODEL_ERROR, n_sigma: float = N_SIGMA,
                  torque_noise: float = 0.01, torque_share: float = TORQUE_SHARE) -> None:
         if robot is None:
-            from sixplus3.control.file.trajectory_file import read_bytes
-            from sixplus3.control.file.trajectory_parse import parse
-
             header, _ = parse(read_bytes(trajectory_file), Path(trajectory_file).name)
             rec = header.get("robot")
             if not isinstance(rec, dict) or not isinstance(rec.get("parameters"), dict):

@@ -1,0 +1,66 @@
+"""``sixplus3 simulate FILE --plant P --guard --contact C.yaml --log L``: a person in the
+virtual prototype, the contact guard in the loop (docs/safety.md)."""
+
+from __future__ import annotations
+
+import os
+import sys
+from typing import Any
+
+import click
+
+from sixplus3.cli.app import check_output, fail
+
+
+def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
+                      log_file: str | None, contact_file: str | None, guard: bool, seed: int,
+                      noise: float, hold: float, force: bool, kp: float, kd: float,
+                      as_json: bool) -> None:
+    from sixplus3.control.drive.drive_log import write_log
+    from sixplus3.interaction.person import read_contact, run_contact
+    from sixplus3.robot_description.robot import load_robot
+
+    if plant_file is None or log_file is None:
+        fail("--guard and --contact go with --plant and --log (the run on the plant is "
+             "what the log records)")
+        return
+    check_output(log_file, tuple(f for f in (csv_file, plant_file, contact_file) if f))
+    if os.path.exists(log_file) and not force:
+        fail(f"{log_file} exists: add --force to replace it")
+    plant = load_robot(plant_file)
+    contact = read_contact(contact_file) if contact_file is not None else None
+    run = run_contact(csv_file, robot, plant, contact, guard=guard, kp=kp, kd=kd, seed=seed,
+                      after=max(hold, 0.5), torque_noise=noise)
+    assert run.log is not None
+    write_log(log_file, run.log, robot, {"plant": plant.name, "plant_hash": plant.hash,
+                                         "seed": seed, "torque_noise_n_m": noise,
+                                         "source": os.path.basename(csv_file)})
+    out = run.summary()
+    if as_json:
+        from sixplus3.fileio import strict_json
+
+        click.echo(strict_json(out))
+    else:
+        click.echo(f"{csv_file} on plant {plant.name}, guard {'on' if guard else 'off'}: "
+                   f"{len(run.log.t)} ticks logged to {log_file}")
+        if contact is None:
+            click.echo(f"  nobody in the way: false alarm {run.false_alarm}; modes "
+                       f"{' -> '.join(run.modes) or '(the plan followed)'}")
+        elif run.onset is None:
+            click.echo("  the platform never reached the person")
+        else:
+            def ms(v: float | None) -> str:
+                return "never" if v is None else f"{1e3 * v:.0f} ms"
+
+            click.echo(f"  {run.kind} contact with the {run.region} at {run.onset:.3f} s, "
+                       f"{run.speed:.3f} m/s along its normal")
+            click.echo(f"  peak transient force {run.peak_transient:.1f} N (limit "
+                       f"{run.limit_transient:g}); force at the end {run.quasi_static:.1f} N "
+                       f"(quasi-static limit {run.limit_quasi_static:g})")
+            click.echo(f"  detected after {ms(run.detection_delay)}; point stopped after "
+                       f"{ms(run.stop_time)}; modes {' -> '.join(run.modes) or '-'}")
+        click.echo(f"  peak |tau| asked of the drives {run.peak_command:.2f} N m (applied "
+                   f"within {robot.limits.torque:g})")
+        for e in run.events:
+            click.echo(f"  guard: {e}")
+    sys.exit(0 if run.within_limits and not run.false_alarm else 1)
