@@ -4,7 +4,7 @@
         [--at 0.08 0.22] [--plant-seeds 12] [--json]
 
 FILE: a trajectory planned with ``pfl`` for the regions tried (e.g. ``sixplus3 plan
-translate --pfl hand``).  Each contact: a region, free or clamped, at an instant of the
+translate --pfl hand`` for free contacts, ``--pfl hand-clamped`` for clamps).  Each contact: a region, free or clamped, at an instant of the
 plan (its normal along the motion there), the drives' PD soft (300 / 6) or stiff
 (3000 / 30), on the nominal plant and on perturbed plants (``identify plant``-like:
 masses, rotors +-5 %, friction x[1, 1.2], the residual of an identification), with the
@@ -28,7 +28,11 @@ def main() -> None:
     ap.add_argument("file")
     ap.add_argument("--regions", nargs="+", default=["hand", "lower_arm", "upper_arm"])
     ap.add_argument("--at", nargs="+", type=float, default=[0.08, 0.22])
-    ap.add_argument("--plant-seeds", nargs="*", type=int, default=[12])
+    ap.add_argument("--kinds", nargs="+", default=["free", "clamp"],
+                    choices=["free", "clamp"])
+    ap.add_argument("--plant-seeds", nargs="*", type=int, default=[12, 21])
+    ap.add_argument("--quiet-files", nargs="*", default=[],
+                    help="more trajectory files run with nobody in the way (false alarms)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     robot = Robot.default()
@@ -43,7 +47,7 @@ def main() -> None:
             rows.append({"plant": pname, "kp": gains[0], "contact": "none", "guard": True,
                          "false_alarm": res.false_alarm, "peak_command": res.peak_command})
             for region in args.regions:
-                for kind in ("free", "clamp"):
+                for kind in args.kinds:
                     for at in args.at:
                         c = contact_from_dict({"region": region, "kind": kind, "at": at})
                         for guard in ((True, False) if kind == "clamp" and gains[0] > 1000
@@ -57,6 +61,16 @@ def main() -> None:
                                          "final_mode": r.modes[-1] if r.modes else "-"})
                             if not args.json:
                                 print(json.dumps(rows[-1]), flush=True)
+    for f in args.quiet_files:
+        for pname, plant in plants:
+            for gains in ((300.0, 6.0), (3000.0, 30.0)):
+                res = run_contact(f, robot, plant, None, guard=True, kp=gains[0],
+                                  kd=gains[1], after=0.2)
+                rows.append({"plant": pname, "kp": gains[0], "contact": "none", "file": f,
+                             "guard": True, "false_alarm": res.false_alarm,
+                             "peak_command": res.peak_command})
+                if not args.json:
+                    print(json.dumps(rows[-1]), flush=True)
     guarded = [r for r in rows if r["guard"] and r["contact"] != "none"]
     det = [r["detection_delay"] for r in guarded if r.get("detection_delay") is not None]
     summary = {

@@ -63,6 +63,8 @@ N_SIGMA = 5.0
 FRICTION_BAND = 2.5
 #: Ticks a joint must stay beyond its threshold to be a contact.
 DEBOUNCE = 2
+#: [s] how far a drive may lag its reference (the threshold's window).
+LAG = 0.02
 #: A largest jump between two measured samples [rad] (beyond it: a faulty reading).
 MAX_JUMP = 0.05
 #: After a stop, the force that stays for this long [s] is a clamp.
@@ -155,8 +157,12 @@ class ContactGuard:
         self.thr_g = self.model_error * np.abs(self.g)
         # |M| |thetaddot|, not |M thetaddot|: an error in the inertia does not cancel
         # between joints the way the nominal terms may
-        self.thr_k = self.model_error * (np.abs(self.c) + np.einsum(
+        thr_k = self.model_error * (np.abs(self.c) + np.einsum(
             "nij,nj->ni", np.abs(self.M), np.abs(columns(data, "acc"))))
+        # the robot may lag its reference by a few ticks (a soft drive): take each
+        # sample's threshold as the largest over the samples it may still be at
+        lag = max(1, int(round(LAG * self.rate)))
+        self.thr_k = np.stack([thr_k[max(0, k - lag):k + 1].max(axis=0) for k in range(n)])
         self.events: list[str] = []
         self._reset()
 

@@ -56,7 +56,7 @@ from sixplus3.errors import ConvergenceError, GeometryError, InputError, TaskErr
 from sixplus3.fileio import read_yaml, short_repr
 from sixplus3.kinematics.robot import robot_fk
 from sixplus3.planner.waypoint import Waypoint
-from sixplus3.robot_description.body_regions import REGIONS, regions
+from sixplus3.robot_description.body_regions import all_names, regions
 from sixplus3.robot_description.hardware import PEOPLE_LIMITS, effective_limits, people_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.physical import Payload, Tool
@@ -110,7 +110,7 @@ SCHEMA = {
             },
         },
         "people": {"enum": sorted(PEOPLE_LIMITS)},
-        "pfl": {"type": "array", "items": {"enum": list(REGIONS)}, "maxItems": 12},
+        "pfl": {"type": "array", "items": {"enum": all_names()}, "maxItems": 24},
         "nodes_per_segment": {"type": "integer", "minimum": 4, "maximum": 60},
         "frame": {"enum": ["platform", "tcp"]},
         "start": {

@@ -26,8 +26,9 @@ E <= F_max^2 / (2 k).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from sixplus3.errors import InputError
 
@@ -81,9 +82,26 @@ REGIONS: dict[str, BodyRegion] = {r.name: r for r in (
 )}
 
 
+#: The suffix that names a region as clamped: backed by something that cannot move (a
+#: wall, a table), so the whole impact goes into its spring (m_H infinite).
+CLAMPED = "-clamped"
+
+
+def clamped(region: BodyRegion) -> BodyRegion:
+    """``region`` backed by a wall: the two-body model with an infinite m_H (the robot's
+    own effective mass takes the place of the reduced mass)."""
+    return replace(region, name=region.name + CLAMPED, mass=math.inf)
+
+
+def all_names() -> list[str]:
+    """Every name a pfl list may hold: each region, free and clamped."""
+    return list(REGIONS) + [n + CLAMPED for n in REGIONS]
+
+
 def regions(names: Iterable[str] | str | None) -> tuple[BodyRegion, ...]:
-    """The regions named (a list, or one comma-separated string: ``"hand,chest"``), in
-    :data:`REGIONS` order, without repeats; an unknown name is an InputError naming
+    """The regions named (a list, or one comma-separated string: ``"hand,chest"``; a
+    name ending in ``-clamped`` is that region clamped, :func:`clamped`), in
+    :func:`all_names` order, without repeats; an unknown name is an InputError naming
     the valid ones.  ``None`` or empty: no region."""
     if names is None:
         return ()
@@ -94,15 +112,22 @@ def regions(names: Iterable[str] | str | None) -> tuple[BodyRegion, ...]:
     else:
         raise InputError(f"pfl must be a list of body region names, got {names!r}",
                          value=names, valid=", ".join(REGIONS))
+    valid = all_names()
     for n in items:
-        if not isinstance(n, str) or n not in REGIONS:
+        if not isinstance(n, str) or n not in valid:
             raise InputError(f"unknown body region {n!r} in pfl", value=n,
-                             valid=", ".join(REGIONS))
-    return tuple(r for name, r in REGIONS.items() if name in items)
+                             valid=", ".join(REGIONS) + f" (each also with {CLAMPED})")
+    out = []
+    for name in valid:
+        if name in items:
+            base = REGIONS[name.removesuffix(CLAMPED)]
+            out.append(clamped(base) if name.endswith(CLAMPED) else base)
+    return tuple(out)
 
 
 def names_of(rs: Iterable[BodyRegion]) -> list[str]:
     return [r.name for r in rs]
 
 
-__all__ = ["REGIONS", "BodyRegion", "names_of", "regions"]
+__all__ = ["CLAMPED", "REGIONS", "BodyRegion", "all_names", "clamped", "names_of",
+           "regions"]
