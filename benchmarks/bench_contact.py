@@ -4,7 +4,8 @@
         [--at 0.08 0.22] [--plant-seeds 12] [--json]
 
 FILE: a trajectory planned with ``pfl`` for the regions tried (e.g. ``sixplus3 plan
-translate --pfl hand`` for free contacts, ``--pfl hand-clamped`` for clamps).  Each contact: a region, free or clamped, at an instant of the
+translate --pfl hand`` for free contacts, ``--pfl hand-clamped`` for clamps).
+Each contact: a region, free or clamped, at an instant of the
 plan (its normal along the motion there), the drives' PD soft (300 / 6) or stiff
 (3000 / 30), on the nominal plant and on perturbed plants (``identify plant``-like:
 masses, rotors +-5 %, friction x[1, 1.2], the residual of an identification), with the
