@@ -55,6 +55,30 @@ def test_a_free_hand_is_hit_below_its_limit_and_the_guard_stops(hand_plan, kp, k
     assert res.modes[:2] == ["follow", "stop"] and not res.false_alarm
 
 
+@pytest.fixture(scope="module")
+def clamp_plan(tmp_path_factory):
+    """The same move, planned for a clamped hand (backed by a wall: m_H infinite)."""
+    from sixplus3.control.pipeline import run_plan
+    from sixplus3.planner.task import task_from_dict
+
+    out = tmp_path_factory.mktemp("guard_clamp")
+    doc = {"name": "move", "nodes_per_segment": 6, "pfl": ["hand-clamped"], "waypoints": [
+        {"position": [-0.06, 0.0, 0.58]}, {"position": [0.06, 0.0, 0.58]},
+        {"position": [-0.06, 0.0, 0.58]}]}
+    return run_plan(task_from_dict(doc), out, ROBOT, html=False, plots=False).csv
+
+
+@pytest.mark.parametrize("kp, kd", [(300.0, 6.0), (3000.0, 30.0)], ids=["soft", "stiff"])
+def test_a_clamp_on_a_clamp_safe_plan_stays_within_both_limits(clamp_plan, kp, kd) -> None:
+    from sixplus3.interaction.person import contact_from_dict, run_contact
+
+    c = contact_from_dict({"region": "hand", "kind": "clamp", "at": 0.15})
+    res = run_contact(clamp_plan, ROBOT, ROBOT, c, guard=True, kp=kp, kd=kd, after=0.4)
+    assert res.speed > 0.5 and res.within_limits, res.summary()
+    assert res.detection_delay is not None and res.detection_delay <= 0.010
+    assert res.modes[-1] == "hold" and res.quasi_static == 0.0
+
+
 def test_a_clamp_is_released_by_a_stiff_drive(hand_plan) -> None:
     """Clamped against a wall, a stiff drive that only follows its plan keeps pressing;
     the guard sees the platform blocked, retracts along the path and lets go."""

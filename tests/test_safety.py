@@ -39,6 +39,11 @@ def test_the_regions_of_the_standard() -> None:
         regions("hand,elbow")
     with pytest.raises(InputError, match="list of body region names"):
         regions(3)  # type: ignore[arg-type]
+    # a clamped region: backed by a wall, its mass infinite (the robot's alone remains)
+    (hc,) = regions("hand-clamped")
+    assert hc.name == "hand-clamped" and hc.mass == np.inf and hc.force == hand.force
+    assert hc.speed_limit(0.7) == pytest.approx(280 / np.sqrt(0.7 * 75e3))
+    assert [r.name for r in regions("hand-clamped,hand")] == ["hand", "hand-clamped"]
     # the two-body model's speed: F / sqrt(mu k); the energy F^2 / 2k is what it holds
     mu = 1 / (1 / 0.7 + 1 / 0.6)
     assert hand.speed_limit(0.7) == pytest.approx(280 / np.sqrt(mu * 75e3))
