@@ -13,7 +13,7 @@ import numpy as np
 from sixplus3.control.drive.smoothing import Smoothed, check_rate, smooth
 from sixplus3.control.file.trajectory_file import check_samples, output_path
 from sixplus3.control.gate.validation import ValidationReport, validate_and_write
-from sixplus3.errors import TrajectoryFileError, ValidationFailed
+from sixplus3.errors import TaskError, TrajectoryFileError, ValidationFailed
 from sixplus3.planner.ocp import PlannerOptions, Solution, plan_problem
 from sixplus3.planner.pfl import PFL_SAFETY, pfl_speed, task_regions
 from sixplus3.planner.problem import Problem
@@ -78,6 +78,9 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
         say = progress
     # power and force limiting (docs/safety.md): the tool centre point's speed bound for
     # the task's and the site's body regions, as a tightening of the task's limits
+    if not isinstance(task, Task):
+        raise TaskError(f"task must be a Task (sixplus3.planner.task), got "
+                        f"{type(task).__name__}", value=type(task).__name__, valid="a Task")
     regions = task_regions(task)
     if regions and _pfl_try == 0:
         bound = pfl_speed(task, task.robot_for(robot))

@@ -26,6 +26,6 @@ def test_every_documented_command_runs(tmp_path) -> None:
     assert [r["command"] for r in rows][:4] == ["robot check", "plan gentle_translate",
                                                 "validate", "identify excite"]
     assert len(rows) == 16
-    # what the lab gets: the identified robot file, the wrench, the commissioned robot
-    for name in ("identified.yaml", "wrench.csv", "robot.yaml", "ident/report/summary.json"):
+    # what the lab gets: the identified robot file, the wrench, the zeroed robot
+    for name in ("identified.yaml", "wrench.csv", "zeroed.yaml", "ident/report/summary.json"):
         assert (tmp_path / "walk" / name).exists(), name
