@@ -21,7 +21,7 @@ import statistics
 
 from sixplus3.identification.plants import perturbed_plant
 from sixplus3.interaction.person import contact_from_dict, run_contact
-from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot import Robot, load_robot
 
 
 def main() -> None:
@@ -34,12 +34,20 @@ def main() -> None:
     ap.add_argument("--plant-seeds", nargs="*", type=int, default=[12, 21])
     ap.add_argument("--quiet-files", nargs="*", default=[],
                     help="more trajectory files run with nobody in the way (false alarms)")
+    ap.add_argument("--robot", default=None,
+                    help="the model the file was planned for and the guard uses (a robot "
+                         "file, e.g. an identified one); default: the default robot")
+    ap.add_argument("--plant", default=None,
+                    help="a plant robot file, run instead of the nominal and --plant-seeds "
+                         "ones")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    robot = Robot.default()
+    robot = Robot.default() if args.robot is None else load_robot(args.robot)
     plants = [("nominal", robot)] + [(f"near-{s}", perturbed_plant(robot, s, mass=0.05,
                                                                    rotor=0.05, friction=1.2))
                                      for s in args.plant_seeds]
+    if args.plant is not None:
+        plants = [(args.plant, load_robot(args.plant))]
     rows = []
     for pname, plant in plants:
         for gains in ((300.0, 6.0), (3000.0, 30.0)):
@@ -52,7 +60,7 @@ def main() -> None:
                     for at in args.at:
                         c = contact_from_dict({"region": region, "kind": kind, "at": at})
                         for guard in ((True, False) if kind == "clamp" and gains[0] > 1000
-                                      and pname == "nominal" else (True,)):
+                                      and pname == plants[0][0] else (True,)):
                             r = run_contact(args.file, robot, plant, c, guard=guard,
                                             kp=gains[0], kd=gains[1], after=0.3)
                             rows.append({"plant": pname, "kp": gains[0], "contact":
