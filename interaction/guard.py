@@ -105,7 +105,15 @@ class ContactGuard:
     def __init__(self, robot: Robot | None, trajectory_file: str | Path,
                  rate_hz: float = 1000.0, gain: float = GAIN,
                  model_error: float = MODEL_ERROR, n_sigma: float = N_SIGMA,
-                 torque_noise: float = 0.01, torque_share: float = TORQUE_SHARE) -> None:
+                 torque_noise: float = 0.01, torque_share: float = TORQUE_SHARE,
+                 reaction: str = "hold") -> None:
+        if reaction not in ("hold", "yield"):
+            raise InputError(f"reaction must be hold or yield, got {reaction!r}",
+                             value=reaction, valid="hold or yield")
+        #: after a contact's stop (and a clamp's retract): "hold" the pose, or "yield":
+        #: a compliant hold (the reference follows the measured angles, so the drive's
+        #: PD only damps; gravity's feed-forward): a person can push the platform away
+        self.reaction = reaction
         if robot is None:
             header, _ = parse(read_bytes(trajectory_file), Path(trajectory_file).name)
             rec = header.get("robot")
@@ -361,6 +369,11 @@ class ContactGuard:
                 self.events.append(f"t={self.t:.4f} s: at rest: holding")
         self._sdd = sdd
         mode_out = "retract" if self.mode == "settle" else self.mode
+        if self.mode == "hold" and self._contact and self.reaction == "yield":
+            assert self._prev is not None
+            g = np.clip(self._at(self.g), -self.lim.torque, self.lim.torque)
+            self._last_ref = self._prev.copy()
+            return GuardCommand(self._prev.copy(), np.zeros(9), g, "hold", True, wrench)
         cmd = self._command(sdd, self._contact, wrench)
         return GuardCommand(cmd.theta_ref, cmd.theta_dot_ref, cmd.tau_ff, mode_out,
                             cmd.contact, cmd.wrench)

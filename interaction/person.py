@@ -134,10 +134,11 @@ class ContactRun:
 def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact | None,
                 guard: bool = True, kp: float = KP, kd: float = KD, seed: int = 0,
                 after: float = 0.5, torque_noise: float = TORQUE_NOISE,
-                timestep: float = TIMESTEP) -> ContactRun:
+                timestep: float = TIMESTEP, reaction: str = "hold") -> ContactRun:
     """Run the file on ``plant`` with the person ``contact`` (None: nobody, for false
     alarms) in the way (module doc), the guard in the loop (``guard``) or the plan
-    followed as it is, for ``after`` seconds past the contact (or the file's end)."""
+    followed as it is, for ``after`` seconds past the contact (or the file's end);
+    ``reaction``: the guard's, hold or yield."""
     model, plant = require_robot(model), require_robot(plant)
     check_number("after", after, 0.0, 30.0)
     check_number("kp", kp, 0.0, 1e5)
@@ -189,7 +190,7 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
         k_on = k_c
         while k_on > 0 and ahead[k_on - 1]:
             k_on -= 1
-    g = ContactGuard(model, path, rate) if guard else None
+    g = ContactGuard(model, path, rate, reaction=reaction) if guard else None
     sim = MujocoRobot(plant, timestep)
     mj, m, d = sim.mj, sim.model, sim.data
     sim.set_state(first_configuration(model, rep), np.zeros(9))

@@ -124,3 +124,38 @@ def test_a_file_of_another_robot_is_refused(hand_plan) -> None:
         ContactGuard(Robot.named("compact"), hand_plan)
     with pytest.raises(Sixplus3Error):
         ContactGuard(ROBOT, hand_plan, rate_hz=500.0)
+
+
+@pytest.mark.parametrize("reaction", ["hold", "yield"])
+def test_after_a_stop_hold_keeps_the_pose_and_yield_gives_way(hand_plan, reaction) -> None:
+    """A contact (a torque the model does not expect) stops the guard; once the force is
+    gone it holds.  Pushed off the path then, "hold" keeps its reference (the drive's PD
+    pushes back) and "yield" takes the measured pose as its reference (only damping
+    remains: a person can move the platform away)."""
+    from sixplus3.interaction.guard import ContactGuard
+
+    g = ContactGuard(ROBOT, hand_plan, reaction=reaction)
+    th, tau = g.theta, g.b + g.g
+    k = 0
+    cmd = g.step(th[0], tau[0])
+    for k in range(1, 60):  # follow the plan with the plan's own torques
+        cmd = g.step(th[k], tau[k - 1])
+    assert cmd.mode == "follow" and not cmd.contact
+    push = np.zeros(9)
+    push[0] = 3.0  # 3 N m the model does not expect on leg0_A: a contact
+    last = th[k]
+    for _ in range(5):
+        cmd = g.step(last, tau[k] - push)
+    # the robot stayed put while its reference moved on: blocked, so a clamp: retract
+    assert cmd.contact and cmd.mode in ("stop", "retract")
+    for _ in range(400):  # the force gone, the robot where the reference is
+        cmd = g.step(cmd.theta_ref, g.g[min(int(g.s), g.n - 1)])
+    assert cmd.mode == "hold", g.events
+    held = cmd.theta_ref.copy()
+    moved = held + 0.01  # pushed 10 mrad off on every joint
+    cmd = g.step(moved, g.g[min(int(g.s), g.n - 1)])
+    if reaction == "hold":
+        np.testing.assert_allclose(cmd.theta_ref, held, atol=1e-12)
+    else:
+        np.testing.assert_allclose(cmd.theta_ref, moved, atol=1e-12)
+    assert np.all(cmd.theta_dot_ref == 0.0) and np.all(np.abs(cmd.tau_ff) <= g.lim.torque)
