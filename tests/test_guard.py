@@ -159,3 +159,29 @@ def test_after_a_stop_hold_keeps_the_pose_and_yield_gives_way(hand_plan, reactio
     else:
         np.testing.assert_allclose(cmd.theta_ref, moved, atol=1e-12)
     assert np.all(cmd.theta_dot_ref == 0.0) and np.all(np.abs(cmd.tau_ff) <= g.lim.torque)
+
+
+def test_simulate_with_a_person_from_the_command_line(clamp_plan, tmp_path) -> None:
+    from click.testing import CliRunner
+
+    from sixplus3.cli import main as cli
+    from sixplus3.identification.report import robot_yaml
+
+    plant = tmp_path / "plant.yaml"
+    plant.write_text(robot_yaml(perturbed_plant(ROBOT, 31, mass=0.05, rotor=0.05,
+                                                friction=1.2)))
+    contact = tmp_path / "contact.yaml"
+    contact.write_text("region: hand\nkind: clamp\nat: 0.15\n")
+    log = tmp_path / "log.csv"
+    args = ["simulate", str(clamp_plan), "--plant", str(plant), "--guard", "--contact",
+            str(contact), "--log", str(log), "--kp", "3000", "--kd", "30"]
+    res = CliRunner().invoke(cli, args)
+    assert res.exit_code == 0, res.output
+    assert "clamp contact with the hand" in res.output and "detected after" in res.output
+    assert log.exists()
+    res = CliRunner().invoke(cli, [*args, "--force", "--reaction", "yield", "--json"])
+    assert res.exit_code == 0 and '"within_limits": true' in res.output
+    contact.write_text("region: elbow\nkind: clamp\nat: 0.15\n")
+    res = CliRunner().invoke(cli, [*args, "--force"])
+    assert res.exit_code == 2 and "region must be one of" in res.output
+    assert len(res.output.strip().splitlines()) == 1
