@@ -244,14 +244,22 @@ class ContactGuard:
         f = k - i
         return (1.0 - f) * arr[i] + f * arr[j]
 
-    def _command(self, sdd: float, contact: bool, wrench: np.ndarray) -> GuardCommand:
-        th = self._at(self.theta)
-        thd = self._at(self.theta_d) * self.sd
-        ff = self._at(self.a) * sdd + self._at(self.b) * self.sd ** 2 + self._at(self.g)
+    def _command(self, sdd: float, mode: str, wrench: np.ndarray) -> GuardCommand:
+        """The reference at the path position s with path speed sd and acceleration
+        sdd (the time-scaling feed-forward, clipped to the envelope)."""
+        k = min(max(self.s, 0.0), self.n - 1.0)
+        i = int(k)
+        j, f = min(i + 1, self.n - 1), k - i
+
+        def at(arr: np.ndarray) -> np.ndarray:
+            return (1.0 - f) * arr[i] + f * arr[j]
+
+        th = at(self.theta)
+        ff = at(self.a) * sdd + at(self.b) * self.sd ** 2 + at(self.g)
         cap = self.lim.torque
         ff = np.clip(np.nan_to_num(ff, nan=0.0), -cap, cap)
         self._last_ref = th
-        return GuardCommand(th, thd, ff, self.mode, contact, wrench)
+        return GuardCommand(th, at(self.theta_d) * self.sd, ff, mode, self._contact, wrench)
 
     def _safe_hold(self, why: str) -> GuardCommand:
         if not self.events or self.events[-1] != why:
@@ -374,9 +382,7 @@ class ContactGuard:
             g = np.clip(self._at(self.g), -self.lim.torque, self.lim.torque)
             self._last_ref = self._prev.copy()
             return GuardCommand(self._prev.copy(), np.zeros(9), g, "hold", True, wrench)
-        cmd = self._command(sdd, self._contact, wrench)
-        return GuardCommand(cmd.theta_ref, cmd.theta_dot_ref, cmd.tau_ff, mode_out,
-                            cmd.contact, cmd.wrench)
+        return self._command(sdd, mode_out, wrench)
 
 
 __all__ = ["ContactGuard", "GuardCommand"]

@@ -46,6 +46,17 @@ SLOW_TESTS = {
 }
 
 
+@pytest.fixture
+def catalogue_hardware():
+    """The built-in catalogue's envelope in force before and after the test (a test that
+    sets a site's hardware cannot leak it into the next)."""
+    from sixplus3.robot_description import hardware
+
+    hardware.use(None)
+    yield
+    hardware.use(None)
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
         module = item.path.stem

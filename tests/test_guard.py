@@ -15,17 +15,23 @@ ROBOT = Robot.default()
 pytest.importorskip("mujoco")
 
 
-@pytest.fixture(scope="module")
-def hand_plan(tmp_path_factory):
-    """A 12 cm move along x and back, planned for a hand's contact."""
+def _move(tmp_path_factory, regions: list[str]):
+    """A 12 cm move along x and back, planned for ``regions``' contacts (nodes kept few:
+    fast)."""
     from sixplus3.control.pipeline import run_plan
     from sixplus3.planner.task import task_from_dict
 
     out = tmp_path_factory.mktemp("guard")
-    doc = {"name": "move", "nodes_per_segment": 6, "pfl": ["hand"], "waypoints": [
+    doc = {"name": "move", "nodes_per_segment": 6, "pfl": regions, "waypoints": [
         {"position": [-0.06, 0.0, 0.58]}, {"position": [0.06, 0.0, 0.58]},
         {"position": [-0.06, 0.0, 0.58]}]}
     return run_plan(task_from_dict(doc), out, ROBOT, html=False, plots=False).csv
+
+
+@pytest.fixture(scope="module")
+def hand_plan(tmp_path_factory):
+    """The move planned for a hand's (free) contact."""
+    return _move(tmp_path_factory, ["hand"])
 
 
 @pytest.mark.parametrize("plant", ["nominal", "near"])
@@ -58,14 +64,7 @@ def test_a_free_hand_is_hit_below_its_limit_and_the_guard_stops(hand_plan, kp, k
 @pytest.fixture(scope="module")
 def clamp_plan(tmp_path_factory):
     """The same move, planned for a clamped hand (backed by a wall: m_H infinite)."""
-    from sixplus3.control.pipeline import run_plan
-    from sixplus3.planner.task import task_from_dict
-
-    out = tmp_path_factory.mktemp("guard_clamp")
-    doc = {"name": "move", "nodes_per_segment": 6, "pfl": ["hand-clamped"], "waypoints": [
-        {"position": [-0.06, 0.0, 0.58]}, {"position": [0.06, 0.0, 0.58]},
-        {"position": [-0.06, 0.0, 0.58]}]}
-    return run_plan(task_from_dict(doc), out, ROBOT, html=False, plots=False).csv
+    return _move(tmp_path_factory, ["hand-clamped"])
 
 
 @pytest.mark.parametrize("kp, kd", [(300.0, 6.0), (3000.0, 30.0)], ids=["soft", "stiff"])

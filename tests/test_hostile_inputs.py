@@ -20,11 +20,7 @@ from sixplus3.robot_description.robot import Robot
 ROBOT = Robot.default()
 
 
-@pytest.fixture(autouse=True)
-def _catalogue_hardware():
-    hardware.use(None)
-    yield
-    hardware.use(None)
+pytestmark = pytest.mark.usefixtures("catalogue_hardware")  # tests/conftest.py
 
 
 def _run(args: list[str], env: dict | None = None):
