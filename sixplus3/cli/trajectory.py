@@ -123,6 +123,9 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
         click.echo(f"  judged by robot {robot.hash[:12]} at {rep.rate_hz:g} Hz, its hardware "
                    f"limits tightened by the site's and the file's: {lim_txt}")
         click.echo(f"  envelope: {envelope['drive_train']} from the {envelope['origin']}")
+        if rep.pfl:  # power and force limiting (docs/safety.md)
+            click.echo(f"  power and force limiting for {', '.join(rep.pfl)}: worst contact "
+                       f"energy {rep.max_pfl_ratio:.3f} of the ISO/TS 15066 limit")
         for msg in rep.messages():
             click.echo(f"  {'defect' if rep.exit_code == 2 else 'violation'}: {msg}")
         if eng is not None:
