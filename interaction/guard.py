@@ -77,6 +77,14 @@ RETRACT_SPEED = 0.3
 RETRACT_SAMPLES = 40
 #: The force is gone when every joint stays within its threshold this long [s].
 RELEASED = 0.03
+#: A drive at this share of the torque limit is saturated ...
+SATURATED_SHARE = 0.995
+#: ... and one saturated this long [s] cannot follow the plan: a stop, not a contact.
+SATURATED_FOR = 0.01
+#: The share of the envelope a command (tau_ff plus the drive's PD) may ask for when the
+#: drive's gains are known (the rest: the drive's own rate estimate, which the guard's
+#: encoder difference only approximates).
+COMMAND_SHARE = 0.97
 
 
 @dataclass(frozen=True)
@@ -102,11 +110,17 @@ class ContactGuard:
     rad) and the torque applied over the previous tick (9, N m; at the first call the
     file's first feed-forward)."""
 
+    s: float  #: path position [samples of the file]
+    sd: float  #: path speed [file seconds per second]
+    mode: str
+    _vel: np.ndarray
+
     def __init__(self, robot: Robot | None, trajectory_file: str | Path,
                  rate_hz: float = 1000.0, gain: float = GAIN,
                  model_error: float = MODEL_ERROR, n_sigma: float = N_SIGMA,
                  torque_noise: float = 0.01, torque_share: float = TORQUE_SHARE,
-                 reaction: str = "hold") -> None:
+                 reaction: str = "hold",
+                 drive_gains: tuple[object, object] | None = None) -> None:
         if reaction not in ("hold", "yield"):
             raise InputError(f"reaction must be hold or yield, got {reaction!r}",
                              value=reaction, valid="hold or yield")
@@ -127,6 +141,19 @@ class ContactGuard:
         self.model_error = check_number("model_error", model_error, 0.0, 1.0)
         self.n_sigma = check_number("n_sigma", n_sigma, 0.0, 100.0)
         share = check_number("torque_share", torque_share, 0.1, 1.0)
+        #: the drive's (Kp [N m/rad], Kd [N m s/rad]), scalars or 9 each; given, every
+        #: command's tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref - theta_dot)
+        #: stays within the envelope (:meth:`_within_envelope`)
+        self.kp: np.ndarray | None = None
+        self.kd: np.ndarray | None = None
+        if drive_gains is not None:
+            kp, kd = (np.broadcast_to(np.asarray(x, dtype=float), (9,)).copy()
+                      for x in drive_gains)
+            for name, v, hi in (("Kp", kp, 1e6), ("Kd", kd, 1e4)):
+                if not (np.all(np.isfinite(v)) and np.all(v >= 0) and np.all(v <= hi)):
+                    raise InputError(f"the drive's {name} must be in [0, {hi:g}]",
+                                     value=v.tolist(), valid=f"[0, {hi:g}]")
+            self.kp, self.kd = kp, kd
         rep = validate_file(trajectory_file, self.robot)
         if not rep.ok or rep.data is None or rep.header is None:
             raise ValidationFailed("the guard runs only a valid file: "
@@ -155,6 +182,7 @@ class ContactGuard:
         # without the friction: evaluated at the measured rate each tick (its sign
         # follows the motion, a retract's too)
         self.c = tau_v - self.g - self.robot.motors.friction(self.theta_d)
+        self.D = self._velocity_slope(dyn, cfg.q)
         self.J = ik_jacobian(cfg)
         self.dt = 1.0 / self.rate
         self.beta = self._stop_table(share)
@@ -175,6 +203,23 @@ class ContactGuard:
         self._reset()
 
     # ------------------------------------------------------------------ offline
+    def _velocity_slope(self, dyn: ClosedLoopDynamics, q: np.ndarray) -> np.ndarray:
+        """D_k (n, 9, 9) = d c / d theta_dot at sample k's planned rates: the velocity
+        torque c (Coriolis and centripetal) is a quadratic form in the rates, so a
+        central difference of it is exact, and c(v_k + d) = c_k + D_k d + c(d) with
+        c(d) of second order in the tracking error d (module doc)."""
+        n = self.n
+        D = np.empty((n, 9, 9))
+        zero = np.zeros((n, 9))
+        fr = self.robot.motors.friction
+        for j in range(9):
+            e = np.zeros(9)
+            e[j] = 1.0
+            up, _ = dyn.actuated_inverse_dynamics_batch(q, self.theta_d + e, zero)
+            dn, _ = dyn.actuated_inverse_dynamics_batch(q, self.theta_d - e, zero)
+            D[:, :, j] = 0.5 * ((up - fr(self.theta_d + e)) - (dn - fr(self.theta_d - e)))
+        return D
+
     def _stop_table(self, share: float) -> np.ndarray:
         """beta_k [1/s]: the path deceleration the limits allow from sample k, the
         smallest over the distance the stop covers (module doc)."""
@@ -203,6 +248,20 @@ class ContactGuard:
             out[k] = beta[k: k + w].min()
         return out
 
+    def _stop_from_measured(self) -> None:
+        """Enter the stop from where the robot is: the path position nearest the measured
+        angles, and the measured path speed (the rate projected on the path's tangent),
+        never faster than the reference's.  An impact that has already slowed the
+        platform is not undone by a reference that runs on ahead of it."""
+        if self.mode == "follow" and self._prev is not None:
+            self.s = self._nearest(self.s)
+            k = int(round(self.s))
+            tan = self.theta_d[k]
+            t2 = float(tan @ tan)
+            if t2 > 1e-12:
+                self.sd = min(self.sd, max(0.0, float(self._vel @ tan) / t2))
+        self.mode = "stop"
+
     def _blocked(self) -> bool:
         """The measured angles lag the reference by more than BLOCKED while the
         observer sees a force: the platform is held."""
@@ -228,6 +287,8 @@ class ContactGuard:
         self._integral = np.zeros(9)
         self._r = np.zeros(9)
         self._over = 0
+        self._saturated = 0.0
+        self._clipped = False  # the last command was moved into the envelope
         self._since = 0.0
         self._quiet = 0.0
         self._contact = False
@@ -272,10 +333,38 @@ class ContactGuard:
     def step(self, theta: object, tau: object) -> GuardCommand:
         """One tick (class doc); never raises."""
         try:
-            return self._step(theta, tau)
+            cmd = self._step(theta, tau)
         except Exception as exc:  # noqa: BLE001 - the loop must never see an exception
-            return self._safe_hold(f"internal failure, holding: {type(exc).__name__}: "
-                                   f"{str(exc)[:120]}")
+            cmd = self._safe_hold(f"internal failure, holding: {type(exc).__name__}: "
+                                  f"{str(exc)[:120]}")
+        try:
+            return self._within_envelope(cmd)
+        except Exception:  # noqa: BLE001
+            return cmd
+
+    def _within_envelope(self, cmd: GuardCommand) -> GuardCommand:
+        """With the drive's gains: the reference moved toward the measured angles (or,
+        with Kp = 0, the rate reference toward the measured rate) wherever the drive's
+        total tau_ff + PD would leave COMMAND_SHARE of the envelope.  A blocked platform
+        then never gets more than the envelope from a reference that runs ahead."""
+        if self.kp is None or self.kd is None or self._prev is None:
+            return cmd
+        cap = COMMAND_SHARE * self.lim.torque
+        # the drive's rate feedback: the encoder's difference over the last tick
+        vel = self._vel
+        damp = self.kd * (cmd.theta_dot_ref - vel)
+        pd = self.kp * (cmd.theta_ref - self._prev) + damp
+        lo, hi = -cap - cmd.tau_ff, cap - cmd.tau_ff
+        self._clipped = not bool(np.all((pd >= lo) & (pd <= hi)))
+        if not self._clipped:
+            return cmd
+        pd_c = np.clip(pd, np.minimum(lo, 0.0), np.maximum(hi, 0.0))
+        ref, vref = cmd.theta_ref.copy(), cmd.theta_dot_ref.copy()
+        stiff = self.kp > 0
+        ref[stiff] = self._prev[stiff] + (pd_c - damp)[stiff] / self.kp[stiff]
+        soft = ~stiff & (self.kd > 0)
+        vref[soft] = vel[soft] + pd_c[soft] / self.kd[soft]
+        return GuardCommand(ref, vref, cmd.tau_ff, cmd.mode, cmd.contact, cmd.wrench)
 
     def _step(self, theta: object, tau: object) -> GuardCommand:
         th = np.asarray(theta, dtype=float).reshape(-1)
@@ -299,7 +388,11 @@ class ContactGuard:
         p = M @ self._vel
         if self._p0 is None:
             self._p0 = p.copy()
-        h = self.c[k] * self.sd ** 2 + self.g[k] + self.robot.motors.friction(self._vel)
+        # the velocity torque at the measured rates: the path's (sd^2 c_k) and its slope
+        # times the tracking error (a drive that lags, saturates or is pushed)
+        h = (self.c[k] * self.sd ** 2 + self.sd * (self.D[k] @ (
+            self._vel - self.sd * self.theta_d[k])) + self.g[k]
+            + self.robot.motors.friction(self._vel))
         mdot = (M - self._M_prev) @ self._vel / dt
         self._M_prev = M
         step = (tq - h + mdot + self._r) * dt
@@ -312,11 +405,22 @@ class ContactGuard:
         over = bool(np.any(np.abs(self._r) > thr))
         self._over = self._over + 1 if over else 0
         wrench = (self.J[k].T @ self._r)[:6]
-        if self._over >= DEBOUNCE and not self._contact and self.mode == "follow":
+        if (self._over >= DEBOUNCE and not self._contact
+                and self.mode in ("follow", "stop")):
             self._contact = True
-            self.mode = "stop"
+            self._stop_from_measured()
             self.events.append(f"t={self.t:.4f} s: contact, joint residual "
                                f"{np.abs(self._r).max():.3f} N m; stopping")
+        # a drive held at its limit: this robot cannot follow the plan (it needs more
+        # torque than the model says); the platform leaves the planned (and PFL-checked)
+        # path, so stop along it
+        sat = self._clipped or bool(np.any(np.abs(tq) >= SATURATED_SHARE * self.lim.torque))
+        self._saturated = self._saturated + dt if sat else 0.0
+        if self._saturated >= SATURATED_FOR and self.mode == "follow":
+            self._stop_from_measured()
+            self.events.append(f"t={self.t:.4f} s: a drive saturated for "
+                               f"{1e3 * self._saturated:.0f} ms: this robot cannot follow "
+                               "the plan; stopping")
         self.t += dt
         return self._advance(over, wrench)
 
@@ -350,7 +454,7 @@ class ContactGuard:
                     self.mode = "hold"
                     self.events.append(f"t={self.t:.4f} s: stopped, the force is gone: "
                                        "holding")
-                elif self._since >= CLAMP_WAIT:
+                elif self._since >= CLAMP_WAIT and self._contact:
                     self.mode = "retract"
                     self._retract_from = self.s
                     self.events.append(f"t={self.t:.4f} s: the force stays after the stop "

@@ -190,7 +190,8 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
         k_on = k_c
         while k_on > 0 and ahead[k_on - 1]:
             k_on -= 1
-    g = ContactGuard(model, path, rate, reaction=reaction) if guard else None
+    g = (ContactGuard(model, path, rate, reaction=reaction, drive_gains=(kp, kd))
+         if guard else None)
     sim = MujocoRobot(plant, timestep)
     mj, m, d = sim.mj, sim.model, sim.data
     sim.set_state(first_configuration(model, rep), np.zeros(9))
@@ -210,9 +211,13 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     applied = ff_file[0].copy()
     peak_cmd = 0.0
     th_log, tau_log = np.empty((n, 9)), np.empty((n, 9))
+    th_prev = np.zeros(9)
     for k in range(n):
         th_meas = np.rint(d.qpos[sim.act_qpos] * counts) / counts
-        thd = d.qvel[sim.act_dof].copy()
+        # the drive's rate feedback: its encoder's difference over the tick (a real
+        # drive has no other; the first tick: at rest)
+        thd = (th_meas - th_prev) * rate if k else np.zeros(9)
+        th_prev = th_meas
         measured_tau = np.rint((applied + rng.normal(0.0, torque_noise, 9)) / t_unit) * t_unit
         th_log[k], tau_log[k] = th_meas, measured_tau
         if g is not None:

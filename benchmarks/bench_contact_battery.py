@@ -1,0 +1,195 @@
+"""The contact battery of issue 55 (BENCHMARKS.md, "Safe in contact"): every body region,
+free and clamped, normals along and across the motion, speeds from 0.1 m/s to the
+fastest the region's plan reaches, on several plants and drives, with the guard (and a
+subset without it).
+
+    .venv/bin/python benchmarks/bench_contact_battery.py PLANS [--regions ...]
+        [--speeds 0.1 0.3 0.6 1.0 max] [--normals along across] [--drives soft stiff]
+        [--plant FILE ...] [--robot FILE] [--no-nominal] [--unguarded] [--out r.jsonl]
+
+PLANS: a folder with one plan per region, ``PLANS/<region>/<task>.csv`` planned with
+``--pfl <region>`` (free contacts) and ``PLANS/<region>-clamped/<task>.csv`` with
+``--pfl <region>-clamped`` (clamps): e.g. ``sixplus3 plan translate --pfl hand -o
+PLANS/hand``.  The model the guard uses is the robot of each file's header (its tool
+too: the contact is at the tool centre point; ``--point centre`` for the centre).
+
+Each contact's instant is the first sample where the tool centre point's planned speed
+reaches the target (``max``: the fastest sample); its normal is the planned velocity's
+direction (``along``) or that direction turned 60 degrees toward the horizontal
+perpendicular of the motion (``across``: the point meets the body at half its speed,
+and slides along it).  Drives: soft = PD 300 / 6, stiff = 3000 / 30 (N m/rad, N m s/rad).
+One JSON row per run (``--out``), and a summary.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sixplus3.control.file.trajectory_file import columns, read_bytes
+from sixplus3.control.file.trajectory_parse import parse
+from sixplus3.control.gate.validation import validate_file
+from sixplus3.interaction.person import contact_from_dict, run_contact
+from sixplus3.kinematics import rotations as rot
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.kinematics.tcp import tcp_velocity
+from sixplus3.robot_description.body_regions import REGIONS
+from sixplus3.robot_description.robot import Robot, load_robot
+
+DRIVES = {"soft": (300.0, 6.0), "stiff": (3000.0, 30.0)}
+
+
+def file_robot(path: Path) -> Robot:
+    header, _ = parse(read_bytes(path), path.name)
+    return Robot.from_dict(header["robot"]["parameters"])
+
+
+def planned_velocity(path: Path, robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+    """(t (n,), the tool centre point's planned velocity (n, 3))."""
+    rep = validate_file(path, robot)
+    assert rep.data is not None and rep.position is not None
+    assert rep.quaternion is not None and rep.psi is not None
+    cfg = robot_ik(rep.position, rot.matrix_from_quat(rep.quaternion), rep.psi, robot,
+                   platform_margins=False)
+    return rep.data[:, 0], tcp_velocity(cfg, columns(rep.data, "vel"))
+
+
+def instants(t: np.ndarray, v: np.ndarray, speeds: list[str]) -> list[tuple[str, float]]:
+    sp = np.linalg.norm(v, axis=1)
+    out = []
+    for s in speeds:
+        if s == "max":
+            out.append(("max", float(t[int(np.argmax(sp))])))
+            continue
+        target = float(s)
+        if target > 0.98 * sp.max():
+            continue
+        out.append((s, float(t[int(np.argmax(sp >= target))])))
+    return out
+
+
+def across(u: np.ndarray) -> list[float]:
+    """u turned 60 degrees toward its horizontal perpendicular (vertical u: toward x)."""
+    w = np.cross(u, [0.0, 0.0, 1.0])
+    if np.linalg.norm(w) < 1e-6:
+        w = np.array([1.0, 0.0, 0.0])
+    w /= np.linalg.norm(w)
+    n = 0.5 * u + np.sqrt(3.0) / 2.0 * w
+    return [float(x) for x in n / np.linalg.norm(n)]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("plans")
+    ap.add_argument("--task", default="translate")
+    ap.add_argument("--regions", nargs="+", default=list(REGIONS))
+    ap.add_argument("--kinds", nargs="+", default=["free", "clamp"], choices=["free", "clamp"])
+    ap.add_argument("--speeds", nargs="+", default=["0.1", "0.3", "0.6", "1.0", "max"])
+    ap.add_argument("--normals", nargs="+", default=["along", "across"],
+                    choices=["along", "across"])
+    ap.add_argument("--drives", nargs="+", default=["soft", "stiff"], choices=list(DRIVES))
+    ap.add_argument("--point", default="tcp", choices=["tcp", "centre"])
+    ap.add_argument("--plant", nargs="*", default=[], help="plant robot files (perturbed)")
+    ap.add_argument("--no-nominal", action="store_true",
+                    help="skip the nominal plant (the file's own robot)")
+    ap.add_argument("--robot", default=None,
+                    help="the guard's model, instead of each file's header robot")
+    ap.add_argument("--unguarded", action="store_true",
+                    help="also run each max-speed contact without the guard")
+    ap.add_argument("--reaction", default="hold", choices=["hold", "yield"])
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args()
+    root = Path(args.plans)
+    out = open(args.out, "a") if args.out else None  # noqa: SIM115
+    rows = []
+    t_start = time.perf_counter()
+    for region in args.regions:
+        for kind in args.kinds:
+            folder = root / (region if kind == "free" else f"{region}-clamped")
+            path = folder / f"{args.task}.csv"
+            if not path.exists():
+                print(f"no plan {path}: skipped", file=sys.stderr)
+                continue
+            model = load_robot(args.robot) if args.robot else file_robot(path)
+            plants = ([] if args.no_nominal else [("nominal", model)]) + [
+                (Path(p).stem, load_robot(p)) for p in args.plant]
+            t, v = planned_velocity(path, model)
+            for label, at in instants(t, v, args.speeds):
+                k = int(round(at / (t[1] - t[0])))
+                u = v[k] / np.linalg.norm(v[k])
+                for nname in args.normals:
+                    normal = [float(x) for x in u] if nname == "along" else across(u)
+                    c = contact_from_dict({"region": region, "kind": kind, "at": at,
+                                           "normal": normal, "point": args.point})
+                    for pname, plant in plants:
+                        for dname in args.drives:
+                            kp, kd = DRIVES[dname]
+                            guards = [True] + ([False] if args.unguarded and label == "max"
+                                               and nname == "along" else [])
+                            for guard in guards:
+                                r = run_contact(path, model, plant, c, guard=guard, kp=kp,
+                                                kd=kd, seed=args.seed, after=0.3,
+                                                reaction=args.reaction)
+                                row = {"region": region, "kind": kind, "target": label,
+                                       "at": round(at, 4), "normal": nname,
+                                       "point": args.point, "plant": pname,
+                                       "drive": dname, "guard": guard,
+                                       **{q: w for q, w in r.summary().items()
+                                          if q not in ("region", "kind", "guard")},
+                                       "final_mode": r.modes[-1] if r.modes else "-"}
+                                rows.append(row)
+                                line = json.dumps(row)
+                                if out:
+                                    out.write(line + "\n")
+                                    out.flush()
+                                print(f"{region:10s} {kind:5s} {label:>4s} {nname:6s} "
+                                      f"{pname:10s} {dname:5s} guard={guard!s:5s} "
+                                      f"v={r.speed:5.2f} F={r.peak_transient:6.1f}/"
+                                      f"{r.limit_transient:.0f} Fqs={r.quasi_static:6.1f}/"
+                                      f"{r.limit_quasi_static:.0f} det={r.detection_delay} "
+                                      f"stop={r.stop_time} cmd={r.peak_command:.2f} "
+                                      f"{row['final_mode']}", flush=True)
+    print(json.dumps(summarise(rows), indent=1))
+    print(f"{len(rows)} runs in {time.perf_counter() - t_start:.0f} s")
+
+
+def summarise(rows: list[dict]) -> dict:
+    g = [r for r in rows if r["guard"] and r["onset"] is not None]
+    det = [r["detection_delay"] for r in g if r["detection_delay"] is not None]
+    stops = [r["stop_time"] for r in g if r["detection_delay"] is not None
+             and r["stop_time"] is not None]
+    missed = [r for r in g if r["detection_delay"] is None]
+    return {
+        "runs": len(rows),
+        "contacts_with_guard": len(g),
+        "within_limits": sum(r["within_limits"] for r in g),
+        "worst_transient_share": max((r["peak_transient"] / r["limit_transient"] for r in g),
+                                     default=None),
+        "worst_quasi_static_share": max((r["quasi_static"] / r["limit_quasi_static"]
+                                         for r in g), default=None),
+        "detected": len(det),
+        "detection_median_ms": 1e3 * statistics.median(det) if det else None,
+        "detection_worst_ms": 1e3 * max(det) if det else None,
+        "not_flagged": len(missed),
+        "not_flagged_worst_force_share": max((max(r["peak_transient"] / r["limit_transient"],
+                                                  r["quasi_static"] / r["limit_quasi_static"])
+                                              for r in missed), default=None),
+        "stop_median_ms": 1e3 * statistics.median(stops) if stops else None,
+        "stop_worst_ms": 1e3 * max(stops) if stops else None,
+        "false_alarms": sum(bool(r["false_alarm"]) for r in rows),
+        "peak_command_worst_nm": max((r["peak_command"] for r in rows if r["guard"]),
+                                     default=None),
+        "unguarded_within_limits": [sum(r["within_limits"] for r in rows if not r["guard"]),
+                                    sum(not r["guard"] for r in rows)],
+    }
+
+
+if __name__ == "__main__":
+    main()
