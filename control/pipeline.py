@@ -15,7 +15,7 @@ from sixplus3.control.file.trajectory_file import check_samples, output_path
 from sixplus3.control.gate.validation import ValidationReport, validate_and_write
 from sixplus3.errors import TaskError, TrajectoryFileError, ValidationFailed
 from sixplus3.planner.ocp import PlannerOptions, Solution, plan_problem
-from sixplus3.planner.pfl import PFL_SAFETY, pfl_speed, task_regions
+from sixplus3.planner.pfl import PFL_SAFETY, task_regions
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.task import Task
 from sixplus3.progress import PlanProgress
@@ -76,19 +76,16 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
         listener, say = progress, progress.stage
     elif progress is not None:
         say = progress
-    # power and force limiting (docs/safety.md): the tool centre point's speed bound for
-    # the task's and the site's body regions, as a tightening of the task's limits
+    # power and force limiting (docs/safety.md): the task's and the site's body regions,
+    # as rows of the NLP (planner/pfl.py)
     if not isinstance(task, Task):
         raise TaskError(f"task must be a Task (sixplus3.planner.task), got "
                         f"{type(task).__name__}", value=type(task).__name__, valid="a Task")
     regions = task_regions(task)
     if regions and _pfl_try == 0:
-        bound = pfl_speed(task, task.robot_for(robot))
-        if bound is not None:
-            cap = min(bound, task.limits.get("tcp_speed", bound))
-            task = replace(task, limits={**task.limits, "tcp_speed": cap})
-            say(f"power and force limiting for {', '.join(r.name for r in regions)}: the "
-                f"tool centre point within {cap:.3f} m/s")
+        share = (options or PlannerOptions()).pfl_share
+        say(f"power and force limiting for {', '.join(r.name for r in regions)}: every "
+            f"contact's energy within {share:.3f} of its limit, in any direction")
     # the task checked once, here: the arguments, its setup robot and its limits (a
     # looser limit than the hardware's is refused before anything is solved), all held
     # by the Problem
@@ -147,14 +144,15 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
         found = failed.findings if failed is not None else []
         ratio = failed.max_pfl_ratio if failed is not None else None
         if (found and all(f.check.startswith("pfl ") for f in found) and ratio
-                and _pfl_try < PFL_TRIES and "tcp_speed" in task.limits):
-            # between the poses the bound was taken at, the effective mass was higher:
-            # lower the speed bound by what the gate found (energy goes as speed^2)
-            cap = task.limits["tcp_speed"] * PFL_SAFETY / float(np.sqrt(ratio))
+                and _pfl_try < PFL_TRIES):
+            # between the NLP's points, or after the smoothing, the energy was higher
+            # than the rows allowed: lower their share by what the gate found
+            opts = options or PlannerOptions()
+            share = max(0.01, opts.pfl_share * PFL_SAFETY**2 / float(ratio))
             say(f"  the gate's PFL check found {ratio:.3f} of the limit: planning again "
-                f"with the tool centre point within {cap:.3f} m/s")
-            return run_plan(replace(task, limits={**task.limits, "tcp_speed": cap}),
-                            out_dir, robot, rate, html, plots, options, progress,
+                f"with the rows at {share:.3f} of it")
+            return run_plan(task, out_dir, robot, rate, html, plots,
+                            replace(opts, pfl_share=share), progress,
                             _pfl_try=_pfl_try + 1)
         raise TrajectoryFileError("the smoothed trajectory fails validation, nothing "
                                   "written: " + str(exc).split(": ", 1)[-1],

@@ -79,6 +79,9 @@ class ValidationReport:
     #: largest contact energy over them against its limit (<= 1 holds; docs/safety.md)
     pfl: tuple[str, ...] = ()
     max_pfl_ratio: float | None = None
+    #: (n,) [1/s] the stop table the file carries, checked by the gate
+    #: (control/gate/stop.py); None: the file carries none
+    stop_deceleration: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def defects(self) -> list[Finding]:

@@ -13,7 +13,13 @@ it) and Pinocchio, for every sample k of the path theta(s) (s the file's time):
   inertial and centripetal terms, the friction taken with them);
 - the deceleration the torque limits allow there, beta_k (both at full speed and at
   rest, within ``torque_share`` of the limit and within the acceleration limit), made
-  the smallest over the distance a stop from there covers: a stop is a table look-up;
+  the smallest over the distance a stop from there covers: a stop is a table look-up.
+  The file carries this table in its header and the gate checks it against the limits
+  it judges by (control/gate/stop.py); the guard uses the file's (or computes its own
+  for a file without one, or another ``torque_share``);
+- the slope D_k of the velocity torque in the rates, so that the observer's model
+  follows the measured rates, not only the planned ones (a lagging or saturated drive,
+  a stop);
 - the IK Jacobian J_k, for the wrench at the platform centre w = (J_k^T r)[0:6].
 
 Each tick: the measured rate (the encoder's difference), the observer
@@ -24,6 +30,12 @@ the torque noise through the observer, plus ``model_error`` times what the model
 know at that instant (the inertial and bias torques: the threshold grows with the
 motion), plus the dry friction band.
 
+A drive held at its torque limit for SATURATED_FOR (the robot cannot follow this plan:
+it needs more than the model says) is a stop along the path, not a contact.  Given the
+drive's gains (``drive_gains``), every command's total tau_ff + Kp (theta_ref - theta) +
+Kd (theta_dot_ref - theta_dot) stays within the envelope: the reference is moved toward
+the measured angles where it would not.
+
 ``step`` never raises: a non-finite or wrong-sized input, a jump, or any failure
 inside is a safe stop (mode ``hold`` at the last good reference, gravity feed-forward),
 said in ``cmd.mode`` and kept in :attr:`ContactGuard.events`.  Every feed-forward is
@@ -33,16 +45,24 @@ clipped to the hardware envelope.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from sixplus3.control.file.trajectory_file import columns, read_bytes
 from sixplus3.control.file.trajectory_parse import parse
+from sixplus3.control.gate.stop import TORQUE_SHARE, path_deceleration
 from sixplus3.control.gate.validation import validate_file
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError, ValidationFailed, check_number
+from sixplus3.interaction.guard_parts import (
+    COMMAND_SHARE,
+    GuardCommand,
+    contact_site,
+    parse_gains,
+    velocity_slope,
+    within_envelope,
+)
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import ik_jacobian, robot_ik
 from sixplus3.robot_description.hardware import effective_limits
@@ -50,8 +70,6 @@ from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Observer gain [1/s] (a step reaches 95 % in 3 / K = 6 ms).
 GAIN = 500.0
-#: Share of the torque limit a stop may use for its feed-forward (the rest: the PD).
-TORQUE_SHARE = 0.95
 #: Relative model error the threshold allows on the torques the model predicts.
 MODEL_ERROR = 0.15
 #: Standard deviations of the observer's noise in the threshold.
@@ -67,6 +85,9 @@ DEBOUNCE = 2
 LAG = 0.02
 #: A largest jump between two measured samples [rad] (beyond it: a faulty reading).
 MAX_JUMP = 0.05
+#: For this long after a contact [s] the residual's crank torques may still place it on
+#: a leg (they grow with the force), while the force is at least half its peak so far.
+SITE_WINDOW = 0.02
 #: After a stop, the force that stays for this long [s] is a clamp.
 CLAMP_WAIT = 0.02
 #: [rad] the measured angles this far behind the reference, with a force on: blocked.
@@ -81,24 +102,6 @@ RELEASED = 0.03
 SATURATED_SHARE = 0.995
 #: ... and one saturated this long [s] cannot follow the plan: a stop, not a contact.
 SATURATED_FOR = 0.01
-#: The share of the envelope a command (tau_ff plus the drive's PD) may ask for when the
-#: drive's gains are known (the rest: the drive's own rate estimate, which the guard's
-#: encoder difference only approximates).
-COMMAND_SHARE = 0.97
-
-
-@dataclass(frozen=True)
-class GuardCommand:
-    """What the drive applies: tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref -
-    theta_dot).  ``mode``: follow, stop, retract, hold or done; ``wrench`` (6): the
-    estimated wrench at the platform centre, base frame [N, N m]."""
-
-    theta_ref: np.ndarray
-    theta_dot_ref: np.ndarray
-    tau_ff: np.ndarray
-    mode: str
-    contact: bool
-    wrench: np.ndarray
 
 
 class ContactGuard:
@@ -143,17 +146,11 @@ class ContactGuard:
         share = check_number("torque_share", torque_share, 0.1, 1.0)
         #: the drive's (Kp [N m/rad], Kd [N m s/rad]), scalars or 9 each; given, every
         #: command's tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref - theta_dot)
-        #: stays within the envelope (:meth:`_within_envelope`)
+        #: stays within the envelope (:func:`guard_parts.within_envelope`)
         self.kp: np.ndarray | None = None
         self.kd: np.ndarray | None = None
         if drive_gains is not None:
-            kp, kd = (np.broadcast_to(np.asarray(x, dtype=float), (9,)).copy()
-                      for x in drive_gains)
-            for name, v, hi in (("Kp", kp, 1e6), ("Kd", kd, 1e4)):
-                if not (np.all(np.isfinite(v)) and np.all(v >= 0) and np.all(v <= hi)):
-                    raise InputError(f"the drive's {name} must be in [0, {hi:g}]",
-                                     value=v.tolist(), valid=f"[0, {hi:g}]")
-            self.kp, self.kd = kp, kd
+            self.kp, self.kd = parse_gains(drive_gains)
         rep = validate_file(trajectory_file, self.robot)
         if not rep.ok or rep.data is None or rep.header is None:
             raise ValidationFailed("the guard runs only a valid file: "
@@ -182,10 +179,17 @@ class ContactGuard:
         # without the friction: evaluated at the measured rate each tick (its sign
         # follows the motion, a retract's too)
         self.c = tau_v - self.g - self.robot.motors.friction(self.theta_d)
-        self.D = self._velocity_slope(dyn, cfg.q)
+        self.D = velocity_slope(dyn, cfg.q, self.theta_d)
         self.J = ik_jacobian(cfg)
         self.dt = 1.0 / self.rate
-        self.beta = self._stop_table(share)
+        # the stop table: the file's own (the gate checked it against these limits) at
+        # the default share, else computed here (control/gate/stop.py)
+        if rep.stop_deceleration is not None and share == TORQUE_SHARE:
+            self.beta = np.asarray(rep.stop_deceleration, dtype=float)
+        else:
+            self.beta = path_deceleration(self.a, self.b, self.g, self.theta_d,
+                                          self.lim.torque, self.lim.acceleration,
+                                          self.rate, share)
         # the threshold: the observer's noise, the model's share, the dry friction band
         s_obs = torque_noise * math.sqrt(self.gain * self.dt / 2.0)
         fc = self.robot.motors.coulomb_per_joint
@@ -203,51 +207,6 @@ class ContactGuard:
         self._reset()
 
     # ------------------------------------------------------------------ offline
-    def _velocity_slope(self, dyn: ClosedLoopDynamics, q: np.ndarray) -> np.ndarray:
-        """D_k (n, 9, 9) = d c / d theta_dot at sample k's planned rates: the velocity
-        torque c (Coriolis and centripetal) is a quadratic form in the rates, so a
-        central difference of it is exact, and c(v_k + d) = c_k + D_k d + c(d) with
-        c(d) of second order in the tracking error d (module doc)."""
-        n = self.n
-        D = np.empty((n, 9, 9))
-        zero = np.zeros((n, 9))
-        fr = self.robot.motors.friction
-        for j in range(9):
-            e = np.zeros(9)
-            e[j] = 1.0
-            up, _ = dyn.actuated_inverse_dynamics_batch(q, self.theta_d + e, zero)
-            dn, _ = dyn.actuated_inverse_dynamics_batch(q, self.theta_d - e, zero)
-            D[:, :, j] = 0.5 * ((up - fr(self.theta_d + e)) - (dn - fr(self.theta_d - e)))
-        return D
-
-    def _stop_table(self, share: float) -> np.ndarray:
-        """beta_k [1/s]: the path deceleration the limits allow from sample k, the
-        smallest over the distance the stop covers (module doc)."""
-        cap = share * self.lim.torque
-        lo = np.zeros(self.n)
-        hi = np.full(self.n, np.inf)
-        for c in (self.b + self.g, self.g):  # at full path speed, at rest
-            # |c - beta a| <= cap: per joint an interval of beta (a = 0: c alone decides)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                e1, e2 = (c - cap) / self.a, (c + cap) / self.a
-            lo_j = np.where(self.a > 0, e1, np.where(self.a < 0, e2, -np.inf))
-            hi_j = np.where(self.a > 0, e2, np.where(self.a < 0, e1, np.inf))
-            lo = np.maximum(lo, np.nan_to_num(lo_j, nan=-np.inf).max(axis=1))
-            hi = np.minimum(hi, np.nan_to_num(hi_j, nan=np.inf).min(axis=1))
-        # the largest deceleration within the torque limits; where none is (the plan
-        # itself uses more than the share), the one that needs the least torque
-        beta = np.where(hi >= lo, hi, lo)
-        vmax = np.abs(self.theta_d).max(axis=1)
-        with np.errstate(divide="ignore"):
-            beta = np.minimum(beta, self.lim.acceleration / np.maximum(vmax, 1e-9))
-        beta = np.clip(beta, 1.0, 1e4)
-        # the smallest over the stop's own distance (s from 1 to 0 at beta: 1 / (2 beta))
-        out = beta.copy()
-        for k in range(self.n):
-            w = int(math.ceil(self.rate / (2.0 * beta[k]))) + 1
-            out[k] = beta[k: k + w].min()
-        return out
-
     def _stop_from_measured(self) -> None:
         """Enter the stop from where the robot is: the path position nearest the measured
         angles, and the measured path speed (the rate projected on the path's tangent),
@@ -292,6 +251,10 @@ class ContactGuard:
         self._since = 0.0
         self._quiet = 0.0
         self._contact = False
+        #: where the contact was found ("the platform" or "a leg"), once there was one
+        self.contact_site: str | None = None
+        self._contact_t = 0.0
+        self._fmax = 0.0  # the largest force estimated since the contact [N]
         self._last_ref = self.theta[0].copy()
         self._M_prev = self.M[0]
         self._sdd = 0.0
@@ -338,33 +301,13 @@ class ContactGuard:
             cmd = self._safe_hold(f"internal failure, holding: {type(exc).__name__}: "
                                   f"{str(exc)[:120]}")
         try:
-            return self._within_envelope(cmd)
+            if self.kp is None or self.kd is None or self._prev is None:
+                return cmd
+            out, self._clipped = within_envelope(cmd, self.kp, self.kd, self._prev,
+                                                 self._vel, COMMAND_SHARE * self.lim.torque)
+            return out
         except Exception:  # noqa: BLE001
             return cmd
-
-    def _within_envelope(self, cmd: GuardCommand) -> GuardCommand:
-        """With the drive's gains: the reference moved toward the measured angles (or,
-        with Kp = 0, the rate reference toward the measured rate) wherever the drive's
-        total tau_ff + PD would leave COMMAND_SHARE of the envelope.  A blocked platform
-        then never gets more than the envelope from a reference that runs ahead."""
-        if self.kp is None or self.kd is None or self._prev is None:
-            return cmd
-        cap = COMMAND_SHARE * self.lim.torque
-        # the drive's rate feedback: the encoder's difference over the last tick
-        vel = self._vel
-        damp = self.kd * (cmd.theta_dot_ref - vel)
-        pd = self.kp * (cmd.theta_ref - self._prev) + damp
-        lo, hi = -cap - cmd.tau_ff, cap - cmd.tau_ff
-        self._clipped = not bool(np.all((pd >= lo) & (pd <= hi)))
-        if not self._clipped:
-            return cmd
-        pd_c = np.clip(pd, np.minimum(lo, 0.0), np.maximum(hi, 0.0))
-        ref, vref = cmd.theta_ref.copy(), cmd.theta_dot_ref.copy()
-        stiff = self.kp > 0
-        ref[stiff] = self._prev[stiff] + (pd_c - damp)[stiff] / self.kp[stiff]
-        soft = ~stiff & (self.kd > 0)
-        vref[soft] = vel[soft] + pd_c[soft] / self.kd[soft]
-        return GuardCommand(ref, vref, cmd.tau_ff, cmd.mode, cmd.contact, cmd.wrench)
 
     def _step(self, theta: object, tau: object) -> GuardCommand:
         th = np.asarray(theta, dtype=float).reshape(-1)
@@ -388,11 +331,15 @@ class ContactGuard:
         p = M @ self._vel
         if self._p0 is None:
             self._p0 = p.copy()
-        # the velocity torque at the measured rates: the path's (sd^2 c_k) and its slope
-        # times the tracking error (a drive that lags, saturates or is pushed)
-        h = (self.c[k] * self.sd ** 2 + self.sd * (self.D[k] @ (
-            self._vel - self.sd * self.theta_d[k])) + self.g[k]
-            + self.robot.motors.friction(self._vel))
+        # the velocity torque at the measured rates: along the path at the measured path
+        # speed sm (c_k sm^2), and its slope times the rest of the measured rate (a drive
+        # that lags, saturates or is pushed; not the reference's speed, which a stop or a
+        # retract changes at once)
+        tan = self.theta_d[k]
+        t2 = float(tan @ tan)
+        sm = float(self._vel @ tan) / t2 if t2 > 1e-12 else 0.0
+        h = (self.c[k] * sm ** 2 + sm * (self.D[k] @ (self._vel - sm * tan)) + self.g[k]
+             + self.robot.motors.friction(self._vel))
         mdot = (M - self._M_prev) @ self._vel / dt
         self._M_prev = M
         step = (tq - h + mdot + self._r) * dt
@@ -404,13 +351,26 @@ class ContactGuard:
             self.sd ** 2, abs(self._sdd) / max(float(self.beta[k]), 1.0))
         over = bool(np.any(np.abs(self._r) > thr))
         self._over = self._over + 1 if over else 0
-        wrench = (self.J[k].T @ self._r)[:6]
+        full = self.J[k].T @ self._r  # (wrench at the platform centre, crank torques)
+        wrench = full[:6]
         if (self._over >= DEBOUNCE and not self._contact
                 and self.mode in ("follow", "stop")):
             self._contact = True
+            self._contact_t = self.t
+            self.contact_site = contact_site(full, np.abs(self.J[k]).T @ thr)
             self._stop_from_measured()
-            self.events.append(f"t={self.t:.4f} s: contact, joint residual "
-                               f"{np.abs(self._r).max():.3f} N m; stopping")
+            self.events.append(f"t={self.t:.4f} s: contact at {self.contact_site}, joint "
+                               f"residual {np.abs(self._r).max():.3f} N m; stopping")
+        if self._contact and self.t - self._contact_t <= SITE_WINDOW:
+            self._fmax = max(self._fmax, float(np.linalg.norm(full[0:3])))
+        if (self._contact and self.contact_site == "the platform"
+              and self.t - self._contact_t <= SITE_WINDOW
+              and float(np.linalg.norm(full[0:3])) >= 0.5 * self._fmax
+              and contact_site(full, np.abs(self.J[k]).T @ thr) == "a leg"):
+            # the crank torques grow with the force: a leg's shows within a few ticks
+            self.contact_site = "a leg"
+            self.events.append(f"t={self.t:.4f} s: the contact is on a leg (the residual's "
+                               "crank torques)")
         # a drive held at its limit: this robot cannot follow the plan (it needs more
         # torque than the model says); the platform leaves the planned (and PFL-checked)
         # path, so stop along it

@@ -45,6 +45,12 @@ from sixplus3.robot_description.robot import Robot, require_robot
 STOPPED = 0.01
 #: The transient phase: the first this many seconds after the onset of contact.
 TRANSIENT = 0.05
+#: Leg links a body region may meet (at the link's centre of mass): each leg's distal
+#: links (the RU chain's D links, the RUS chains' G and H rods) and its cranks (A, B, C).
+LEG_LINKS = tuple(f"leg{i}_{b}" for i in range(3)
+                  for b in ("A", "B", "C", "Ds2", "Ds3", "Ga", "Gb", "Ha", "Hb"))
+#: Where the contact may be: the tool centre point, the platform centre, a leg link.
+POINTS = ("tcp", "centre", *LEG_LINKS)
 
 
 @dataclass(frozen=True)
@@ -86,9 +92,9 @@ def contact_from_dict(doc: object, name: str = "contact") -> Contact:
                              valid="a non-zero vector")
         nv = (vals[0] / norm, vals[1] / norm, vals[2] / norm)
     point = doc.get("point", "tcp")
-    if point not in ("tcp", "centre"):
-        raise InputError(f"{name}: point must be tcp or centre, got {point!r}", value=point,
-                         valid="tcp or centre")
+    if point not in POINTS:
+        raise InputError(f"{name}: point must be one of {', '.join(POINTS)}, got "
+                         f"{point!r}", value=point, valid=", ".join(POINTS))
     return Contact(REGIONS[str(region)], str(kind), at, nv, str(point))
 
 
@@ -113,6 +119,7 @@ class ContactRun:
     stop_time: float | None  # the point stopped (or moving away) after the onset
     false_alarm: bool  # the guard flagged before any force
     peak_command: float  # [N m] the largest |tau_ff + PD| the drives were asked for
+    site: str | None = None  # where the guard placed the contact (the platform, a leg)
     modes: list[str] = field(default_factory=list)
     events: list[str] = field(default_factory=list)
     log: DriveLog | None = field(default=None, repr=False)  # what the drives measured
@@ -126,7 +133,7 @@ class ContactRun:
         out = {k: getattr(self, k) for k in (
             "region", "kind", "guard", "speed", "onset", "peak_transient", "quasi_static",
             "limit_transient", "limit_quasi_static", "detection_delay", "stop_time",
-            "false_alarm", "peak_command", "modes", "events")}
+            "false_alarm", "peak_command", "site", "modes", "events")}
         out["within_limits"] = self.within_limits
         return out
 
@@ -163,30 +170,32 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
                          f"({t_file[-1]:g} s)", value=contact.at,
                          valid=f"[0, {t_file[-1]:g}] s")
     n = n_file + int(round(after * rate))
+    leg = contact is not None and contact.point in LEG_LINKS
+    k_on = 0  # the body region is there from when the point last approached it
     if contact is not None:
         n = min(n, int(round((contact.at + after) * rate)) + 1)
         k_c = int(round(contact.at * rate))
-        R_c = rot.matrix_from_quat(rep.quaternion[k_c:k_c + 1])[0]
-        p_s = rep.position[k_c] + R_c @ tool
+        rates = columns(data, "vel")
+        if leg:  # a leg link's centre of mass, from MuJoCo's kinematics of the model
+            planned, v_c = _link_path(model, cfg, rates, k_c, contact.point, timestep)
+        else:
+            R_all = rot.matrix_from_quat(rep.quaternion[:k_c + 1])
+            planned = rep.position[:k_c + 1] + np.einsum("nij,j->ni", R_all, tool)
+            one = cfg.take(np.arange(n_file) == k_c)
+            if contact.point == "tcp":
+                v_c = tcp_velocity(one, rates[k_c:k_c + 1])[0]
+            else:  # the centre's velocity: the first three of J^-1 theta_dot
+                v_c = np.linalg.solve(ik_jacobian(one), rates[k_c:k_c + 1, :, None])[0, 0:3, 0]
+        p_s = planned[k_c]
         if contact.normal is not None:
             normal = np.asarray(contact.normal, dtype=float)
         else:
-            one = cfg.take(np.arange(n_file) == k_c)
-            rates = columns(data, "vel")[k_c:k_c + 1]
-            if contact.point == "tcp":
-                v = tcp_velocity(one, rates)
-            else:  # the centre's velocity: the first three of J^-1 theta_dot
-                v = np.linalg.solve(ik_jacobian(one), rates[:, :, None])[:, 0:3, 0]
-            sp = float(np.linalg.norm(v[0]))
+            sp = float(np.linalg.norm(v_c))
             if sp < 1e-6:
                 raise InputError(f"the point does not move at {contact.at:g} s: give the "
                                  "contact's normal", value=contact.at, valid="a moving instant")
-            normal = v[0] / sp
-    k_on = 0  # the body region is there from when the point last approached it
-    if contact is not None:
-        R_all = rot.matrix_from_quat(rep.quaternion)
-        planned = rep.position + np.einsum("nij,j->ni", R_all, tool)
-        ahead = (planned[:k_c + 1] - p_s) @ normal <= 1e-9
+            normal = v_c / sp
+        ahead = (planned - p_s) @ normal <= 1e-9
         k_on = k_c
         while k_on > 0 and ahead[k_on - 1]:
             k_on -= 1
@@ -200,7 +209,8 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     t_unit = mot.gear_ratio * mot.rated_torque / 1000.0
     cap = model.limits.torque
     rng = np.random.default_rng(seed)
-    body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, "platform_free")
+    body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY,
+                         contact.point if (contact is not None and leg) else "platform_free")
     n_sub = round(1.0 / (rate * timestep))
     x_h, v_h = 0.0, 0.0  # the body region's displacement along n, and its rate
     armed = False  # the point has been outside the region since it appeared
@@ -237,8 +247,7 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
         for _ in range(n_sub):
             d.xfrc_applied[body] = 0.0
             if contact is not None and k >= k_on:
-                R = d.xmat[body].reshape(3, 3)
-                p = d.xpos[body] + R @ tool
+                p = _point(d, body, tool, leg)
                 depth = float((p - p_s) @ normal) - x_h
                 armed = armed or depth <= 0.0
                 f = contact.region.stiffness * depth if (depth > 0 and armed) else 0.0
@@ -252,17 +261,42 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
             mj.mj_step(m, d)
         if contact is not None:
             jac = np.zeros((3, m.nv))
-            R = d.xmat[body].reshape(3, 3)
-            mj.mj_jac(m, d, jac, None, d.xpos[body] + R @ tool, body)
+            mj.mj_jac(m, d, jac, None, _point(d, body, tool, leg), body)
             speed_n[k] = float((jac @ d.qvel) @ normal)
     run = _outcome(contact, guard, rate, force, speed_n, flags, modes, peak_cmd,
                    g.events if g is not None else [])
+    run.site = g.contact_site if g is not None else None
     run.log = DriveLog(t=np.arange(n) / rate, theta=th_log, tau=tau_log, name=Path(path).name,
                        meta={"plant": plant.name, "seed": seed, "torque_noise": torque_noise,
                              "guard": guard, "contact": None if contact is None else
                              {"region": contact.region.name, "kind": contact.kind,
                               "at": contact.at}})
     return run
+
+
+def _point(d: Any, body: int, tool: np.ndarray, leg: bool) -> np.ndarray:
+    """The contact point in MuJoCo's data: a leg link's centre of mass, or the platform
+    point at ``tool`` (platform frame)."""
+    if leg:
+        return np.array(d.xipos[body])
+    return np.asarray(d.xpos[body] + d.xmat[body].reshape(3, 3) @ tool)
+
+
+def _link_path(model: Robot, cfg: Any, rates: np.ndarray, k_c: int, link: str,
+               timestep: float) -> tuple[np.ndarray, np.ndarray]:
+    """(the planned positions (k_c + 1, 3) of ``link``'s centre of mass up to sample
+    k_c, its velocity (3,) there): MuJoCo's kinematics of the model at the file's
+    configurations, with the tree velocities that realise the actuated rates."""
+    sim = MujocoRobot(model, timestep)
+    mj, m, d = sim.mj, sim.model, sim.data
+    body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, link)
+    out = np.empty((k_c + 1, 3))
+    for k in range(k_c + 1):
+        sim.set_state(np.asarray(cfg.q[k]), rates[k])
+        out[k] = d.xipos[body]
+    jac = np.zeros((3, m.nv))
+    mj.mj_jac(m, d, jac, None, out[k_c], body)
+    return out, jac @ d.qvel
 
 
 def _outcome(contact: Contact | None, guard: bool, rate: float, force: np.ndarray,

@@ -18,10 +18,11 @@ from typing import Any
 import numpy as np
 
 from sixplus3.errors import InfeasibleTaskError
+from sixplus3.planner.pfl import pfl_matrices
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import Solution, actuated_profile, sample_cubic, stretch_factors
 from sixplus3.planner.solvers import ipopt_solver, keyboard_interrupts
-from sixplus3.planner.tcp_rows import tcp_rates_at
+from sixplus3.planner.tcp_rows import pfl_ratios_at, tcp_rates_at
 from sixplus3.planner.transcription import (
     CLEARANCE_ROWS,
     NODE_ROWS,
@@ -123,6 +124,15 @@ def start_point(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
             T0, xd0, xdd0 = T0 * a, xd0 / a, xdd0 / a**2
             pts = (pts[0], pts[1] / a, pts[2] / a**2)
             profile = actuated_profile(problem.robot, *pts)
+    if problem.pfl and duration is None and (warm is None or warm.nlp_point is None):
+        # likewise inside the power and force limiting rows (v^T C v goes as 1/a^2)
+        C = pfl_matrices(problem.robot, pts[0], problem.pfl)
+        worst = float(pfl_ratios_at(problem.robot.tool.xyz, pts[0], pts[1], C).max())
+        a = math.sqrt(worst / (0.99 * problem.options.pfl_share))
+        if a > 1.0:
+            T0, xd0, xdd0 = T0 * a, xd0 / a, xdd0 / a**2
+            pts = (pts[0], pts[1] / a, pts[2] / a**2)
+            profile = actuated_profile(problem.robot, *pts)
     return wp_x, x0, xd0, xdd0, T0, pts, profile
 
 
@@ -149,8 +159,8 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
                                                                margin=bounds.margin)
     safety = bounds.safety
     S, N = task.n_segments, problem.n_intervals
-    wp_x, x0, xd0, xdd0, T0, _, profile = start_point(problem, psi_wp, bounds, warm,
-                                                       time_scale, duration)
+    wp_x, x0, xd0, xdd0, T0, pts, profile = start_point(problem, psi_wp, bounds, warm,
+                                                         time_scale, duration)
     tmax = safety["torque"] * lim.torque
     lb, ub = point_bounds(problem, x0, lim, bounds)
     # smoothness rows (transcription.smoothness_rows): per limit, 2 x 9N rows in [-1, 1]
@@ -173,6 +183,14 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
         ubg = np.r_[ubg, np.full(2 * (2 * N + 1), TCP_SAFETY**2)]
         tcp_p = np.array([problem.motion_limits.tcp_speed**-2,
                           problem.motion_limits.tcp_acceleration**-2])
+    pfl_p = np.zeros(0)
+    if problem.pfl:  # the power and force limiting rows, after the tcp rows: each
+        # point's C at the start's pose (the poses move little between solves; the gate
+        # judges the smoothed file exactly, and the pipeline re-plans with a lower share)
+        C = pfl_matrices(problem.robot, pts[0], problem.pfl)
+        lbg = np.r_[lbg, np.full(2 * N + 1, -np.inf)]
+        ubg = np.r_[ubg, np.full(2 * N + 1, problem.options.pfl_share)]
+        pfl_p = C.transpose(0, 2, 1).reshape(2 * N + 1, 9).ravel()  # column-major each
     _, acc0, tau0, _ = profile  # (9, 2N+1): the nodes, then the midpoints
     z0 = np.vstack([x0.T, xd0.T, xdd0.T, tau0[:, :N + 1]])
     w0 = np.clip(np.r_[z0.ravel(order="F"), tau0[:, N + 1:].ravel(order="F"),
@@ -189,7 +207,7 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
         args = {"x0": w0 / D}
     weights = (1.0, 0.0) if duration is None else (0.0, 1.0)
     args.update(p=np.r_[D, lim.jerk, lim.torque_rate, weights,
-                        problem.interval_fractions(), tcp_p], lbx=lbx / D,
+                        problem.interval_fractions(), tcp_p, pfl_p], lbx=lbx / D,
                 ubx=ubx / D, lbg=lbg, ubg=ubg)
     with entry.lock:
         relay = entry.relay

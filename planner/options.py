@@ -35,6 +35,10 @@ class PlannerOptions:
     constr_viol_tol: float = 1e-4
     regularisation: float = 1e-4
     verbose: bool = False
+    #: the share of each body region's energy limit the power and force limiting rows
+    #: plan to (docs/safety.md): 0.95^2, the speed 5 % below the limit; the pipeline
+    #: lowers it when the gate finds the smoothed file beyond the limit
+    pfl_share: float = 0.9025
     #: extra IPOPT options as (name, value) pairs, applied over the planner's own (expert
     #: use: the planner's settings are the fastest measured, BENCHMARKS.md; e.g.
     #: ``(("print_timing_statistics", "yes"), ("print_level", 5))`` shows where a solve's
@@ -42,6 +46,9 @@ class PlannerOptions:
     ipopt_options: tuple[tuple[str, Any], ...] | dict[str, Any] = ()
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.pfl_share, (int, float)) and 0.01 <= self.pfl_share <= 1.0):
+            raise InputError(f"pfl_share must be in [0.01, 1], got {self.pfl_share!r}",
+                             value=self.pfl_share, valid="[0.01, 1]")
         try:
             pairs = (tuple(self.ipopt_options.items()) if isinstance(self.ipopt_options, dict)
                      else tuple(tuple(p) for p in self.ipopt_options))

@@ -36,6 +36,38 @@ def task_regions(task: Task) -> tuple[BodyRegion, ...]:
     return regions(list(task.pfl) + list(hardware.active().pfl))
 
 
+def pfl_matrices(robot: Robot, x: np.ndarray, regs: tuple[BodyRegion, ...]
+                 ) -> np.ndarray:
+    """(n, 3, 3) C_k of the NLP's power and force limiting rows at the states x (n, 9:
+    position, rotation vector, crank angles): v^T C_k v is the tool centre point's worst
+    contact energy over every direction and every region of ``regs``, as a share of that
+    region's limit.
+
+    With A = U diag(lambda) U^T (:func:`point_inverse_mass`), a region's condition is
+    v^T (A + I/m_H)^-1 v / (2 E) <= 1 (E = F^2 / 2k), whose matrix has A's eigenvectors
+    and the eigenvalues 1 / ((lambda_i + 1/m_H) 2 E).  C_k takes, along each
+    eigenvector, the largest over the regions: v^T C_k v <= 1 then holds every region's
+    condition, and equals the worst of them along each of A's principal directions.
+    A state whose inverse kinematics fails takes the largest C of the others (the
+    gate judges the smoothed file anyway)."""
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    R = rot.matrix_from_rotvec(x[:, 3:6])
+    cfg = robot_ik(x[:, 0:3], R, x[:, 6:9], robot, platform_margins=False)
+    ok = np.asarray(cfg.ok, dtype=bool)
+    C = np.zeros((len(x), 3, 3))
+    if not ok.any():
+        raise ValueError("no state of the power and force limiting rows has a pose")
+    A = point_inverse_mass(ClosedLoopDynamics(robot), cfg.take(ok))
+    lam, U = np.linalg.eigh(A)
+    inv_m = np.array([0.0 if not np.isfinite(r.mass) else 1.0 / r.mass for r in regs])
+    two_e = np.array([2.0 * r.energy for r in regs])
+    c = (1.0 / ((lam[:, None, :] + inv_m[None, :, None]) * two_e[None, :, None])).max(axis=1)
+    C[ok] = np.einsum("nij,nj,nkj->nik", U, c, U)
+    if not ok.all():
+        C[~ok] = C[ok][int(np.argmax(np.trace(C[ok], axis1=1, axis2=2)))]
+    return C
+
+
 def pfl_speed(task: Task, robot: Robot) -> float | None:
     """The tool centre point's speed bound [m/s] for the task's regions (module doc);
     None without regions.  ``robot``: the robot with the task's setup (its tool)."""
@@ -63,4 +95,4 @@ def pfl_speed(task: Task, robot: Robot) -> float | None:
     return PFL_SAFETY * float(min(worst_speed(A, r).min() for r in regs))
 
 
-__all__ = ["PFL_SAFETY", "pfl_speed", "task_regions"]
+__all__ = ["PFL_SAFETY", "pfl_matrices", "pfl_speed", "task_regions"]

@@ -21,8 +21,10 @@ from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
 from sixplus3.kinematics.rotations import rotvec_from_matrix
 from sixplus3.planner import options as planner_options
 from sixplus3.planner.options import PlannerOptions
+from sixplus3.planner.pfl import task_regions
 from sixplus3.planner.solution import Solution, actuated_profile, stretch_factors
 from sixplus3.planner.task import Task
+from sixplus3.robot_description.body_regions import BodyRegion
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -46,6 +48,9 @@ class Problem:
     motion_limits: Limits
     limits: Limits
     options: PlannerOptions
+    #: the body regions of power and force limiting (the task's and the site's): the
+    #: NLP's PFL rows (:func:`sixplus3.planner.pfl.pfl_matrices`); empty: none
+    pfl: tuple[BodyRegion, ...]
     sr: SymbolicRobot
     #: a :class:`sixplus3.progress.PlanProgress` (stages and IPOPT iterations) or None
     progress: PlanProgress | None
@@ -60,6 +65,7 @@ class Problem:
         for name, value in (("robot", setup), ("task", task.resolved(setup)),
                             ("motion_limits", motion), ("limits", motion.without_tcp()),
                             ("options", options or PlannerOptions()),
+                            ("pfl", task_regions(task)),
                             ("sr", symbolic_robot(setup)), ("progress", progress)):
             object.__setattr__(self, name, value)
 

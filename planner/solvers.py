@@ -23,7 +23,7 @@ from sixplus3.cache import BoundedCache
 from sixplus3.dynamics.codegen import compiled_functions, single_threaded_solver_blas
 from sixplus3.errors import InputError
 from sixplus3.planner.options import PlannerOptions
-from sixplus3.planner.tcp_rows import tcp_function
+from sixplus3.planner.tcp_rows import pfl_function, tcp_function
 from sixplus3.planner.transcription import build_nlp
 
 if TYPE_CHECKING:
@@ -170,7 +170,7 @@ def ipopt_solver(problem: Problem, warm_start: bool = False) -> SolverEntry:
     compiled = compiled_functions(problem.robot)
     key = (problem.robot.hash, tuple(problem.segment_intervals()), opt.max_iter, opt.tol,
            opt.constr_viol_tol, opt.regularisation, opt.verbose, opt.ipopt_options,
-           bool(compiled), warm_start, problem.motion_limits.has_tcp)
+           bool(compiled), warm_start, problem.motion_limits.has_tcp, bool(problem.pfl))
     return SOLVERS.get(key, lambda: _build(problem, compiled, warm_start))
 
 
@@ -181,9 +181,10 @@ def _build(problem: Problem, compiled: dict[str, ca.Function],
     node = compiled.get("node", problem.sr.node)
     tcp = (tcp_function(problem.robot.tool.xyz) if problem.motion_limits.has_tcp
            else None)
+    pfl = pfl_function(problem.robot.tool.xyz) if problem.pfl else None
     tr = build_nlp(node, 2 if compiled else 1,
                    tuple(int(n) for n in problem.segment_intervals()), opt.regularisation,
-                   tcp)
+                   tcp, pfl)
     relay = IterationRelay(tr.nw, tr.ng)
     settings: dict[str, Any] = {"expand": not compiled, "print_time": False,
                 "ipopt": ipopt_settings(opt, warm_start), "iteration_callback": relay}

@@ -64,7 +64,7 @@ def solve(problem: Problem) -> Solution:
     problem.stage("crank angles at the waypoints chosen; building the stop-at-waypoints "
                   "baseline (TOPP-RA per segment)")
     base, note = baseline.baseline_plan(problem, psi_wp)
-    if base is not None and problem.motion_limits.has_tcp:
+    if base is not None and (problem.motion_limits.has_tcp or problem.pfl):
         base = tcp_limited(problem, base)  # the baseline knows the joints' limits only
     bounds = initial_bounds(problem, psi_wp, base)
     problem.stage(f"baseline: {base.final_time:.4f} s" if base is not None else

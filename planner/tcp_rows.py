@@ -55,6 +55,41 @@ def tcp_rows(fn: ca.Function, points: tuple[Any, Any, Any], inv_v2: Any,
     return ca.vertcat(ca.vec(G[0, :]) * inv_v2, ca.vec(G[1, :]) * inv_a2)
 
 
+@functools.lru_cache(maxsize=8)
+def _pfl_function(tool: tuple[float, float, float]) -> ca.Function:
+    x, xd, c = ca.SX.sym("x", 9), ca.SX.sym("xd", 9), ca.SX.sym("c", 9)
+    p_tcp = x[0:3] + rotvec_matrix(x[3:6]) @ ca.DM(tool)
+    v = ca.jacobian(p_tcp, x) @ xd
+    C = ca.reshape(c, 3, 3)
+    return ca.Function("pfl_energy", [x, xd, c], [ca.dot(v, C @ v)], ["x", "xd", "c"],
+                       ["ratio"])
+
+
+def pfl_function(tool: Any) -> ca.Function:
+    """CasADi function (x, xd, c) -> v^T C v: the tool centre point's velocity v at the
+    state (x, xd) in the quadratic form C (``c``: its 9 entries, column-major) of
+    :func:`sixplus3.planner.pfl.pfl_matrices`, the worst contact energy over every
+    direction and region against its limit (power and force limiting)."""
+    t = tuple(float(c) for c in np.asarray(tool, dtype=float).ravel())
+    if len(t) != 3:
+        raise ValueError(f"the tool centre point has 3 coordinates, not {len(t)}")
+    return _pfl_function(t)  # type: ignore[arg-type]
+
+
+def pfl_rows(fn: ca.Function, points: tuple[Any, Any], C: Any) -> Any:
+    """The rows v^T C_k v at every point of ``points`` (x, xd; 9 x n each), C (9 x n)
+    each point's matrix (a parameter of the NLP), as one column n."""
+    n = points[0].shape[1]
+    return ca.vec(fn.map(n)(points[0], points[1], C))
+
+
+def pfl_ratios_at(tool: Any, x: np.ndarray, xd: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """(n,) v^T C v at the states (n, 9) with C (n, 3, 3)."""
+    c = np.asarray(C, dtype=float).transpose(0, 2, 1).reshape(len(C), 9)  # column-major
+    return np.array(pfl_function(tool).map(len(x))(np.asarray(x).T, np.asarray(xd).T,
+                                                   c.T)).ravel()
+
+
 def tcp_rates_at(tool: Any, x: np.ndarray, xd: np.ndarray, u: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """(speed (n,) [m/s], |acceleration| (n,) [m/s^2]) of the tool centre point at the
@@ -64,4 +99,5 @@ def tcp_rates_at(tool: Any, x: np.ndarray, xd: np.ndarray, u: np.ndarray
     return np.sqrt(np.maximum(G[0], 0.0)), np.sqrt(np.maximum(G[1], 0.0))
 
 
-__all__ = ["tcp_function", "tcp_rates_at", "tcp_rows"]
+__all__ = ["pfl_function", "pfl_ratios_at", "pfl_rows", "tcp_function", "tcp_rates_at",
+           "tcp_rows"]

@@ -4,7 +4,8 @@ Stretching time by a keeps the path (and every margin) and scales theta_dot by 1
 theta_ddot and the inertial torques by 1/a^2 exactly (:func:`stretched`).  The strategy
 uses it to compress a checked plan up to its binding limit (:func:`retime`), to fix a
 small overshoot between the NLP's points, and to meet what the dense check still finds
-of the platform-space limits (:func:`tcp_limited`).
+of the platform-space limits and of power and force limiting (:func:`tcp_limited`,
+:func:`pfl_stretch`).
 """
 
 from __future__ import annotations
@@ -14,8 +15,10 @@ import math
 import numpy as np
 
 from sixplus3.planner.nlp import Bounds, active_limits, tcp_stretch, uniform_safety
+from sixplus3.planner.pfl import pfl_matrices
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import Solution, actuated_profile
+from sixplus3.planner.tcp_rows import pfl_ratios_at
 
 
 def tcp_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solution:
@@ -23,19 +26,28 @@ def tcp_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solut
     acceleration): stretched uniformly in time by the smallest factor that brings both
     within ``target`` of their limits (the speed scales 1/a, the acceleration 1/a^2,
     every joint rate and inertial torque with them), then checked against every limit.
-    Without such limits: ``sol`` as it is.  The NLP bounds them at its points
+    Power and force limiting (``problem.pfl``) likewise: its ratio at the dense samples
+    within ``target`` of the rows' share (:func:`pfl_stretch`).  Without such limits:
+    ``sol`` as it is.  The NLP bounds them at its points
     (:mod:`sixplus3.planner.tcp_rows`); this stretch covers what the dense check finds
     between those points (a few percent near a corner of the path)."""
     lim = problem.motion_limits
-    if not lim.has_tcp:
+    if not lim.has_tcp and not problem.pfl:
         return sol
     if sol.check is None:
         sol = sol.checked()
     assert sol.check is not None
     # the dense check measured the tool centre point on the same samples
     speed, acc = sol.check.max_tcp_speed, sol.check.max_tcp_acceleration
+    a_pfl = pfl_stretch(problem, sol, target)
+    if not lim.has_tcp:
+        if a_pfl > 1.0:
+            problem.stage(f"stretching time by {a_pfl:.3f} for power and force limiting")
+            sol = stretched(problem, sol, a_pfl).replace(active_limits=(
+                f"pfl (uniform stretch {a_pfl:.3f})",))
+        return sol.replace(limits=lim).checked()
     a = max(1.0, speed / (target * lim.tcp_speed),
-            math.sqrt(acc / (target * lim.tcp_acceleration)))
+            math.sqrt(acc / (target * lim.tcp_acceleration)), a_pfl)
     if a > 1.0:
         problem.stage(f"stretching time by {a:.3f} for the tool centre point's limits "
                       f"({lim.tcp_speed:g} m/s, {lim.tcp_acceleration:g} m/s^2)")
@@ -43,6 +55,20 @@ def tcp_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solut
         sol = stretched(problem, sol, a).replace(active_limits=(
             f"tcp {'speed' if by_speed else 'acceleration'} (uniform stretch {a:.3f})",))
     return sol.replace(limits=lim).checked()
+
+
+def pfl_stretch(problem: Problem, sol: Solution, target: float = 0.995,
+                samples: int = 10) -> float:
+    """The uniform time stretch (< 1: a compression is possible) that brings the power
+    and force limiting ratio v^T C v at ``samples`` points per interval of ``sol`` to
+    ``target`` of the rows' share (it goes as 1/a^2); 0 without PFL."""
+    if not problem.pfl:
+        return 0.0
+    times = np.linspace(0.0, sol.t[-1], (len(sol.t) - 1) * samples + 1)
+    x, xd, _ = sol.sample(times)
+    C = pfl_matrices(problem.robot, x, problem.pfl)
+    worst = float(pfl_ratios_at(problem.robot.tool.xyz, x, xd, C).max())
+    return math.sqrt(max(worst, 0.0) / (target * problem.options.pfl_share))
 
 
 def stretched(problem: Problem, sol: Solution, a: float) -> Solution:
@@ -74,6 +100,7 @@ def retime(problem: Problem, sol: Solution, platform_proxy: float, target: float
     a = float(problem.time_stretch(x, xd, xdd, target).max())
     if problem.motion_limits.has_tcp:  # the platform-space limits bind as well
         a = max(a, tcp_stretch(problem, x, xd, xdd, target, at_least=0.0))
+    a = max(a, pfl_stretch(problem, sol, target))  # and power and force limiting
     wanted = 1.0 < a <= max_stretch if max_stretch > 1.0 else 0.5 < a < 1.0
     if not wanted:
         return sol
@@ -85,4 +112,4 @@ def retime(problem: Problem, sol: Solution, platform_proxy: float, target: float
                                                    new.t, full))
 
 
-__all__ = ["retime", "stretched", "tcp_limited"]
+__all__ = ["pfl_stretch", "retime", "stretched", "tcp_limited"]

@@ -471,7 +471,7 @@ _JSON = st.recursive(st.none() | st.booleans() | st.integers(-10**20, 10**20)
 @settings(max_examples=60, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(st.sampled_from(["rate_hz", "samples", "duration_s", "columns", "robot", "format",
-                        "integrity", "limits", "extra"]), _JSON)
+                        "integrity", "limits", "extra", "stop"]), _JSON)
 def test_any_header_value_with_a_recomputed_digest_gets_a_verdict(planned, key,
                                                                   value) -> None:
     """Whatever an attacker puts in a header field (the digest recomputed), the gate
@@ -739,3 +739,36 @@ def test_held_torque_and_the_exports_and_feed_that_use_it(planned, tmp_path) -> 
     np.testing.assert_array_equal(sample.tau, sample.report.tau)
     with pytest.raises(InputError):
         prepare_feed(path, ROBOT, torque_hold="linear")
+
+
+def test_the_stop_table_travels_in_the_header_and_a_forged_one_is_refused(planned) -> None:
+    """Every written file carries the deceleration its stop may use at each sample
+    (control/gate/stop.py); the gate recomputes it from the samples: a table that claims
+    a faster stop anywhere, of the wrong length or form, or for another torque share is
+    a defect (exit 2); a slower one is the file's own choice; none is accepted."""
+    from sixplus3.control.file.file_format import columns
+    from sixplus3.control.gate.stop import stop_table
+
+    _, raw, header, data = planned
+    rep = validate_bytes(raw, ROBOT)
+    beta = rep.stop_deceleration
+    assert rep.ok and beta is not None and len(beta) == len(data)
+    lim = ROBOT.limits.tightened(**header["limits"])
+    mine = stop_table(ROBOT, rep, columns(data, "vel"), lim, float(header["rate_hz"]))
+    assert np.all(beta <= mine * (1 + 1e-6)) and np.allclose(beta, mine, rtol=1e-5)
+    table = header["stop"]["deceleration"]
+    k = int(np.argmin(beta))  # the sample whose stop is slowest
+    faster = list(table)
+    faster[k] = 1.5 * faster[k]
+    for bad in ({**header["stop"], "deceleration": faster},
+                {**header["stop"], "deceleration": table[:-1]},
+                {**header["stop"], "deceleration": [*table[:-1], "fast"]},
+                {**header["stop"], "torque_share": 1.0}, "fast", [1.0, 2.0]):
+        rep = validate_bytes(encode({**header, "stop": bad}, data), ROBOT)
+        assert rep.exit_code == 2 and any("stop table" in m for m in rep.messages()), bad
+    slower = {**header["stop"], "deceleration": [0.5 * x for x in table]}
+    rep = validate_bytes(encode({**header, "stop": slower}, data), ROBOT)
+    assert rep.ok and np.allclose(rep.stop_deceleration, 0.5 * np.asarray(table))
+    rep = validate_bytes(encode({k: v for k, v in header.items() if k != "stop"}, data),
+                         ROBOT)
+    assert rep.ok and rep.stop_deceleration is None

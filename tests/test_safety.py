@@ -237,3 +237,51 @@ def test_the_gates_ratio_is_bounded_by_the_directional_and_isotropic_forms(plans
     assert np.all(ratio[moving] >= directional * (1 - 1e-9))
     assert np.all(ratio <= isotropic * (1 + 1e-9))
     assert ratio.max() > 1.0  # the free plan is too fast for a hand
+
+
+def test_the_nlp_rows_matrix_is_the_gates_worst_direction_energy() -> None:
+    """The planner's C_k (planner/pfl.py: from the eigenvectors of A) against the gate's
+    closed form (dynamics/effective_mass.py: a linear solve), independently: for one
+    region v^T C v is the contact energy over its limit exactly; for a set it bounds every
+    region's and equals the worst one along A's principal directions.  At the TCP of a
+    tool too."""
+    from sixplus3.kinematics.rotations import rotvec_from_matrix
+    from sixplus3.planner.pfl import pfl_matrices
+
+    rng = np.random.default_rng(5)
+    for robot in (ROBOT, ROBOT.replace(tool=ROBOT.tool.__class__(xyz=(0.02, -0.03, 0.12)))):
+        dyn = ClosedLoopDynamics(robot)
+        for cfg in _poses(robot):
+            x = np.c_[cfg.position, rotvec_from_matrix(cfg.rotation), cfg.psi]
+            A = point_inverse_mass(dyn, cfg)
+            v = rng.normal(size=(1, 3))
+            for name in ("hand", "chest", "face", "hand-clamped"):
+                r = regions([name])[0]
+                C = pfl_matrices(robot, x, (r,))
+                got = float(v[0] @ C[0] @ v[0])
+                want = float(contact_energy(A, v, r)[0]) / r.energy
+                assert got == pytest.approx(want, rel=1e-9)
+            regs = regions(["hand", "chest", "lower_arm"])
+            C = pfl_matrices(robot, x, regs)
+            each, _ = pfl_ratio(A, v, list(regs))
+            assert float(v[0] @ C[0] @ v[0]) >= each[0] * (1 - 1e-12)
+            for u in np.linalg.eigh(A[0])[1].T:
+                each, _ = pfl_ratio(A, u[None], list(regs))
+                assert float(u @ C[0] @ u) == pytest.approx(each[0], rel=1e-9)
+
+
+def test_pfl_rows_plan_as_fast_as_the_limit_allows(plans) -> None:
+    """The rows are direction-aware: the hand plan's gate ratio comes close to 1 (the
+    rows bind, at their share 0.9025 of the limit), and its top speed exceeds what an
+    isotropic speed bound (the worst direction's speed, at the plan's own poses) allows."""
+    from sixplus3.control.gate.validation import validate_file
+    from sixplus3.kinematics.robot import robot_ik
+    from sixplus3.kinematics.rotations import matrix_from_quat
+
+    rep = validate_file(plans[1], ROBOT)
+    assert 0.85 <= rep.max_pfl_ratio <= 1.0
+    cfg = robot_ik(rep.position, matrix_from_quat(rep.quaternion), rep.psi, ROBOT,
+                   platform_margins=False)
+    isotropic = float(worst_speed(point_inverse_mass(ClosedLoopDynamics(ROBOT), cfg),
+                                  REGIONS["hand"]).min())
+    assert rep.max_tcp_speed > 1.03 * isotropic

@@ -67,6 +67,8 @@ from sixplus3.control.gate.motion_input import (  # noqa: E402,F401 - re-exporte
 )
 from sixplus3.control.gate.offload import OFFLOAD_SHARE, Offload
 from sixplus3.control.gate.pfl import judged_regions, pfl_check
+from sixplus3.control.gate.stop import HEADER_KEY as STOP_KEY
+from sixplus3.control.gate.stop import header_entry, stop_check, stop_table
 from sixplus3.control.report import Finding, ValidationReport  # noqa: F401 - re-exported
 from sixplus3.errors import InputError, LimitError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
@@ -395,6 +397,12 @@ def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory",
                           columns(data, "acc"), robot, rate, x_guess, limits=limits,
                           platform=columns(data, "platform"), tau_file=columns(data, "tau"))
     _add_pfl(rep, robot, data[:, 0], columns(data, "vel"), judged)
+    if rep.ok:  # the stop table the file carries (control/gate/stop.py), if any
+        table, found = stop_check(rep, robot, data[:, 0], columns(data, "vel"), limits, rate,
+                                  header.get(STOP_KEY))
+        rep.stop_deceleration = table
+        if found:
+            rep.findings, rep.ok = list(rep.findings) + found, False
     rep.header, rep.data = header, data
     return rep
 
@@ -429,6 +437,10 @@ def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
         raise ValidationFailed("the trajectory fails validation, nothing written: "
                                + "; ".join(rep.messages()), rep.exit_code, rep)
     lim = judged_limits(robot, limits)
+    # the stop table a controller looks up (control/gate/stop.py), in the header
+    rep.stop_deceleration = stop_table(robot, rep, np.asarray(theta_dot, dtype=float), lim,
+                                       rate)
+    meta[STOP_KEY] = header_entry(rep.stop_deceleration)
     out = write_trajectory(path, t, theta, theta_dot, theta_ddot, rep, robot, lim, meta)
     return out, rep
 

@@ -1,0 +1,151 @@
+"""The stop table a trajectory file carries (docs/safety.md, "Stopping along the path"):
+for every sample k, the deceleration of the path speed that the torque limits allow from
+there, so that a controller's stop is a table look-up, not an optimisation.
+
+Along the file's path theta(s) (s the file's time), a motion with path speed sd = ds/dt
+and path acceleration sdd needs the torques tau = a_k sdd + b_k sd^2 + g_k, with
+a_k = M_k theta'_k (M_k the reduced inertia, rotors included), g_k gravity and
+b_k = tau_k - g_k the velocity and inertial torques at the planned speed (time scaling of
+the path: exact for the inertial and centripetal terms, friction taken with them).  The
+stop's deceleration beta_k (sdd = -beta_k) must keep |a_k (-beta) + b_k sd^2 + g_k|
+within ``torque_share`` of the torque limit both at full path speed (sd = 1) and at rest
+(sd = 0) on every joint, and the joint accelerations within their limit; where no
+deceleration is within the share (the plan itself uses more), the one that needs the
+least torque; and the smallest over the distance a stop from k covers (1 / (2 beta_k)
+of path time).
+
+The writer (:func:`sixplus3.control.gate.validation.validate_and_write`) computes it from
+the gate's own configurations and torques and puts it in the header (``stop``); the gate
+recomputes it from the file's samples and refuses a file whose table claims a faster
+stop than the limits it is judged by allow anywhere (a defect: exit 2).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from sixplus3.control.gate.findings import finding
+from sixplus3.control.report import Finding, ValidationReport
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.kinematics import rotations as rot
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.robot_description.limits import Limits
+from sixplus3.robot_description.robot import Robot
+
+#: The share of the torque limit a stop's feed-forward may use (the rest: the drive's
+#: feedback).
+TORQUE_SHARE = 0.95
+#: The header's key.
+HEADER_KEY = "stop"
+#: Relative slack of the gate's comparison (the file's samples are text; the writer's
+#: table was computed from the same motion before it was written).
+SLACK = 1e-6
+#: Samples of the reduced inertia computed at a time (81 floats each).
+CHUNK = 4096
+
+
+def path_tables(robot: Robot, rep: ValidationReport
+                ) -> tuple[np.ndarray, np.ndarray, Any]:
+    """(M (n, 9, 9), g (n, 9), the configurations) at the report's samples: the reduced
+    inertia and the gravity torques from Pinocchio at the gate's own poses."""
+    assert rep.position is not None and rep.quaternion is not None and rep.psi is not None
+    cfg = robot_ik(rep.position, rot.matrix_from_quat(rep.quaternion), rep.psi, robot,
+                   platform_margins=False)
+    n = len(rep.position)
+    dyn = ClosedLoopDynamics(robot)
+    M = np.empty((n, 9, 9))
+    g = np.empty((n, 9))
+    for i in range(0, n, CHUNK):
+        sl = slice(i, min(n, i + CHUNK))
+        m = len(range(*sl.indices(n)))
+        Mi = np.empty((m, 9, 9))
+        g[sl], _ = dyn.actuated_inverse_dynamics_batch(cfg.q[sl], np.zeros((m, 9)),
+                                                       np.zeros((m, 9)), inertia=Mi)
+        M[sl] = Mi
+    return M, g, cfg
+
+
+def path_deceleration(a: np.ndarray, b: np.ndarray, g: np.ndarray, theta_dot: np.ndarray,
+                      torque: float, acceleration: float, rate: float,
+                      share: float = TORQUE_SHARE) -> np.ndarray:
+    """beta (n,) [1/s]: the module doc's deceleration at every sample, from a = M theta'
+    (n, 9), b = tau - g and g (n, 9), the planned rates (n, 9), the torque and
+    acceleration limits and the file's rate [Hz]."""
+    cap = share * torque
+    n = len(a)
+    lo = np.zeros(n)
+    hi = np.full(n, np.inf)
+    for c in (b + g, g):  # at full path speed, at rest
+        # |c - beta a| <= cap: per joint an interval of beta (a = 0: c alone decides)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            e1, e2 = (c - cap) / a, (c + cap) / a
+        lo_j = np.where(a > 0, e1, np.where(a < 0, e2, -np.inf))
+        hi_j = np.where(a > 0, e2, np.where(a < 0, e1, np.inf))
+        lo = np.maximum(lo, np.nan_to_num(lo_j, nan=-np.inf).max(axis=1))
+        hi = np.minimum(hi, np.nan_to_num(hi_j, nan=np.inf).min(axis=1))
+    beta = np.where(hi >= lo, hi, lo)
+    vmax = np.abs(theta_dot).max(axis=1)
+    with np.errstate(divide="ignore"):
+        beta = np.minimum(beta, acceleration / np.maximum(vmax, 1e-9))
+    beta = np.clip(beta, 1.0, 1e4)
+    # the smallest over the stop's own distance (s from 1 to 0 at beta: 1 / (2 beta))
+    out = beta.copy()
+    for k in range(n):
+        w = int(math.ceil(rate / (2.0 * beta[k]))) + 1
+        out[k] = beta[k: k + w].min()
+    return out
+
+
+def stop_table(robot: Robot, rep: ValidationReport, theta_dot: np.ndarray, limits: Limits,
+               rate: float) -> np.ndarray:
+    """beta (n,) of a validated motion (its report's poses and Pinocchio torques)."""
+    assert rep.tau is not None
+    M, g, _ = path_tables(robot, rep)
+    a = np.einsum("nij,nj->ni", M, theta_dot)
+    return path_deceleration(a, rep.tau - g, g, theta_dot, limits.torque,
+                             limits.acceleration, rate)
+
+
+def header_entry(beta: np.ndarray) -> dict[str, Any]:
+    """The header's ``stop``: the table rounded down to 6 significant digits (a file
+    never claims more than was computed)."""
+    e = np.floor(np.log10(np.maximum(beta, 1e-300)))
+    scale = 10.0 ** (5 - e)
+    down = np.floor(beta * scale) / scale
+    return {"torque_share": TORQUE_SHARE, "unit": "1/s",
+            "deceleration": [float(f"{x:.6g}") for x in down]}
+
+
+def stop_check(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np.ndarray,
+               limits: Limits, rate: float, entry: object) -> tuple[np.ndarray | None,
+                                                                   list[Finding]]:
+    """(the file's table if it holds, findings): the header's ``stop`` against the table
+    recomputed from the samples.  No entry: (None, [])."""
+    if entry is None:
+        return None, []
+    bad = [finding("stop table (the header's form)", "defect", "", 0.0,
+                   np.ones(1), np.ones(1), t[:1], ["header"])]
+    if not isinstance(entry, dict) or entry.get("torque_share") != TORQUE_SHARE:
+        return None, [f for f in bad if f]
+    table = entry.get("deceleration")
+    if (not isinstance(table, list) or len(table) != len(t)
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                       for x in table)):
+        return None, [f for f in bad if f]
+    claimed = np.asarray(table, dtype=float)
+    if rep.tau is None or rep.position is None:
+        return None, []
+    mine = stop_table(robot, rep, theta_dot, limits, rate)
+    over = np.where(np.isfinite(claimed), claimed, np.inf) - mine * (1.0 + SLACK)
+    f = finding("stop table (a deceleration the torque limits do not allow)", "defect",
+                "1/s", 0.0, over, claimed, t, ["path"])
+    if f:
+        return None, [f]
+    return claimed, []
+
+
+__all__ = ["HEADER_KEY", "TORQUE_SHARE", "header_entry", "path_deceleration", "path_tables",
+           "stop_check", "stop_table"]

@@ -1,0 +1,108 @@
+"""The contact guard's parts that are not its state machine (interaction/guard.py): the
+command it returns, the offline slope of the velocity torque, where a contact is, and
+the whole command kept within the envelope given the drive's gains."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.errors import InputError
+
+#: The share of the envelope a command (tau_ff plus the drive's PD) may ask for when the
+#: drive's gains are known (the rest: the drive's own rate estimate, which the guard's
+#: encoder difference only approximates).
+COMMAND_SHARE = 0.97
+#: [m] the residual's crank torques per newton of its force beyond which a contact is on
+#: a leg (a platform force has none; a leg link's, its lever under the cranks: cm).
+LEG_LEVER = 0.002
+
+
+@dataclass(frozen=True)
+class GuardCommand:
+    """What the drive applies: tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref -
+    theta_dot).  ``mode``: follow, stop, retract, hold or done; ``wrench`` (6): the
+    estimated wrench at the platform centre, base frame [N, N m]."""
+
+    theta_ref: np.ndarray
+    theta_dot_ref: np.ndarray
+    tau_ff: np.ndarray
+    mode: str
+    contact: bool
+    wrench: np.ndarray
+
+
+def velocity_slope(dyn: ClosedLoopDynamics, q: np.ndarray, theta_d: np.ndarray
+                   ) -> np.ndarray:
+    """D_k (n, 9, 9) = d c / d theta_dot at sample k's planned rates: the velocity
+    torque c (Coriolis and centripetal) is a quadratic form in the rates, so a
+    central difference of it is exact, and c(v_k + d) = c_k + D_k d + c(d) with
+    c(d) of second order in the tracking error d (docs/safety.md)."""
+    n = len(q)
+    D = np.empty((n, 9, 9))
+    zero = np.zeros((n, 9))
+    assert dyn.robot is not None
+    fr = dyn.robot.motors.friction
+    for j in range(9):
+        e = np.zeros(9)
+        e[j] = 1.0
+        up, _ = dyn.actuated_inverse_dynamics_batch(q, theta_d + e, zero)
+        dn, _ = dyn.actuated_inverse_dynamics_batch(q, theta_d - e, zero)
+        D[:, :, j] = 0.5 * ((up - fr(theta_d + e)) - (dn - fr(theta_d - e)))
+    return D
+
+
+def contact_site(full: np.ndarray, bound: np.ndarray) -> str:
+    """Where the contact is: a force on the platform does no work when the cranks
+    turn with the platform held, so the residual's crank torques (J^T r)[6:9] stay
+    within what the thresholds map to there (|J|^T thr), and small against the
+    force (the observer's own error during an impact: below 1 mm of lever here).  A
+    force on a leg link turns the cranks with a lever of its link's motion under
+    them: beyond both, the contact is on a leg (docs/safety.md)."""
+    crank = np.abs(full[6:9])
+    lever = float(np.linalg.norm(full[6:9])) / max(float(np.linalg.norm(full[0:3])),
+                                                   1e-9)
+    return ("a leg" if bool(np.any(crank > bound[6:9])) and lever > LEG_LEVER
+            else "the platform")
+
+
+def within_envelope(cmd: GuardCommand, kp: np.ndarray, kd: np.ndarray, theta: np.ndarray,
+                    vel: np.ndarray, cap: float) -> tuple[GuardCommand, bool]:
+    """(the command, whether it was moved): the reference moved toward the measured
+    angles ``theta`` (or, with Kp = 0, the rate reference toward the measured rate
+    ``vel``, the encoder's difference over the last tick: the drive's rate feedback)
+    wherever the drive's total tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref -
+    vel) would leave +-``cap``.  A blocked platform then never gets more than the
+    envelope from a reference that runs ahead."""
+    damp = kd * (cmd.theta_dot_ref - vel)
+    pd = kp * (cmd.theta_ref - theta) + damp
+    lo, hi = -cap - cmd.tau_ff, cap - cmd.tau_ff
+    if bool(np.all((pd >= lo) & (pd <= hi))):
+        return cmd, False
+    pd_c = np.clip(pd, np.minimum(lo, 0.0), np.maximum(hi, 0.0))
+    ref, vref = cmd.theta_ref.copy(), cmd.theta_dot_ref.copy()
+    stiff = kp > 0
+    ref[stiff] = theta[stiff] + (pd_c - damp)[stiff] / kp[stiff]
+    soft = ~stiff & (kd > 0)
+    vref[soft] = vel[soft] + pd_c[soft] / kd[soft]
+    return GuardCommand(ref, vref, cmd.tau_ff, cmd.mode, cmd.contact, cmd.wrench), True
+
+
+def parse_gains(gains: tuple[object, object]) -> tuple[np.ndarray, np.ndarray]:
+    """(Kp, Kd) (9 each) of a drive's PD from scalars or 9 each; InputError otherwise."""
+    try:
+        kp, kd = (np.broadcast_to(np.asarray(x, dtype=float), (9,)).copy() for x in gains)
+    except (TypeError, ValueError):
+        raise InputError("drive_gains must be (Kp, Kd), scalars or 9 numbers each",
+                         value=repr(gains)[:80], valid="(Kp, Kd)") from None
+    for name, v, hi in (("Kp", kp, 1e6), ("Kd", kd, 1e4)):
+        if not (np.all(np.isfinite(v)) and np.all(v >= 0) and np.all(v <= hi)):
+            raise InputError(f"the drive's {name} must be in [0, {hi:g}]",
+                             value=v.tolist(), valid=f"[0, {hi:g}]")
+    return kp, kd
+
+
+__all__ = ["COMMAND_SHARE", "GuardCommand", "LEG_LEVER", "contact_site", "parse_gains",
+           "velocity_slope", "within_envelope"]
