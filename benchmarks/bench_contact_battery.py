@@ -6,6 +6,7 @@ subset without it).
     .venv/bin/python benchmarks/bench_contact_battery.py PLANS [--regions ...]
         [--speeds 0.1 0.3 0.6 1.0 max] [--normals along across] [--drives soft stiff]
         [--plant FILE ...] [--robot FILE] [--no-nominal] [--unguarded] [--out r.jsonl]
+    .venv/bin/python benchmarks/bench_contact_battery.py - --quiet FILE ... [--plant ...]
 
 PLANS: a folder with one plan per region, ``PLANS/<region>/<task>.csv`` planned with
 ``--pfl <region>`` (free contacts) and ``PLANS/<region>-clamped/<task>.csv`` with
@@ -35,6 +36,7 @@ import numpy as np
 from sixplus3.control.file.trajectory_file import columns, read_bytes
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.gate.validation import validate_file
+from sixplus3.interaction.guard import ContactGuard
 from sixplus3.interaction.person import contact_from_dict, run_contact
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
@@ -104,12 +106,18 @@ def main() -> None:
                     help="also run each max-speed contact without the guard")
     ap.add_argument("--reaction", default="hold", choices=["hold", "yield"])
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--quiet", nargs="*", default=[],
+                    help="trajectory files run with nobody in the way (false alarms) on "
+                         "every plant and drive, instead of the contacts (PLANS unused)")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     root = Path(args.plans)
     out = open(args.out, "a") if args.out else None  # noqa: SIM115
     rows = []
     t_start = time.perf_counter()
+    if args.quiet:
+        quiet(args, out, t_start)
+        return
     for region in args.regions:
         for kind in args.kinds:
             folder = root / (region if kind == "free" else f"{region}-clamped")
@@ -121,6 +129,7 @@ def main() -> None:
             plants = ([] if args.no_nominal else [("nominal", model)]) + [
                 (Path(p).stem, load_robot(p)) for p in args.plant]
             t, v = planned_velocity(path, model)
+            built = ContactGuard(model, path, 1.0 / (t[1] - t[0]), reaction=args.reaction)
             for label, at in instants(t, v, args.speeds):
                 k = int(round(at / (t[1] - t[0])))
                 u = v[k] / np.linalg.norm(v[k])
@@ -134,7 +143,8 @@ def main() -> None:
                             guards = [True] + ([False] if args.unguarded and label == "max"
                                                and nname == "along" else [])
                             for guard in guards:
-                                r = run_contact(path, model, plant, c, guard=guard, kp=kp,
+                                r = run_contact(path, model, plant, c,
+                                                guard=built if guard else False, kp=kp,
                                                 kd=kd, seed=args.seed, after=0.3,
                                                 reaction=args.reaction)
                                 row = {"region": region, "kind": kind, "target": label,
@@ -157,6 +167,41 @@ def main() -> None:
                                       f"stop={r.stop_time} cmd={r.peak_command:.2f} "
                                       f"{row['final_mode']}", flush=True)
     print(json.dumps(summarise(rows), indent=1))
+    print(f"{len(rows)} runs in {time.perf_counter() - t_start:.0f} s")
+
+
+def quiet(args: argparse.Namespace, out: object, t_start: float) -> None:
+    """Every file, plant and drive with nobody in the way: false alarms, stops of a
+    drive that could not follow, the largest command."""
+    rows = []
+    for f in args.quiet:
+        path = Path(f)
+        model = load_robot(args.robot) if args.robot else file_robot(path)
+        plants = ([] if args.no_nominal else [("nominal", model)]) + [
+            (Path(p).stem, load_robot(p)) for p in args.plant]
+        built = ContactGuard(model, path)
+        for pname, plant in plants:
+            for dname in args.drives:
+                kp, kd = DRIVES[dname]
+                r = run_contact(path, model, plant, None, guard=built, kp=kp, kd=kd,
+                                seed=args.seed, after=0.2)
+                row = {"file": path.name, "plant": pname, "drive": dname,
+                       "false_alarm": r.false_alarm, "peak_command": r.peak_command,
+                       "saturation_stop": any("saturated" in e for e in r.events),
+                       "final_mode": r.modes[-1] if r.modes else "-", "events": r.events}
+                rows.append(row)
+                if out:
+                    out.write(json.dumps(row) + "\n")  # type: ignore[attr-defined]
+                    out.flush()  # type: ignore[attr-defined]
+                print(f"{path.name:24s} {pname:12s} {dname:5s} false_alarm="
+                      f"{r.false_alarm!s:5s} cmd={r.peak_command:.2f} {row['final_mode']} "
+                      f"{r.events[:1]}", flush=True)
+    print(json.dumps({"runs": len(rows),
+                      "false_alarms": sum(r["false_alarm"] for r in rows),
+                      "saturation_stops": sum(r["saturation_stop"] for r in rows),
+                      "ended_done": sum(r["final_mode"] == "done" for r in rows),
+                      "peak_command_worst_nm": max(r["peak_command"] for r in rows)},
+                     indent=1))
     print(f"{len(rows)} runs in {time.perf_counter() - t_start:.0f} s")
 
 

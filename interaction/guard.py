@@ -155,6 +155,8 @@ class ContactGuard:
         if not rep.ok or rep.data is None or rep.header is None:
             raise ValidationFailed("the guard runs only a valid file: "
                                    + "; ".join(rep.messages()), rep.exit_code, rep)
+        #: the gate's report of the file (its samples in ``report.data``)
+        self.report = rep
         file_rate = float(rep.header["rate_hz"])
         if abs(file_rate - self.rate) > 1e-6 * self.rate:
             raise InputError(f"the file is sampled at {file_rate:g} Hz, the guard ticks at "
@@ -204,7 +206,8 @@ class ContactGuard:
         lag = max(1, int(round(LAG * self.rate)))
         self.thr_k = np.stack([thr_k[max(0, k - lag):k + 1].max(axis=0) for k in range(n)])
         self.events: list[str] = []
-        self._reset()
+        self.path = Path(trajectory_file)
+        self.reset()
 
     # ------------------------------------------------------------------ offline
     def _stop_from_measured(self) -> None:
@@ -236,6 +239,14 @@ class ContactGuard:
         return float(lo + int(np.argmin(d)))
 
     # ------------------------------------------------------------------ online
+    def reset(self, drive_gains: tuple[object, object] | None = None) -> None:
+        """Back to the file's t = 0, with no contact and no events (the tables kept):
+        the same guard runs the file again; ``drive_gains``: new (Kp, Kd), or keep."""
+        if drive_gains is not None:
+            self.kp, self.kd = parse_gains(drive_gains)
+        self.events = []
+        self._reset()
+
     def _reset(self) -> None:
         self.s = 0.0  # path position [samples]
         self.sd = 1.0  # path speed [file seconds per second]

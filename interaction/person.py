@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from sixplus3.control.drive.drive_log import DriveLog
-from sixplus3.control.drive.plant import TORQUE_NOISE
+from sixplus3.control.drive.loop import TORQUE_NOISE, DriveLoop
 from sixplus3.control.drive.simulation import KD, KP, MujocoRobot, first_configuration
 from sixplus3.control.file.trajectory_file import columns
 from sixplus3.control.gate.interval import held_torque
@@ -139,19 +139,24 @@ class ContactRun:
 
 
 def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact | None,
-                guard: bool = True, kp: float = KP, kd: float = KD, seed: int = 0,
+                guard: bool | ContactGuard = True, kp: float = KP, kd: float = KD, seed: int = 0,
                 after: float = 0.5, torque_noise: float = TORQUE_NOISE,
                 timestep: float = TIMESTEP, reaction: str = "hold") -> ContactRun:
     """Run the file on ``plant`` with the person ``contact`` (None: nobody, for false
     alarms) in the way (module doc), the guard in the loop (``guard``) or the plan
     followed as it is, for ``after`` seconds past the contact (or the file's end);
-    ``reaction``: the guard's, hold or yield."""
+    ``reaction``: the guard's, hold or yield.  ``guard`` may be a
+    :class:`ContactGuard` of this file and model: it is reset and run again (its tables
+    are not rebuilt: a battery of contacts on one file)."""
     model, plant = require_robot(model), require_robot(plant)
     check_number("after", after, 0.0, 30.0)
     check_number("kp", kp, 0.0, 1e5)
     check_number("kd", kd, 0.0, 1e4)
     check_number("seed", seed, 0, 2 ** 32 - 1, integer=True)
-    rep = validate_file(path, model)
+    if isinstance(guard, ContactGuard) and guard.path.resolve() == Path(path).resolve():
+        rep = guard.report  # the gate's report its guard was built on
+    else:
+        rep = validate_file(path, model)
     if not rep.ok or rep.data is None or rep.header is None:
         raise ValidationFailed("not run: " + "; ".join(rep.messages()), rep.exit_code, rep)
     rate = float(rep.header["rate_hz"])
@@ -199,21 +204,28 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
         k_on = k_c
         while k_on > 0 and ahead[k_on - 1]:
             k_on -= 1
-    g = (ContactGuard(model, path, rate, reaction=reaction, drive_gains=(kp, kd))
-         if guard else None)
-    sim = MujocoRobot(plant, timestep)
-    mj, m, d = sim.mj, sim.model, sim.data
-    sim.set_state(first_configuration(model, rep), np.zeros(9))
-    mot = plant.motors
-    counts = mot.gear_ratio * 2 ** mot.encoder_bits / (2 * math.pi)
-    t_unit = mot.gear_ratio * mot.rated_torque / 1000.0
-    cap = model.limits.torque
-    rng = np.random.default_rng(seed)
+    if isinstance(guard, ContactGuard):  # a guard of this file, run again from t = 0
+        if guard.path.resolve() != Path(path).resolve() or guard.robot.hash != model.hash:
+            raise InputError("the guard given is for another file or robot",
+                             value=str(guard.path), valid=str(path))
+        if guard.reaction != reaction:
+            raise InputError("the guard given has another reaction", value=guard.reaction,
+                             valid=reaction)
+        guard.reset(drive_gains=(kp, kd))
+        g: ContactGuard | None = guard
+    else:
+        g = (ContactGuard(model, path, rate, reaction=reaction, drive_gains=(kp, kd))
+             if guard else None)
+    # the drives: the one drive loop, with the rate feedback a drive without an
+    # observer has (the encoder's difference, which the guard's bound assumes too)
+    loop = DriveLoop(plant, rate, kp, kd, timestep, torque_noise, seed,
+                     rate_feedback="encoder")
+    loop.start(first_configuration(model, rep))
+    mj, m, d = loop.sim.mj, loop.sim.model, loop.sim.data
     body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY,
                          contact.point if (contact is not None and leg) else "platform_free")
-    n_sub = round(1.0 / (rate * timestep))
-    x_h, v_h = 0.0, 0.0  # the body region's displacement along n, and its rate
-    armed = False  # the point has been outside the region since it appeared
+    person = None if contact is None else _Region(contact, p_s, normal, d, body, tool, leg,
+                                                  timestep)
     force = np.zeros(n)
     speed_n = np.zeros(n)
     flags = np.zeros(n, dtype=bool)
@@ -221,14 +233,9 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     applied = ff_file[0].copy()
     peak_cmd = 0.0
     th_log, tau_log = np.empty((n, 9)), np.empty((n, 9))
-    th_prev = np.zeros(9)
     for k in range(n):
-        th_meas = np.rint(d.qpos[sim.act_qpos] * counts) / counts
-        # the drive's rate feedback: its encoder's difference over the tick (a real
-        # drive has no other; the first tick: at rest)
-        thd = (th_meas - th_prev) * rate if k else np.zeros(9)
-        th_prev = th_meas
-        measured_tau = np.rint((applied + rng.normal(0.0, torque_noise, 9)) / t_unit) * t_unit
+        th_meas = loop.encoder()
+        measured_tau = loop.monitor(applied)
         th_log[k], tau_log[k] = th_meas, measured_tau
         if g is not None:
             cmd = g.step(th_meas, measured_tau if k else ff_file[0])
@@ -240,38 +247,53 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
             j = min(k, n_file - 1)
             ref, vref = theta_ref[j], vel_ref[j] if k < n_file else np.zeros(9)
             ff = ff_file[j] if k < n_file else columns(data, "tau")[-1]
-        u = ff + kp * (ref - th_meas) + kd * (vref - thd)
-        peak_cmd = max(peak_cmd, float(np.abs(u).max()))
-        applied = np.rint(np.clip(u, -cap, cap) / t_unit) * t_unit  # the drive saturates
-        d.ctrl[:] = applied
-        for _ in range(n_sub):
-            d.xfrc_applied[body] = 0.0
-            if contact is not None and k >= k_on:
-                p = _point(d, body, tool, leg)
-                depth = float((p - p_s) @ normal) - x_h
-                armed = armed or depth <= 0.0
-                f = contact.region.stiffness * depth if (depth > 0 and armed) else 0.0
-                if contact.kind == "free":  # the region's mass on its spring
-                    v_h += f / contact.region.mass * timestep
-                    x_h += v_h * timestep
-                fv = -f * normal
-                d.xfrc_applied[body, :3] = fv
-                d.xfrc_applied[body, 3:] = np.cross(p - d.xipos[body], fv)
-                force[k] = max(force[k], f)
-            mj.mj_step(m, d)
-        if contact is not None:
+        hook = person.push if person is not None and k >= k_on else None
+        tick = loop.tick(ref, vref, ff, hook, theta=th_meas)
+        applied = tick.applied
+        peak_cmd = max(peak_cmd, float(np.abs(tick.command).max()))
+        if person is not None:
+            force[k] = person.peak
+            person.peak = 0.0
             jac = np.zeros((3, m.nv))
             mj.mj_jac(m, d, jac, None, _point(d, body, tool, leg), body)
             speed_n[k] = float((jac @ d.qvel) @ normal)
-    run = _outcome(contact, guard, rate, force, speed_n, flags, modes, peak_cmd,
+        d.xfrc_applied[body] = 0.0
+    run = _outcome(contact, g is not None, rate, force, speed_n, flags, modes, peak_cmd,
                    g.events if g is not None else [])
     run.site = g.contact_site if g is not None else None
     run.log = DriveLog(t=np.arange(n) / rate, theta=th_log, tau=tau_log, name=Path(path).name,
                        meta={"plant": plant.name, "seed": seed, "torque_noise": torque_noise,
-                             "guard": guard, "contact": None if contact is None else
+                             "guard": g is not None, "contact": None if contact is None else
                              {"region": contact.region.name, "kind": contact.kind,
                               "at": contact.at}})
     return run
+
+
+class _Region:
+    """The body region in the way (module doc): its surface's displacement x_h along n
+    and rate v_h; :meth:`push` (before each MuJoCo sub-step) puts the model's force on
+    the body and keeps the tick's largest in :attr:`peak`."""
+
+    def __init__(self, contact: Contact, p_s: np.ndarray, normal: np.ndarray, d: Any,
+                 body: int, tool: np.ndarray, leg: bool, timestep: float) -> None:
+        self.c, self.p_s, self.n, self.d = contact, p_s, normal, d
+        self.body, self.tool, self.leg, self.dt = body, tool, leg, timestep
+        self.x_h = self.v_h = self.peak = 0.0
+        self.armed = False  # the point has been outside the region since it appeared
+
+    def push(self, _sub: int) -> None:
+        d, body = self.d, self.body
+        p = _point(d, body, self.tool, self.leg)
+        depth = float((p - self.p_s) @ self.n) - self.x_h
+        self.armed = self.armed or depth <= 0.0
+        f = self.c.region.stiffness * depth if (depth > 0 and self.armed) else 0.0
+        if self.c.kind == "free":  # the region's mass on its spring
+            self.v_h += f / self.c.region.mass * self.dt
+            self.x_h += self.v_h * self.dt
+        fv = -f * self.n
+        d.xfrc_applied[body, :3] = fv
+        d.xfrc_applied[body, 3:] = np.cross(p - d.xipos[body], fv)
+        self.peak = max(self.peak, f)
 
 
 def _point(d: Any, body: int, tool: np.ndarray, leg: bool) -> np.ndarray:

@@ -239,3 +239,36 @@ def test_mjcf_contacts_see_the_paper_legs_cross_and_the_default_free(tmp_path) -
         mujoco.mj_forward(m, d)
         seen[name] = d.ncon
     assert seen["default"] == 0 and seen["paper-as-stated"] > 0, seen
+
+
+def test_one_drive_loop_reads_counts_quantises_and_saturates() -> None:
+    """control/drive/loop.py: the encoder reads whole counts, the command beyond the
+    drive's limit is applied at the limit in whole torque units, the monitor reads what
+    was applied, and the encoder's rate feedback is the difference over the tick."""
+    from sixplus3.control.drive.loop import DriveLoop
+    from sixplus3.kinematics.robot import home
+    from sixplus3.robot_description.robot import Robot
+
+    robot = Robot.default()
+    h = home(robot)
+    for feedback in ("plant", "encoder"):
+        loop = DriveLoop(robot, 1000.0, 300.0, 6.0, torque_noise=0.0,
+                         rate_feedback=feedback)
+        loop.start(np.asarray(h.q[0]))
+        th = loop.encoder()
+        counts = th * loop.counts
+        np.testing.assert_allclose(counts, np.rint(counts), atol=1e-6)
+        assert np.abs(th - loop.true_angles()).max() <= 0.5 / loop.counts + 1e-12
+        tick = loop.tick(th + 0.1, np.zeros(9), np.zeros(9))  # 30 N m asked per joint
+        np.testing.assert_allclose(tick.command, 30.0, rtol=1e-6)
+        np.testing.assert_allclose(np.abs(tick.applied), loop.cap, atol=loop.t_unit)
+        assert np.all(np.abs(tick.applied) <= loop.cap + 1e-12)
+        units = tick.applied / loop.t_unit
+        np.testing.assert_allclose(units, np.rint(units), atol=1e-9)
+        np.testing.assert_array_equal(loop.monitor(tick.applied), tick.applied)
+        moved = loop.encoder() - th
+        assert np.all(moved > 0)  # pushed toward the reference for one tick
+        second = loop.tick(th, np.zeros(9), np.zeros(9), advance=False)
+        if feedback == "encoder":  # the damping acts on the encoder's difference
+            expected = 300.0 * (th - second.theta) - 6.0 * moved * 1000.0
+            np.testing.assert_allclose(second.command, expected, rtol=1e-9, atol=1e-9)

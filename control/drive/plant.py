@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from sixplus3.control.drive.drive_log import DriveLog
+from sixplus3.control.drive.loop import TORQUE_NOISE, DriveLoop
 from sixplus3.control.drive.simulation import KD, KP, MujocoRobot, first_configuration
 from sixplus3.control.file.trajectory_file import columns
 from sixplus3.control.file.trajectory_parse import NUMBER
@@ -41,9 +42,6 @@ from sixplus3.fileio import read_text
 from sixplus3.kinematics.robot import home
 from sixplus3.robot_description.mjcf import TIMESTEP
 from sixplus3.robot_description.robot import Robot, require_robot
-
-#: Default standard deviation of the torque monitor's noise [N m at the joint].
-TORQUE_NOISE = 0.005
 
 
 @dataclass
@@ -96,7 +94,7 @@ def read_wrench_profile(path: str | Path) -> WrenchProfile:
 @dataclass
 class PlantRun:
     log: DriveLog
-    peak_torque: float  # largest |torque applied| over the run [N m]
+    peak_torque: float  # largest |torque| the drives were asked for [N m] (> limit: saturated)
     max_tracking_error_rad: float
     torque_limit: float
     saturated: bool = False
@@ -124,7 +122,6 @@ def run_on_plant(path: str | Path, model: Robot, plant: Robot, seed: int = 0,
         raise ValidationFailed("not run on the plant: " + "; ".join(rep.messages()),
                                rep.exit_code, rep)
     rate = float(rep.header["rate_hz"])
-    n_sub = round(1.0 / (rate * timestep))
     data = rep.data
     theta_ref = columns(data, "pos")
     vel_ref = columns(data, "vel")
@@ -135,13 +132,10 @@ def run_on_plant(path: str | Path, model: Robot, plant: Robot, seed: int = 0,
         vel_ref = np.vstack([vel_ref, np.zeros((n_hold, 9))])
         ff = np.vstack([ff, np.repeat(columns(data, "tau")[-1:], n_hold, axis=0)])
     n = len(theta_ref)
-    sim = MujocoRobot(plant, timestep)
-    mj, m, d = sim.mj, sim.model, sim.data
-    sim.set_state(first_configuration(model, rep), np.zeros(9))
-    mot = plant.motors
-    counts = mot.gear_ratio * 2 ** mot.encoder_bits / (2 * math.pi)  # per joint rad
-    t_unit = mot.gear_ratio * mot.rated_torque / 1000.0  # 0.1 % of rated, at the joint
-    rng = np.random.default_rng(seed)
+    loop = DriveLoop(plant, rate, kp, kd, timestep, torque_noise, seed)
+    loop.start(first_configuration(model, rep))
+    sim = loop.sim
+    mj, m = sim.mj, sim.model
     platform = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, "platform_free")
     if platform < 0:
         platform = next(b for b in range(m.nbody) if m.body_jntnum[b] and
@@ -151,23 +145,16 @@ def run_on_plant(path: str | Path, model: Robot, plant: Robot, seed: int = 0,
     err = 0.0
     peak = 0.0
     for k in range(n):
-        th_true = d.qpos[sim.act_qpos].copy()
-        th_meas = np.rint(th_true * counts) / counts
-        thd = d.qvel[sim.act_dof].copy()
-        u = ff[k] + kp * (theta_ref[k] - th_meas) + kd * (vel_ref[k] - thd)
-        applied = np.rint(u / t_unit) * t_unit
-        th_log[k] = th_meas
-        tau_log[k] = np.rint((applied + rng.normal(0.0, torque_noise, 9)) / t_unit) * t_unit \
-            if torque_noise > 0 else applied
+        th_true = loop.true_angles()
+        hook = None
+        if wrench is not None:
+            def hook(s: int, k: int = k) -> None:
+                _apply_wrench(sim, platform, wrench.at((k + s / loop.n_sub) / rate))
+        tick = loop.tick(theta_ref[k], vel_ref[k], ff[k], hook, advance=k < n - 1)
+        th_log[k] = tick.theta
+        tau_log[k] = loop.monitor(tick.applied)
         err = max(err, float(np.abs(theta_ref[k] - th_true).max()))
-        peak = max(peak, float(np.abs(applied).max()))
-        d.ctrl[:] = applied
-        if k < n - 1:
-            for s in range(n_sub):
-                if wrench is not None:
-                    w = wrench.at((k + s / n_sub) / rate)
-                    _apply_wrench(sim, platform, w)
-                mj.mj_step(m, d)
+        peak = max(peak, float(np.abs(np.rint(tick.command / loop.t_unit) * loop.t_unit).max()))
     t = np.arange(n) / rate
     log = DriveLog(t=t, theta=th_log, tau=tau_log, name=Path(path).name,
                    meta={"plant": plant.name, "seed": seed, "torque_noise": torque_noise})
@@ -209,26 +196,14 @@ def run_jog(plant: Robot, amplitude: float = 0.1, each: float = 1.2,
         k0 = n_rest + j * (n_each + n_rest)
         ref[k0:k0 + n_each, j] += prof
         vref[k0:k0 + n_each, j] = vprof
-    sim = MujocoRobot(plant, timestep)
-    mj, m, d = sim.mj, sim.model, sim.data
-    sim.set_state(q0, np.zeros(9))
-    mot = plant.motors
-    counts = mot.gear_ratio * 2 ** mot.encoder_bits / (2 * math.pi)
-    t_unit = mot.gear_ratio * mot.rated_torque / 1000.0
-    rng = np.random.default_rng(seed)
-    n_sub = round(1.0 / (rate * timestep))
+    loop = DriveLoop(plant, rate, kp, kd, timestep, torque_noise, seed)
+    loop.start(q0)
     n = len(ref)
     th_log, tau_log = np.empty((n, 9)), np.empty((n, 9))
     for k in range(n):
-        th_meas = np.rint(d.qpos[sim.act_qpos] * counts) / counts
-        u = ff + kp * (ref[k] - th_meas) + kd * (vref[k] - d.qvel[sim.act_dof])
-        applied = np.rint(u / t_unit) * t_unit
-        th_log[k] = th_meas
-        tau_log[k] = (np.rint((applied + rng.normal(0.0, torque_noise, 9)) / t_unit) * t_unit
-                      if torque_noise > 0 else applied)
-        d.ctrl[:] = applied
-        for _ in range(n_sub):
-            mj.mj_step(m, d)
+        tick = loop.tick(ref[k], vref[k], ff)
+        th_log[k] = tick.theta
+        tau_log[k] = loop.monitor(tick.applied)
     return DriveLog(t=np.arange(n) / rate, theta=th_log, tau=tau_log, name="jog",
                     meta={"plant": plant.name, "seed": seed, "jog_amplitude_rad": amplitude})
 

@@ -57,8 +57,10 @@ def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
             click.echo(f"  peak transient force {run.peak_transient:.1f} N (limit "
                        f"{run.limit_transient:g}); force at the end {run.quasi_static:.1f} N "
                        f"(quasi-static limit {run.limit_quasi_static:g})")
-            click.echo(f"  detected after {ms(run.detection_delay)}; point stopped after "
-                       f"{ms(run.stop_time)}; modes {' -> '.join(run.modes) or '-'}")
+            click.echo(f"  detected after {ms(run.detection_delay)}"
+                       + (f" (placed on {run.site})" if run.site else "")
+                       + f"; point stopped after {ms(run.stop_time)}; modes "
+                       f"{' -> '.join(run.modes) or '-'}")
         click.echo(f"  peak |tau| asked of the drives {run.peak_command:.2f} N m (applied "
                    f"within {robot.limits.torque:g})")
         for e in run.events:

@@ -172,7 +172,8 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
               help="With --plant: the contact guard in the loop (docs/safety.md).")
 @click.option("--contact", "contact_file", default=None, type=click.Path(dir_okay=False),
               help="With --plant: a person in the way (YAML: region, kind free|clamp, at "
-                   "[s], normal, point; docs/safety.md).")
+                   "[s], normal, point tcp|centre|a leg link such as leg0_Ds2; "
+                   "docs/safety.md).")
 @click.option("--reaction", type=click.Choice(["hold", "yield"]), default="hold",
               show_default=True,
               help="With --guard: after a stop, hold the pose or yield (a compliant hold).")
