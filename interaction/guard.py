@@ -59,6 +59,7 @@ from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
     GuardCommand,
     contact_site,
+    parameter_std2,
     parse_gains,
     velocity_slope,
     within_envelope,
@@ -123,7 +124,8 @@ class ContactGuard:
                  model_error: float = MODEL_ERROR, n_sigma: float = N_SIGMA,
                  torque_noise: float = 0.01, torque_share: float = TORQUE_SHARE,
                  reaction: str = "hold",
-                 drive_gains: tuple[object, object] | None = None) -> None:
+                 drive_gains: tuple[object, object] | None = None,
+                 parameter_cov: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         if reaction not in ("hold", "yield"):
             raise InputError(f"reaction must be hold or yield, got {reaction!r}",
                              value=reaction, valid="hold or yield")
@@ -205,6 +207,17 @@ class ContactGuard:
         # sample's threshold as the largest over the samples it may still be at
         lag = max(1, int(round(LAG * self.rate)))
         self.thr_k = np.stack([thr_k[max(0, k - lag):k + 1].max(axis=0) for k in range(n)])
+        # an identification's confidence in its parameters (``parameter_cov``: the base
+        # columns and the covariance of the base parameters, identify estimate --report's
+        # parameters.npz): n_sigma standard deviations of the model torque at each
+        # planned state, diag(Y_b Sigma Y_b^T), over the same window
+        self.thr_p = np.zeros((n, 9))
+        if parameter_cov is not None:
+            sd = np.sqrt(parameter_std2(dyn, cfg.q, self.theta_d, columns(data, "acc"),
+                                        parameter_cov))
+            self.thr_p = self.n_sigma * np.stack([sd[max(0, k - lag):k + 1].max(axis=0)
+                                                  for k in range(n)])
+        self.thr_g = self.thr_g + self.thr_p
         self.events: list[str] = []
         self.path = Path(trajectory_file)
         self.reset()

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.dynamics.regressor import regressor_batch
 from sixplus3.errors import InputError
 
 #: The share of the envelope a command (tau_ff plus the drive's PD) may ask for when the
@@ -52,6 +53,35 @@ def velocity_slope(dyn: ClosedLoopDynamics, q: np.ndarray, theta_d: np.ndarray
         dn, _ = dyn.actuated_inverse_dynamics_batch(q, theta_d - e, zero)
         D[:, :, j] = 0.5 * ((up - fr(theta_d + e)) - (dn - fr(theta_d - e)))
     return D
+
+
+def parameter_std2(dyn: ClosedLoopDynamics, q: np.ndarray, theta_dot: np.ndarray,
+                   theta_ddot: np.ndarray, parameter_cov: tuple[np.ndarray, np.ndarray]
+                   ) -> np.ndarray:
+    """(n, 9) the variance of each joint's model torque at the states (q, rates,
+    accelerations) from an identification's base parameters' covariance
+    (``parameter_cov``: (the base columns, the covariance), its parameters.npz):
+    diag(Y_b Sigma Y_b^T), Y_b the base regressor (Pinocchio's, through the closures)."""
+    from sixplus3.identification.base import (
+        base_parameters,  # deferred: the base is found (or read from its cache) on demand
+    )
+
+    assert dyn.robot is not None
+    index, cov = (np.asarray(x, dtype=float) for x in parameter_cov)
+    base = base_parameters(dyn.robot)
+    if index.shape != base.index.shape or np.any(index != base.index):
+        raise InputError("the parameters' covariance is of another base (another robot "
+                         "structure)", value=index.shape, valid=f"({base.rank},) base columns")
+    if cov.shape != (base.rank, base.rank) or not np.all(np.isfinite(cov)):
+        raise InputError("the parameters' covariance has the wrong shape", value=cov.shape,
+                         valid=f"({base.rank}, {base.rank}) finite")
+    out = np.empty((len(q), 9))
+    for i in range(0, len(q), 2000):
+        sl = slice(i, i + 2000)
+        Y, _ = regressor_batch(dyn, q[sl], theta_dot[sl], theta_ddot[sl])
+        Wb = base.reduce(Y)
+        out[sl] = np.einsum("nja,ab,njb->nj", Wb, cov, Wb)
+    return np.maximum(np.nan_to_num(out, nan=0.0), 0.0)
 
 
 def contact_site(full: np.ndarray, bound: np.ndarray) -> str:
@@ -104,5 +134,6 @@ def parse_gains(gains: tuple[object, object]) -> tuple[np.ndarray, np.ndarray]:
     return kp, kd
 
 
-__all__ = ["COMMAND_SHARE", "GuardCommand", "LEG_LEVER", "contact_site", "parse_gains",
+__all__ = ["COMMAND_SHARE", "GuardCommand", "LEG_LEVER", "contact_site", "parameter_std2",
+           "parse_gains",
            "velocity_slope", "within_envelope"]

@@ -141,11 +141,13 @@ class ContactRun:
 def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact | None,
                 guard: bool | ContactGuard = True, kp: float = KP, kd: float = KD, seed: int = 0,
                 after: float = 0.5, torque_noise: float = TORQUE_NOISE,
-                timestep: float = TIMESTEP, reaction: str = "hold") -> ContactRun:
+                timestep: float = TIMESTEP, reaction: str = "hold",
+                parameter_cov: tuple[np.ndarray, np.ndarray] | None = None) -> ContactRun:
     """Run the file on ``plant`` with the person ``contact`` (None: nobody, for false
     alarms) in the way (module doc), the guard in the loop (``guard``) or the plan
     followed as it is, for ``after`` seconds past the contact (or the file's end);
-    ``reaction``: the guard's, hold or yield.  ``guard`` may be a
+    ``reaction``: the guard's, hold or yield; ``parameter_cov``: an identification's
+    (base columns, covariance) for the guard's thresholds.  ``guard`` may be a
     :class:`ContactGuard` of this file and model: it is reset and run again (its tables
     are not rebuilt: a battery of contacts on one file)."""
     model, plant = require_robot(model), require_robot(plant)
@@ -214,8 +216,8 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
         guard.reset(drive_gains=(kp, kd))
         g: ContactGuard | None = guard
     else:
-        g = (ContactGuard(model, path, rate, reaction=reaction, drive_gains=(kp, kd))
-             if guard else None)
+        g = (ContactGuard(model, path, rate, reaction=reaction, drive_gains=(kp, kd),
+                          parameter_cov=parameter_cov) if guard else None)
     # the drives: the one drive loop, with the rate feedback a drive without an
     # observer has (the encoder's difference, which the guard's bound assumes too)
     loop = DriveLoop(plant, rate, kp, kd, timestep, torque_noise, seed,

@@ -297,3 +297,40 @@ def test_a_stop_at_the_tables_deceleration_stays_within_the_torque_limit(hand_pl
         worst = max(worst, float(np.abs(tau).max()))
         assert np.all(np.abs(tau) <= cap + band), (sd, float(np.abs(tau).max()), cap)
     assert worst > 0.5 * cap  # the stops use the torque: a table that is not too timid
+
+
+def test_the_parameters_confidence_enters_the_threshold(hand_plan) -> None:
+    """An identification's covariance (base parameters) raises the guard's threshold by
+    n_sigma standard deviations of the model torque at each planned state; the variance
+    equals the wrench estimator's (interaction/wrench.py: the log's forward kinematics,
+    not the plan's poses) at zero acceleration; a covariance of another shape is
+    refused."""
+    from sixplus3.control.file.file_format import columns
+    from sixplus3.control.gate.stop import path_tables
+    from sixplus3.control.gate.validation import validate_file
+    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+    from sixplus3.errors import InputError
+    from sixplus3.identification.base import base_parameters
+    from sixplus3.interaction.guard import ContactGuard
+    from sixplus3.interaction.guard_parts import parameter_std2
+    from sixplus3.interaction.wrench import parameter_variance
+
+    base = base_parameters(ROBOT)
+    rng = np.random.default_rng(2)
+    L = rng.normal(0.0, 1e-3, (base.rank, base.rank))
+    cov = (base.index, L @ L.T)
+    plain = ContactGuard(ROBOT, hand_plan)
+    one = ContactGuard(ROBOT, hand_plan, parameter_cov=cov)
+    four = ContactGuard(ROBOT, hand_plan, parameter_cov=(cov[0], 4.0 * cov[1]))
+    assert np.all(plain.thr_p == 0.0) and one.thr_p.max() > 0.0
+    np.testing.assert_allclose(four.thr_p, 2.0 * one.thr_p, rtol=1e-9)
+    np.testing.assert_allclose(one.thr_g - one.thr_p, plain.thr_g, rtol=0, atol=1e-12)
+    rep = validate_file(hand_plan, ROBOT)
+    _, _, cfg = path_tables(ROBOT, rep)
+    th, thd = columns(rep.data, "pos")[:150], columns(rep.data, "vel")[:150]
+    mine = parameter_std2(ClosedLoopDynamics(ROBOT), cfg.q[:150], thd, np.zeros_like(thd),
+                          cov)
+    theirs = parameter_variance(ROBOT, th, thd, cov)
+    np.testing.assert_allclose(mine, theirs, rtol=1e-6, atol=1e-12)
+    with pytest.raises(InputError):
+        ContactGuard(ROBOT, hand_plan, parameter_cov=(cov[0], cov[1][:-1, :-1]))

@@ -15,7 +15,8 @@ from sixplus3.cli.app import check_output, fail
 def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
                      log_file: str | None, contact_file: str | None, guard: bool, seed: int,
                      noise: float, hold: float, force: bool, kp: float, kd: float,
-                     as_json: bool, reaction: str = "hold") -> None:
+                     as_json: bool, reaction: str = "hold",
+                     parameters_file: str | None = None) -> None:
     from sixplus3.control.drive.drive_log import write_log
     from sixplus3.interaction.person import read_contact, run_contact
     from sixplus3.robot_description.robot import load_robot
@@ -29,8 +30,16 @@ def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
         fail(f"{log_file} exists: add --force to replace it")
     plant = load_robot(plant_file)
     contact = read_contact(contact_file) if contact_file is not None else None
+    cov = None
+    if parameters_file is not None:
+        if not guard:
+            fail("--parameters goes with --guard")
+        from sixplus3.cli.interaction import _load_parameters
+
+        cov = _load_parameters(parameters_file)
     run = run_contact(csv_file, robot, plant, contact, guard=guard, kp=kp, kd=kd, seed=seed,
-                      after=max(hold, 0.5), torque_noise=noise, reaction=reaction)
+                      after=max(hold, 0.5), torque_noise=noise, reaction=reaction,
+                      parameter_cov=cov)
     assert run.log is not None
     write_log(log_file, run.log, robot, {"plant": plant.name, "plant_hash": plant.hash,
                                          "seed": seed, "torque_noise_n_m": noise,

@@ -177,13 +177,17 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
 @click.option("--reaction", type=click.Choice(["hold", "yield"]), default="hold",
               show_default=True,
               help="With --guard: after a stop, hold the pose or yield (a compliant hold).")
+@click.option("--parameters", "parameters_file", default=None,
+              type=click.Path(dir_okay=False),
+              help="With --guard: an identification's parameters.npz; its confidence "
+                   "enters the guard's thresholds.")
 @click.option("--force", is_flag=True, help="Replace an existing --log file.")
 @_gains
 def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: bool,
              torque_hold: str, plant_file: str | None, log_file: str | None, seed: int,
              noise: float, hold: float, wrench_file: str | None, guard: bool,
-             contact_file: str | None, reaction: str, force: bool, kp: float,
-             kd: float) -> None:
+             contact_file: str | None, reaction: str, parameters_file: str | None,
+             force: bool, kp: float, kd: float) -> None:
     """Replay a trajectory file in MuJoCo at its rate: feed-forward + PD.
 
     The file is validated first (a defective file is not simulated: exit 2).  Reports
@@ -198,8 +202,10 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
         from sixplus3.cli.contact import simulate_contact
 
         simulate_contact(csv_file, robot, plant_file, log_file, contact_file, guard, seed,
-                         noise, hold, force, kp, kd, as_json, reaction)
+                         noise, hold, force, kp, kd, as_json, reaction, parameters_file)
         return
+    if parameters_file is not None:
+        fail("--parameters goes with --guard")
     if plant_file is not None or log_file is not None or wrench_file is not None:
         _simulate_plant(csv_file, robot, plant_file, log_file, seed, noise, hold, force,
                         kp, kd, as_json, wrench_file)
