@@ -51,7 +51,7 @@ import numpy as np
 
 from sixplus3.control.file.trajectory_file import columns, read_bytes
 from sixplus3.control.file.trajectory_parse import parse
-from sixplus3.control.gate.stop import TORQUE_SHARE, path_deceleration
+from sixplus3.control.gate.stop import TORQUE_SHARE, across_path, path_deceleration
 from sixplus3.control.gate.validation import validate_file
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError, ValidationFailed, check_number
@@ -82,6 +82,8 @@ N_SIGMA = 5.0
 FRICTION_BAND = 2.5
 #: Ticks a joint must stay beyond its threshold to be a contact.
 DEBOUNCE = 2
+#: The largest path speed a stop may take where the plan slows down faster than it.
+STOP_SD_MAX = 4.0
 #: [s] how far a drive may lag its reference (the threshold's window).
 LAG = 0.02
 #: A largest jump between two measured samples [rad] (beyond it: a faulty reading).
@@ -178,6 +180,7 @@ class ContactGuard:
                                                         np.zeros((n, 9)), inertia=self.M)
         self.a = np.einsum("nij,nj->ni", self.M, self.theta_d)
         self.b = tau - self.g
+        self.vnorm = np.linalg.norm(self.theta_d, axis=1)  # the plan's joint speed
         # the velocity terms alone (Coriolis, centripetal, friction), for the observer
         tau_v, _ = dyn.actuated_inverse_dynamics_batch(cfg.q, self.theta_d, np.zeros((n, 9)))
         # without the friction: evaluated at the measured rate each tick (its sign
@@ -191,9 +194,10 @@ class ContactGuard:
         if rep.stop_deceleration is not None and share == TORQUE_SHARE:
             self.beta = np.asarray(rep.stop_deceleration, dtype=float)
         else:
-            self.beta = path_deceleration(self.a, self.b, self.g, self.theta_d,
-                                          self.lim.torque, self.lim.acceleration,
-                                          self.rate, share)
+            self.beta = path_deceleration(self.a, across_path(self.a, self.b, self.theta_d,
+                                                              columns(data, "acc")),
+                                          self.g, self.theta_d,
+                                          self.lim.torque, self.lim.acceleration, share)
         # the threshold: the observer's noise, the model's share, the dry friction band
         s_obs = torque_noise * math.sqrt(self.gain * self.dt / 2.0)
         fc = self.robot.motors.coulomb_per_joint
@@ -427,10 +431,17 @@ class ContactGuard:
             self.events.append(f"t={self.t:.4f} s: blocked while stopping (a clamp): "
                                "retracting along the path")
         elif self.mode == "stop":
+            # the joint speed along the path, sigma = sd |theta'(s)|, falls at the table's
+            # beta (control/gate/stop.py); sd follows from it where the path goes on
             beta = float(self.beta[k])
-            sdd = -beta
-            self.sd = max(0.0, self.sd - beta * dt)
-            self.s = min(self.n - 1.0, self.s + self.rate * dt * self.sd)
+            v0 = float(self._at(self.vnorm))
+            sigma = max(0.0, self.sd * v0 - beta * v0 * dt)
+            s_new = min(self.n - 1.0, self.s + self.rate * dt * self.sd)
+            self.s = s_new
+            v1 = float(self._at(self.vnorm))
+            sd_new = min(sigma / v1, STOP_SD_MAX) if v1 > 1e-9 and sigma > 0 else 0.0
+            sdd = (sd_new - self.sd) / dt
+            self.sd = sd_new
             if self.sd <= 0.0:
                 self._since += dt
                 self._quiet = self._quiet + dt if not over else 0.0

@@ -744,8 +744,9 @@ def test_held_torque_and_the_exports_and_feed_that_use_it(planned, tmp_path) -> 
 def test_the_stop_table_travels_in_the_header_and_a_forged_one_is_refused(planned) -> None:
     """Every written file carries the deceleration its stop may use at each sample
     (control/gate/stop.py); the gate recomputes it from the samples: a table that claims
-    a faster stop anywhere, of the wrong length or form, or for another torque share is
-    a defect (exit 2); a slower one is the file's own choice; none is accepted."""
+    a faster stop anywhere, or of the wrong length or form, is a defect (exit 2); a
+    slower one is the file's own choice; one of another definition (torque share, form)
+    is not used; none is accepted."""
     from sixplus3.control.file.file_format import columns
     from sixplus3.control.gate.stop import stop_table
 
@@ -754,7 +755,8 @@ def test_the_stop_table_travels_in_the_header_and_a_forged_one_is_refused(planne
     beta = rep.stop_deceleration
     assert rep.ok and beta is not None and len(beta) == len(data)
     lim = ROBOT.limits.tightened(**header["limits"])
-    mine = stop_table(ROBOT, rep, columns(data, "vel"), lim, float(header["rate_hz"]))
+    mine = stop_table(ROBOT, rep, columns(data, "vel"), columns(data, "acc"), lim,
+                      float(header["rate_hz"]))
     assert np.all(beta <= mine * (1 + 1e-6)) and np.allclose(beta, mine, rtol=1e-5)
     table = header["stop"]["deceleration"]
     k = int(np.argmin(beta))  # the sample whose stop is slowest
@@ -763,9 +765,12 @@ def test_the_stop_table_travels_in_the_header_and_a_forged_one_is_refused(planne
     for bad in ({**header["stop"], "deceleration": faster},
                 {**header["stop"], "deceleration": table[:-1]},
                 {**header["stop"], "deceleration": [*table[:-1], "fast"]},
-                {**header["stop"], "torque_share": 1.0}, "fast", [1.0, 2.0]):
+                "fast", [1.0, 2.0]):
         rep = validate_bytes(encode({**header, "stop": bad}, data), ROBOT)
         assert rep.exit_code == 2 and any("stop table" in m for m in rep.messages()), bad
+    for other in ({**header["stop"], "torque_share": 1.0}, {**header["stop"], "form": "x"}):
+        rep = validate_bytes(encode({**header, "stop": other}, data), ROBOT)
+        assert rep.ok and rep.stop_deceleration is None
     slower = {**header["stop"], "deceleration": [0.5 * x for x in table]}
     rep = validate_bytes(encode({**header, "stop": slower}, data), ROBOT)
     assert rep.ok and np.allclose(rep.stop_deceleration, 0.5 * np.asarray(table))

@@ -1,28 +1,36 @@
 """The stop table a trajectory file carries (docs/safety.md, "Stopping along the path"):
-for every sample k, the deceleration of the path speed that the torque limits allow from
-there, so that a controller's stop is a table look-up, not an optimisation.
+for every sample k, the deceleration of the motion along the path that the torque
+limits allow from there, so that a controller's stop is a table look-up, not an
+optimisation.
 
 Along the file's path theta(s) (s the file's time), a motion with path speed sd = ds/dt
-and path acceleration sdd needs the torques tau = a_k sdd + b_k sd^2 + g_k, with
-a_k = M_k theta'_k (M_k the reduced inertia, rotors included), g_k gravity and
-b_k = tau_k - g_k the velocity and inertial torques at the planned speed (time scaling of
-the path: exact for the inertial and centripetal terms, friction taken with them).  The
-stop's deceleration beta_k (sdd = -beta_k) must keep |a_k (-beta) + b_k sd^2 + g_k|
-within ``torque_share`` of the torque limit both at full path speed (sd = 1) and at rest
-(sd = 0) on every joint, and the joint accelerations within their limit; where no
-deceleration is within the share (the plan itself uses more), the one that needs the
-least torque; and the smallest over the distance a stop from k covers (1 / (2 beta_k)
-of path time).
+has the joint rates theta' sd and the joint speed sigma = |theta'| sd.  A stop slows the
+joint speed at sigma_dot = -beta |theta'_k| (beta [1/s]: the plan's speed at k lost in
+1/beta seconds), which needs the joint accelerations -beta theta'_k + sd^2 theta''_perp,
+theta''_perp the part of the path's second derivative across its tangent (the part along
+it only changes how fast s runs, not the joints: a stop early in a plan that is still
+speeding up must not inherit that speeding up).  So the torques are
+
+    tau = -beta a_k + sd^2 b_k + g_k,   a_k = M_k theta'_k,
+    b_k = tau_k - g_k - M_k t_k (t_k . theta''_k),  t_k = theta'_k / |theta'_k|
+
+(M_k the reduced inertia, rotors included, g_k gravity, tau_k the file's torques: the
+velocity torques and friction scale with sd^2 with them).  beta_k must keep every
+joint's torque within ``torque_share`` of the limit both at full path speed (sd = 1) and
+at rest (sd = 0), and the joint accelerations within their limit; where no deceleration
+is within the share (the plan itself uses more), the one that needs the least torque.
+A stop looks up each sample's beta as it passes it (the torque is affine in beta and in
+sd^2, so the two ends of sd hold every path speed between).
 
 The writer (:func:`sixplus3.control.gate.validation.validate_and_write`) computes it from
 the gate's own configurations and torques and puts it in the header (``stop``); the gate
 recomputes it from the file's samples and refuses a file whose table claims a faster
-stop than the limits it is judged by allow anywhere (a defect: exit 2).
+stop than the limits it is judged by allow anywhere, or that is not a table of the
+file's length (a defect: exit 2); a table of another form or torque share is not used.
 """
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -40,6 +48,9 @@ from sixplus3.robot_description.robot import Robot
 TORQUE_SHARE = 0.95
 #: The header's key.
 HEADER_KEY = "stop"
+#: The table's definition (the module doc's): the joint speed's deceleration along the
+#: path.  A table of another form or torque share is not used (nor reinterpreted).
+FORM = "joint-speed/1"
 #: Relative slack of the gate's comparison (the file's samples are text; the writer's
 #: table was computed from the same motion before it was written).
 SLACK = 1e-6
@@ -69,11 +80,11 @@ def path_tables(robot: Robot, rep: ValidationReport
 
 
 def path_deceleration(a: np.ndarray, b: np.ndarray, g: np.ndarray, theta_dot: np.ndarray,
-                      torque: float, acceleration: float, rate: float,
+                      torque: float, acceleration: float,
                       share: float = TORQUE_SHARE) -> np.ndarray:
     """beta (n,) [1/s]: the module doc's deceleration at every sample, from a = M theta'
-    (n, 9), b = tau - g and g (n, 9), the planned rates (n, 9), the torque and
-    acceleration limits and the file's rate [Hz]."""
+    (n, 9), b (n, 9: across the path, :func:`across_path`) and g (n, 9), the planned
+    rates (n, 9) and the torque and acceleration limits."""
     cap = share * torque
     n = len(a)
     lo = np.zeros(n)
@@ -90,23 +101,30 @@ def path_deceleration(a: np.ndarray, b: np.ndarray, g: np.ndarray, theta_dot: np
     vmax = np.abs(theta_dot).max(axis=1)
     with np.errstate(divide="ignore"):
         beta = np.minimum(beta, acceleration / np.maximum(vmax, 1e-9))
-    beta = np.clip(beta, 1.0, 1e4)
-    # the smallest over the stop's own distance (s from 1 to 0 at beta: 1 / (2 beta))
-    out = beta.copy()
-    for k in range(n):
-        w = int(math.ceil(rate / (2.0 * beta[k]))) + 1
-        out[k] = beta[k: k + w].min()
-    return out
+    # at least 1/s (a stop within a second of plan time); at most 1e6/s (where the plan
+    # barely moves the joints, the acceleration limit above decides)
+    return np.clip(beta, 1.0, 1e6)
 
 
-def stop_table(robot: Robot, rep: ValidationReport, theta_dot: np.ndarray, limits: Limits,
-               rate: float) -> np.ndarray:
+def across_path(a: np.ndarray, b: np.ndarray, theta_dot: np.ndarray,
+                theta_ddot: np.ndarray) -> np.ndarray:
+    """b_k (n, 9) of the module doc: the torques tau_k - g_k (``b``) without the inertial
+    torque of the path's acceleration along its tangent, M t (t . theta''), from
+    a = M theta' (a / |theta'| = M t)."""
+    v2 = np.einsum("ni,ni->n", theta_dot, theta_dot)
+    along = np.where(v2 > 1e-12, np.einsum("ni,ni->n", theta_dot, theta_ddot)
+                     / np.maximum(v2, 1e-12), 0.0)
+    return b - a * along[:, None]
+
+
+def stop_table(robot: Robot, rep: ValidationReport, theta_dot: np.ndarray,
+               theta_ddot: np.ndarray, limits: Limits, rate: float) -> np.ndarray:
     """beta (n,) of a validated motion (its report's poses and Pinocchio torques)."""
     assert rep.tau is not None
     M, g, _ = path_tables(robot, rep)
     a = np.einsum("nij,nj->ni", M, theta_dot)
-    return path_deceleration(a, rep.tau - g, g, theta_dot, limits.torque,
-                             limits.acceleration, rate)
+    b = across_path(a, rep.tau - g, theta_dot, theta_ddot)
+    return path_deceleration(a, b, g, theta_dot, limits.torque, limits.acceleration)
 
 
 def header_entry(beta: np.ndarray) -> dict[str, Any]:
@@ -115,21 +133,23 @@ def header_entry(beta: np.ndarray) -> dict[str, Any]:
     e = np.floor(np.log10(np.maximum(beta, 1e-300)))
     scale = 10.0 ** (5 - e)
     down = np.floor(beta * scale) / scale
-    return {"torque_share": TORQUE_SHARE, "unit": "1/s",
+    return {"torque_share": TORQUE_SHARE, "unit": "1/s", "form": FORM,
             "deceleration": [float(f"{x:.6g}") for x in down]}
 
 
 def stop_check(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np.ndarray,
-               limits: Limits, rate: float, entry: object) -> tuple[np.ndarray | None,
-                                                                   list[Finding]]:
+               theta_ddot: np.ndarray, limits: Limits, rate: float, entry: object
+               ) -> tuple[np.ndarray | None, list[Finding]]:
     """(the file's table if it holds, findings): the header's ``stop`` against the table
     recomputed from the samples.  No entry: (None, [])."""
     if entry is None:
         return None, []
     bad = [finding("stop table (the header's form)", "defect", "", 0.0,
                    np.ones(1), np.ones(1), t[:1], ["header"])]
-    if not isinstance(entry, dict) or entry.get("torque_share") != TORQUE_SHARE:
+    if not isinstance(entry, dict):
         return None, [f for f in bad if f]
+    if entry.get("torque_share") != TORQUE_SHARE or entry.get("form") != FORM:
+        return None, []  # a table of another definition: not used (the guard makes its own)
     table = entry.get("deceleration")
     if (not isinstance(table, list) or len(table) != len(t)
             or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
@@ -138,7 +158,7 @@ def stop_check(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np
     claimed = np.asarray(table, dtype=float)
     if rep.tau is None or rep.position is None:
         return None, []
-    mine = stop_table(robot, rep, theta_dot, limits, rate)
+    mine = stop_table(robot, rep, theta_dot, theta_ddot, limits, rate)
     over = np.where(np.isfinite(claimed), claimed, np.inf) - mine * (1.0 + SLACK)
     f = finding("stop table (a deceleration the torque limits do not allow)", "defect",
                 "1/s", 0.0, over, claimed, t, ["path"])
@@ -147,5 +167,5 @@ def stop_check(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np
     return claimed, []
 
 
-__all__ = ["HEADER_KEY", "TORQUE_SHARE", "header_entry", "path_deceleration", "path_tables",
-           "stop_check", "stop_table"]
+__all__ = ["HEADER_KEY", "TORQUE_SHARE", "across_path", "header_entry", "path_deceleration",
+           "path_tables", "stop_check", "stop_table"]

@@ -398,8 +398,8 @@ def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory",
                           platform=columns(data, "platform"), tau_file=columns(data, "tau"))
     _add_pfl(rep, robot, data[:, 0], columns(data, "vel"), judged)
     if rep.ok:  # the stop table the file carries (control/gate/stop.py), if any
-        table, found = stop_check(rep, robot, data[:, 0], columns(data, "vel"), limits, rate,
-                                  header.get(STOP_KEY))
+        table, found = stop_check(rep, robot, data[:, 0], columns(data, "vel"),
+                                  columns(data, "acc"), limits, rate, header.get(STOP_KEY))
         rep.stop_deceleration = table
         if found:
             rep.findings, rep.ok = list(rep.findings) + found, False
@@ -438,8 +438,8 @@ def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
                                + "; ".join(rep.messages()), rep.exit_code, rep)
     lim = judged_limits(robot, limits)
     # the stop table a controller looks up (control/gate/stop.py), in the header
-    rep.stop_deceleration = stop_table(robot, rep, np.asarray(theta_dot, dtype=float), lim,
-                                       rate)
+    rep.stop_deceleration = stop_table(robot, rep, np.asarray(theta_dot, dtype=float),
+                                       np.asarray(theta_ddot, dtype=float), lim, rate)
     meta[STOP_KEY] = header_entry(rep.stop_deceleration)
     out = write_trajectory(path, t, theta, theta_dot, theta_ddot, rep, robot, lim, meta)
     return out, rep
