@@ -36,8 +36,9 @@ import numpy as np
 from sixplus3.control.file.trajectory_file import columns, read_bytes
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.gate.validation import validate_file
+from sixplus3.identification.plants import perturbed_plant
 from sixplus3.interaction.guard import ContactGuard
-from sixplus3.interaction.person import contact_from_dict, run_contact
+from sixplus3.interaction.person import POINTS, contact_from_dict, run_contact
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.tcp import tcp_velocity
@@ -96,8 +97,12 @@ def main() -> None:
     ap.add_argument("--normals", nargs="+", default=["along", "across"],
                     choices=["along", "across"])
     ap.add_argument("--drives", nargs="+", default=["soft", "stiff"], choices=list(DRIVES))
-    ap.add_argument("--point", default="tcp", choices=["tcp", "centre"])
+    ap.add_argument("--point", default="tcp", choices=list(POINTS))
     ap.add_argument("--plant", nargs="*", default=[], help="plant robot files (perturbed)")
+    ap.add_argument("--plant-seeds", nargs="*", type=int, default=[],
+                    help="plants perturbed from each file's own robot (its setup too): "
+                         "masses and rotors +-5 %%, friction x[1, 1.2], centres of mass "
+                         "by up to 1 cm (identify plant's generator)")
     ap.add_argument("--no-nominal", action="store_true",
                     help="skip the nominal plant (the file's own robot)")
     ap.add_argument("--robot", default=None,
@@ -126,8 +131,7 @@ def main() -> None:
                 print(f"no plan {path}: skipped", file=sys.stderr)
                 continue
             model = load_robot(args.robot) if args.robot else file_robot(path)
-            plants = ([] if args.no_nominal else [("nominal", model)]) + [
-                (Path(p).stem, load_robot(p)) for p in args.plant]
+            plants = plants_for(args, model)
             t, v = planned_velocity(path, model)
             built = ContactGuard(model, path, 1.0 / (t[1] - t[0]), reaction=args.reaction)
             for label, at in instants(t, v, args.speeds):
@@ -170,6 +174,15 @@ def main() -> None:
     print(f"{len(rows)} runs in {time.perf_counter() - t_start:.0f} s")
 
 
+def plants_for(args: argparse.Namespace, model: Robot) -> list[tuple[str, Robot]]:
+    """The nominal plant (the model itself), the --plant files, and the --plant-seeds
+    plants perturbed from the model (a file's robot, with its task's setup)."""
+    return (([] if args.no_nominal else [("nominal", model)])
+            + [(Path(p).stem, load_robot(p)) for p in args.plant]
+            + [(f"near-{s}", perturbed_plant(model, s, mass=0.05, rotor=0.05, friction=1.2))
+               for s in args.plant_seeds])
+
+
 def quiet(args: argparse.Namespace, out: object, t_start: float) -> None:
     """Every file, plant and drive with nobody in the way: false alarms, stops of a
     drive that could not follow, the largest command."""
@@ -177,8 +190,7 @@ def quiet(args: argparse.Namespace, out: object, t_start: float) -> None:
     for f in args.quiet:
         path = Path(f)
         model = load_robot(args.robot) if args.robot else file_robot(path)
-        plants = ([] if args.no_nominal else [("nominal", model)]) + [
-            (Path(p).stem, load_robot(p)) for p in args.plant]
+        plants = plants_for(args, model)
         built = ContactGuard(model, path)
         for pname, plant in plants:
             for dname in args.drives:

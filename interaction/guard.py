@@ -30,8 +30,10 @@ the torque noise through the observer, plus ``model_error`` times what the model
 know at that instant (the inertial and bias torques: the threshold grows with the
 motion), plus the dry friction band.
 
-A drive held at its torque limit for SATURATED_FOR (the robot cannot follow this plan:
-it needs more than the model says) is a stop along the path, not a contact.  Given the
+A drive held at its torque limit for SATURATED_FOR (measured, or, with the drive's gains,
+a command that would have reached the limit had the guard not bounded it) while the
+robot is off its reference by more than BLOCKED (the robot cannot follow this plan: it
+needs more than the model says) is a stop along the path, not a contact.  Given the
 drive's gains (``drive_gains``), every command's total tau_ff + Kp (theta_ref - theta) +
 Kd (theta_dot_ref - theta_dot) stays within the envelope: the reference is moved toward
 the measured angles where it would not.
@@ -275,7 +277,7 @@ class ContactGuard:
         self._r = np.zeros(9)
         self._over = 0
         self._saturated = 0.0
-        self._clipped = False  # the last command was moved into the envelope
+        self._clipped = False  # the last command would have saturated the drive
         self._since = 0.0
         self._quiet = 0.0
         self._contact = False
@@ -331,8 +333,10 @@ class ContactGuard:
         try:
             if self.kp is None or self.kd is None or self._prev is None:
                 return cmd
-            out, self._clipped = within_envelope(cmd, self.kp, self.kd, self._prev,
-                                                 self._vel, COMMAND_SHARE * self.lim.torque)
+            out, wanted = within_envelope(cmd, self.kp, self.kd, self._prev, self._vel,
+                                          COMMAND_SHARE * self.lim.torque)
+            # the drive would have been at its limit without the move: saturated
+            self._clipped = wanted >= self.lim.torque
             return out
         except Exception:  # noqa: BLE001
             return cmd
@@ -402,7 +406,8 @@ class ContactGuard:
         # a drive held at its limit: this robot cannot follow the plan (it needs more
         # torque than the model says); the platform leaves the planned (and PFL-checked)
         # path, so stop along it
-        sat = self._clipped or bool(np.any(np.abs(tq) >= SATURATED_SHARE * self.lim.torque))
+        sat = ((self._clipped or bool(np.any(np.abs(tq) >= SATURATED_SHARE * self.lim.torque)))
+               and float(np.abs(self._last_ref - th).max()) > BLOCKED)
         self._saturated = self._saturated + dt if sat else 0.0
         if self._saturated >= SATURATED_FOR and self.mode == "follow":
             self._stop_from_measured()

@@ -99,8 +99,9 @@ def contact_site(full: np.ndarray, bound: np.ndarray) -> str:
 
 
 def within_envelope(cmd: GuardCommand, kp: np.ndarray, kd: np.ndarray, theta: np.ndarray,
-                    vel: np.ndarray, cap: float) -> tuple[GuardCommand, bool]:
-    """(the command, whether it was moved): the reference moved toward the measured
+                    vel: np.ndarray, cap: float) -> tuple[GuardCommand, float]:
+    """(the command, the largest |total| the drive would have been asked for without
+    the move): the reference moved toward the measured
     angles ``theta`` (or, with Kp = 0, the rate reference toward the measured rate
     ``vel``, the encoder's difference over the last tick: the drive's rate feedback)
     wherever the drive's total tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref -
@@ -109,15 +110,16 @@ def within_envelope(cmd: GuardCommand, kp: np.ndarray, kd: np.ndarray, theta: np
     damp = kd * (cmd.theta_dot_ref - vel)
     pd = kp * (cmd.theta_ref - theta) + damp
     lo, hi = -cap - cmd.tau_ff, cap - cmd.tau_ff
+    wanted = float(np.abs(cmd.tau_ff + pd).max())
     if bool(np.all((pd >= lo) & (pd <= hi))):
-        return cmd, False
+        return cmd, wanted
     pd_c = np.clip(pd, np.minimum(lo, 0.0), np.maximum(hi, 0.0))
     ref, vref = cmd.theta_ref.copy(), cmd.theta_dot_ref.copy()
     stiff = kp > 0
     ref[stiff] = theta[stiff] + (pd_c - damp)[stiff] / kp[stiff]
     soft = ~stiff & (kd > 0)
     vref[soft] = vel[soft] + pd_c[soft] / kd[soft]
-    return GuardCommand(ref, vref, cmd.tau_ff, cmd.mode, cmd.contact, cmd.wrench), True
+    return GuardCommand(ref, vref, cmd.tau_ff, cmd.mode, cmd.contact, cmd.wrench), wanted
 
 
 def parse_gains(gains: tuple[object, object]) -> tuple[np.ndarray, np.ndarray]:
