@@ -91,7 +91,8 @@ LAG = 0.02
 #: A largest jump between two measured samples [rad] (beyond it: a faulty reading).
 MAX_JUMP = 0.05
 #: For this long after a contact [s] the residual's crank torques may still place it on
-#: a leg (they grow with the force), while the force is at least half its peak so far.
+#: a leg (they grow with the force), while the force is at least half its peak so far and
+#: the guard is still stopping (a retract's start moves the reference at once).
 SITE_WINDOW = 0.02
 #: After a stop, the force that stays for this long [s] is a clamp.
 CLAMP_WAIT = 0.02
@@ -395,7 +396,7 @@ class ContactGuard:
                                f"residual {np.abs(self._r).max():.3f} N m; stopping")
         if self._contact and self.t - self._contact_t <= SITE_WINDOW:
             self._fmax = max(self._fmax, float(np.linalg.norm(full[0:3])))
-        if (self._contact and self.contact_site == "the platform"
+        if (self._contact and self.contact_site == "the platform" and self.mode == "stop"
               and self.t - self._contact_t <= SITE_WINDOW
               and float(np.linalg.norm(full[0:3])) >= 0.5 * self._fmax
               and contact_site(full, np.abs(self.J[k]).T @ thr) == "a leg"):
