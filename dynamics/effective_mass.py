@@ -23,6 +23,7 @@ directions and no assumption that the worst one is the direction of motion.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -56,15 +57,17 @@ def inverse_mass(J: np.ndarray, M: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 def point_inverse_mass(dyn: ClosedLoopDynamics, cfg: RobotConfig,
-                       at_tool: bool = True) -> np.ndarray:
+                       at_tool: bool = True, point: Any = None) -> np.ndarray:
     """(n, 3, 3) the inverse mass matrix of the tool centre point (``at_tool``; the
-    platform centre otherwise) at the configurations ``cfg``, from Pinocchio's reduced
-    inertia (rotors included) and the analytic IK Jacobian."""
+    platform centre otherwise; or ``point``, (3,) in the platform frame [m]) at the
+    configurations ``cfg``, from Pinocchio's reduced inertia (rotors included) and the
+    analytic IK Jacobian."""
     n = len(cfg.q)
     M = np.empty((n, 9, 9))
     dyn.actuated_inverse_dynamics_batch(cfg.q, np.zeros((n, 9)), np.zeros((n, 9)),
                                         inertia=M)
-    tool = np.asarray(dyn.robot.tool.xyz if (at_tool and dyn.robot is not None)
+    tool = np.asarray(point if point is not None else
+                      dyn.robot.tool.xyz if (at_tool and dyn.robot is not None)
                       else (0.0, 0.0, 0.0), dtype=float)
     r = np.einsum("nij,j->ni", cfg.rotation, tool)
     return inverse_mass(ik_jacobian(cfg), M, r)

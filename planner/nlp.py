@@ -18,11 +18,11 @@ from typing import Any
 import numpy as np
 
 from sixplus3.errors import InfeasibleTaskError
-from sixplus3.planner.pfl import pfl_matrices
+from sixplus3.planner.pfl import pfl_matrices, pfl_points, pfl_ratio_max
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import Solution, actuated_profile, sample_cubic, stretch_factors
 from sixplus3.planner.solvers import ipopt_solver, keyboard_interrupts
-from sixplus3.planner.tcp_rows import pfl_ratios_at, tcp_rates_at
+from sixplus3.planner.tcp_rows import tcp_rates_at
 from sixplus3.planner.transcription import (
     CLEARANCE_ROWS,
     NODE_ROWS,
@@ -126,8 +126,7 @@ def start_point(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
             profile = actuated_profile(problem.robot, *pts)
     if problem.pfl and duration is None and (warm is None or warm.nlp_point is None):
         # likewise inside the power and force limiting rows (v^T C v goes as 1/a^2)
-        C = pfl_matrices(problem.robot, pts[0], problem.pfl)
-        worst = float(pfl_ratios_at(problem.robot.tool.xyz, pts[0], pts[1], C).max())
+        worst = pfl_ratio_max(problem.robot, pts[0], pts[1], problem.pfl)
         a = math.sqrt(worst / (0.99 * problem.options.pfl_share))
         if a > 1.0:
             T0, xd0, xdd0 = T0 * a, xd0 / a, xdd0 / a**2
@@ -187,10 +186,11 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
     if problem.pfl:  # the power and force limiting rows, after the tcp rows: each
         # point's C at the start's pose (the poses move little between solves; the gate
         # judges the smoothed file exactly, and the pipeline re-plans with a lower share)
-        C = pfl_matrices(problem.robot, pts[0], problem.pfl)
-        lbg = np.r_[lbg, np.full(2 * N + 1, -np.inf)]
-        ubg = np.r_[ubg, np.full(2 * N + 1, problem.options.pfl_share)]
-        pfl_p = C.transpose(0, 2, 1).reshape(2 * N + 1, 9).ravel()  # column-major each
+        for point in pfl_points(problem.robot):  # the tool centre point, the centre
+            C = pfl_matrices(problem.robot, pts[0], problem.pfl, point)
+            lbg = np.r_[lbg, np.full(2 * N + 1, -np.inf)]
+            ubg = np.r_[ubg, np.full(2 * N + 1, problem.options.pfl_share)]
+            pfl_p = np.r_[pfl_p, C.transpose(0, 2, 1).reshape(2 * N + 1, 9).ravel()]
     _, acc0, tau0, _ = profile  # (9, 2N+1): the nodes, then the midpoints
     z0 = np.vstack([x0.T, xd0.T, xdd0.T, tau0[:, :N + 1]])
     w0 = np.clip(np.r_[z0.ravel(order="F"), tau0[:, N + 1:].ravel(order="F"),

@@ -21,6 +21,7 @@ from sixplus3.dynamics.effective_mass import point_inverse_mass, worst_speed
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.planner.task import Task
+from sixplus3.planner.tcp_rows import pfl_ratios_at
 from sixplus3.robot_description import hardware
 from sixplus3.robot_description.body_regions import BodyRegion, regions
 from sixplus3.robot_description.robot import Robot
@@ -36,12 +37,29 @@ def task_regions(task: Task) -> tuple[BodyRegion, ...]:
     return regions(list(task.pfl) + list(hardware.active().pfl))
 
 
-def pfl_matrices(robot: Robot, x: np.ndarray, regs: tuple[BodyRegion, ...]
-                 ) -> np.ndarray:
+def pfl_points(robot: Robot) -> tuple[tuple[float, float, float], ...]:
+    """The platform points power and force limiting holds at (platform frame [m]): the
+    tool centre point, and the platform centre too when a tool moves it off the centre
+    (a person can meet the platform's body as well as the tool)."""
+    tool = tuple(float(c) for c in robot.tool.xyz)
+    centre = (0.0, 0.0, 0.0)
+    return (tool,) if tool == centre else (tool, centre)  # type: ignore[return-value]
+
+
+def pfl_ratio_max(robot: Robot, x: np.ndarray, xd: np.ndarray,
+                  regs: tuple[BodyRegion, ...]) -> float:
+    """The largest v^T C v over the states (n, 9 each) and every point of
+    :func:`pfl_points` (the NLP rows' form, evaluated)."""
+    return max(float(pfl_ratios_at(p, x, xd, pfl_matrices(robot, x, regs, p)).max())
+               for p in pfl_points(robot))
+
+
+def pfl_matrices(robot: Robot, x: np.ndarray, regs: tuple[BodyRegion, ...],
+                 point: tuple[float, float, float] | None = None) -> np.ndarray:
     """(n, 3, 3) C_k of the NLP's power and force limiting rows at the states x (n, 9:
-    position, rotation vector, crank angles): v^T C_k v is the tool centre point's worst
-    contact energy over every direction and every region of ``regs``, as a share of that
-    region's limit.
+    position, rotation vector, crank angles): v^T C_k v is the worst contact energy of
+    the platform point ``point`` (platform frame; default the tool centre point) over
+    every direction and every region of ``regs``, as a share of that region's limit.
 
     With A = U diag(lambda) U^T (:func:`point_inverse_mass`), a region's condition is
     v^T (A + I/m_H)^-1 v / (2 E) <= 1 (E = F^2 / 2k), whose matrix has A's eigenvectors
@@ -57,7 +75,8 @@ def pfl_matrices(robot: Robot, x: np.ndarray, regs: tuple[BodyRegion, ...]
     C = np.zeros((len(x), 3, 3))
     if not ok.any():
         raise ValueError("no state of the power and force limiting rows has a pose")
-    A = point_inverse_mass(ClosedLoopDynamics(robot), cfg.take(ok))
+    A = point_inverse_mass(ClosedLoopDynamics(robot), cfg.take(ok),
+                           point=robot.tool.xyz if point is None else point)
     lam, U = np.linalg.eigh(A)
     inv_m = np.array([0.0 if not np.isfinite(r.mass) else 1.0 / r.mass for r in regs])
     two_e = np.array([2.0 * r.energy for r in regs])
@@ -95,4 +114,5 @@ def pfl_speed(task: Task, robot: Robot) -> float | None:
     return PFL_SAFETY * float(min(worst_speed(A, r).min() for r in regs))
 
 
-__all__ = ["PFL_SAFETY", "pfl_matrices", "pfl_speed", "task_regions"]
+__all__ = ["PFL_SAFETY", "pfl_matrices", "pfl_points", "pfl_ratio_max", "pfl_speed",
+           "task_regions"]

@@ -23,6 +23,7 @@ from sixplus3.cache import BoundedCache
 from sixplus3.dynamics.codegen import compiled_functions, single_threaded_solver_blas
 from sixplus3.errors import InputError
 from sixplus3.planner.options import PlannerOptions
+from sixplus3.planner.pfl import pfl_points
 from sixplus3.planner.tcp_rows import pfl_function, tcp_function
 from sixplus3.planner.transcription import build_nlp
 
@@ -181,7 +182,8 @@ def _build(problem: Problem, compiled: dict[str, ca.Function],
     node = compiled.get("node", problem.sr.node)
     tcp = (tcp_function(problem.robot.tool.xyz) if problem.motion_limits.has_tcp
            else None)
-    pfl = pfl_function(problem.robot.tool.xyz) if problem.pfl else None
+    pfl = (tuple(pfl_function(p) for p in pfl_points(problem.robot)) if problem.pfl
+           else ())
     tr = build_nlp(node, 2 if compiled else 1,
                    tuple(int(n) for n in problem.segment_intervals()), opt.regularisation,
                    tcp, pfl)

@@ -15,10 +15,9 @@ import math
 import numpy as np
 
 from sixplus3.planner.nlp import Bounds, active_limits, tcp_stretch, uniform_safety
-from sixplus3.planner.pfl import pfl_matrices
+from sixplus3.planner.pfl import pfl_ratio_max
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import Solution, actuated_profile
-from sixplus3.planner.tcp_rows import pfl_ratios_at
 
 
 def tcp_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solution:
@@ -66,8 +65,7 @@ def pfl_stretch(problem: Problem, sol: Solution, target: float = 0.995,
         return 0.0
     times = np.linspace(0.0, sol.t[-1], (len(sol.t) - 1) * samples + 1)
     x, xd, _ = sol.sample(times)
-    C = pfl_matrices(problem.robot, x, problem.pfl)
-    worst = float(pfl_ratios_at(problem.robot.tool.xyz, x, xd, C).max())
+    worst = pfl_ratio_max(problem.robot, x, xd, problem.pfl)
     return math.sqrt(max(worst, 0.0) / (target * problem.options.pfl_share))
 
 

@@ -241,20 +241,22 @@ class Transcription:
 
 def build_nlp(node: ca.Function, threads: int, segments: tuple[int, ...],
               regularisation: float, tcp: ca.Function | None = None,
-              pfl: ca.Function | None = None) -> Transcription:
+              pfl: tuple[ca.Function, ...] = ()) -> Transcription:
     """The NLP of ``len(segments)`` segments of ``segments[s]`` intervals each, with
     ``node`` the path rows' function (compiled, mapped on ``threads``, or CasADi's SX
     function); with ``tcp`` (:func:`tcp_rows.tcp_function`), the platform-space rows
     last (:func:`tcp_rows.tcp_rows`: 2 (2 N + 1) rows, the speeds then the
     accelerations, at the nodes then the midpoints) and two more parameters
-    (1 / v_max^2, 1 / a_max^2); with ``pfl`` (:func:`tcp_rows.pfl_function`), the power
-    and force limiting rows after them (:func:`tcp_rows.pfl_rows`: 2 N + 1 rows, v^T C v
-    at the nodes then the midpoints) and each point's C (9 entries) as parameters."""
+    (1 / v_max^2, 1 / a_max^2); with ``pfl`` (:func:`tcp_rows.pfl_function`, one per
+    platform point), the power and force limiting rows after them
+    (:func:`tcp_rows.pfl_rows`: 2 N + 1 rows per platform point, v^T C v at the nodes then
+    the midpoints) and each NLP point's C (9 entries per platform point) as
+    parameters."""
     S, N = len(segments), sum(segments)
     seg = [s for s, n in enumerate(segments) for _ in range(n)]
     o_taum, o_acc, o_T, nw = layout(N, S)
     n_tcp = 2 if tcp is not None else 0
-    n_pfl = 9 * (2 * N + 1) if pfl is not None else 0
+    n_pfl = 9 * (2 * N + 1) * len(pfl)
     P = ca.MX.sym("p", nw + 4 + N + n_tcp + n_pfl)
     o_tcp = nw + 4 + N
     Ws, D = ca.MX.sym("w", nw), P[0:nw]
@@ -276,9 +278,10 @@ def build_nlp(node: ca.Function, threads: int, segments: tuple[int, ...],
     if tcp is not None:
         g = ca.vertcat(g, tcp_rows(tcp, (ca.horzcat(X, Xm), ca.horzcat(XD, XDm),
                                          ca.horzcat(U, Um)), P[o_tcp], P[o_tcp + 1]))
-    if pfl is not None:
-        C = ca.reshape(P[o_tcp + n_tcp:], 9, 2 * N + 1)
-        g = ca.vertcat(g, pfl_rows(pfl, (ca.horzcat(X, Xm), ca.horzcat(XD, XDm)), C))
+    for i, fn in enumerate(pfl):
+        o = o_tcp + n_tcp + 9 * (2 * N + 1) * i
+        C = ca.reshape(P[o:o + 9 * (2 * N + 1)], 9, 2 * N + 1)
+        g = ca.vertcat(g, pfl_rows(fn, (ca.horzcat(X, Xm), ca.horzcat(XD, XDm)), C))
     f = objective(T, U, TAU, TAUM, w_time, w_effort, regularisation)
     return Transcription({"x": Ws, "p": P, "f": f, "g": g}, N, S, nw, int(g.numel()))
 

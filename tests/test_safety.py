@@ -285,3 +285,42 @@ def test_pfl_rows_plan_as_fast_as_the_limit_allows(plans) -> None:
     isotropic = float(worst_speed(point_inverse_mass(ClosedLoopDynamics(ROBOT), cfg),
                                   REGIONS["hand"]).min())
     assert rep.max_tcp_speed > 1.03 * isotropic
+
+
+def test_under_a_tool_the_rows_and_the_gate_hold_the_centre_too(tmp_path) -> None:
+    """A tool 12 cm off the centre: a person can meet the platform's body as well as the
+    tool.  The NLP has rows at both points (planner/pfl.py: pfl_points) and the gate
+    judges both; here the gate's ratio is recomputed point by point, independently (the
+    platform twist from the IK Jacobian, A at each point), and both are within the
+    limit, the gate's the larger of the two."""
+    from sixplus3.control.file.file_format import columns
+    from sixplus3.control.pipeline import run_plan
+    from sixplus3.kinematics.robot import ik_jacobian, robot_ik
+    from sixplus3.kinematics.rotations import matrix_from_quat
+    from sixplus3.planner.pfl import pfl_points
+    from sixplus3.planner.task import task_from_dict
+
+    doc = {"name": "tool", "nodes_per_segment": 6, "pfl": ["hand"],
+           "setup": {"tool": {"xyz": [0.0, 0.0, 0.12], "rpy": [0, 0, 0]}},
+           "waypoints": [{"position": [-0.05, 0.0, 0.58]},
+                         {"position": [0.05, 0.0, 0.58], "rpy": [0, 15, 0]}]}
+    task = task_from_dict(doc)
+    res = run_plan(task, tmp_path, ROBOT, html=False, plots=False)
+    robot = task.robot_for(ROBOT)
+    assert len(pfl_points(robot)) == 2
+    from sixplus3.control.gate.validation import validate_file
+
+    rep = validate_file(res.csv, robot)
+    assert rep.ok and rep.max_pfl_ratio is not None and rep.max_pfl_ratio <= 1.0
+    cfg = robot_ik(rep.position, matrix_from_quat(rep.quaternion), rep.psi, robot,
+                   platform_margins=False)
+    twist = np.linalg.solve(ik_jacobian(cfg), columns(rep.data, "vel")[:, :, None])[:, :, 0]
+    dyn = ClosedLoopDynamics(robot)
+    each = []
+    for point in ((0.0, 0.0, 0.12), (0.0, 0.0, 0.0)):
+        r = np.einsum("nij,j->ni", cfg.rotation, np.asarray(point))
+        v = twist[:, 0:3] + np.cross(twist[:, 3:6], r)
+        ratio, _ = pfl_ratio(point_inverse_mass(dyn, cfg, point=point), v, [REGIONS["hand"]])
+        each.append(float(ratio.max()))
+    assert max(each) <= 1.0
+    assert rep.max_pfl_ratio == pytest.approx(max(each), rel=1e-9)

@@ -1,7 +1,7 @@
 """The gate's power and force limiting check (docs/safety.md): from the file's own
-samples, recomputed independently of the planner, the tool centre point's largest
-contact energy over every direction and every body region named, against what the
-region's spring holds at its ISO/TS 15066 limit.
+samples, recomputed independently of the planner, the largest contact energy over every
+direction and every body region named, at the tool centre point and (under a tool) the
+platform centre, against what the region's spring holds at its ISO/TS 15066 limit.
 
 The regions judged are the union of the file's header (``pfl``: the set it was planned
 for) and the site's hardware file (``pfl``: the set the site requires, which no file can
@@ -17,11 +17,10 @@ import numpy as np
 from sixplus3.control.gate.findings import finding
 from sixplus3.control.report import Finding, ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.dynamics.effective_mass import pfl_ratio, point_inverse_mass
+from sixplus3.dynamics.effective_mass import pfl_ratio, point_inverse_mass, point_map
 from sixplus3.errors import InputError
 from sixplus3.kinematics import rotations as rot
-from sixplus3.kinematics.robot import robot_ik
-from sixplus3.kinematics.tcp import tcp_velocity
+from sixplus3.kinematics.robot import RobotConfig, ik_jacobian, robot_ik
 from sixplus3.robot_description import hardware
 from sixplus3.robot_description.body_regions import BodyRegion, names_of, regions
 from sixplus3.robot_description.robot import Robot
@@ -44,6 +43,18 @@ def judged_regions(*named: object) -> tuple[BodyRegion, ...]:
     return regions(names)
 
 
+def platform_twist(cfg: RobotConfig, theta_dot: np.ndarray) -> np.ndarray:
+    """(n, 9) (v, omega, psi_dot) of the platform from the actuated rates through the
+    inverse of the IK Jacobian (inf where it is singular)."""
+    J = ik_jacobian(cfg)
+    out = np.full((len(theta_dot), 9), np.inf)
+    ok = np.all(np.isfinite(J), axis=(1, 2))
+    if ok.any():
+        out[ok] = np.linalg.solve(J[ok], np.asarray(theta_dot, dtype=float)[ok][:, :, None])[
+            :, :, 0]
+    return out
+
+
 def pfl_check(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np.ndarray,
               judged: tuple[BodyRegion, ...]) -> list[Finding]:
     """The findings of the PFL check on the samples of a report whose forward kinematics
@@ -52,6 +63,8 @@ def pfl_check(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np.
     if not judged or rep.position is None or rep.quaternion is None or rep.psi is None:
         return []
     dyn = ClosedLoopDynamics(robot)
+    tool = tuple(float(c) for c in robot.tool.xyz)
+    points = [tool] + ([] if tool == (0.0, 0.0, 0.0) else [(0.0, 0.0, 0.0)])
     n = len(rep.position)
     ratio = np.empty(n)
     worst = np.zeros(n, dtype=int)
@@ -59,9 +72,18 @@ def pfl_check(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np.
         sl = slice(i, min(n, i + CHUNK))
         R = rot.matrix_from_quat(rep.quaternion[sl])
         cfg = robot_ik(rep.position[sl], R, rep.psi[sl], robot, platform_margins=False)
-        A = point_inverse_mass(dyn, cfg)
-        v = tcp_velocity(cfg, theta_dot[sl])
-        ratio[sl], worst[sl] = pfl_ratio(A, v, judged)
+        twist = platform_twist(cfg, theta_dot[sl])
+        best = np.full(len(twist), -np.inf)
+        for point in points:  # the tool centre point, and the centre under a tool
+            A = point_inverse_mass(dyn, cfg, point=point)
+            r = np.einsum("nij,j->ni", cfg.rotation, np.asarray(point, dtype=float))
+            v = np.einsum("nij,nj->ni", point_map(r), twist)
+            rk, wk = pfl_ratio(A, v, judged)
+            rk = np.nan_to_num(rk, nan=np.inf)
+            better = rk > best
+            best = np.where(better, rk, best)
+            worst[sl] = np.where(better, wk, worst[sl])
+        ratio[sl] = best
     ratio = np.nan_to_num(ratio, nan=np.inf)
     rep.pfl = tuple(names_of(judged))
     rep.max_pfl_ratio = float(ratio.max())
