@@ -278,6 +278,7 @@ class ContactGuard:
         self._r = np.zeros(9)
         self._over = 0
         self._saturated = 0.0
+        self._sm = 0.0  # the measured path speed (the rate along the path's tangent)
         self._clipped = False  # the last command would have saturated the drive
         self._since = 0.0
         self._quiet = 0.0
@@ -371,6 +372,7 @@ class ContactGuard:
         tan = self.theta_d[k]
         t2 = float(tan @ tan)
         sm = float(self._vel @ tan) / t2 if t2 > 1e-12 else 0.0
+        self._sm = sm
         h = (self.c[k] * sm ** 2 + sm * (self.D[k] @ (self._vel - sm * tan)) + self.g[k]
              + self.robot.motors.friction(self._vel))
         mdot = (M - self._M_prev) @ self._vel / dt
@@ -446,7 +448,11 @@ class ContactGuard:
             self.s = s_new
             v1 = float(self._at(self.vnorm))
             sd_new = min(sigma / v1, STOP_SD_MAX) if v1 > 1e-9 and sigma > 0 else 0.0
-            sdd = (sd_new - self.sd) / dt
+            # never ahead of the robot: an impact (or the person) that slowed the
+            # platform below the stop's profile is not undone by a stiff drive dragging
+            # it back up to the reference (the feed-forward keeps the table's rate)
+            sd_new = min(sd_new, max(0.0, self._sm))
+            sdd = max((sd_new - self.sd) / dt, -beta * max(v0, 1e-9) / max(v1, 1e-9))
             self.sd = sd_new
             if self.sd <= 0.0:
                 self._since += dt
