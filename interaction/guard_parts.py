@@ -62,19 +62,12 @@ def parameter_std2(dyn: ClosedLoopDynamics, q: np.ndarray, theta_dot: np.ndarray
     accelerations) from an identification's base parameters' covariance
     (``parameter_cov``: (the base columns, the covariance), its parameters.npz):
     diag(Y_b Sigma Y_b^T), Y_b the base regressor (Pinocchio's, through the closures)."""
-    from sixplus3.identification.base import (
-        base_parameters,  # deferred: the base is found (or read from its cache) on demand
+    from sixplus3.interaction.wrench import (
+        checked_covariance,  # deferred: only with a covariance (the wrench estimator's rule)
     )
 
     assert dyn.robot is not None
-    index, cov = (np.asarray(x, dtype=float) for x in parameter_cov)
-    base = base_parameters(dyn.robot)
-    if index.shape != base.index.shape or np.any(index != base.index):
-        raise InputError("the parameters' covariance is of another base (another robot "
-                         "structure)", value=index.shape, valid=f"({base.rank},) base columns")
-    if cov.shape != (base.rank, base.rank) or not np.all(np.isfinite(cov)):
-        raise InputError("the parameters' covariance has the wrong shape", value=cov.shape,
-                         valid=f"({base.rank}, {base.rank}) finite")
+    base, cov = checked_covariance(dyn.robot, parameter_cov)
     out = np.empty((len(q), 9))
     for i in range(0, len(q), 2000):
         sl = slice(i, i + 2000)

@@ -316,12 +316,11 @@ def estimate(log: DriveLog, robot: Robot, gain: float = GAIN, at: str = "centre"
                           contact=contact, direct=out_direct, at=at, gain=gain, notes=notes)
 
 
-def parameter_variance(robot: Robot, theta: np.ndarray, theta_dot: np.ndarray,
-                       parameter_cov: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """(n, 9) the variance of each joint's model torque from the base parameters'
-    covariance: diag(Y_b Sigma Y_b^T) at each sample (its acceleration taken as zero: a
-    hold's or a slow motion's dominant terms, gravity and friction)."""
-
+def checked_covariance(robot: Robot, parameter_cov: tuple[np.ndarray, np.ndarray]
+                       ) -> tuple[Any, np.ndarray]:
+    """(the robot's base parameters, the covariance) of an identification's
+    (base columns, covariance), refused with an InputError when it is of another base
+    or shape."""
     index, cov = (np.asarray(x, dtype=float) for x in parameter_cov)
     base = base_parameters(robot)
     if index.shape != base.index.shape or np.any(index != base.index):
@@ -330,6 +329,16 @@ def parameter_variance(robot: Robot, theta: np.ndarray, theta_dot: np.ndarray,
     if cov.shape != (base.rank, base.rank) or not np.all(np.isfinite(cov)):
         raise InputError("the parameters' covariance has the wrong shape", value=cov.shape,
                          valid=f"({base.rank}, {base.rank}) finite")
+    return base, cov
+
+
+def parameter_variance(robot: Robot, theta: np.ndarray, theta_dot: np.ndarray,
+                       parameter_cov: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """(n, 9) the variance of each joint's model torque from the base parameters'
+    covariance: diag(Y_b Sigma Y_b^T) at each sample (its acceleration taken as zero: a
+    hold's or a slow motion's dominant terms, gravity and friction)."""
+
+    base, cov = checked_covariance(robot, parameter_cov)
     out = np.empty((len(theta), 9))
     step = 2000
     for i in range(0, len(theta), step):
@@ -341,6 +350,7 @@ def parameter_variance(robot: Robot, theta: np.ndarray, theta_dot: np.ndarray,
 
 
 __all__ = ["GAIN", "MODEL_SIGMA", "N_SIGMA", "StateModel", "V_BAND", "WrenchEstimate",
+           "checked_covariance", "parameter_variance",
            "estimate", "momentum_observer", "to_tcp", "torque_sigma", "wrench_map"]
 
 
