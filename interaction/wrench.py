@@ -170,6 +170,8 @@ class SingleState:
         self._ffq, self._ffv = m.joints[ff].idx_q, m.joints[ff].idx_v
         self._crank_v = [m.joints[m.getJointId(f"platform_crank{i}")].idx_v
                          for i in range(3)]
+        self._crank_q = [m.joints[m.getJointId(f"platform_crank{i}")].idx_q
+                         for i in range(3)]
         self._tool = np.asarray(self.robot.tool.xyz)
 
     def state(self, theta: np.ndarray, theta_dot: np.ndarray
@@ -205,6 +207,9 @@ class SingleState:
         B = np.vstack([R @ G[vf:vf + 3], R @ G[vf + 3:vf + 6], G[self._crank_v]])
         J = np.linalg.inv(B)
         self._G, self._theta = G, np.array(theta, dtype=float)
+        #: the platform's pose and the crank angles of the last sample
+        self.position, self.rotation = q[self._ffq:self._ffq + 3].copy(), R
+        self.psi = q[self._crank_q].copy()
         return J, M, h, R @ self._tool
 
 
@@ -418,6 +423,8 @@ class WrenchStream:
                              valid="finite")
         thd = self._velocity(theta)
         J, M, h, _ = self.model.state(theta, thd)
+        #: this sample's state, for a controller built on the stream (lead-through)
+        self.J, self.M, self.h, self.theta_dot = J, M, h, thd
         held = tau if self._prev_tau is None else 0.5 * (tau + self._prev_tau)
         p = M @ thd
         if self._p0 is None:

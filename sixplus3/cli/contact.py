@@ -1,5 +1,7 @@
 """``sixplus3 simulate FILE --plant P --guard --contact C.yaml --log L``: a person in the
-virtual prototype, the contact guard in the loop (docs/safety.md)."""
+virtual prototype, the contact guard in the loop (docs/safety.md); ``sixplus3 simulate
+--plant P --lead HAND.yaml --log L``: a hand guides the platform, lead-through in the
+loop (docs/leadthrough.md)."""
 
 from __future__ import annotations
 
@@ -75,3 +77,57 @@ def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
         for e in run.events:
             click.echo(f"  guard: {e}")
     sys.exit(0 if run.within_limits and not run.false_alarm else 1)
+
+
+def simulate_lead(csv_file: str | None, lead_file: str | None, robot: Any,
+                  plant_file: str | None, log_file: str | None, seed: int, noise: float,
+                  force: bool, kp: float, kd: float, as_json: bool) -> None:
+    from sixplus3.control.drive.drive_log import write_log
+    from sixplus3.interaction.hand import read_hand, run_lead
+    from sixplus3.robot_description.robot import load_robot
+
+    if lead_file is None:
+        fail("give a trajectory FILE to simulate, or --lead HAND.yaml (with --plant and "
+             "--log) for lead-through")
+        return
+    if csv_file is not None:
+        fail("--lead takes no trajectory FILE: the hand decides the motion")
+    if plant_file is None or log_file is None:
+        fail("--lead goes with --plant and --log (the run on the plant is what the log "
+             "records)")
+        return
+    check_output(log_file, (lead_file, plant_file))
+    if os.path.exists(log_file) and not force:
+        fail(f"{log_file} exists: add --force to replace it")
+    plant = load_robot(plant_file)
+    hand = read_hand(lead_file)
+    run = run_lead(robot, plant, hand, kp=kp, kd=kd, seed=seed, torque_noise=noise)
+    assert run.log is not None
+    write_log(log_file, run.log, robot, {"plant": plant.name, "plant_hash": plant.hash,
+                                         "seed": seed, "torque_noise_n_m": noise,
+                                         "source": os.path.basename(lead_file)})
+    out = run.summary()
+    if as_json:
+        from sixplus3.fileio import strict_json
+
+        click.echo(strict_json(out))
+    else:
+        def num(v: float | None, fmt: str) -> str:
+            return "(not reached)" if v is None else format(v, fmt) + " N"
+
+        click.echo(f"lead-through on plant {plant.name}: {out['ticks']} ticks logged to "
+                   f"{log_file} (guided {100 * out['lead_share']:.0f} % of the time)")
+        click.echo(f"  breakaway force {num(out['breakaway_n'], '.2f')}; force at 0.1 m/s "
+                   f"{num(out['force_at_0.1_m_s_n'], '.2f')}; largest force "
+                   f"{out['max_force_n']:.1f} N, torque {out['max_torque_n_m']:.2f} N m")
+        click.echo(f"  moved {1e3 * out['drift_m']:.1f} mm and {out['max_angle_deg']:.1f} deg "
+                   f"at most, top speed {out['max_speed_m_s']:.3f} m/s; rms distance to the "
+                   f"hand {1e3 * out['rms_lag_m']:.1f} mm")
+        click.echo(f"  smallest singularity margin {out['min_margin']:.3f}; walls met in "
+                   f"{out['walls_met']} updates; least energy the hand put in "
+                   f"{out['port_energy_min_j']:.3f} J")
+        click.echo(f"  peak |tau| asked of the drives {out['peak_command_n_m']:.2f} N m "
+                   f"(applied {out['peak_applied_n_m']:.2f}, limit {robot.limits.torque:g})")
+        for e in out["events"][:10]:
+            click.echo(f"  lead-through: {e}")
+    sys.exit(0 if out["peak_command_n_m"] <= robot.limits.torque else 1)

@@ -164,3 +164,57 @@ def wrench_resolution(out_file: str, step: float, as_json: bool) -> None:
 
 
 __all__ = ["wrench", "wrench_resolution"]
+
+
+@main.command()
+@click.argument("log", type=click.Path())
+@click.option("-o", "--out", "out_file", required=True, type=click.Path(dir_okay=False),
+              help="The task file (YAML) to write.")
+@click.option("--pfl", "pfl", default=None, metavar="REGION[,REGION...]",
+              help="The body regions the replay must be safe for (the task's pfl: power "
+                   "and force limiting rows in the plan; docs/safety.md).")
+@click.option("--people", default=None, type=click.Choice(["collaborative"]),
+              help="Named platform limits for people in the task.")
+@click.option("--stop", is_flag=True, help="Stop at each paused waypoint (default: pass "
+                                           "through it).")
+@click.option("--pause", default=0.3, show_default=True, type=FLOAT,
+              help="A pause: the platform still at least this long [s].")
+@click.option("--speed", default=0.005, show_default=True, type=FLOAT,
+              help="Still: the tool point slower than this [m/s].")
+@click.option("--force", is_flag=True, help="Replace an existing task file.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def teach(log: str, out_file: str, pfl: str | None, people: str | None, stop: bool,
+          pause: float, speed: float, force: bool, as_json: bool) -> None:
+    """Teach a task from a guided motion's drive LOG: the poses where the person paused
+    become waypoints (cranks free), to be planned time-optimally under the site's limits
+    for people: 'sixplus3 plan TASK' (docs/leadthrough.md)."""
+    import os
+
+    import yaml
+
+    from sixplus3.control.drive.drive_log import read_log
+    from sixplus3.interaction.teach import teach as teach_log
+    from sixplus3.robot_description.body_regions import regions
+
+    check_output(out_file, (log,), force)
+    if os.path.exists(out_file) and not force:
+        from sixplus3.cli.app import fail
+
+        fail(f"{out_file} exists: add --force to replace it")
+    robot = current_robot()
+    names = tuple(r.name for r in regions(pfl)) if pfl is not None else ()
+    taught = teach_log(read_log(log, robot), robot, speed=speed, pause=pause)
+    name = os.path.splitext(os.path.basename(out_file))[0] or "taught"
+    doc = taught.task(name=name, stop=stop, pfl=names, people=people,
+                      source=os.path.basename(log))
+    text = yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)
+    from sixplus3.fileio import atomic_write
+
+    atomic_write(out_file, text.encode())
+    out = {"task": out_file, "waypoints": len(taught.times),
+           "pauses": int(taught.paused.sum()), "times_s": taught.times.tolist()}
+    if as_json:
+        click.echo(json.dumps(out))
+    else:
+        click.echo(f"{log}: {out['waypoints']} waypoints ({out['pauses']} pauses) written "
+                   f"to {out_file}; plan it with 'sixplus3 plan {out_file}'")

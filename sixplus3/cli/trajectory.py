@@ -142,9 +142,12 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
 
 
 @main.command()
-@click.argument("csv_file", type=click.Path(dir_okay=False))
+@click.argument("csv_file", type=click.Path(dir_okay=False), required=False)
 @click.option("--task", "task_file", default=None, type=click.Path(dir_okay=False),
               help="Apply this task file's setup (payload, tool, mounting) to the robot.")
+@click.option("--lead", "lead_file", default=None, type=click.Path(dir_okay=False),
+              help="With --plant and --log, no FILE: a simulated hand (YAML) guides the "
+                   "platform, lead-through in the loop (docs/leadthrough.md).")
 @click.option("--ff-scale", default=1.0, show_default=True, type=FLOAT,
               help="Scale the feed-forward torques by this factor, in [0, 2].")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
@@ -183,7 +186,8 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
                    "enters the guard's thresholds.")
 @click.option("--force", is_flag=True, help="Replace an existing --log file.")
 @_gains
-def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: bool,
+def simulate(csv_file: str | None, task_file: str | None, lead_file: str | None,
+             ff_scale: float, as_json: bool,
              torque_hold: str, plant_file: str | None, log_file: str | None, seed: int,
              noise: float, hold: float, wrench_file: str | None, guard: bool,
              contact_file: str | None, reaction: str, parameters_file: str | None,
@@ -193,11 +197,18 @@ def simulate(csv_file: str, task_file: str | None, ff_scale: float, as_json: boo
     The file is validated first (a defective file is not simulated: exit 2).  Reports
     the tracking error, the PD share of the torque and the peak total torque; exit 1 if
     that peak is over the hardware limit.  With --plant, the file runs on that robot (a
-    virtual prototype) and --log writes what its drives measured.
+    virtual prototype) and --log writes what its drives measured; --lead HAND.yaml
+    (no FILE) runs lead-through there instead, a simulated hand guiding the platform.
     """
     from sixplus3.control.drive.simulation import simulate_file
 
     robot = _task_robot(task_file)
+    if lead_file is not None or csv_file is None:
+        from sixplus3.cli.contact import simulate_lead
+
+        simulate_lead(csv_file, lead_file, robot, plant_file, log_file, seed, noise, force,
+                      kp, kd, as_json)
+        return
     if guard or contact_file is not None:
         from sixplus3.cli.contact import simulate_contact
 

@@ -1,0 +1,383 @@
+"""Lead-through: a person guides the platform by hand, sensorlessly (docs/leadthrough.md).
+
+Stepped each tick like :class:`~sixplus3.interaction.guard.ContactGuard`:
+``step(theta, tau) -> GuardCommand``, what the drive applies as
+tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref - theta_dot).
+
+Each tick:
+
+1. **The wrench** a person applies, from the drives alone: the momentum observer of
+   :class:`~sixplus3.interaction.wrench.WrenchStream` (its standard deviation ``std``
+   and, for joints slower than ``V_BAND``, the dry friction ``band``), moved to the tool
+   centre point (the point a person holds).
+2. **A deadband with hysteresis.** At rest (mode ``hold``) a component counts only
+   beyond ``n_sigma std + band`` (at rest every joint's friction is a band: 1.2-1.6 N at
+   the platform on the prototype), and only once it stays there ``start_time``: noise
+   and friction never start a motion, so nothing creeps.  Once moving (mode ``lead``)
+   the band is only that of the joints still slow: the platform answers a fraction of a
+   newton.  The input is the wrench beyond the threshold (a soft deadband: no jump).
+   With no input and the platform all but still for ``rest_time``, back to ``hold``.
+3. **Admittance** per axis of the tool point: M_v dv/dt + D_v v = w_in (``mass``,
+   ``damping``: translation and rotation, or six values), integrated semi-implicitly,
+   its acceleration and speed capped (``acceleration``, ``speed``).
+4. **Passivity**: an energy tank (Ferraguti et al. 2015; Hannaford and Ryu 2002's
+   passivity observer): T = ``energy`` + the energy the person put into the robot
+   (the estimated wrench times the measured twist) - the virtual mass's kinetic energy,
+   capped at 4 ``energy``.  At T <= 0 the admittance takes only the input that slows it
+   down: the robot never gives the person more energy than it received.
+5. **Walls and cranks** (every ``slow_every`` ticks; :mod:`sixplus3.interaction.walls`):
+   the pose ahead (the braking distance plus two updates) against the walls of
+   singularity, spherical cones, actuated range and clearance; where it meets one, the
+   slack's gradient in the twist is a wall normal and the twist's component into it is
+   removed each tick, as is the admittance's (the platform slides along the wall).  The
+   crank rates climb the crank score's gradient (``crank_gain`` [rad/s per unit
+   gradient], 0: cranks locked), within ``crank_rate``, while the platform is guided.
+6. **The reference**: theta_dot_ref = J (v_centre, omega, psi_dot), scaled within half
+   the joint rate limit; theta_ref integrated and re-anchored on the closed-form inverse
+   kinematics of the reference pose at each slow update; tau_ff the model's torque at the
+   reference's acceleration (friction at the reference rate, so the encoder's noise does
+   not chatter the feed-forward), and with ``drive_gains`` the whole command within 97 %
+   of the envelope (:func:`~sixplus3.interaction.guard_parts.within_envelope`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from sixplus3.errors import InputError, check_number
+from sixplus3.interaction import walls
+from sixplus3.interaction.guard_parts import (
+    COMMAND_SHARE,
+    GuardCommand,
+    parse_gains,
+    within_envelope,
+)
+from sixplus3.interaction.wrench import GAIN, MODEL_SIGMA, N_SIGMA, WrenchStream
+from sixplus3.kinematics import rotations as rot
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.robot_description.robot import Robot, require_robot
+
+#: Platform speeds below which the guided platform is at rest [m/s], [rad/s].
+REST_SPEED = (0.002, 0.02)
+#: Crank-score gradients below this are a plateau: the cranks stay.
+CRANK_DEADBAND = 0.05
+#: The cranks' acceleration cap [rad/s^2].
+CRANK_ACCELERATION = 5.0
+#: The guided joint rates stay within this share of the rate limit.
+RATE_SHARE = 0.5
+#: [1/s] the barrier's rate: a wall's slack may fall at most this fast per unit slack.
+WALL_RATE = 5.0
+#: Finite-difference steps: cranks [rad], the twist (metric units, m).
+CRANK_STEP, TWIST_STEP = 0.02, 0.001
+
+
+def _six(name: str, value: object, lo: float, hi: float) -> np.ndarray:
+    """Six values (translation x3, rotation x3) from a (translation, rotation) pair or
+    six numbers, each within [lo, hi]."""
+    vals = list(value) if isinstance(value, (list, tuple, np.ndarray)) else [value]
+    if len(vals) == 2:
+        vals = [vals[0]] * 3 + [vals[1]] * 3
+    if len(vals) != 6:
+        raise InputError(f"{name} must be (translation, rotation) or 6 numbers",
+                         value=repr(value)[:80], valid="2 or 6 numbers")
+    return np.array([check_number(name, v, lo, hi) for v in vals])
+
+
+class LeadThrough:
+    """The platform follows a person's hand (module doc).  ``mass`` [kg, kg m^2] and
+    ``damping`` [N s/m, N m s/rad]: per axis of the tool point, (translation, rotation)
+    or six; ``speed`` [m/s, rad/s] and ``acceleration`` [m/s^2, rad/s^2]: caps of the
+    tool point's twist; ``drive_gains``: the drive's (Kp, Kd) (None: the feed-forward
+    alone is kept within the envelope)."""
+
+    def __init__(self, robot: Robot, rate_hz: float = 1000.0,
+                 mass: Sequence[float] = (4.0, 0.08),
+                 damping: Sequence[float] = (20.0, 0.4),
+                 speed: Sequence[float] = (0.25, 1.0),
+                 acceleration: Sequence[float] = (2.0, 10.0),
+                 crank_gain: float = 2.0, crank_rate: float = 0.5,
+                 drive_gains: tuple[object, object] | None = None,
+                 n_sigma: float = N_SIGMA, start_time: float = 0.005,
+                 rest_time: float = 0.1, slow_every: int = 10, energy: float = 0.5,
+                 gain: float = GAIN, model_sigma: float = MODEL_SIGMA,
+                 monitor_noise: float = 0.005) -> None:
+        self.robot = require_robot(robot)
+        self.rate = check_number("rate_hz", rate_hz, 200.0, 20000.0)
+        self.dt = 1.0 / self.rate
+        self.mass = _six("mass", mass, 1e-3, 1e3)
+        self.damping = _six("damping", damping, 0.0, 1e4)
+        sp = [check_number("speed", v, 1e-3, 10.0) for v in speed]
+        ac = [check_number("acceleration", v, 1e-2, 1e3) for v in acceleration]
+        if len(sp) != 2 or len(ac) != 2:
+            raise InputError("speed and acceleration are (translation, rotation) pairs",
+                             value=(len(sp), len(ac)), valid="2 numbers each")
+        self.speed, self.accel = tuple(sp), tuple(ac)
+        self.crank_gain = check_number("crank_gain", crank_gain, 0.0, 100.0)
+        self.crank_rate = check_number("crank_rate", crank_rate, 0.0, 10.0)
+        self.n_sigma = check_number("n_sigma", n_sigma, 0.0, 100.0)
+        self.start_ticks = max(1, round(check_number("start_time", start_time, 0.0, 1.0)
+                                        * self.rate))
+        self.rest_ticks = max(1, round(check_number("rest_time", rest_time, 0.0, 10.0)
+                                       * self.rate))
+        self.slow_every = int(check_number("slow_every", slow_every, 1, 1000, integer=True))
+        self.energy0 = check_number("energy", energy, 0.0, 100.0)
+        self.gains = None if drive_gains is None else parse_gains(drive_gains)
+        self.stream = WrenchStream(self.robot, self.rate, gain=gain,
+                                   monitor_noise=monitor_noise, model_sigma=model_sigma,
+                                   n_sigma=n_sigma)
+        self.cap = self.robot.limits.torque
+        self.rate_cap = RATE_SHARE * self.robot.limits.velocity
+        self.tool = np.asarray(self.robot.tool.xyz, dtype=float)
+        self._friction = self.robot.motors.friction
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        """Forget the reference: the next tick starts a hold where the robot is."""
+        self.mode = "hold"
+        self.events: list[str] = []
+        self._started = False
+        self._tick = 0
+        self._above = 0  # ticks the input has stayed beyond the rest threshold
+        self._still = 0  # ticks with no input and the platform still
+        self.v = np.zeros(6)  # the tool point's twist (v, omega) [m/s, rad/s]
+        self.psi_dot = np.zeros(3)
+        self._psi_dot_target = np.zeros(3)
+        self._walls: list[tuple[np.ndarray, float]] = []
+        self._theta_dot_ref = np.zeros(9)
+        self.port_energy = 0.0  # [J] what the person put into the robot (estimated)
+        self.tank = self.energy0
+        self.min_tank = self.energy0
+        self.min_margin = math.inf  # the reference's smallest singularity margin
+        self.min_slack = math.inf
+        self.walls_met = 0  # slow updates that found a wall ahead
+        self._last_ff = np.zeros(9)
+        self._prev_theta: np.ndarray | None = None
+
+    def _start(self, theta: np.ndarray) -> None:
+        st = self.stream.model
+        self.p_ref = np.array(st.position, dtype=float)
+        self.R_ref = np.array(st.rotation, dtype=float)
+        self.psi_ref = np.array(st.psi, dtype=float)
+        self.theta_ref = theta.copy()
+        self._started = True
+
+    # ------------------------------------------------------------------ the tick
+    def step(self, theta: object, tau: object) -> GuardCommand:
+        """One tick (module doc); never raises: anything wrong holds where the robot
+        is, said in :attr:`events`."""
+        th = np.asarray(theta, dtype=float).reshape(-1)
+        try:
+            return self._step(th, np.asarray(tau, dtype=float).reshape(-1))
+        except Exception as exc:  # a per-tick loop must answer: hold, and say why
+            if len(self.events) < 100:
+                self.events.append(f"tick {self._tick}: holding the reference ({exc})")
+            self.mode, self._above = "hold", 0
+            self.v[:] = 0.0
+            self.psi_dot[:] = 0.0
+            self._psi_dot_target[:] = 0.0
+            self._theta_dot_ref = np.zeros(9)
+            self._tick += 1
+            if self._started:  # the drive keeps holding the last reference
+                ref = self.theta_ref.copy()
+            else:
+                ok = th.shape == (9,) and bool(np.all(np.isfinite(th)))
+                ref = th if ok else np.zeros(9)
+            return GuardCommand(ref, np.zeros(9), self._last_ff.copy(), "hold", False,
+                                np.zeros(6))
+
+    def _step(self, theta: np.ndarray, tau: np.ndarray) -> GuardCommand:
+        s = self.stream
+        w, std, band, _ = s.update(theta, tau)
+        J, M, h, thd = s.J, s.M, s.h, s.theta_dot
+        if not self._started:
+            self._start(theta)
+        off = self.R_ref @ self.tool
+        # the wrench at the tool point (m_tcp = m_c - off x f) and its thresholds
+        w_t = w.copy()
+        w_t[3:] = w[3:] - np.cross(off, w[:3])
+        thr = self.n_sigma * std + band
+        thr[3:] += np.linalg.norm(off) * float(np.max(thr[:3]))
+        excess = np.abs(w_t) - thr
+        w_in = np.sign(w_t) * np.maximum(excess, 0.0)
+        # measured twist of the tool point, and the energy the person put in
+        xi = np.linalg.solve(J, thd)
+        v_meas = np.r_[xi[:3] + np.cross(xi[3:6], off), xi[3:6]]
+        self.port_energy += float(w_t @ v_meas) * self.dt
+        if self.mode == "hold":
+            self._above = self._above + 1 if bool(np.any(excess > 0)) else 0
+            if self._above >= self.start_ticks:
+                self.mode = "lead"
+                self._still = 0
+                self._slow_update()
+            else:
+                w_in[:] = 0.0
+        self._admittance(w_in)
+        if self.mode == "lead":
+            self._tick_lead(w_in)
+        self._tick += 1
+        return self._command(J, M, h, thd, theta, w)
+
+    def _admittance(self, w_in: np.ndarray) -> None:
+        m, d, dt = self.mass, self.damping, self.dt
+        kinetic = 0.5 * float(m @ self.v ** 2)
+        self.tank = self.energy0 + self.port_energy - kinetic
+        if self.tank > 4.0 * self.energy0:  # capped: the surplus is not kept
+            self.port_energy -= self.tank - 4.0 * self.energy0
+            self.tank = 4.0 * self.energy0
+        self.min_tank = min(self.min_tank, self.tank)
+        if self.tank <= 0.0:  # passivity: only the input that slows the platform
+            w_in = np.where(w_in * self.v > 0.0, 0.0, w_in)
+        v_new = (self.v + dt / m * w_in) / (1.0 + dt * d / m)
+        for sl, a_max, v_max in ((slice(0, 3), self.accel[0], self.speed[0]),
+                                 (slice(3, 6), self.accel[1], self.speed[1])):
+            dv = v_new[sl] - self.v[sl]
+            n = float(np.linalg.norm(dv))
+            if n > a_max * dt:
+                v_new[sl] = self.v[sl] + dv * (a_max * dt / n)
+            sp = float(np.linalg.norm(v_new[sl]))
+            if sp > v_max:
+                v_new[sl] *= v_max / sp
+        self.v = v_new
+        self._keep_out()
+
+    def _keep_out(self) -> None:
+        """The twist and the crank rates (metric: rotations and cranks weighed by
+        ``walls.ANGLE_SCALE``) kept out of the walls near: each wall's slack s may fall
+        at most at WALL_RATE s (a barrier: g . (v, psi_dot) >= -WALL_RATE s; beyond a
+        wall, s < 0, it must rise), by the least change (cyclic projections)."""
+        if not self._walls:
+            return
+        L = walls.ANGLE_SCALE
+        x = np.r_[self.v[:3], self.v[3:] * L, self.psi_dot * L]
+        for _ in range(5):
+            for g_all, b in self._walls:
+                g = g_all if self.crank_gain > 0 else np.r_[g_all[:6], 0.0, 0.0, 0.0]
+                if float(g @ g) == 0.0:
+                    continue
+                into = float(g @ x)
+                if into < b:
+                    x = x + (b - into) / float(g @ g) * g
+        self.v = np.r_[x[:3], x[3:6] / L]
+        self.psi_dot = x[6:] / L
+
+    def _tick_lead(self, w_in: np.ndarray) -> None:
+        # cranks toward their target rate within their acceleration
+        dpsi = self._psi_dot_target - self.psi_dot
+        step = CRANK_ACCELERATION * self.dt
+        self.psi_dot = self.psi_dot + np.clip(dpsi, -step, step)
+        if self._tick % self.slow_every == 0:
+            self._slow_update()
+        else:
+            self._keep_out()
+        still = (np.linalg.norm(self.v[:3]) < REST_SPEED[0]
+                 and np.linalg.norm(self.v[3:]) < REST_SPEED[1])
+        self._still = self._still + 1 if (still and not np.any(w_in)) else 0
+        if self._still >= self.rest_ticks and not np.any(self.psi_dot):
+            self.mode, self._above = "hold", 0
+            self.v[:] = 0.0
+            self._psi_dot_target[:] = 0.0
+            self._walls = []
+
+    def _slow_update(self) -> None:
+        """The walls near and the cranks' climb (module doc, 5); the reference
+        re-anchored on the inverse kinematics of its pose."""
+        L = walls.ANGLE_SCALE
+        psi = np.repeat(self.psi_ref[None], 7, axis=0)
+        psi[1:4] += CRANK_STEP * np.eye(3)
+        psi[4:7] -= CRANK_STEP * np.eye(3)
+        tw = np.zeros((7, 6))
+        pos, rotm = walls.moved(self.p_ref, self.R_ref, tw)
+        rows = np.zeros(7, dtype=bool)
+        rows[0] = True
+        sl = walls.slacks(self.robot, pos, rotm, psi, walls=rows)
+        now = sl[0]
+        if now[0] > -1.0:
+            self.min_margin = min(self.min_margin, float(now[0]) + self.robot.limits.margin
+                                  + walls.MARGIN_GUARD)
+        self.min_slack = min(self.min_slack, float(now.min()))
+        score = walls.crank_score(sl)
+        grad = (score[1:4] - score[4:7]) / (2.0 * CRANK_STEP)
+        target = np.zeros(3)
+        if (self.crank_gain > 0 and self.mode == "lead"
+                and float(np.linalg.norm(grad)) > CRANK_DEADBAND):
+            target = self.crank_gain * grad
+            n = float(np.linalg.norm(target))
+            if n > self.crank_rate:
+                target *= self.crank_rate / n
+        self._psi_dot_target = target
+        self._walls = []
+        active = [c for c in range(4) if now[c] < walls.WALL_BAND]
+        if active:
+            self.walls_met += 1
+            if now.min() <= -1.0:  # the reference itself unsolvable: stand still
+                self.v[:] = 0.0
+                self.psi_dot[:] = 0.0
+                self._psi_dot_target[:] = 0.0
+                return
+            d = TWIST_STEP * np.eye(6)
+            d[:, 3:] /= L
+            p2, r2 = walls.moved(self.p_ref, self.R_ref, d)
+            clear = 3 in active
+            sl2 = walls.slacks(self.robot, p2, r2, np.repeat(self.psi_ref[None], 6, axis=0),
+                               walls=np.full(6, clear))
+            if clear:  # the cranks' gradient of the clearance too
+                sl[1:7, 3] = walls.slacks(self.robot, pos[1:], rotm[1:], psi[1:])[:, 3]
+            for c in active:
+                g = np.r_[(sl2[:, c] - now[c]) / TWIST_STEP,
+                          (sl[1:4, c] - sl[4:7, c]) / (2.0 * CRANK_STEP * L)]
+                if np.all(np.isfinite(g)) and float(g @ g) > 0.0:
+                    # beyond a wall (s < 0) the platform goes no deeper, but is not
+                    # pushed back against the person (that would be active, not passive)
+                    self._walls.append((g, -WALL_RATE * max(float(now[c]), 0.0)))
+        self._keep_out()
+
+    # ------------------------------------------------------------------ command
+    def _command(self, J: np.ndarray, M: np.ndarray, h: np.ndarray, thd: np.ndarray,
+                 theta: np.ndarray, w: np.ndarray) -> GuardCommand:
+        dt = self.dt
+        off = self.R_ref @ self.tool
+        vc = self.v[:3] - np.cross(self.v[3:], off)
+        xi = np.r_[vc, self.v[3:], self.psi_dot if self.mode == "lead" else np.zeros(3)]
+        rates = J @ xi
+        top = float(np.abs(rates).max())
+        if top > self.rate_cap:  # within the joints' rate share: the whole twist scaled
+            k = self.rate_cap / top
+            rates, xi = rates * k, xi * k
+            self.v *= k
+            self.psi_dot *= k
+        acc = (rates - self._theta_dot_ref) / dt
+        self._theta_dot_ref = rates
+        # integrate the reference (the pose, the cranks and the angles)
+        self.p_ref = self.p_ref + xi[:3] * dt
+        self.R_ref = rot.matrix_from_rotvec(xi[3:6] * dt)[0] @ self.R_ref
+        self.psi_ref = self.psi_ref + xi[6:] * dt
+        self.theta_ref = self.theta_ref + rates * dt
+        if self._tick % self.slow_every == 0 and self.mode == "lead":
+            self._anchor()
+        ff = h - self._friction(thd) + self._friction(rates) + M @ acc
+        ff = np.clip(ff, -COMMAND_SHARE * self.cap, COMMAND_SHARE * self.cap)
+        self._last_ff = ff
+        contact = bool(self.mode == "lead" or self._above > 0)
+        cmd = GuardCommand(self.theta_ref.copy(), rates, ff, self.mode, contact, w)
+        if self.gains is not None:  # the drive's rate feedback: the encoder's difference
+            prev = self._prev_theta
+            vel = np.zeros(9) if prev is None else (theta - prev) * self.rate
+            self._prev_theta = theta.copy()
+            cmd, _ = within_envelope(cmd, self.gains[0], self.gains[1], theta, vel,
+                                     COMMAND_SHARE * self.cap)
+        return cmd
+
+    def _anchor(self) -> None:
+        """theta_ref from the closed-form inverse kinematics of the reference pose (the
+        integration's drift removed), when it solves."""
+        cfg = robot_ik(self.p_ref, self.R_ref, self.psi_ref, self.robot,
+                       platform_margins=False)
+        if cfg.ok[0]:
+            self.theta_ref = np.array(cfg.theta[0])
+
+
+__all__ = ["CRANK_DEADBAND", "LeadThrough", "RATE_SHARE", "REST_SPEED"]
