@@ -55,8 +55,9 @@ class Taught:
         doc: dict[str, Any] = {
             "name": name,
             "description": (f"taught from {source or 'a guided motion'}: "
-                            f"{int(self.paused.sum())} pauses at t = "
-                            + ", ".join(f"{t:.2f}" for t in self.times[self.paused]) + " s"),
+                            + (f"{int(self.paused.sum())} pause(s) at t = "
+                               + ", ".join(f"{t:.2f}" for t in self.times[self.paused])
+                               + " s" if self.paused.any() else "no pause")),
             "frame": "platform", "waypoints": wps}
         if pfl:
             doc["pfl"] = list(pfl)

@@ -85,6 +85,11 @@ def steps(out: Path, short: bool) -> list[tuple[str, list[str], tuple[int, ...]]
                              f"{o}/zeroed.yaml"], (0,)),
         ("commission directions", ["--robot", f"{o}/zeroed.yaml", "commission", "directions",
                                    f"{o}/jog.csv", "-o", f"{o}/robot.yaml"], (0, 1)),
+        ("simulate (lead)", ["simulate", "--plant", f"{o}/plant.yaml", "--lead",
+                             f"{o}/hand.yaml", "--log", f"{o}/lead.csv"], (0,)),
+        ("teach", ["teach", f"{o}/lead.csv", "-o", f"{o}/taught.yaml", "--pfl", "hand"], (0,)),
+        ("plan (taught)", ["plan", f"{o}/taught.yaml", "-o", f"{o}/taught", "--no-html"],
+         (0,)),
     ]
 
 
@@ -101,6 +106,12 @@ def main(argv: list[str] | None = None) -> int:
     # the push of docs/interaction.md: 10 N along x from 1.2 s to 2.0 s
     (out / "push_profile.csv").write_text("t,fx,fy,fz,mx,my,mz\n0,0,0,0,0,0,0\n"
                                           "1.2,10,0,0,0,0,0\n2.0,0,0,0,0,0,0\n")
+    # the hand of docs/leadthrough.md
+    (out / "hand.yaml").write_text(
+        "stiffness: 400\ndamping: 10\ndelay: 0.15\nmax_force: 30\nstiffness_rot: 2\n"
+        "damping_rot: 0.1\nduration: 5.0\npath:\n  - {t: 0.0, offset: [0, 0, 0]}\n"
+        "  - {t: 1.5, offset: [0.06, 0, 0]}\n  - {t: 2.5, offset: [0.06, 0, 0]}\n"
+        "  - {t: 4.0, offset: [0.06, 0.04, 0], rotation: [0, 0, 0.3]}\n")
     exe = shutil.which("sixplus3", path=str(Path(sys.executable).parent)) or "sixplus3"
     rows, ok = [], True
     for label, cmd, want in steps(out, args.short):

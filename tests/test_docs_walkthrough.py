@@ -25,7 +25,8 @@ def test_every_documented_command_runs(tmp_path) -> None:
     assert not bad and out.returncode == 0, bad
     assert [r["command"] for r in rows][:4] == ["robot check", "plan gentle_translate",
                                                 "validate", "identify excite"]
-    assert len(rows) == 16
+    assert len(rows) == 19
     # what the lab gets: the identified robot file, the wrench, the zeroed robot
-    for name in ("identified.yaml", "wrench.csv", "zeroed.yaml", "ident/report/summary.json"):
+    for name in ("identified.yaml", "wrench.csv", "zeroed.yaml", "ident/report/summary.json",
+                 "taught.yaml", "taught/taught.csv"):
         assert (tmp_path / "walk" / name).exists(), name

@@ -216,5 +216,5 @@ def teach(log: str, out_file: str, pfl: str | None, people: str | None, stop: bo
     if as_json:
         click.echo(json.dumps(out))
     else:
-        click.echo(f"{log}: {out['waypoints']} waypoints ({out['pauses']} pauses) written "
+        click.echo(f"{log}: {out['waypoints']} waypoints ({out['pauses']} pause(s)) written "
                    f"to {out_file}; plan it with 'sixplus3 plan {out_file}'")
