@@ -272,6 +272,37 @@ def profile_function(robot: Robot) -> ca.Function:
     return cached(("symbolic-profile", structure(robot).hash), make)
 
 
+def observer_function(robot: Robot) -> ca.Function:
+    """(x, xd, p) -> (theta (9), J_x (9, 9), Q_0 (9), Q_a (9, 9), c (9)): at minimal
+    coordinates x and rates xd, the actuated angles, d theta / d x, the generalized
+    forces at zero acceleration, their slope in xdd (Q is linear in xdd: Q = Q_0 + Q_a
+    xdd) and the actuated acceleration at xdd = 0 (theta_ddot = J_x xdd + c).  The
+    per-tick state of the wrench observer in compiled form
+    (:mod:`sixplus3.interaction.compiled_state`): M = J_x^-T Q_a J_x^-1 + I_a and
+    h = J_x^-T (Q_0 - Q_a J_x^-1 c) + friction follow by two 9 x 9 solves."""
+    def make() -> ca.Function:
+        x, xd, xdd, setup, Q, theta, Jth, th_ddot = _core(robot).sym
+        zero = ca.SX.zeros(NX, 1)
+        Qa = ca.substitute(ca.jacobian(Q, xdd), xdd, zero)
+        return ca.Function("observer_p", [x, xd, setup],
+                           [theta, ca.densify(Jth), ca.densify(ca.substitute(Q, xdd, zero)),
+                            ca.densify(Qa), ca.densify(ca.substitute(th_ddot, xdd, zero))],
+                           {"cse": True})
+
+    return cached(("symbolic-observer", structure(robot).hash), make)
+
+
+def kinematics_function(robot: Robot) -> ca.Function:
+    """x -> (theta (9), J_x (9, 9)): the actuated angles of minimal coordinates x and
+    d theta / d x (a Newton step of forward kinematics: x += J_x^-1 (theta_meas -
+    theta(x)))."""
+    def make() -> ca.Function:
+        x, _, _, _, _, theta, Jth, _ = _core(robot).sym
+        return ca.Function("kin_x", [x], [theta, ca.densify(Jth)], {"cse": True})
+
+    return cached(("symbolic-kin", structure(robot).hash), make)
+
+
 def _specialise(robot: Robot) -> SymbolicRobot:
     core = _core(robot)
     p = setup_parameters(robot)
@@ -298,6 +329,9 @@ class _Core:
     margins: ca.Function
     spherical_cos: ca.Function
     node_p: ca.Function  # (x, xd, u, tau, p)
+    # the generalized forces Q(x, xd, xdd; p) and the symbols they are built on, kept for
+    # functions built on demand (observer_function)
+    sym: tuple[Any, ...] = ()
 
 
 def motor_torques(setup: Any, th_dot: Any, th_ddot: Any) -> Any:
@@ -421,6 +455,7 @@ def _build(robot: Robot) -> _Core:
         margins=ca.Function("margins", [x], margins_out, opts),
         spherical_cos=ca.Function("spherical_cos", [x], [ca.vertcat(*sph)], opts),
         node_p=node_p,
+        sym=(x, xd, xdd, setup, Q, theta, Jth, th_ddot),
     )
 
 

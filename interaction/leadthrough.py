@@ -46,6 +46,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from scipy.linalg import lapack
 
 from sixplus3.errors import InputError, check_number
 from sixplus3.interaction import walls
@@ -56,8 +57,6 @@ from sixplus3.interaction.guard_parts import (
     within_envelope,
 )
 from sixplus3.interaction.wrench import GAIN, MODEL_SIGMA, N_SIGMA, WrenchStream
-from sixplus3.kinematics import rotations as rot
-from sixplus3.kinematics.robot import robot_ik
 from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Platform speeds below which the guided platform is at rest [m/s], [rad/s].
@@ -72,6 +71,26 @@ RATE_SHARE = 0.5
 WALL_RATE = 5.0
 #: Finite-difference steps: cranks [rad], the twist (metric units, m).
 CRANK_STEP, TWIST_STEP = 0.02, 0.001
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b of two 3-vectors (numpy's cross costs ten times more for one pair)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                     a[0] * b[1] - a[1] * b[0]])
+
+
+def _norm(a: np.ndarray) -> float:
+    return math.sqrt(float(a @ a))
+
+
+def _exp3(r: np.ndarray) -> np.ndarray:
+    """exp([r]x) of a small rotation vector (one tick's turn)."""
+    t2 = float(r @ r)
+    K = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    if t2 < 1e-8:
+        return np.eye(3) + K + 0.5 * (K @ K)
+    t = math.sqrt(t2)
+    return np.eye(3) + (math.sin(t) / t) * K + ((1.0 - math.cos(t)) / t2) * (K @ K)
 
 
 def _six(name: str, value: object, lo: float, hi: float) -> np.ndarray:
@@ -91,7 +110,8 @@ class LeadThrough:
     ``damping`` [N s/m, N m s/rad]: per axis of the tool point, (translation, rotation)
     or six; ``speed`` [m/s, rad/s] and ``acceleration`` [m/s^2, rad/s^2]: caps of the
     tool point's twist; ``drive_gains``: the drive's (Kp, Kd) (None: the feed-forward
-    alone is kept within the envelope)."""
+    alone is kept within the envelope); ``compiled``: the observer's state from the
+    compiled CasADi model (interaction/compiled_state.py) rather than Pinocchio."""
 
     def __init__(self, robot: Robot, rate_hz: float = 1000.0,
                  mass: Sequence[float] = (4.0, 0.08),
@@ -103,7 +123,7 @@ class LeadThrough:
                  n_sigma: float = N_SIGMA, start_time: float = 0.005,
                  rest_time: float = 0.1, slow_every: int = 10, energy: float = 0.5,
                  gain: float = GAIN, model_sigma: float = MODEL_SIGMA,
-                 monitor_noise: float = 0.005) -> None:
+                 monitor_noise: float = 0.005, compiled: bool = True) -> None:
         self.robot = require_robot(robot)
         self.rate = check_number("rate_hz", rate_hz, 200.0, 20000.0)
         self.dt = 1.0 / self.rate
@@ -127,7 +147,7 @@ class LeadThrough:
         self.gains = None if drive_gains is None else parse_gains(drive_gains)
         self.stream = WrenchStream(self.robot, self.rate, gain=gain,
                                    monitor_noise=monitor_noise, model_sigma=model_sigma,
-                                   n_sigma=n_sigma)
+                                   n_sigma=n_sigma, compiled=compiled)
         self.cap = self.robot.limits.torque
         self.rate_cap = RATE_SHARE * self.robot.limits.velocity
         self.tool = np.asarray(self.robot.tool.xyz, dtype=float)
@@ -156,6 +176,7 @@ class LeadThrough:
         self.walls_met = 0  # slow updates that found a wall ahead
         self._last_ff = np.zeros(9)
         self._prev_theta: np.ndarray | None = None
+        self._anchor_theta: np.ndarray | None = None
 
     def _start(self, theta: np.ndarray) -> None:
         st = self.stream.model
@@ -198,14 +219,15 @@ class LeadThrough:
         off = self.R_ref @ self.tool
         # the wrench at the tool point (m_tcp = m_c - off x f) and its thresholds
         w_t = w.copy()
-        w_t[3:] = w[3:] - np.cross(off, w[:3])
+        w_t[3:] = w[3:] - _cross(off, w[:3])
         thr = self.n_sigma * std + band
-        thr[3:] += np.linalg.norm(off) * float(np.max(thr[:3]))
+        thr[3:] += _norm(off) * float(thr[:3].max())
         excess = np.abs(w_t) - thr
         w_in = np.sign(w_t) * np.maximum(excess, 0.0)
         # measured twist of the tool point, and the energy the person put in
-        xi = np.linalg.solve(J, thd)
-        v_meas = np.r_[xi[:3] + np.cross(xi[3:6], off), xi[3:6]]
+        lu, piv, _ = lapack.dgetrf(J)
+        xi = lapack.dgetrs(lu, piv, thd)[0]
+        v_meas = np.concatenate((xi[:3] + _cross(xi[3:6], off), xi[3:6]))
         self.port_energy += float(w_t @ v_meas) * self.dt
         if self.mode == "hold":
             self._above = self._above + 1 if bool(np.any(excess > 0)) else 0
@@ -235,10 +257,10 @@ class LeadThrough:
         for sl, a_max, v_max in ((slice(0, 3), self.accel[0], self.speed[0]),
                                  (slice(3, 6), self.accel[1], self.speed[1])):
             dv = v_new[sl] - self.v[sl]
-            n = float(np.linalg.norm(dv))
+            n = _norm(dv)
             if n > a_max * dt:
                 v_new[sl] = self.v[sl] + dv * (a_max * dt / n)
-            sp = float(np.linalg.norm(v_new[sl]))
+            sp = _norm(v_new[sl])
             if sp > v_max:
                 v_new[sl] *= v_max / sp
         self.v = v_new
@@ -252,7 +274,7 @@ class LeadThrough:
         if not self._walls:
             return
         L = walls.ANGLE_SCALE
-        x = np.r_[self.v[:3], self.v[3:] * L, self.psi_dot * L]
+        x = np.concatenate((self.v[:3], self.v[3:] * L, self.psi_dot * L))
         for _ in range(5):
             for g_all, b in self._walls:
                 g = g_all if self.crank_gain > 0 else np.r_[g_all[:6], 0.0, 0.0, 0.0]
@@ -261,7 +283,7 @@ class LeadThrough:
                 into = float(g @ x)
                 if into < b:
                     x = x + (b - into) / float(g @ g) * g
-        self.v = np.r_[x[:3], x[3:6] / L]
+        self.v = np.concatenate((x[:3], x[3:6] / L))
         self.psi_dot = x[6:] / L
 
     def _tick_lead(self, w_in: np.ndarray) -> None:
@@ -273,8 +295,8 @@ class LeadThrough:
             self._slow_update()
         else:
             self._keep_out()
-        still = (np.linalg.norm(self.v[:3]) < REST_SPEED[0]
-                 and np.linalg.norm(self.v[3:]) < REST_SPEED[1])
+        still = (_norm(self.v[:3]) < REST_SPEED[0]
+                 and _norm(self.v[3:]) < REST_SPEED[1])
         self._still = self._still + 1 if (still and not np.any(w_in)) else 0
         if self._still >= self.rest_ticks and not np.any(self.psi_dot):
             self.mode, self._above = "hold", 0
@@ -293,7 +315,8 @@ class LeadThrough:
         pos, rotm = walls.moved(self.p_ref, self.R_ref, tw)
         rows = np.zeros(7, dtype=bool)
         rows[0] = True
-        sl = walls.slacks(self.robot, pos, rotm, psi, walls=rows)
+        sl, angles, solved = walls.slacks_and_angles(self.robot, pos, rotm, psi, walls=rows)
+        self._anchor_theta = angles[0].copy() if solved[0] else None
         now = sl[0]
         if now[0] > -1.0:
             self.min_margin = min(self.min_margin, float(now[0]) + self.robot.limits.margin
@@ -340,8 +363,9 @@ class LeadThrough:
                  theta: np.ndarray, w: np.ndarray) -> GuardCommand:
         dt = self.dt
         off = self.R_ref @ self.tool
-        vc = self.v[:3] - np.cross(self.v[3:], off)
-        xi = np.r_[vc, self.v[3:], self.psi_dot if self.mode == "lead" else np.zeros(3)]
+        vc = self.v[:3] - _cross(self.v[3:], off)
+        xi = np.concatenate((vc, self.v[3:], self.psi_dot if self.mode == "lead"
+                             else np.zeros(3)))
         rates = J @ xi
         top = float(np.abs(rates).max())
         if top > self.rate_cap:  # within the joints' rate share: the whole twist scaled
@@ -353,11 +377,13 @@ class LeadThrough:
         self._theta_dot_ref = rates
         # integrate the reference (the pose, the cranks and the angles)
         self.p_ref = self.p_ref + xi[:3] * dt
-        self.R_ref = rot.matrix_from_rotvec(xi[3:6] * dt)[0] @ self.R_ref
+        self.R_ref = _exp3(xi[3:6] * dt) @ self.R_ref
         self.psi_ref = self.psi_ref + xi[6:] * dt
-        self.theta_ref = self.theta_ref + rates * dt
-        if self._tick % self.slow_every == 0 and self.mode == "lead":
-            self._anchor()
+        if self._anchor_theta is not None:  # this tick's slow update solved the pose
+            self.theta_ref = self._anchor_theta + rates * dt
+            self._anchor_theta = None
+        else:
+            self.theta_ref = self.theta_ref + rates * dt
         ff = h - self._friction(thd) + self._friction(rates) + M @ acc
         ff = np.clip(ff, -COMMAND_SHARE * self.cap, COMMAND_SHARE * self.cap)
         self._last_ff = ff
@@ -370,14 +396,5 @@ class LeadThrough:
             cmd, _ = within_envelope(cmd, self.gains[0], self.gains[1], theta, vel,
                                      COMMAND_SHARE * self.cap)
         return cmd
-
-    def _anchor(self) -> None:
-        """theta_ref from the closed-form inverse kinematics of the reference pose (the
-        integration's drift removed), when it solves."""
-        cfg = robot_ik(self.p_ref, self.R_ref, self.psi_ref, self.robot,
-                       platform_margins=False)
-        if cfg.ok[0]:
-            self.theta_ref = np.array(cfg.theta[0])
-
 
 __all__ = ["CRANK_DEADBAND", "LeadThrough", "RATE_SHARE", "REST_SPEED"]

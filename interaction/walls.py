@@ -52,13 +52,20 @@ def slacks(robot: Robot, position: np.ndarray, rotation: np.ndarray, psi: np.nda
            walls: np.ndarray | None = None) -> np.ndarray:
     """(n, 4) the slacks of the poses (module doc); the clearance (slow) only on the
     rows ``walls`` ((n,) bool; default all), +inf on the others."""
+    return slacks_and_angles(robot, position, rotation, psi, walls)[0]
+
+
+def slacks_and_angles(robot: Robot, position: np.ndarray, rotation: np.ndarray,
+                      psi: np.ndarray, walls: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(the slacks (n, 4), the actuated angles (n, 9), solved (n,)) of the poses."""
     cfg = robot_ik(position, rotation, psi, robot)
     lim = robot.limits
     n = len(cfg)
     out = np.full((n, 4), -1.0)
     ok = cfg.ok
     if not ok.any():
-        return out
+        return out, cfg.theta, ok
     out[ok, 0] = cfg.margins.minimum[ok] - (lim.margin + MARGIN_GUARD)
     tilt = spherical_tilts(cfg).max(axis=(1, 2))
     out[ok, 1] = (lim.spherical - TILT_GUARD) - tilt[ok]
@@ -69,7 +76,7 @@ def slacks(robot: Robot, position: np.ndarray, rotation: np.ndarray, psi: np.nda
     out[:, 3] = np.where(ok, np.inf, -1.0)
     if sel.any():
         out[sel, 3] = (clearance(cfg, sel)[sel] - CLEARANCE_GUARD) / 0.01
-    return out
+    return out, cfg.theta, ok
 
 
 def crank_score(sl: np.ndarray) -> np.ndarray:
@@ -89,4 +96,5 @@ def moved(position: np.ndarray, rotation: np.ndarray, twist: np.ndarray
 
 
 __all__ = ["ANGLE_SCALE", "CLEARANCE_GUARD", "MARGIN_GUARD", "RANGE_GUARD",
-           "TILT_GUARD", "WALL_BAND", "crank_score", "moved", "slacks"]
+           "TILT_GUARD", "WALL_BAND", "crank_score", "moved", "slacks",
+           "slacks_and_angles"]

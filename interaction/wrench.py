@@ -371,12 +371,16 @@ class WrenchStream:
     The velocity is causal here: the encoder's difference through a second-order
     Butterworth low-pass at rate / 8 (its group delay, about 0.3 ms at 1 kHz, is the
     price of running online; the offline :func:`estimate` filters without lag).  The
-    drive's torque is taken as held over the previous tick.  Cost per sample:
-    BENCHMARKS.md, "Sensorless touch"."""
+    drive's torque is taken as held over the previous tick.  ``compiled``: the state
+    (forward kinematics, J, M, h) from the CasADi model compiled to C
+    (:class:`~sixplus3.interaction.compiled_state.CompiledState`, the same numbers to
+    1e-10) instead of Pinocchio.  Cost per sample: BENCHMARKS.md, "Sensorless touch" and
+    "Lead-through"."""
 
     def __init__(self, robot: Robot, rate: float, gain: float = GAIN,
                  monitor_noise: float = 0.005, model_sigma: float = MODEL_SIGMA,
-                 v_band: float = V_BAND, n_sigma: float = N_SIGMA) -> None:
+                 v_band: float = V_BAND, n_sigma: float = N_SIGMA,
+                 compiled: bool = False) -> None:
         # deferred: threadpoolctl loads only when this runs
         from threadpoolctl import threadpool_limits
 
@@ -391,7 +395,14 @@ class WrenchStream:
             raise InputError(f"gain must be in [1, {min(2000.0, 2 * math.pi * rate / 4):g}]"
                              f"/s, got {gain!r}", value=gain, valid="a positive gain")
         self.dt, self.gain = 1.0 / rate, float(gain)
-        self.model = SingleState(self.robot)
+        if compiled:  # the CasADi model compiled to C (interaction/compiled_state.py)
+            from sixplus3.interaction.compiled_state import (
+                CompiledState,  # deferred: its first build compiles C (seconds, once)
+            )
+
+            self.model: SingleState | CompiledState = CompiledState(self.robot)
+        else:
+            self.model = SingleState(self.robot)
         b, a = signal.butter(2, rate / 8.0, fs=rate)
         self._b, self._a = b, a
         self._z = np.zeros((2, 9))  # the biquad's state (transposed direct form II)

@@ -262,3 +262,33 @@ def test_lead_through_and_teach_from_the_command_line(tmp_path) -> None:
                      ([*args], "exists")):
         res = CliRunner().invoke(cli, bad)
         assert res.exit_code == 2 and msg in res.output, (bad, res.output)
+
+
+def test_the_compiled_state_is_pinocchios_to_rounding() -> None:
+    """The observer's per-tick state from the CasADi model compiled to C (forward
+    kinematics by Newton in minimal coordinates, J, M, h) against Pinocchio's
+    (SingleState), along a sequence of readings away from home, cranks off their home
+    angles, on a perturbed robot (its own masses and friction)."""
+    from sixplus3.interaction.compiled_state import CompiledState
+    from sixplus3.interaction.wrench import SingleState
+    from sixplus3.kinematics.robot import robot_ik_pose
+
+    robot = perturbed_plant(ROBOT, 5, mass=0.2, rotor=0.2, friction=1.5)
+    cs, ss = CompiledState(robot), SingleState(robot)
+    cfg = robot_ik_pose([0.04, -0.03, 0.61], [0.3, -0.2, 0.5], [1.3, 1.8, 1.6],
+                        robot=robot)
+    rng = np.random.default_rng(1)
+    th = cfg.theta[0]
+    for k in range(6):
+        th = th + rng.normal(0.0, 0.003, 9)
+        thd = rng.normal(0.0, 1.5, 9)
+        a, b = ss.state(th, thd), cs.state(th, thd)
+        tol = 1e-8 if k == 0 else 1e-10  # the first: both from a 1e-9 forward kinematics
+        for name, u, v in zip(("J", "M", "h", "offset"), a, b, strict=True):
+            np.testing.assert_allclose(v, u, atol=tol * max(1.0, np.abs(u).max()),
+                                       err_msg=name)
+        np.testing.assert_allclose(cs.position, ss.position, atol=1e-10)
+        np.testing.assert_allclose(cs.rotation, ss.rotation, atol=1e-10)
+        np.testing.assert_allclose(cs.psi, ss.psi, atol=1e-10)
+    with pytest.raises(InputError, match="did not converge"):
+        cs.state(th + 3.0, thd)  # no assembly has these angles
