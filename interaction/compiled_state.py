@@ -67,9 +67,9 @@ class _Buffered:
                 raise ValueError(f"{f.name()}: output {j} is sparse")
         self._shapes = shapes
         for i, a in enumerate(self.args):
-            self._buf.set_arg(i, memoryview(a))
+            self._buf.set_arg(i, a.data)
         for j, r in enumerate(self.res):
-            self._buf.set_res(j, memoryview(r))
+            self._buf.set_res(j, r.data)
 
     def __call__(self, *args: np.ndarray) -> list[np.ndarray]:
         for dst, src in zip(self.args, args, strict=False):
