@@ -23,9 +23,11 @@ friction differ):
   in (passivity: >= -0.5 J, the tank's initial energy);
 - the peak torque asked of the drives over every run.
 
-Tick cost: LeadThrough.step timed inside the drag run (median, p99), and a 1 kHz Python
-loop replaying that run's drive samples through a fresh LeadThrough, sleeping to each
-1 ms deadline: its lateness (median, p99, max).
+Tick cost: LeadThrough.step timed inside the drag run (median, p99); the drag run's drive
+samples replayed through a fresh LeadThrough with the compiled observer state and one
+with Pinocchio's, alternately (median, p99, with and without the ticks that update the
+walls and cranks); and a 1 kHz Python loop replaying them, sleeping to each 1 ms
+deadline: its lateness (median, p99, max).
 
     python benchmarks/bench_leadthrough.py                 # nominal + plants 41, 57
     python benchmarks/bench_leadthrough.py --plants 41 --rest 2   # quicker
@@ -98,6 +100,21 @@ def timed(lt: LeadThrough) -> list[float]:
 
     lt.step = step  # type: ignore[method-assign]
     return times
+
+
+def replay_cost(model: Robot, theta: np.ndarray, tau: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-step wall times [s] of a fresh LeadThrough replaying (theta, tau), with the
+    compiled observer state and with Pinocchio's, stepped alternately (one run: the
+    machine's load is shared)."""
+    lts = {"compiled": LeadThrough(model, 1000.0, drive_gains=(KP, KD)),
+           "pinocchio": LeadThrough(model, 1000.0, drive_gains=(KP, KD), compiled=False)}
+    out = {k: np.empty(len(theta)) for k in lts}
+    for k in range(len(theta)):
+        for name, lt in lts.items():
+            t0 = time.perf_counter()
+            lt.step(theta[k], tau[k])
+            out[name][k] = time.perf_counter() - t0
+    return out
 
 
 def loop_jitter(model: Robot, theta: np.ndarray, tau: np.ndarray) -> np.ndarray:
@@ -193,6 +210,14 @@ def main() -> None:
           f"{np.median(st_us):.0f} us, p99 {np.percentile(st_us, 99):.0f} us, max "
           f"{st_us.max():.0f} us")
     if replay is not None:
+        for name, ts in replay_cost(model, *replay).items():
+            us = 1e6 * ts[10:]
+            slow = np.arange(10, len(ts)) % 10 == 0  # the walls' and cranks' update
+            print(f"replayed, {name} observer state: median {np.median(us):.0f} us, p99 "
+                  f"{np.percentile(us, 99):.0f} us; without the 1-in-10 wall update: "
+                  f"median {np.median(us[~slow]):.0f} us, p99 "
+                  f"{np.percentile(us[~slow], 99):.0f} us; the update ticks: median "
+                  f"{np.median(us[slow]):.0f} us")
         late = 1e6 * loop_jitter(model, *replay)
         print(f"1 kHz Python loop replaying it ({len(late)} ticks): lateness median "
               f"{np.median(late):.0f} us, p99 {np.percentile(late, 99):.0f} us, max "

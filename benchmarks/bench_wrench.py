@@ -83,14 +83,24 @@ def main() -> None:
             print(json.dumps(r))
     # streaming cost
     run = run_on_plant(slow, robot, robot, seed=3, hold=0.5)
-    st = WrenchStream(robot, run.log.rate)
-    per = []
+    # the Pinocchio state and the compiled CasADi one (interaction/compiled_state.py),
+    # stepped alternately in one run: their cost ratio, and that they agree
+    streams = {"pinocchio": WrenchStream(robot, run.log.rate),
+               "compiled": WrenchStream(robot, run.log.rate, compiled=True)}
+    per: dict[str, list[float]] = {k: [] for k in streams}
+    worst = 0.0
     for k in range(len(run.log.t)):
-        t0 = time.perf_counter()
-        st.update(run.log.theta[k], run.log.tau[k])
-        per.append(time.perf_counter() - t0)
-    stream = {"median_us": 1e6 * statistics.median(per[10:]),
-              "p99_us": 1e6 * float(np.percentile(per[10:], 99)), "samples": len(per)}
+        out = {}
+        for name, st in streams.items():
+            t0 = time.perf_counter()
+            out[name] = st.update(run.log.theta[k], run.log.tau[k])
+            per[name].append(time.perf_counter() - t0)
+        worst = max(worst, float(np.abs(out["pinocchio"][0] - out["compiled"][0]).max()))
+    stream = {name: {"median_us": 1e6 * statistics.median(v[10:]),
+                     "p99_us": 1e6 * float(np.percentile(v[10:], 99))}
+              for name, v in per.items()}
+    stream["samples"] = len(run.log.t)
+    stream["max_wrench_difference"] = worst
     print("stream", json.dumps(stream))
     if args.stream_only:
         return
