@@ -12,7 +12,9 @@ friction differ):
   D v = 2 N plus the deadband);
 - follow: a 3-segment path with pauses: the rms distance tool point - hand [mm];
 - wall: a 25 N pull toward the workspace's edge along x: the reference's smallest slack
-  (> -0.2: the gate's limits hold), the tool point's largest travel [mm];
+  (> -0.2: the gate's limits hold), the tool point's largest travel [mm], and the
+  largest commanded joint acceleration and rate of change of the feed-forward (a wall
+  met without a jerk);
 - twist: a grip turns the platform 120 deg about x, cranks deciding and locked: the
   smallest singularity margin of the reference, the largest angle reached;
 - cranks 60: the follow path from cranks at 60 deg (where a plan may leave them; the
@@ -31,7 +33,8 @@ deadline: its lateness (median, p99, max).
 
     python benchmarks/bench_leadthrough.py                 # nominal + plants 41, 57
     python benchmarks/bench_leadthrough.py --plants 41 --rest 2   # quicker
-    python benchmarks/bench_leadthrough.py --model identified41.yaml --plants 41 --no-nominal
+    python benchmarks/bench_leadthrough.py --model identified41.yaml --plants 41 --no-nominal \
+        --no-walls
 """
 
 from __future__ import annotations
@@ -85,6 +88,34 @@ def hands(rest: float) -> dict[str, dict]:
         "soft": {"stiffness": 150.0, "damping": 3.0, "delay": 0.15, "duration": 3.0,
                  "path": [{"t": 0.0, "offset": [0, 0, 0]}, {"t": 1.0, "offset": [0, 0.05, 0]}]},
     }
+
+
+WALLS = {
+    "+x, 25 N over 3.5 s": [0.4, 0, 0, 3.5], "+x, 25 N over 1 s": [0.4, 0, 0, 1.0],
+    "up (+z), 25 N over 1 s": [0, 0, 0.3, 1.0], "-y, 25 N over 1 s": [0, -0.4, 0, 1.0]}
+
+
+def wall_table(model: Robot) -> None:
+    """A hand pulls 25 N toward the workspace's edge in four ways, on the nominal plant
+    with the soft drive (Kp 300) and a stiff one (Kp 3000): the reference's least slack
+    (> -0.2: the gate's limits hold) and singularity margin, the tool point's travel, the
+    largest commanded joint acceleration and feed-forward rate (a jerk), the peak torque
+    asked, and what the lead-through said."""
+    print("\n| wall hand | drive | least slack | least margin | tool travel [mm] | max ref. "
+          "acc. [rad/s^2] | max dtau_ff/dt [N m/s] | peak torque asked [N m] | events |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for name, (x, y, z, t) in WALLS.items():
+        doc = {"stiffness": 1000.0, "damping": 20.0, "max_force": 25.0, "duration": t + 2.0,
+               "path": [{"t": 0.0, "offset": [0, 0, 0]}, {"t": t, "offset": [x, y, z]}]}
+        for drive, (kp, kd) in (("soft", (KP, KD)), ("stiff", (3000.0, 30.0))):
+            lt = LeadThrough(model, 1000.0, drive_gains=(kp, kd))
+            run = run_lead(model, Robot.default(), hand_from_dict(doc), lead=lt, kp=kp, kd=kd)
+            acc, dff = run.smoothness()
+            travel = 1e3 * float(np.linalg.norm(run.tcp - run.tcp[0], axis=1).max())
+            ev = f"{len(run.events)} held ticks" if run.events else "-"
+            print(f"| {name} | {drive} | {lt.min_slack:.3f} | {lt.min_margin:.3f} | "
+                  f"{travel:.0f} | {acc:.0f} | {dff:.0f} | {run.peak_command:.2f} | {ev} |",
+                  flush=True)
 
 
 def timed(lt: LeadThrough) -> list[float]:
@@ -143,6 +174,7 @@ def main() -> None:
                     help="perturbed plants' seeds (mass and rotors +-10 %%, friction x1.3)")
     ap.add_argument("--rest", type=float, default=10.0, help="the rest run's length [s]")
     ap.add_argument("--no-nominal", action="store_true", help="skip the nominal plant")
+    ap.add_argument("--no-walls", action="store_true", help="skip the walls' table")
     ap.add_argument("--model", default=None,
                     help="the robot file LeadThrough runs on (default: the nominal robot), "
                          "e.g. one identified on a plant (sixplus3 identify estimate)")
@@ -156,7 +188,8 @@ def main() -> None:
                                              friction=1.3))
                for s in a.plants.split(",") if s]
     print("| plant | drift at rest [mm] | breakaway [N] | force at 0.1 m/s [N] | follow rms "
-          "[mm] | wall: slack, travel [mm] | twist margin cranks / locked | twist angle "
+          "[mm] | wall: slack, travel [mm], max ref. acc. [rad/s^2], max dtau_ff/dt [N m/s] "
+          "| twist margin cranks / locked | twist angle "
           "cranks / locked [deg] | cranks 60: end margin cranks / locked | stiff: last "
           "speed [mm/s], energy [J] | soft: last speed, energy | peak torque [N m] |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
@@ -198,8 +231,10 @@ def main() -> None:
             return "-" if v is None else f"{v:.2f}"
 
         travel = 1e3 * float(np.abs(wr.tcp[:, 0] - wr.tcp[0, 0]).max())
+        w_acc, w_dff = wr.smoothness()
         print(f"| {name} | {1e3 * rest.drift():.3f} | {fmt(br)} | {fmt(dr)} | {1e3 * fo:.1f} "
-              f"| {wl.min_slack:.3f}, {travel:.0f} | {tc[0].min_margin:.3f} / "
+              f"| {wl.min_slack:.3f}, {travel:.0f}, {w_acc:.1f}, {w_dff:.0f} | "
+              f"{tc[0].min_margin:.3f} / "
               f"{tr[0].min_margin:.3f} | {tc[1].angle.max() * 57.2958:.1f} / "
               f"{tr[1].angle.max() * 57.2958:.1f} | {c6.min_margin:.3f} / "
               f"{c6l.min_margin:.3f} | {last(st):.2f}, "
@@ -222,6 +257,8 @@ def main() -> None:
         print(f"1 kHz Python loop replaying it ({len(late)} ticks): lateness median "
               f"{np.median(late):.0f} us, p99 {np.percentile(late, 99):.0f} us, max "
               f"{late.max():.0f} us; deadlines missed {int((late > 0).sum())}")
+    if not a.no_walls:
+        wall_table(model)
     print(f"\n{time.time() - t_all:.0f} s in all")
 
 

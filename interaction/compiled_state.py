@@ -100,6 +100,11 @@ class CompiledState:
         self._piv: Any = None
         self._theta: np.ndarray | None = None
 
+    def reset(self) -> None:
+        """Forget the previous sample (the next one starts from the full forward
+        kinematics)."""
+        self._x = None
+
     def _fk(self, theta: np.ndarray) -> tuple[np.ndarray, Any, Any, np.ndarray]:
         """(x, the LU factors of J_x, J_x) of the angles theta by Newton's method from
         the previous sample."""

@@ -38,6 +38,7 @@ from sixplus3.control.drive.simulation import KD, KP
 from sixplus3.errors import InputError, check_number
 from sixplus3.fileio import read_yaml
 from sixplus3.interaction.leadthrough import LeadThrough
+from sixplus3.interaction.wrench import SingleState
 from sixplus3.kinematics.robot import home
 from sixplus3.robot_description.mjcf import TIMESTEP
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -146,6 +147,8 @@ class LeadRun:
     torque: np.ndarray  # (n, 3) the hand's torque on the platform (a grip)
     angle: np.ndarray  # (n,) the platform's rotation from its start [rad]
     modes: np.ndarray  # (n,) str
+    rate_ref: np.ndarray  # (n, 9) the commanded joint rates [rad/s]
+    tau_ff: np.ndarray  # (n, 9) the commanded feed-forward [N m]
     peak_command: float  # [N m] the largest |tau_ff + PD| asked of the drives
     peak_applied: float  # [N m]
     min_margin: float  # the reference's smallest singularity margin
@@ -171,8 +174,18 @@ class LeadRun:
         return None if sel.sum() < 10 else float(np.median(
             np.linalg.norm(self.force[sel], axis=1)))
 
+    def smoothness(self) -> tuple[float, float]:
+        """(the largest commanded joint acceleration [rad/s^2], the largest rate of
+        change of the feed-forward [N m/s]) from tick to tick."""
+        rate = 1.0 / float(self.t[1] - self.t[0]) if len(self.t) > 1 else 1.0
+        if len(self.t) < 2:
+            return 0.0, 0.0
+        return (float(np.abs(np.diff(self.rate_ref, axis=0)).max()) * rate,
+                float(np.abs(np.diff(self.tau_ff, axis=0)).max()) * rate)
+
     def summary(self) -> dict[str, Any]:
         lag = np.linalg.norm(self.tcp - self.anchor, axis=1)
+        acc, dff = self.smoothness()
         return {"ticks": len(self.t), "breakaway_n": self.breakaway(),
                 "force_at_0.1_m_s_n": self.force_at_speed(0.1),
                 "drift_m": self.drift(), "max_speed_m_s": float(self.speed.max()),
@@ -183,6 +196,7 @@ class LeadRun:
                 "max_angle_deg": math.degrees(float(self.angle.max())),
                 "min_margin": self.min_margin, "walls_met": self.walls_met,
                 "peak_command_n_m": self.peak_command, "peak_applied_n_m": self.peak_applied,
+                "max_reference_acceleration_rad_s2": acc, "max_feedforward_rate_n_m_s": dff,
                 "port_energy_min_j": self.port_energy_min,
                 "final_speed_m_s": float(self.speed[-1]),
                 "lead_share": float(np.mean(self.modes == "lead")), "events": self.events}
@@ -229,11 +243,14 @@ def run_lead(model: Robot, plant: Robot, hand: Hand, lead: LeadThrough | None = 
     speed, angle, torque = np.empty(n), np.empty(n), np.zeros((n, 3))
     modes = np.empty(n, dtype=object)
     th_log, tau_log = np.empty((n, 9)), np.empty((n, 9))
+    rate_ref, ff_ref = np.empty((n, 9)), np.empty((n, 9))
     energy = 0.0
     e_min = 0.0
     peak_cmd = peak_app = 0.0
-    applied = np.zeros(9)
-    # the first command holds where the robot is, with the model's gravity torque
+    # before the first tick the drives were holding the plant still (whatever controller
+    # ran before): the torque monitor's first reading is the plant's holding torque
+    th0 = loop.encoder()
+    applied = SingleState(plant).state(th0, np.zeros(9))[2]
     state: dict[str, Any] = {"f": np.zeros(3), "m": np.zeros(3), "e": 0.0}
     sub_dt = timestep
 
@@ -279,6 +296,7 @@ def run_lead(model: Robot, plant: Robot, hand: Hand, lead: LeadThrough | None = 
         th_log[k], tau_log[k] = th, tau
         cmd = lt.step(th, tau)
         modes[k] = cmd.mode
+        rate_ref[k], ff_ref[k] = cmd.theta_dot_ref, cmd.tau_ff
         de = 0.0
 
         def hook(s: int) -> None:
@@ -305,7 +323,8 @@ def run_lead(model: Robot, plant: Robot, hand: Hand, lead: LeadThrough | None = 
                    meta={"plant": plant.name, "seed": seed, "torque_noise": torque_noise,
                          "lead": True})
     return LeadRun(t=out_t, tcp=tcp, anchor=anchor, force=force, speed=speed,
-                   torque=torque, angle=angle, modes=modes,
+                   torque=torque, angle=angle, modes=modes, rate_ref=rate_ref,
+                   tau_ff=ff_ref,
                    peak_command=peak_cmd, peak_applied=peak_app,
                    min_margin=lt.min_margin if math.isfinite(lt.min_margin) else float("nan"),
                    min_slack=lt.min_slack, walls_met=lt.walls_met, port_energy_min=e_min,

@@ -67,8 +67,17 @@ CRANK_DEADBAND = 0.05
 CRANK_ACCELERATION = 5.0
 #: The guided joint rates stay within this share of the rate limit.
 RATE_SHARE = 0.5
-#: [1/s] the barrier's rate: a wall's slack may fall at most this fast per unit slack.
+#: [1/s] the barrier's rate: a wall's slack may fall at most this fast per unit slack
+#: (an exponential approach: the deceleration it asks is WALL_RATE times the approach
+#: speed, 1.25 m/s^2 at the speed cap, within the acceleration cap).
 WALL_RATE = 5.0
+#: [s] a wall is near when the slack's fall since the last update would reach the band
+#: within this: the barrier starts early enough to slow the platform without a jerk.
+HORIZON = 0.3
+#: [s] the pose this far ahead at the current twist must have an assembly (a cliff of
+#: the workspace that no slack announces: a leg's reach): otherwise no further motion
+#: along the current direction.
+LOOKAHEAD = 0.1
 #: Finite-difference steps: cranks [rad], the twist (metric units, m).
 CRANK_STEP, TWIST_STEP = 0.02, 0.001
 
@@ -156,7 +165,10 @@ class LeadThrough:
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
-        """Forget the reference: the next tick starts a hold where the robot is."""
+        """Forget the reference and the observer's past: the next tick starts a hold
+        where the robot is."""
+        if hasattr(self, "stream"):
+            self.stream.reset()
         self.mode = "hold"
         self.events: list[str] = []
         self._started = False
@@ -177,6 +189,7 @@ class LeadThrough:
         self._last_ff = np.zeros(9)
         self._prev_theta: np.ndarray | None = None
         self._anchor_theta: np.ndarray | None = None
+        self._prev_slack: tuple[np.ndarray, float] | None = None
 
     def _start(self, theta: np.ndarray) -> None:
         st = self.stream.model
@@ -202,13 +215,20 @@ class LeadThrough:
             self._psi_dot_target[:] = 0.0
             self._theta_dot_ref = np.zeros(9)
             self._tick += 1
+            ok = th.shape == (9,) and bool(np.all(np.isfinite(th)))
             if self._started:  # the drive keeps holding the last reference
                 ref = self.theta_ref.copy()
             else:
-                ok = th.shape == (9,) and bool(np.all(np.isfinite(th)))
                 ref = th if ok else np.zeros(9)
-            return GuardCommand(ref, np.zeros(9), self._last_ff.copy(), "hold", False,
-                                np.zeros(6))
+            cmd = GuardCommand(ref, np.zeros(9), self._last_ff.copy(), "hold", False,
+                               np.zeros(6))
+            if self.gains is not None and ok:  # within the envelope all the same
+                prev = self._prev_theta
+                vel = np.zeros(9) if prev is None else (th - prev) * self.rate
+                self._prev_theta = th.copy()
+                cmd, _ = within_envelope(cmd, self.gains[0], self.gains[1], th, vel,
+                                         COMMAND_SHARE * self.cap)
+            return cmd
 
     def _step(self, theta: np.ndarray, tau: np.ndarray) -> GuardCommand:
         s = self.stream
@@ -237,6 +257,8 @@ class LeadThrough:
                 self._slow_update()
             else:
                 w_in[:] = 0.0
+        elif self.mode == "lead" and self._tick % self.slow_every == 0:
+            self._slow_update()
         self._admittance(w_in)
         if self.mode == "lead":
             self._tick_lead(w_in)
@@ -253,24 +275,33 @@ class LeadThrough:
         self.min_tank = min(self.min_tank, self.tank)
         if self.tank <= 0.0:  # passivity: only the input that slows the platform
             w_in = np.where(w_in * self.v > 0.0, 0.0, w_in)
-        v_new = (self.v + dt / m * w_in) / (1.0 + dt * d / m)
+        v_prev, psi_prev = self.v.copy(), self.psi_dot.copy()
+        # the admittance's step and the cranks' wish within their caps, then the walls
+        # (the least change that keeps out of them) last: a wall that appears suddenly
+        # (the clearance's closest pair changing) is met at once, not braked into; one
+        # approached smoothly is met early (HORIZON), gently (WALL_RATE)
+        self.v = (self.v + dt / m * w_in) / (1.0 + dt * d / m)
         for sl, a_max, v_max in ((slice(0, 3), self.accel[0], self.speed[0]),
                                  (slice(3, 6), self.accel[1], self.speed[1])):
-            dv = v_new[sl] - self.v[sl]
+            dv = self.v[sl] - v_prev[sl]
             n = _norm(dv)
             if n > a_max * dt:
-                v_new[sl] = self.v[sl] + dv * (a_max * dt / n)
-            sp = _norm(v_new[sl])
+                self.v[sl] = v_prev[sl] + dv * (a_max * dt / n)
+            sp = _norm(self.v[sl])
             if sp > v_max:
-                v_new[sl] *= v_max / sp
-        self.v = v_new
+                self.v[sl] *= v_max / sp
+        wish = self._psi_dot_target if self.mode == "lead" else np.zeros(3)
+        step = CRANK_ACCELERATION * dt
+        self.psi_dot = psi_prev + np.clip(wish - psi_prev, -step, step)
         self._keep_out()
 
     def _keep_out(self) -> None:
         """The twist and the crank rates (metric: rotations and cranks weighed by
         ``walls.ANGLE_SCALE``) kept out of the walls near: each wall's slack s may fall
-        at most at WALL_RATE s (a barrier: g . (v, psi_dot) >= -WALL_RATE s; beyond a
-        wall, s < 0, it must rise), by the least change (cyclic projections)."""
+        at most as fast as braking stops it at the wall (a barrier: g . (v, psi_dot) >=
+        -sqrt(2 A max(s, 0)), A = BRAKE_SHARE a_max |g|: beyond a wall it may not fall,
+        and the platform is not pushed back against the person), by the least change
+        (cyclic projections)."""
         if not self._walls:
             return
         L = walls.ANGLE_SCALE
@@ -287,14 +318,6 @@ class LeadThrough:
         self.psi_dot = x[6:] / L
 
     def _tick_lead(self, w_in: np.ndarray) -> None:
-        # cranks toward their target rate within their acceleration
-        dpsi = self._psi_dot_target - self.psi_dot
-        step = CRANK_ACCELERATION * self.dt
-        self.psi_dot = self.psi_dot + np.clip(dpsi, -step, step)
-        if self._tick % self.slow_every == 0:
-            self._slow_update()
-        else:
-            self._keep_out()
         still = (_norm(self.v[:3]) < REST_SPEED[0]
                  and _norm(self.v[3:]) < REST_SPEED[1])
         self._still = self._still + 1 if (still and not np.any(w_in)) else 0
@@ -308,12 +331,17 @@ class LeadThrough:
         """The walls near and the cranks' climb (module doc, 5); the reference
         re-anchored on the inverse kinematics of its pose."""
         L = walls.ANGLE_SCALE
-        psi = np.repeat(self.psi_ref[None], 7, axis=0)
+        psi = np.repeat(self.psi_ref[None], 10, axis=0)
         psi[1:4] += CRANK_STEP * np.eye(3)
         psi[4:7] -= CRANK_STEP * np.eye(3)
-        tw = np.zeros((7, 6))
+        tw = np.zeros((10, 6))
+        off = self.R_ref @ self.tool
+        step = np.concatenate((self.v[:3] - _cross(self.v[3:], off), self.v[3:])) * LOOKAHEAD
+        for row, share in ((7, 1.0), (8, 0.5), (9, 0.25)):  # the way ahead, probed
+            tw[row] = share * step
+            psi[row] += share * LOOKAHEAD * self.psi_dot
         pos, rotm = walls.moved(self.p_ref, self.R_ref, tw)
-        rows = np.zeros(7, dtype=bool)
+        rows = np.zeros(10, dtype=bool)
         rows[0] = True
         sl, angles, solved = walls.slacks_and_angles(self.robot, pos, rotm, psi, walls=rows)
         self._anchor_theta = angles[0].copy() if solved[0] else None
@@ -322,7 +350,16 @@ class LeadThrough:
             self.min_margin = min(self.min_margin, float(now[0]) + self.robot.limits.margin
                                   + walls.MARGIN_GUARD)
         self.min_slack = min(self.min_slack, float(now.min()))
-        score = walls.crank_score(sl)
+        cliff = None
+        if not solved[7]:  # no assembly ahead: approach the last probe that has one,
+            # exponentially (WALL_RATE), along the current direction
+            xm = np.concatenate((self.v[:3], self.v[3:] * L, self.psi_dot * L))
+            nx = _norm(xm)
+            if nx > 0.0:
+                share = 0.5 if solved[8] else (0.25 if solved[9] else 0.0)
+                cliff = (-xm / nx, -WALL_RATE * share * LOOKAHEAD * nx)
+                self.walls_met += 1
+        score = walls.crank_score(sl[:7])
         grad = (score[1:4] - score[4:7]) / (2.0 * CRANK_STEP)
         target = np.zeros(3)
         if (self.crank_gain > 0 and self.mode == "lead"
@@ -333,7 +370,16 @@ class LeadThrough:
                 target *= self.crank_rate / n
         self._psi_dot_target = target
         self._walls = []
-        active = [c for c in range(4) if now[c] < walls.WALL_BAND]
+        # a wall is near when its slack is inside the band, or will be within HORIZON at
+        # the rate it fell since the last update (the braking distance at full speed)
+        t_now = self._tick * self.dt
+        rate = np.zeros(4)
+        if self._prev_slack is not None and t_now > self._prev_slack[1]:
+            rate = (now - self._prev_slack[0]) / (t_now - self._prev_slack[1])
+        self._prev_slack = (now.copy(), t_now)
+        ahead = now + np.minimum(np.nan_to_num(rate, nan=0.0, posinf=0.0, neginf=0.0),
+                                 0.0) * HORIZON
+        active = [c for c in range(4) if min(now[c], ahead[c]) < walls.WALL_BAND]
         if active:
             self.walls_met += 1
             if now.min() <= -1.0:  # the reference itself unsolvable: stand still
@@ -348,7 +394,7 @@ class LeadThrough:
             sl2 = walls.slacks(self.robot, p2, r2, np.repeat(self.psi_ref[None], 6, axis=0),
                                walls=np.full(6, clear))
             if clear:  # the cranks' gradient of the clearance too
-                sl[1:7, 3] = walls.slacks(self.robot, pos[1:], rotm[1:], psi[1:])[:, 3]
+                sl[1:7, 3] = walls.slacks(self.robot, pos[1:7], rotm[1:7], psi[1:7])[:, 3]
             for c in active:
                 g = np.r_[(sl2[:, c] - now[c]) / TWIST_STEP,
                           (sl[1:4, c] - sl[4:7, c]) / (2.0 * CRANK_STEP * L)]
@@ -356,7 +402,8 @@ class LeadThrough:
                     # beyond a wall (s < 0) the platform goes no deeper, but is not
                     # pushed back against the person (that would be active, not passive)
                     self._walls.append((g, -WALL_RATE * max(float(now[c]), 0.0)))
-        self._keep_out()
+        if cliff is not None:
+            self._walls.append(cliff)
 
     # ------------------------------------------------------------------ command
     def _command(self, J: np.ndarray, M: np.ndarray, h: np.ndarray, thd: np.ndarray,

@@ -174,6 +174,10 @@ class SingleState:
                          for i in range(3)]
         self._tool = np.asarray(self.robot.tool.xyz)
 
+    def reset(self) -> None:
+        """Forget the previous sample (the next one is solved from home)."""
+        self._q = self._G = self._theta = None
+
     def state(self, theta: np.ndarray, theta_dot: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(J (9, 9), M (9, 9), h (9,), tcp offset (3,)) of one sample."""
@@ -416,6 +420,15 @@ class WrenchStream:
         self._var = np.full(9, sig ** 2 * self.gain * self.dt / 2.0 + model_sigma ** 2)
         self._fc = self.robot.motors.coulomb_per_joint
         self.v_band, self.n_sigma = v_band, n_sigma
+
+    def reset(self) -> None:
+        """Start again: the filter, the observer and the pose tracking forget the past
+        (the next sample is the first)."""
+        self._z[:] = 0.0
+        self._prev_theta = self._prev_tau = self._prev_M = self._p0 = None
+        self._integral = np.zeros(9)
+        self._r = np.zeros(9)
+        self.model.reset()
 
     def _velocity(self, theta: np.ndarray) -> np.ndarray:
         raw = np.zeros(9) if self._prev_theta is None else (theta - self._prev_theta) / self.dt

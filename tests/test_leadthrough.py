@@ -99,6 +99,11 @@ def test_walls_keep_the_reference_inside_the_gates_limits() -> None:
     assert 0.15 < lt.p_ref[0] - run.tcp[0][0] < 0.26
     assert run.peak_command <= ROBOT.limits.torque
     assert not run.events
+    # a wall approached along x is met early and gently enough that the commanded
+    # accelerations stay within the actuated limit (a wall met suddenly need not:
+    # BENCHMARKS.md, "Lead-through", the walls' table)
+    acc, _ = run.smoothness()
+    assert acc <= ROBOT.limits.acceleration, acc
 
 
 def test_the_cranks_climb_to_a_better_margin_while_guided() -> None:
