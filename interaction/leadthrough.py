@@ -26,12 +26,16 @@ Each tick:
    capped at 4 ``energy``.  At T <= 0 the admittance takes only the input that slows it
    down: the robot never gives the person more energy than it received.
 5. **Walls and cranks** (every ``slow_every`` ticks; :mod:`sixplus3.interaction.walls`):
-   the pose ahead (the braking distance plus two updates) against the walls of
-   singularity, spherical cones, actuated range and clearance; where it meets one, the
-   slack's gradient in the twist is a wall normal and the twist's component into it is
-   removed each tick, as is the admittance's (the platform slides along the wall).  The
-   crank rates climb the crank score's gradient (``crank_gain`` [rad/s per unit
-   gradient], 0: cranks locked), within ``crank_rate``, while the platform is guided.
+   the reference pose's slacks against the walls of singularity, spherical cones,
+   actuated range and clearance.  A wall is near when its slack is inside the band or
+   would be within HORIZON at the rate it fell; its gradient in the twist and the crank
+   rates (finite differences) gives a barrier g . (v, psi_dot) >= -WALL_RATE max(s, 0),
+   applied by the least change each tick after the caps, to the admittance's state too
+   (the platform slides along the wall; beyond it, no deeper, no push back).  Probes
+   ahead at the current twist must have an assembly (a leg's reach is a cliff no slack
+   announces).  The crank rates climb the crank score's gradient (``crank_gain``
+   [rad/s per unit gradient], 0: cranks locked), within ``crank_rate``, while the
+   platform is guided.
 6. **The reference**: theta_dot_ref = J (v_centre, omega, psi_dot), scaled within half
    the joint rate limit; theta_ref integrated and re-anchored on the closed-form inverse
    kinematics of the reference pose at each slow update; tau_ff the model's torque at the
