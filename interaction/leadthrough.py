@@ -32,10 +32,11 @@ Each tick:
    rates (finite differences) gives a barrier g . (v, psi_dot) >= -WALL_RATE max(s, 0),
    applied by the least change each tick after the caps, to the admittance's state too
    (the platform slides along the wall; beyond it, no deeper, no push back).  Probes
-   ahead at the current twist must have an assembly (a leg's reach is a cliff no slack
-   announces).  The crank rates climb the crank score's gradient (``crank_gain``
-   [rad/s per unit gradient], 0: cranks locked), within ``crank_rate``, while the
-   platform is guided.
+   5, 10 and 20 mm ahead along the current direction must have an assembly and be inside
+   every wall (a leg's reach, a clearance's closest pair changing: walls no gradient
+   announces); the motion approaches the farthest one that is.  The crank rates climb
+   the crank score's gradient (``crank_gain`` [rad/s per unit gradient], 0: cranks
+   locked), within ``crank_rate``, while the platform is guided.
 6. **The reference**: theta_dot_ref = J (v_centre, omega, psi_dot), scaled within half
    the joint rate limit; theta_ref integrated and re-anchored on the closed-form inverse
    kinematics of the reference pose at each slow update; tau_ff the model's torque at the
@@ -78,10 +79,10 @@ WALL_RATE = 5.0
 #: [s] a wall is near when the slack's fall since the last update would reach the band
 #: within this: the barrier starts early enough to slow the platform without a jerk.
 HORIZON = 0.3
-#: [s] the pose this far ahead at the current twist must have an assembly (a cliff of
-#: the workspace that no slack announces: a leg's reach): otherwise no further motion
-#: along the current direction.
-LOOKAHEAD = 0.1
+#: [m, metric] probes ahead along the current direction: each must have an assembly and
+#: be inside every wall (a leg's reach, a clearance's closest pair changing: walls no
+#: gradient announces); the motion approaches the farthest one inside.
+PROBES = (0.005, 0.01, 0.02)
 #: Finite-difference steps: cranks [rad], the twist (metric units, m).
 CRANK_STEP, TWIST_STEP = 0.02, 0.001
 
@@ -340,13 +341,17 @@ class LeadThrough:
         psi[4:7] -= CRANK_STEP * np.eye(3)
         tw = np.zeros((10, 6))
         off = self.R_ref @ self.tool
-        step = np.concatenate((self.v[:3] - _cross(self.v[3:], off), self.v[3:])) * LOOKAHEAD
-        for row, share in ((7, 1.0), (8, 0.5), (9, 0.25)):  # the way ahead, probed
-            tw[row] = share * step
-            psi[row] += share * LOOKAHEAD * self.psi_dot
+        # the way ahead, probed at fixed distances along the current direction (metric)
+        xm = np.concatenate((self.v[:3], self.v[3:] * L, self.psi_dot * L))
+        nx = _norm(xm)
+        u = xm / nx if nx > 0.0 else np.zeros(9)
+        for row, dist in zip((7, 8, 9), PROBES, strict=True):
+            w = u * dist
+            tw[row] = np.concatenate((w[:3] - _cross(w[3:6] / L, off), w[3:6] / L))
+            psi[row] += w[6:] / L
         pos, rotm = walls.moved(self.p_ref, self.R_ref, tw)
         rows = np.zeros(10, dtype=bool)
-        rows[0] = True
+        rows[[0, 7, 8, 9]] = True  # the clearance now and on the probes ahead
         sl, angles, solved = walls.slacks_and_angles(self.robot, pos, rotm, psi, walls=rows)
         self._anchor_theta = angles[0].copy() if solved[0] else None
         now = sl[0]
@@ -355,14 +360,18 @@ class LeadThrough:
                                   + walls.MARGIN_GUARD)
         self.min_slack = min(self.min_slack, float(now.min()))
         cliff = None
-        if not solved[7]:  # no assembly ahead: approach the last probe that has one,
-            # exponentially (WALL_RATE), along the current direction
-            xm = np.concatenate((self.v[:3], self.v[3:] * L, self.psi_dot * L))
-            nx = _norm(xm)
-            if nx > 0.0:
-                share = 0.5 if solved[8] else (0.25 if solved[9] else 0.0)
-                cliff = (-xm / nx, -WALL_RATE * share * LOOKAHEAD * nx)
-                self.walls_met += 1
+        floor = min(float(now.min()), 0.0)
+        inside = [bool(solved[r]) and float(sl[r].min()) >= floor for r in (7, 8, 9)]
+        if nx > 0.0 and not inside[-1]:  # a wall crossed ahead that no gradient announced
+            # (no assembly: a leg's reach; a clearance's closest pair changing): approach
+            # the farthest probe before it, exponentially (WALL_RATE), along this direction
+            reach = 0.0
+            for dist, ok in zip(PROBES, inside, strict=True):
+                if not ok:
+                    break
+                reach = dist
+            cliff = (-u, -WALL_RATE * reach)
+            self.walls_met += 1
         score = walls.crank_score(sl[:7])
         grad = (score[1:4] - score[4:7]) / (2.0 * CRANK_STEP)
         target = np.zeros(3)

@@ -297,3 +297,21 @@ def test_the_compiled_state_is_pinocchios_to_rounding() -> None:
         np.testing.assert_allclose(cs.psi, ss.psi, atol=1e-10)
     with pytest.raises(InputError, match="did not converge"):
         cs.state(th + 3.0, thd)  # no assembly has these angles
+
+
+def test_a_wall_no_gradient_announces_is_seen_ahead() -> None:
+    """Pulled fast toward -y with a stiff drive, the legs' clearance wall appears
+    suddenly (the closest pair of the collision model changes): the probes ahead stop
+    the reference inside the gate's limits (before them it went 1.4 mm past zero)."""
+    from sixplus3.interaction import walls
+    from sixplus3.interaction.hand import hand_from_dict, run_lead
+    from sixplus3.interaction.leadthrough import LeadThrough
+
+    hand = {"stiffness": 1000.0, "damping": 20.0, "max_force": 25.0, "duration": 2.0,
+            "path": [{"t": 0.0, "offset": [0, 0, 0]}, {"t": 1.0, "offset": [0, -0.4, 0]}]}
+    lt = LeadThrough(ROBOT, 1000.0, drive_gains=(3000.0, 30.0))
+    run = run_lead(ROBOT, ROBOT, hand_from_dict(hand), lead=lt, kp=3000.0, kd=30.0)
+    assert lt.walls_met > 0 and not run.events
+    assert lt.min_slack > -walls.CLEARANCE_GUARD / 0.01, lt.min_slack
+    assert lt.min_margin >= ROBOT.limits.margin
+    assert run.peak_command <= ROBOT.limits.torque
