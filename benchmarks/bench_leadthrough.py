@@ -54,6 +54,14 @@ from sixplus3.robot_description.robot import Robot, load_robot
 KP, KD = 300.0, 6.0
 
 
+FOLLOW = {"stiffness": 600.0, "damping": 15.0, "delay": 0.15, "duration": 6.0,
+          "path": [{"t": 0.0, "offset": [0, 0, 0]}, {"t": 1.5, "offset": [0.08, 0, 0]},
+                   {"t": 2.3, "offset": [0.08, 0, 0]},
+                   {"t": 3.8, "offset": [0.08, 0.08, 0.03]},
+                   {"t": 4.6, "offset": [0.08, 0.08, 0.03]},
+                   {"t": 5.5, "offset": [0, 0, 0]}]}
+
+
 def hands(rest: float) -> dict[str, dict]:
     return {
         "rest": {"stiffness": 0.0, "damping": 0.0, "duration": rest},
@@ -63,26 +71,14 @@ def hands(rest: float) -> dict[str, dict]:
         "drag": {"stiffness": 500.0, "damping": 10.0, "delay": 0.15, "duration": 2.5,
                  "path": [{"t": 0.0, "offset": [0, 0, 0]}, {"t": 0.2, "offset": [0, 0, 0]},
                           {"t": 2.2, "offset": [0.2, 0, 0]}]},
-        "follow": {"stiffness": 600.0, "damping": 15.0, "delay": 0.15, "duration": 6.0,
-                   "path": [{"t": 0.0, "offset": [0, 0, 0]},
-                            {"t": 1.5, "offset": [0.08, 0, 0]},
-                            {"t": 2.3, "offset": [0.08, 0, 0]},
-                            {"t": 3.8, "offset": [0.08, 0.08, 0.03]},
-                            {"t": 4.6, "offset": [0.08, 0.08, 0.03]},
-                            {"t": 5.5, "offset": [0, 0, 0]}]},
+        "follow": FOLLOW,
         "wall": {"stiffness": 1000.0, "damping": 20.0, "max_force": 25.0, "duration": 5.0,
                  "path": [{"t": 0.0, "offset": [0, 0, 0]}, {"t": 3.5, "offset": [0.4, 0, 0]}]},
         "twist": {"stiffness": 300.0, "damping": 10.0, "stiffness_rot": 5.0,
                   "damping_rot": 0.3, "max_torque": 3.0, "max_force": 25.0, "duration": 8.0,
                   "path": [{"t": 0.0, "offset": [0, 0, 0]},
                            {"t": 6.0, "offset": [0, 0, 0], "rotation": [2.094, 0, 0]}]},
-        "cranks60": {"stiffness": 600.0, "damping": 15.0, "delay": 0.15, "duration": 6.0,
-                     "path": [{"t": 0.0, "offset": [0, 0, 0]},
-                              {"t": 1.5, "offset": [0.08, 0, 0]},
-                              {"t": 2.3, "offset": [0.08, 0, 0]},
-                              {"t": 3.8, "offset": [0.08, 0.08, 0.03]},
-                              {"t": 4.6, "offset": [0.08, 0.08, 0.03]},
-                              {"t": 5.5, "offset": [0, 0, 0]}]},
+        "cranks60": FOLLOW,  # the same hand, from cranks at 60 deg
         "stiff": {"stiffness": 3000.0, "damping": 40.0, "delay": 0.15, "duration": 3.0,
                   "path": [{"t": 0.0, "offset": [0, 0, 0]}, {"t": 1.0, "offset": [0, 0.05, 0]}]},
         "soft": {"stiffness": 150.0, "damping": 3.0, "delay": 0.15, "duration": 3.0,

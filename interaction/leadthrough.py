@@ -227,13 +227,7 @@ class LeadThrough:
                 ref = th if ok else np.zeros(9)
             cmd = GuardCommand(ref, np.zeros(9), self._last_ff.copy(), "hold", False,
                                np.zeros(6))
-            if self.gains is not None and ok:  # within the envelope all the same
-                prev = self._prev_theta
-                vel = np.zeros(9) if prev is None else (th - prev) * self.rate
-                self._prev_theta = th.copy()
-                cmd, _ = within_envelope(cmd, self.gains[0], self.gains[1], th, vel,
-                                         COMMAND_SHARE * self.cap)
-            return cmd
+            return self._bounded(cmd, th) if ok else cmd  # within the envelope all the same
 
     def _step(self, theta: np.ndarray, tau: np.ndarray) -> GuardCommand:
         s = self.stream
@@ -448,13 +442,19 @@ class LeadThrough:
         ff = np.clip(ff, -COMMAND_SHARE * self.cap, COMMAND_SHARE * self.cap)
         self._last_ff = ff
         contact = bool(self.mode == "lead" or self._above > 0)
-        cmd = GuardCommand(self.theta_ref.copy(), rates, ff, self.mode, contact, w)
-        if self.gains is not None:  # the drive's rate feedback: the encoder's difference
-            prev = self._prev_theta
-            vel = np.zeros(9) if prev is None else (theta - prev) * self.rate
-            self._prev_theta = theta.copy()
-            cmd, _ = within_envelope(cmd, self.gains[0], self.gains[1], theta, vel,
-                                     COMMAND_SHARE * self.cap)
-        return cmd
+        return self._bounded(GuardCommand(self.theta_ref.copy(), rates, ff, self.mode,
+                                          contact, w), theta)
+
+    def _bounded(self, cmd: GuardCommand, theta: np.ndarray) -> GuardCommand:
+        """``cmd`` with the drive's whole command (tau_ff + PD) within the envelope, given
+        its gains (the drive's rate feedback: the encoder's difference)."""
+        if self.gains is None:
+            return cmd
+        prev = self._prev_theta
+        vel = np.zeros(9) if prev is None else (theta - prev) * self.rate
+        self._prev_theta = theta.copy()
+        out, _ = within_envelope(cmd, self.gains[0], self.gains[1], theta, vel,
+                                 COMMAND_SHARE * self.cap)
+        return out
 
 __all__ = ["CRANK_DEADBAND", "LeadThrough", "RATE_SHARE", "REST_SPEED"]

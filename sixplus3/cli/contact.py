@@ -19,7 +19,6 @@ def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
                      noise: float, hold: float, force: bool, kp: float, kd: float,
                      as_json: bool, reaction: str = "hold",
                      parameters_file: str | None = None) -> None:
-    from sixplus3.control.drive.drive_log import write_log
     from sixplus3.interaction.person import read_contact, run_contact
     from sixplus3.robot_description.robot import load_robot
 
@@ -42,16 +41,9 @@ def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
     run = run_contact(csv_file, robot, plant, contact, guard=guard, kp=kp, kd=kd, seed=seed,
                       after=max(hold, 0.5), torque_noise=noise, reaction=reaction,
                       parameter_cov=cov)
+    _logged(run, log_file, robot, plant, seed, noise, csv_file, as_json)
     assert run.log is not None
-    write_log(log_file, run.log, robot, {"plant": plant.name, "plant_hash": plant.hash,
-                                         "seed": seed, "torque_noise_n_m": noise,
-                                         "source": os.path.basename(csv_file)})
-    out = run.summary()
-    if as_json:
-        from sixplus3.fileio import strict_json
-
-        click.echo(strict_json(out))
-    else:
+    if not as_json:
         click.echo(f"{csv_file} on plant {plant.name}, guard {'on' if guard else 'off'}: "
                    f"{len(run.log.t)} ticks logged to {log_file}")
         if contact is None:
@@ -82,7 +74,6 @@ def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
 def simulate_lead(csv_file: str | None, lead_file: str | None, robot: Any,
                   plant_file: str | None, log_file: str | None, seed: int, noise: float,
                   force: bool, kp: float, kd: float, as_json: bool) -> None:
-    from sixplus3.control.drive.drive_log import write_log
     from sixplus3.interaction.hand import read_hand, run_lead
     from sixplus3.robot_description.robot import load_robot
 
@@ -102,16 +93,8 @@ def simulate_lead(csv_file: str | None, lead_file: str | None, robot: Any,
     plant = load_robot(plant_file)
     hand = read_hand(lead_file)
     run = run_lead(robot, plant, hand, kp=kp, kd=kd, seed=seed, torque_noise=noise)
-    assert run.log is not None
-    write_log(log_file, run.log, robot, {"plant": plant.name, "plant_hash": plant.hash,
-                                         "seed": seed, "torque_noise_n_m": noise,
-                                         "source": os.path.basename(lead_file)})
-    out = run.summary()
-    if as_json:
-        from sixplus3.fileio import strict_json
-
-        click.echo(strict_json(out))
-    else:
+    out = _logged(run, log_file, robot, plant, seed, noise, lead_file, as_json)
+    if not as_json:
         def num(v: float | None, fmt: str) -> str:
             return "(not reached)" if v is None else format(v, fmt) + " N"
 
@@ -131,3 +114,21 @@ def simulate_lead(csv_file: str | None, lead_file: str | None, robot: Any,
         for e in out["events"][:10]:
             click.echo(f"  lead-through: {e}")
     sys.exit(0 if out["peak_command_n_m"] <= robot.limits.torque else 1)
+
+
+def _logged(run: Any, log_file: str, robot: Any, plant: Any, seed: int, noise: float,
+            source: str, as_json: bool) -> dict[str, Any]:
+    """Write the run's drive log atomically (with its plant, seed and source), print the
+    summary as one JSON object when asked, and return the summary."""
+    from sixplus3.control.drive.drive_log import write_log
+
+    assert run.log is not None
+    write_log(log_file, run.log, robot, {"plant": plant.name, "plant_hash": plant.hash,
+                                         "seed": seed, "torque_noise_n_m": noise,
+                                         "source": os.path.basename(source)})
+    out: dict[str, Any] = run.summary()
+    if as_json:
+        from sixplus3.fileio import strict_json
+
+        click.echo(strict_json(out))
+    return out
