@@ -40,6 +40,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +49,7 @@ from tqdm import tqdm
 
 from sixplus3 import progress
 from sixplus3.cache import cached
+from sixplus3.dynamics import library_index
 from sixplus3.dynamics.symbolic import profile_function, setup_parameters, structure, symbolic_robot
 from sixplus3.robot_description.robot import Robot
 
@@ -326,26 +328,48 @@ def cached_library(name: str, src: str, flags: tuple[str, ...] = CFLAGS) -> Path
     return lib
 
 
-def compiled_small(f: ca.Function, key: str) -> ca.Function:
+def compiled_small(f: ca.Function | Callable[[], ca.Function], key: str,
+                   name: str | None = None) -> ca.Function:
     """A small function (thousands of instructions, not the planner's 11 MB Jacobian)
     compiled with ``CFLAGS`` in the foreground (about a second).  Cached per process by
-    ``f``'s name and ``key`` (what ``f`` depends on, e.g. the robot structure's hash: the
-    C source is not generated again), and on disk, like the planner's libraries, by the
-    source's hash.  Returns ``f`` itself (interpreted, the same results) when code
-    generation is off or fails."""
+    its name and ``key`` (what it depends on, e.g. the robot structure's hash), and on
+    disk, like the planner's libraries, by the source's hash.
+
+    ``f`` may be a function or what makes one (then ``name`` is its name): a library
+    already built for this name and key is found through :mod:`~sixplus3.dynamics.
+    library_index` without building the symbolic model (about 2.5 s of a command's
+    start-up).  Returns the interpreted function (the same results)
+    when code generation is off or fails."""
+    if name is None:
+        assert isinstance(f, ca.Function), "name the function that f makes"
+        name = f.name()
+
+    def function() -> ca.Function:
+        return f if isinstance(f, ca.Function) else f()
+
     if not codegen_enabled():
-        return f
+        return cached(("interpreted-small", f"{name}:{key}"), function)
 
     def build() -> ca.Function:
-        cg = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False})
-        cg.add(f)
+        lib = library_index.lookup(name, key, cache_dir())
+        if lib is not None:
+            try:
+                return ca.external(name, str(lib))
+            except RuntimeError:
+                pass  # a library that does not load: build it again
+        fn = function()
+        cg = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+        cg.add(fn)
         try:
-            return ca.external(f.name(), str(cached_library(f.name(), cg.dump())))
+            lib = cached_library(name, cg.dump())
+            out = ca.external(name, str(lib))
         except (OSError, RuntimeError) as exc:
-            log.warning("compiling %s failed (%s); interpreted", f.name(), exc)
-            return f
+            log.warning("compiling %s failed (%s); interpreted", name, exc)
+            return fn
+        library_index.record(name, key, cache_dir(), lib)
+        return out
 
-    return cached(("compiled-small", f"{f.name()}:{key}"), build)
+    return cached(("compiled-small", f"{name}:{key}"), build)
 
 
 def compiled_profile(robot: Robot) -> tuple[ca.Function, ca.DM]:

@@ -303,6 +303,17 @@ def kinematics_function(robot: Robot) -> ca.Function:
     return cached(("symbolic-kin", structure(robot).hash), make)
 
 
+def configuration_function(robot: Robot) -> ca.Function:
+    """x -> q: the closed configuration (Pinocchio's, of ``closed_loop_model``) at
+    minimal coordinates x."""
+    def make() -> ca.Function:
+        f = _core(robot).q
+        xs = ca.SX.sym("x", NX)
+        return ca.Function("q_x", [xs], [ca.densify(f(xs))], {"cse": True})
+
+    return cached(("symbolic-q", structure(robot).hash), make)
+
+
 def _specialise(robot: Robot) -> SymbolicRobot:
     core = _core(robot)
     p = setup_parameters(robot)

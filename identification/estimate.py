@@ -209,6 +209,12 @@ def pseudo_inertia(p: np.ndarray) -> np.ndarray:
     return J
 
 
+#: vec(J) = T p (column-major, 16 x 10): the pseudo-inertia as a linear map of a body's
+#: 10 parameters (:func:`pseudo_inertia`, which is linear).
+_PSEUDO_INERTIA_MAP = np.stack([pseudo_inertia(e).reshape(-1, order="F")
+                                for e in np.eye(N_BODY)], axis=1)
+
+
 def consistent(Wb: np.ndarray, tau: np.ndarray, weights: np.ndarray, base: BaseParameters,
                pi0: np.ndarray, prior_weight: float = PRIOR_WEIGHT) -> Consistent:
     """The physically consistent full parameters (module doc, 4): minimise
@@ -235,17 +241,14 @@ def consistent(Wb: np.ndarray, tau: np.ndarray, weights: np.ndarray, base: BaseP
     info = float(np.sum(Rs ** 2)) / P
     lam = prior_weight * info
     z = cp.Variable(P)  # pi = pi0 + s z
-    pi = pi0 + cp.multiply(s, z)
     cons = []
     nb = len(lay.bodies)
-    for b in range(nb):
-        p = pi[N_BODY * b:N_BODY * (b + 1)]
-        m, hx, hy, hz, ixx, ixy, iyy, ixz, iyz, izz = (p[k] for k in range(N_BODY))
-        tr = 0.5 * (ixx + iyy + izz)
-        J = cp.bmat([[tr - ixx, -ixy, -ixz, hx], [-ixy, tr - iyy, -iyz, hy],
-                     [-ixz, -iyz, tr - izz, hz], [hx, hy, hz, m]])
+    T = _PSEUDO_INERTIA_MAP
+    for b in range(nb):  # each body's pseudo-inertia, one affine map of its 10 (vectorised)
+        sl = slice(N_BODY * b, N_BODY * (b + 1))
+        J = cp.reshape(T @ pi0[sl] + (T * s[sl][None, :]) @ z[sl], (4, 4), order="F")
         cons.append(0.5 * (J + J.T) >> 0)
-    cons.append(pi[N_BODY * nb:] >= 0)
+    cons.append(pi0[N_BODY * nb:] + cp.multiply(s[N_BODY * nb:], z[N_BODY * nb:]) >= 0)
     obj = cp.Minimize(cp.sum_squares(Rs @ z - (c - R1 @ pi0)) + lam * cp.sum_squares(z))
     prob = cp.Problem(obj, cons)
     try:

@@ -14,8 +14,8 @@ taken); then one call of the observer function at (x, xd = J_x^-1 theta_dot) and
     J = J_x blockdiag(I, J_l(r)^-1, I),
 
 with J_l the left Jacobian of SO(3) (omega = J_l(r) r_dot).  The functions are called
-through CasADi's buffer interface on preallocated arrays (LIBRARY-NOTES: about 2 us a
-call, against about 80 us for a call with numpy conversions).  tests/test_leadthrough.py
+through CasADi's buffer interface on preallocated arrays
+(:class:`~sixplus3.dynamics.compiled_kinematics.Buffered`).  tests/test_leadthrough.py
 checks every output against SingleState (Pinocchio)."""
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from sixplus3.dynamics.codegen import compiled_small
+from sixplus3.dynamics.compiled_kinematics import Buffered, wrapped
 from sixplus3.dynamics.symbolic import (
     kinematics_function,
     observer_function,
@@ -55,29 +56,6 @@ def left_jacobian(r: np.ndarray) -> np.ndarray:
     return np.eye(3) + (1.0 - math.cos(t)) / t2 * K + (t - math.sin(t)) / (t2 * t) * (K @ K)
 
 
-class _Buffered:
-    """A CasADi function called on preallocated numpy arrays (its buffer interface)."""
-
-    def __init__(self, f: Any, shapes: tuple[tuple[int, ...], ...]) -> None:
-        self._buf, self._eval = f.buffer()
-        self.args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
-        self.res = [np.zeros(int(np.prod(s))) for s in shapes]
-        for j, s in enumerate(shapes):  # dense outputs: the buffers are written whole
-            if f.nnz_out(j) != int(np.prod(s)):
-                raise ValueError(f"{f.name()}: output {j} is sparse")
-        self._shapes = shapes
-        for i, a in enumerate(self.args):
-            self._buf.set_arg(i, a.data)
-        for j, r in enumerate(self.res):
-            self._buf.set_res(j, r.data)
-
-    def __call__(self, *args: np.ndarray) -> list[np.ndarray]:
-        for dst, src in zip(self.args, args, strict=False):
-            dst[:] = src
-        self._eval()
-        return [r.reshape(s, order="F") for r, s in zip(self.res, self._shapes, strict=True)]
-
-
 class CompiledState:
     """One sample at a time from the compiled CasADi model (module doc): the interface of
     :class:`~sixplus3.interaction.wrench.SingleState`."""
@@ -85,10 +63,11 @@ class CompiledState:
     def __init__(self, robot: Robot) -> None:
         self.robot = require_robot(robot)
         key = structure(self.robot).hash
-        self._kin = _Buffered(compiled_small(kinematics_function(self.robot), key),
-                              ((9,), (9, 9)))
-        obs = compiled_small(observer_function(self.robot), key)
-        self._obs = _Buffered(obs, ((9,), (9, 9), (9,), (9, 9), (9,)))
+        r = self.robot
+        self._kin = Buffered(compiled_small(lambda: kinematics_function(r), key, "kin_x"),
+                             ((9,), (9, 9)))
+        obs = compiled_small(lambda: observer_function(r), key, "observer_p")
+        self._obs = Buffered(obs, ((9,), (9, 9), (9,), (9, 9), (9,)))
         self._obs.args[2][:] = setup_parameters(self.robot)  # the robot's setup, fixed
         mot = self.robot.motors
         self._armature = np.asarray(mot.armature_per_joint, dtype=float)
@@ -117,7 +96,7 @@ class CompiledState:
         for _ in range(NEWTON + 1):
             th, Jx = self._kin(x)
             lu, piv, info = lapack.dgetrf(Jx)
-            err = np.mod(theta - th + math.pi, 2.0 * math.pi) - math.pi
+            err = wrapped(theta - th)
             if float(np.abs(err).max()) < TOL or info != 0:
                 break
             x = x + lapack.dgetrs(lu, piv, err)[0]
