@@ -46,28 +46,23 @@ clipped to the hardware envelope.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.file.trajectory_file import columns, read_bytes
+from sixplus3.control.file.trajectory_file import read_bytes
 from sixplus3.control.file.trajectory_parse import parse
-from sixplus3.control.gate.stop import TORQUE_SHARE, across_path, path_deceleration
+from sixplus3.control.gate.stop import TORQUE_SHARE
 from sixplus3.control.gate.validation import validate_file
-from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError, ValidationFailed, check_number
 from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
     GuardCommand,
     contact_site,
-    parameter_std2,
     parse_gains,
-    velocity_slope,
     within_envelope,
 )
-from sixplus3.kinematics import rotations as rot
-from sixplus3.kinematics.robot import ik_jacobian, robot_ik
+from sixplus3.interaction.guard_tables import path_tables
 from sixplus3.robot_description.hardware import effective_limits
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -77,17 +72,10 @@ GAIN = 500.0
 MODEL_ERROR = 0.15
 #: Standard deviations of the observer's noise in the threshold.
 N_SIGMA = 5.0
-#: The dry friction's share of the threshold, in the model's Coulomb torques: at a
-#: reversal the plant's true dry friction swings over its whole band (+-f_c, both signs)
-#: where the model's smooth law passes zero, and a plant's f_c is known to a few tens of
-#: percent.
-FRICTION_BAND = 2.5
 #: Ticks a joint must stay beyond its threshold to be a contact.
 DEBOUNCE = 2
 #: The largest path speed a stop may take where the plan slows down faster than it.
 STOP_SD_MAX = 4.0
-#: [s] how far a drive may lag its reference (the threshold's window).
-LAG = 0.02
 #: A largest jump between two measured samples [rad] (beyond it: a faulty reading).
 MAX_JUMP = 0.05
 #: For this long after a contact [s] the residual's crank torques may still place it on
@@ -168,63 +156,17 @@ class ContactGuard:
         if abs(file_rate - self.rate) > 1e-6 * self.rate:
             raise InputError(f"the file is sampled at {file_rate:g} Hz, the guard ticks at "
                              f"{self.rate:g} Hz", value=self.rate, valid=f"{file_rate:g} Hz")
-        data = rep.data
         self.lim = effective_limits(self.robot)
-        self.theta = columns(data, "pos")
-        self.theta_d = columns(data, "vel")
-        tau = columns(data, "tau")
-        n = self.n = len(self.theta)
-        dyn = ClosedLoopDynamics(self.robot)
-        assert rep.position is not None and rep.quaternion is not None and rep.psi is not None
-        cfg = robot_ik(rep.position, rot.matrix_from_quat(rep.quaternion), rep.psi, self.robot,
-                       platform_margins=False)
-        self.M = np.empty((n, 9, 9))
-        self.g, _ = dyn.actuated_inverse_dynamics_batch(cfg.q, np.zeros((n, 9)),
-                                                        np.zeros((n, 9)), inertia=self.M)
-        self.a = np.einsum("nij,nj->ni", self.M, self.theta_d)
-        self.b = tau - self.g
-        self.vnorm = np.linalg.norm(self.theta_d, axis=1)  # the plan's joint speed
-        # the velocity terms alone (Coriolis, centripetal, friction), for the observer
-        tau_v, _ = dyn.actuated_inverse_dynamics_batch(cfg.q, self.theta_d, np.zeros((n, 9)))
-        # without the friction: evaluated at the measured rate each tick (its sign
-        # follows the motion, a retract's too)
-        self.c = tau_v - self.g - self.robot.motors.friction(self.theta_d)
-        self.D = velocity_slope(dyn, cfg.q, self.theta_d)
-        self.J = ik_jacobian(cfg)
         self.dt = 1.0 / self.rate
-        # the stop table: the file's own (the gate checked it against these limits) at
-        # the default share, else computed here (control/gate/stop.py)
-        if rep.stop_deceleration is not None and share == TORQUE_SHARE:
-            self.beta = np.asarray(rep.stop_deceleration, dtype=float)
-        else:
-            self.beta = path_deceleration(self.a, across_path(self.a, self.b, self.theta_d,
-                                                              columns(data, "acc")),
-                                          self.g, self.theta_d,
-                                          self.lim.torque, self.lim.acceleration, share)
-        # the threshold: the observer's noise, the model's share, the dry friction band
-        s_obs = torque_noise * math.sqrt(self.gain * self.dt / 2.0)
-        fc = self.robot.motors.coulomb_per_joint
-        self.thr_base = self.n_sigma * max(s_obs, 1e-4) + FRICTION_BAND * fc + 0.02
-        self.thr_g = self.model_error * np.abs(self.g)
-        # |M| |thetaddot|, not |M thetaddot|: an error in the inertia does not cancel
-        # between joints the way the nominal terms may
-        thr_k = self.model_error * (np.abs(self.c) + np.einsum(
-            "nij,nj->ni", np.abs(self.M), np.abs(columns(data, "acc"))))
-        # the robot may lag its reference by a few ticks (a soft drive): take each
-        # sample's threshold as the largest over the samples it may still be at
-        lag = max(1, int(round(LAG * self.rate)))
-        self.thr_k = np.stack([thr_k[max(0, k - lag):k + 1].max(axis=0) for k in range(n)])
-        # an identification's confidence in its parameters (``parameter_cov``: the base
-        # columns and the covariance of the base parameters, identify estimate --report's
-        # parameters.npz): n_sigma standard deviations of the model torque at each
-        # planned state, diag(Y_b Sigma Y_b^T), over the same window
-        self.thr_p = np.zeros((n, 9))
-        if parameter_cov is not None:
-            sd = np.sqrt(parameter_std2(dyn, cfg.q, self.theta_d, columns(data, "acc"),
-                                        parameter_cov))
-            self.thr_p = self.n_sigma * np.stack([sd[max(0, k - lag):k + 1].max(axis=0)
-                                                  for k in range(n)])
-        self.thr_g = self.thr_g + self.thr_p
+        tables = path_tables(self.robot, rep, self.rate, self.lim, share, self.gain,
+                             self.model_error, self.n_sigma, torque_noise, parameter_cov)
+        self.n = len(tables.theta)
+        self.theta, self.theta_d, self.M, self.g = (tables.theta, tables.theta_d, tables.M,
+                                                    tables.g)
+        self.a, self.b, self.c, self.D, self.J = (tables.a, tables.b, tables.c, tables.D,
+                                                  tables.J)
+        self.vnorm, self.beta = tables.vnorm, tables.beta
+        self.thr_base, self.thr_g, self.thr_k = tables.thr_base, tables.thr_g, tables.thr_k
         self.events: list[str] = []
         self.path = Path(trajectory_file)
         self.reset()

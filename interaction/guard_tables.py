@@ -1,0 +1,110 @@
+"""The contact guard's offline tables (interaction/guard.py's module doc): for every
+sample k of a validated file's path, the reduced inertia, gravity, the time-scaling
+terms, the velocity torque and its slope, the IK Jacobian, the stop table and the
+observer's thresholds.  Nothing here runs per tick."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sixplus3.control.file.trajectory_file import columns
+from sixplus3.control.gate.stop import TORQUE_SHARE, across_path, path_deceleration
+from sixplus3.control.report import ValidationReport
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.interaction.guard_parts import parameter_std2, velocity_slope
+from sixplus3.kinematics import rotations as rot
+from sixplus3.kinematics.robot import ik_jacobian, robot_ik
+from sixplus3.robot_description.limits import Limits
+from sixplus3.robot_description.robot import Robot
+
+#: The dry friction's share of the threshold, in the model's Coulomb torques: at a
+#: reversal the plant's true dry friction swings over its whole band (+-f_c, both signs)
+#: where the model's smooth law passes zero, and a plant's f_c is known to a few tens of
+#: percent.
+FRICTION_BAND = 2.5
+#: [s] how far a drive may lag its reference (the threshold's window).
+LAG = 0.02
+
+
+@dataclass(frozen=True)
+class PathTables:
+    theta: np.ndarray  # (n, 9) the path's angles [rad]
+    theta_d: np.ndarray  # (n, 9) its rates: theta'(s) [rad/s]
+    M: np.ndarray  # (n, 9, 9) reduced inertia
+    g: np.ndarray  # (n, 9) gravity torque
+    a: np.ndarray  # (n, 9) M theta'
+    b: np.ndarray  # (n, 9) tau - g
+    c: np.ndarray  # (n, 9) velocity torque at the plan's rates, without the friction
+    D: np.ndarray  # (n, 9, 9) its slope in the rates
+    J: np.ndarray  # (n, 9, 9) IK Jacobian
+    vnorm: np.ndarray  # (n,) the plan's joint speed
+    beta: np.ndarray  # (n,) the stop table [1/s]
+    thr_base: np.ndarray  # (9,) the threshold's constant part [N m]
+    thr_g: np.ndarray  # (n, 9) its share of gravity (and the parameters' spread)
+    thr_k: np.ndarray  # (n, 9) its share of the motion (times sd^2)
+
+
+def path_tables(robot: Robot, rep: ValidationReport, rate: float, lim: Limits,
+                share: float, gain: float, model_error: float, n_sigma: float,
+                torque_noise: float, parameter_cov: tuple[np.ndarray, np.ndarray] | None
+                ) -> PathTables:
+    """The tables of the file the gate read into ``rep``, ticked at ``rate`` [Hz]
+    (module doc)."""
+    data = rep.data
+    assert data is not None
+    theta = columns(data, "pos")
+    theta_d = columns(data, "vel")
+    acc = columns(data, "acc")
+    tau = columns(data, "tau")
+    n = len(theta)
+    dyn = ClosedLoopDynamics(robot)
+    assert rep.position is not None and rep.quaternion is not None and rep.psi is not None
+    cfg = robot_ik(rep.position, rot.matrix_from_quat(rep.quaternion), rep.psi, robot,
+                   platform_margins=False)
+    M = np.empty((n, 9, 9))
+    g, _ = dyn.actuated_inverse_dynamics_batch(cfg.q, np.zeros((n, 9)), np.zeros((n, 9)),
+                                               inertia=M)
+    a = np.einsum("nij,nj->ni", M, theta_d)
+    b = tau - g
+    # the velocity terms alone (Coriolis, centripetal, friction), for the observer
+    tau_v, _ = dyn.actuated_inverse_dynamics_batch(cfg.q, theta_d, np.zeros((n, 9)))
+    # without the friction: evaluated at the measured rate each tick (its sign follows
+    # the motion, a retract's too)
+    c = tau_v - g - robot.motors.friction(theta_d)
+    # the stop table: the file's own (the gate checked it against these limits) at the
+    # default share, else computed here (control/gate/stop.py)
+    if rep.stop_deceleration is not None and share == TORQUE_SHARE:
+        beta = np.asarray(rep.stop_deceleration, dtype=float)
+    else:
+        beta = path_deceleration(a, across_path(a, b, theta_d, acc), g, theta_d,
+                                 lim.torque, lim.acceleration, share)
+    # the threshold: the observer's noise, the model's share, the dry friction band
+    s_obs = torque_noise * math.sqrt(gain * (1.0 / rate) / 2.0)
+    fc = robot.motors.coulomb_per_joint
+    thr_base = n_sigma * max(s_obs, 1e-4) + FRICTION_BAND * fc + 0.02
+    # |M| |thetaddot|, not |M thetaddot|: an error in the inertia does not cancel
+    # between joints the way the nominal terms may
+    thr_k = model_error * (np.abs(c) + np.einsum("nij,nj->ni", np.abs(M), np.abs(acc)))
+    # the robot may lag its reference by a few ticks (a soft drive): take each sample's
+    # threshold as the largest over the samples it may still be at
+    lag = max(1, int(round(LAG * rate)))
+    thr_k = np.stack([thr_k[max(0, k - lag):k + 1].max(axis=0) for k in range(n)])
+    # an identification's confidence in its parameters (``parameter_cov``: the base
+    # columns and the covariance of the base parameters, identify estimate --report's
+    # parameters.npz): n_sigma standard deviations of the model torque at each planned
+    # state, diag(Y_b Sigma Y_b^T), over the same window
+    thr_g = model_error * np.abs(g)
+    if parameter_cov is not None:
+        sd = np.sqrt(parameter_std2(dyn, cfg.q, theta_d, acc, parameter_cov))
+        thr_g = thr_g + n_sigma * np.stack([sd[max(0, k - lag):k + 1].max(axis=0)
+                                            for k in range(n)])
+    return PathTables(theta=theta, theta_d=theta_d, M=M, g=g, a=a, b=b, c=c,
+                      D=velocity_slope(dyn, cfg.q, theta_d), J=ik_jacobian(cfg),
+                      vnorm=np.linalg.norm(theta_d, axis=1), beta=beta,
+                      thr_base=np.asarray(thr_base, dtype=float), thr_g=thr_g, thr_k=thr_k)
+
+
+__all__ = ["FRICTION_BAND", "LAG", "PathTables", "path_tables"]
