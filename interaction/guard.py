@@ -62,7 +62,7 @@ from sixplus3.interaction.guard_parts import (
     parse_gains,
     within_envelope,
 )
-from sixplus3.interaction.guard_tables import path_tables
+from sixplus3.interaction.guard_tables import deceleration_at, path_tables
 from sixplus3.robot_description.hardware import effective_limits
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -88,8 +88,12 @@ CLAMP_WAIT = 0.02
 BLOCKED = 0.004
 #: Retract speed along the path, as a share of the plan's path speed.
 RETRACT_SPEED = 0.3
+#: [s] the shortest time a retract comes to rest in (from RETRACT_SPEED).
+SETTLE_TIME = 0.015
 #: The longest retract [samples of the path]: then the guard comes to rest and holds.
 RETRACT_SAMPLES = 40
+#: [rad] the largest offset from the path a contact's stop rests at (per joint).
+REST_OFFSET = 0.02
 #: The force is gone when every joint stays within its threshold this long [s].
 RELEASED = 0.03
 #: A drive at this share of the torque limit is saturated ...
@@ -165,8 +169,10 @@ class ContactGuard:
                                                     tables.g)
         self.a, self.b, self.c, self.D, self.J = (tables.a, tables.b, tables.c, tables.D,
                                                   tables.J)
+        self.b_cross = tables.b_cross
         self.vnorm, self.beta = tables.vnorm, tables.beta
         self.thr_base, self.thr_g, self.thr_k = tables.thr_base, tables.thr_g, tables.thr_k
+        self.thr_p = tables.thr_p
         self.events: list[str] = []
         self.path = Path(trajectory_file)
         self.reset()
@@ -233,6 +239,8 @@ class ContactGuard:
         self._M_prev = self.M[0]
         self._sdd = 0.0
         self._retract_from = 0.0
+        self._rested = False  # a contact's stop has come to rest
+        self._offset = np.zeros(9)  # the measured angles less the path's, at that rest
         self.t = 0.0
 
     def _at(self, arr: np.ndarray) -> np.ndarray:
@@ -252,7 +260,7 @@ class ContactGuard:
         def at(arr: np.ndarray) -> np.ndarray:
             return (1.0 - f) * arr[i] + f * arr[j]
 
-        th = at(self.theta)
+        th = at(self.theta) + self._offset
         ff = at(self.a) * sdd + at(self.b) * self.sd ** 2 + at(self.g)
         cap = self.lim.torque
         ff = np.clip(np.nan_to_num(ff, nan=0.0), -cap, cap)
@@ -382,8 +390,11 @@ class ContactGuard:
                                "retracting along the path")
         elif self.mode == "stop":
             # the joint speed along the path, sigma = sd |theta'(s)|, falls at the table's
-            # beta (control/gate/stop.py); sd follows from it where the path goes on
-            beta = float(self.beta[k])
+            # beta (control/gate/stop.py), or faster where the torque limits allow it at
+            # the stop's own path speed; sd follows from it where the path goes on
+            beta = max(float(self.beta[k]), deceleration_at(
+                self.a[k], self.b_cross[k], self.g[k], self.theta_d[k], self.sd,
+                self.lim.torque, self.lim.acceleration))
             v0 = float(self._at(self.vnorm))
             sigma = max(0.0, self.sd * v0 - beta * v0 * dt)
             s_new = min(self.n - 1.0, self.s + self.rate * dt * self.sd)
@@ -396,6 +407,15 @@ class ContactGuard:
             sd_new = min(sd_new, max(0.0, self._sm))
             sdd = max((sd_new - self.sd) / dt, -beta * max(v0, 1e-9) / max(v1, 1e-9))
             self.sd = sd_new
+            if self.sd <= 0.0 and self._contact and not self._rested:
+                # at rest after a contact: rest where the robot is. An impact pushes the
+                # platform off the path; a stiff drive pulling it back onto the path
+                # would move it towards the person again. The offset stays with every
+                # later reference (the retract runs parallel to the path)
+                self._rested = True
+                assert self._prev is not None
+                self._offset = np.clip(self._prev - self._at(self.theta), -REST_OFFSET,
+                                       REST_OFFSET)
             if self.sd <= 0.0:
                 self._since += dt
                 self._quiet = self._quiet + dt if not over else 0.0
@@ -421,9 +441,11 @@ class ContactGuard:
                 self.mode = "settle"  # come to rest, then hold
                 self.events.append(f"t={self.t:.4f} s: released: coming to rest")
         elif self.mode == "settle":
-            beta = float(self.beta[k])
-            sdd = beta
-            self.sd = min(0.0, self.sd + beta * dt)
+            # no harder than the table allows, and over at least SETTLE_TIME: a stiff
+            # drive stopped at once from the retract's speed springs back towards the
+            # person (measured: 6-8 cm/s)
+            sdd = min(float(self.beta[k]), RETRACT_SPEED / SETTLE_TIME)
+            self.sd = min(0.0, self.sd + sdd * dt)
             self.s = max(0.0, self.s + self.rate * dt * self.sd)
             if self.sd >= 0.0:
                 self.mode = "hold"

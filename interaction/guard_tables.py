@@ -37,13 +37,15 @@ class PathTables:
     g: np.ndarray  # (n, 9) gravity torque
     a: np.ndarray  # (n, 9) M theta'
     b: np.ndarray  # (n, 9) tau - g
+    b_cross: np.ndarray  # (n, 9) b without the path's acceleration along its tangent
     c: np.ndarray  # (n, 9) velocity torque at the plan's rates, without the friction
     D: np.ndarray  # (n, 9, 9) its slope in the rates
     J: np.ndarray  # (n, 9, 9) IK Jacobian
     vnorm: np.ndarray  # (n,) the plan's joint speed
     beta: np.ndarray  # (n,) the stop table [1/s]
     thr_base: np.ndarray  # (9,) the threshold's constant part [N m]
-    thr_g: np.ndarray  # (n, 9) its share of gravity (and the parameters' spread)
+    thr_g: np.ndarray  # (n, 9) its share of gravity, and thr_p
+    thr_p: np.ndarray  # (n, 9) the identified parameters' spread (0 without them)
     thr_k: np.ndarray  # (n, 9) its share of the motion (times sd^2)
 
 
@@ -76,11 +78,12 @@ def path_tables(robot: Robot, rep: ValidationReport, rate: float, lim: Limits,
     c = tau_v - g - robot.motors.friction(theta_d)
     # the stop table: the file's own (the gate checked it against these limits) at the
     # default share, else computed here (control/gate/stop.py)
+    b_cross = across_path(a, b, theta_d, acc)
     if rep.stop_deceleration is not None and share == TORQUE_SHARE:
         beta = np.asarray(rep.stop_deceleration, dtype=float)
     else:
-        beta = path_deceleration(a, across_path(a, b, theta_d, acc), g, theta_d,
-                                 lim.torque, lim.acceleration, share)
+        beta = path_deceleration(a, b_cross, g, theta_d, lim.torque, lim.acceleration,
+                                 share)
     # the threshold: the observer's noise, the model's share, the dry friction band
     s_obs = torque_noise * math.sqrt(gain * (1.0 / rate) / 2.0)
     fc = robot.motors.coulomb_per_joint
@@ -96,15 +99,43 @@ def path_tables(robot: Robot, rep: ValidationReport, rate: float, lim: Limits,
     # columns and the covariance of the base parameters, identify estimate --report's
     # parameters.npz): n_sigma standard deviations of the model torque at each planned
     # state, diag(Y_b Sigma Y_b^T), over the same window
-    thr_g = model_error * np.abs(g)
+    thr_p = np.zeros((n, 9))
     if parameter_cov is not None:
         sd = np.sqrt(parameter_std2(dyn, cfg.q, theta_d, acc, parameter_cov))
-        thr_g = thr_g + n_sigma * np.stack([sd[max(0, k - lag):k + 1].max(axis=0)
-                                            for k in range(n)])
-    return PathTables(theta=theta, theta_d=theta_d, M=M, g=g, a=a, b=b, c=c,
+        thr_p = n_sigma * np.stack([sd[max(0, k - lag):k + 1].max(axis=0)
+                                    for k in range(n)])
+    thr_g = model_error * np.abs(g) + thr_p
+    return PathTables(theta=theta, theta_d=theta_d, M=M, g=g, a=a, b=b, b_cross=b_cross, c=c,
                       D=velocity_slope(dyn, cfg.q, theta_d), J=ik_jacobian(cfg),
                       vnorm=np.linalg.norm(theta_d, axis=1), beta=beta,
-                      thr_base=np.asarray(thr_base, dtype=float), thr_g=thr_g, thr_k=thr_k)
+                      thr_base=np.asarray(thr_base, dtype=float), thr_g=thr_g, thr_p=thr_p,
+                      thr_k=thr_k)
 
 
-__all__ = ["FRICTION_BAND", "LAG", "PathTables", "path_tables"]
+def deceleration_at(a: np.ndarray, b_cross: np.ndarray, g: np.ndarray,
+                    theta_d: np.ndarray, sd: float, torque: float, acceleration: float,
+                    share: float = TORQUE_SHARE) -> float:
+    """beta [1/s] that sample's joint speed may fall at, at the path speed ``sd`` itself:
+    |sd^2 b_cross + g - beta a| within ``share`` of the torque limit on every joint, and
+    the joints' deceleration within the acceleration limit (control/gate/stop.py's
+    condition at one speed; the table's beta_k holds at every speed in [0, 1], so it is
+    never larger).  Where a stop passes slowly through samples the plan takes near the
+    torque limit, the table is small (its condition at full speed binds) while at the
+    stop's own speed a far larger deceleration fits.  0 where none does."""
+    cap = share * torque
+    c = sd * sd * b_cross + g
+    lo, hi = 0.0, math.inf
+    for aj, cj in zip(a.tolist(), c.tolist(), strict=True):
+        if aj > 0.0:
+            lo, hi = max(lo, (cj - cap) / aj), min(hi, (cj + cap) / aj)
+        elif aj < 0.0:
+            lo, hi = max(lo, (cj + cap) / aj), min(hi, (cj - cap) / aj)
+        elif abs(cj) > cap:
+            return 0.0
+    if hi < lo:
+        return 0.0
+    vmax = float(np.abs(theta_d).max())
+    return min(hi, acceleration / max(vmax, 1e-9), 1e6)
+
+
+__all__ = ["FRICTION_BAND", "LAG", "PathTables", "deceleration_at", "path_tables"]

@@ -123,6 +123,8 @@ class ContactRun:
     modes: list[str] = field(default_factory=list)
     events: list[str] = field(default_factory=list)
     log: DriveLog | None = field(default=None, repr=False)  # what the drives measured
+    #: (n,) [m/s] the contact point's speed along the normal each tick (MuJoCo's)
+    speed_n: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def within_limits(self) -> bool:
@@ -263,6 +265,7 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     run = _outcome(contact, g is not None, rate, force, speed_n, flags, modes, peak_cmd,
                    g.events if g is not None else [])
     run.site = g.contact_site if g is not None else None
+    run.speed_n = speed_n
     run.log = DriveLog(t=np.arange(n) / rate, theta=th_log, tau=tau_log, name=Path(path).name,
                        meta={"plant": plant.name, "seed": seed, "torque_noise": torque_noise,
                              "guard": g is not None, "contact": None if contact is None else
