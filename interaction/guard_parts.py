@@ -102,8 +102,11 @@ def within_envelope(cmd: GuardCommand, kp: np.ndarray, kd: np.ndarray, theta: np
     envelope from a reference that runs ahead."""
     damp = kd * (cmd.theta_dot_ref - vel)
     pd = kp * (cmd.theta_ref - theta) + damp
-    lo, hi = -cap - cmd.tau_ff, cap - cmd.tau_ff
     wanted = float(np.abs(cmd.tau_ff + pd).max())
+    if np.any(np.abs(cmd.tau_ff) > cap):  # the feed-forward alone beyond the share
+        cmd = GuardCommand(cmd.theta_ref, cmd.theta_dot_ref, np.clip(cmd.tau_ff, -cap, cap),
+                           cmd.mode, cmd.contact, cmd.wrench)
+    lo, hi = -cap - cmd.tau_ff, cap - cmd.tau_ff
     if bool(np.all((pd >= lo) & (pd <= hi))):
         return cmd, wanted
     pd_c = np.clip(pd, np.minimum(lo, 0.0), np.maximum(hi, 0.0))

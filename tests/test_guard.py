@@ -241,7 +241,9 @@ def test_the_velocity_slope_is_the_exact_derivative_of_the_velocity_torque(hand_
 def test_with_the_drive_gains_no_command_leaves_the_envelope(hand_plan) -> None:
     """A clamp on a plan that is not safe for one, with a stiff drive: blind, the PD asks
     for far more than the motors have; with the guard given the drive's gains, the total
-    tau_ff + PD never leaves the envelope, and the clamp is still released."""
+    tau_ff + PD never leaves the envelope (97 % of it: the feed-forward too), and the
+    clamp is still released."""
+    from sixplus3.interaction.guard_parts import COMMAND_SHARE
     from sixplus3.interaction.person import contact_from_dict, run_contact
 
     c = contact_from_dict({"region": "hand", "kind": "clamp", "at": 0.12})
@@ -251,7 +253,7 @@ def test_with_the_drive_gains_no_command_leaves_the_envelope(hand_plan) -> None:
                           after=0.3)
     cap = ROBOT.limits.torque
     assert blind.peak_command > 2 * cap
-    assert guarded.peak_command <= cap + 1e-9, guarded.summary()
+    assert guarded.peak_command <= COMMAND_SHARE * cap + 1e-9, guarded.summary()
     assert guarded.modes[-1] == "hold" and guarded.quasi_static == 0.0
 
 
