@@ -82,8 +82,11 @@ MAX_JUMP = 0.05
 #: a leg (they grow with the force), while the force is at least half its peak so far and
 #: the guard is still stopping (a retract's start moves the reference at once).
 SITE_WINDOW = 0.02
-#: After a stop, the force that stays for this long [s] is a clamp.
+#: After a stop, the force that stays for this long [s] is a clamp ...
 CLAMP_WAIT = 0.02
+#: ... and one absent for the last GONE [s] of it is gone: a collision, the body moved
+#: away (the free hand is knocked off in a few ms).
+GONE = 0.01
 #: [rad] the measured angles this far behind the reference, with a force on: blocked.
 BLOCKED = 0.004
 #: Retract speed along the path, as a share of the plan's path speed.
@@ -417,17 +420,21 @@ class ContactGuard:
                 self._offset = np.clip(self._prev - self._at(self.theta), -REST_OFFSET,
                                        REST_OFFSET)
             if self.sd <= 0.0:
+                # at rest: the force present is the residual beyond its threshold for
+                # DEBOUNCE ticks (as a contact is found; one tick over is noise)
                 self._since += dt
-                self._quiet = self._quiet + dt if not over else 0.0
-                if self._quiet >= RELEASED:
+                self._quiet = self._quiet + dt if self._over < DEBOUNCE else 0.0
+                if self._quiet >= RELEASED or (self._since >= CLAMP_WAIT
+                                               and self._quiet >= GONE):
                     self.mode = "hold"
-                    self.events.append(f"t={self.t:.4f} s: stopped, the force is gone: "
-                                       "holding")
+                    self.events.append(f"t={self.t:.4f} s: stopped, the force is gone (a "
+                                       "collision): holding")
                 elif self._since >= CLAMP_WAIT and self._contact:
                     self.mode = "retract"
                     self._retract_from = self.s
                     self.events.append(f"t={self.t:.4f} s: the force stays after the stop "
-                                       "(a clamp): retracting along the path")
+                                       "(a clamp, or a body still pressing): retracting "
+                                       "along the path")
         elif self.mode == "retract":
             beta = float(self.beta[k])
             if self.sd > -RETRACT_SPEED:
