@@ -217,6 +217,13 @@ def quiet(args: argparse.Namespace, out: object, t_start: float) -> None:
     print(f"{len(rows)} runs in {time.perf_counter() - t_start:.0f} s")
 
 
+def said(rows: list[dict], kind: str) -> list[int]:
+    """[runs of ``kind`` the guard called a collision, runs it called a clamp]."""
+    ev = [" ".join(r["events"]) for r in rows if r["kind"] == kind]
+    clamp = sum("clamp" in e for e in ev)
+    return [len(ev) - clamp, clamp]
+
+
 def summarise(rows: list[dict]) -> dict:
     g = [r for r in rows if r["guard"] and r["onset"] is not None]
     det = [r["detection_delay"] for r in g if r["detection_delay"] is not None]
@@ -238,6 +245,10 @@ def summarise(rows: list[dict]) -> dict:
         "not_flagged_worst_force_share": max((max(r["peak_transient"] / r["limit_transient"],
                                                   r["quasi_static"] / r["limit_quasi_static"])
                                               for r in missed), default=None),
+        "stopped_within_25_ms": sum(x <= 0.025 + 1e-9 for x in stops),
+        # what the guard said at rest: [a collision (held), a clamp or pressing (retract)]
+        "free_said_collision_clamp": said(g, "free"),
+        "clamp_said_collision_clamp": said(g, "clamp"),
         "stop_median_ms": 1e3 * statistics.median(stops) if stops else None,
         "stop_worst_ms": 1e3 * max(stops) if stops else None,
         "false_alarms": sum(bool(r["false_alarm"]) for r in rows),
