@@ -245,7 +245,7 @@ def summarise(rows: list[dict]) -> dict:
         "not_flagged_worst_force_share": max((max(r["peak_transient"] / r["limit_transient"],
                                                   r["quasi_static"] / r["limit_quasi_static"])
                                               for r in missed), default=None),
-        "stopped_within_25_ms": sum(x <= 0.025 + 1e-9 for x in stops),
+        "stopped_within_25_ms": int(sum(x <= 0.025 + 1e-9 for x in stops)),
         # what the guard said at rest: [a collision (held), a clamp or pressing (retract)]
         "free_said_collision_clamp": said(g, "free"),
         "clamp_said_collision_clamp": said(g, "clamp"),

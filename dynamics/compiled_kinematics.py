@@ -67,24 +67,30 @@ def wrapped(a: np.ndarray) -> np.ndarray:
     return np.mod(a + math.pi, 2.0 * math.pi) - math.pi
 
 
+def kinematics_buffer(robot: Robot) -> Buffered:
+    """``x -> (theta(x), J_x(x))`` of ``robot``'s structure, compiled, on its buffers."""
+    r = require_robot(robot)
+    return Buffered(compiled_small(lambda: kinematics_function(r), structure(r).hash,
+                                   "kin_x"), ((9,), (9, 9)))
+
+
 class CompiledKinematics:
     """theta(x), J_x(x) and the Pinocchio configuration q(x) of one robot structure,
     compiled (module doc)."""
 
     def __init__(self, robot: Robot) -> None:
         self.robot = require_robot(robot)
-        key = structure(self.robot).hash
-        r = self.robot
-        self.kin = Buffered(compiled_small(lambda: kinematics_function(r), key, "kin_x"),
-                            ((9,), (9, 9)))
-        q = compiled_small(lambda: configuration_function(r), key, "q_x")
-        self.nq = int(q.nnz_out(0))
-        self._q = Buffered(q, ((self.nq,),))
+        self.kin = kinematics_buffer(self.robot)
+        self._q: Buffered | None = None  # q(x), compiled at its first use
 
     def configurations(self, x: np.ndarray) -> np.ndarray:
         """(n, nq) the closed configurations q at minimal coordinates x (n, 9)."""
+        if self._q is None:
+            r = self.robot
+            q = compiled_small(lambda: configuration_function(r), structure(r).hash, "q_x")
+            self._q = Buffered(q, ((int(q.nnz_out(0)),),))
         x = np.atleast_2d(np.asarray(x, dtype=float))
-        out = np.empty((len(x), self.nq))
+        out = np.empty((len(x), self._q.res[0].size))
         for k in range(len(x)):
             out[k] = self._q(x[k])[0]
         return out
@@ -125,4 +131,5 @@ class CompiledKinematics:
         return len(theta)
 
 
-__all__ = ["JUMP", "NEWTON", "TOL", "Buffered", "CompiledKinematics", "wrapped"]
+__all__ = ["JUMP", "NEWTON", "TOL", "Buffered", "CompiledKinematics", "kinematics_buffer",
+           "wrapped"]

@@ -93,12 +93,7 @@ def poses_of(robot: Robot, theta: np.ndarray, chunk: int = CHUNK_FK,
     compiled one again.  ``start`` and ``give_up``: as :func:`poses_batched`."""
     theta = np.asarray(theta, dtype=float)
     n = len(theta)
-    if start is None:
-        first = robot_fk(theta[0], robot)
-        x = np.r_[first.position, np.reshape(rotvec_from_matrix(first.rotation), -1),
-                  first.psi]
-    else:
-        x = np.array(start, dtype=float)
+    x = robot_fk(theta[0], robot).x if start is None else np.array(start, dtype=float)
     ck = cached(("compiled-kinematics", robot.hash), lambda: CompiledKinematics(robot))
     xs = np.tile(x, (n, 1))
     ok = np.zeros(n, dtype=bool)
@@ -134,12 +129,7 @@ def poses_batched(robot: Robot, theta: np.ndarray, chunk: int = CHUNK_FK,
     only asks whether the whole sequence has one."""
     theta = np.asarray(theta, dtype=float)
     n = len(theta)
-    if start is None:
-        first = robot_fk(theta[0], robot)
-        x = np.r_[first.position, np.reshape(rotvec_from_matrix(first.rotation), -1),
-                  first.psi]
-    else:
-        x = np.array(start, dtype=float)
+    x = robot_fk(theta[0], robot).x if start is None else np.array(start, dtype=float)
     xs = np.tile(x, (n, 1))
     ok = np.zeros(n, dtype=bool)
     i, size = 0, chunk

@@ -27,9 +27,8 @@ import numpy as np
 from scipy.linalg import lapack
 
 from sixplus3.dynamics.codegen import compiled_small
-from sixplus3.dynamics.compiled_kinematics import Buffered, wrapped
+from sixplus3.dynamics.compiled_kinematics import Buffered, kinematics_buffer, wrapped
 from sixplus3.dynamics.symbolic import (
-    kinematics_function,
     observer_function,
     setup_parameters,
     structure,
@@ -64,8 +63,7 @@ class CompiledState:
         self.robot = require_robot(robot)
         key = structure(self.robot).hash
         r = self.robot
-        self._kin = Buffered(compiled_small(lambda: kinematics_function(r), key, "kin_x"),
-                             ((9,), (9, 9)))
+        self._kin = kinematics_buffer(r)
         obs = compiled_small(lambda: observer_function(r), key, "observer_p")
         self._obs = Buffered(obs, ((9,), (9, 9), (9,), (9, 9), (9,)))
         self._obs.args[2][:] = setup_parameters(self.robot)  # the robot's setup, fixed
@@ -88,9 +86,7 @@ class CompiledState:
         """(x, the LU factors of J_x, J_x) of the angles theta by Newton's method from
         the previous sample."""
         if self._x is None or self._lu is None or self._theta is None:
-            fk = robot_fk(theta, self.robot, tol=1e-9)
-            x = np.r_[fk.position, np.reshape(rot.rotvec_from_matrix(fk.rotation), -1),
-                      fk.psi]
+            x = robot_fk(theta, self.robot, tol=1e-9).x
         else:
             x = self._x + lapack.dgetrs(self._lu, self._piv, theta - self._theta)[0]
         for _ in range(NEWTON + 1):

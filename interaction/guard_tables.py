@@ -11,7 +11,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from sixplus3.control.file.trajectory_file import columns
-from sixplus3.control.gate.stop import TORQUE_SHARE, across_path, path_deceleration
+from sixplus3.control.gate.stop import (
+    TORQUE_SHARE,
+    across_path,
+    beta_interval,
+    path_deceleration,
+)
 from sixplus3.control.report import ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.interaction.guard_parts import parameter_std2, velocity_slope
@@ -116,26 +121,19 @@ def deceleration_at(a: np.ndarray, b_cross: np.ndarray, g: np.ndarray,
                     theta_d: np.ndarray, sd: float, torque: float, acceleration: float,
                     share: float = TORQUE_SHARE) -> float:
     """beta [1/s] that sample's joint speed may fall at, at the path speed ``sd`` itself:
-    |sd^2 b_cross + g - beta a| within ``share`` of the torque limit on every joint, and
-    the joints' deceleration within the acceleration limit (control/gate/stop.py's
-    condition at one speed; the table's beta_k holds at every speed in [0, 1], so it is
-    never larger).  Where a stop passes slowly through samples the plan takes near the
-    torque limit, the table is small (its condition at full speed binds) while at the
-    stop's own speed a far larger deceleration fits.  0 where none does."""
+    |sd^2 b_cross + g - beta a| within ``share`` of the torque limit on every joint
+    (control/gate/stop.py's :func:`beta_interval`, the table's condition at one speed)
+    and the joints' deceleration within the acceleration limit.  The table's beta_k
+    holds at every speed in [0, 1]: where the plan runs near the torque limit it is
+    small, while at a stop's own speed a far larger deceleration fits.  0 where none
+    does."""
     cap = share * torque
     c = sd * sd * b_cross + g
-    lo, hi = 0.0, math.inf
-    for aj, cj in zip(a.tolist(), c.tolist(), strict=True):
-        if aj > 0.0:
-            lo, hi = max(lo, (cj - cap) / aj), min(hi, (cj + cap) / aj)
-        elif aj < 0.0:
-            lo, hi = max(lo, (cj + cap) / aj), min(hi, (cj - cap) / aj)
-        elif abs(cj) > cap:
-            return 0.0
-    if hi < lo:
+    lo, hi = beta_interval(a[None], c[None], cap)
+    if float(hi[0]) < max(float(lo[0]), 0.0) or bool(np.any((a == 0.0) & (np.abs(c) > cap))):
         return 0.0
     vmax = float(np.abs(theta_d).max())
-    return min(hi, acceleration / max(vmax, 1e-9), 1e6)
+    return min(float(hi[0]), acceleration / max(vmax, 1e-9), 1e6)
 
 
 __all__ = ["FRICTION_BAND", "LAG", "PathTables", "deceleration_at", "path_tables"]

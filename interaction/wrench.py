@@ -51,7 +51,6 @@ from sixplus3.identification.base import (
 )
 from sixplus3.identification.signals import filter_log
 from sixplus3.kinematics.robot import ik_jacobian, robot_fk
-from sixplus3.kinematics.rotations import rotvec_from_matrix
 from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Default observer gain [1/s]: a step reaches 95 % of its value in 3 / K = 20 ms.
@@ -115,7 +114,7 @@ class StateModel:
 
     def seed(self, theta: np.ndarray) -> None:
         fk = robot_fk(theta, self.robot)
-        self._x = np.r_[fk.position, np.reshape(rotvec_from_matrix(fk.rotation), -1), fk.psi]
+        self._x = fk.x
 
     def states(self, theta: np.ndarray, theta_dot: np.ndarray, chunk: int = CHUNK_STATES
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

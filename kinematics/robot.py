@@ -303,6 +303,12 @@ class RobotFK:
     residual: float  # max closure residual [m]
     iterations: int
 
+    @property
+    def x(self) -> np.ndarray:
+        """(9,) minimal coordinates: position, rotation vector, crank angles."""
+        return np.r_[self.position, np.reshape(rot.rotvec_from_matrix(self.rotation), -1),
+                     self.psi]
+
 
 def robot_fk(theta: ArrayLike, robot: Robot | None, q_hint: ArrayLike | None = None,
              tol: float = 1e-12,

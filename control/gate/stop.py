@@ -79,6 +79,18 @@ def path_tables(robot: Robot, rep: ValidationReport
     return M, g, cfg
 
 
+def beta_interval(a: np.ndarray, c: np.ndarray, cap: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) (n,): the decelerations beta with |c - beta a| <= cap on every joint of
+    each row (a joint with a = 0 bounds nothing: c alone decides there)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e1, e2 = (c - cap) / a, (c + cap) / a
+    lo_j = np.where(a > 0, e1, np.where(a < 0, e2, -np.inf))
+    hi_j = np.where(a > 0, e2, np.where(a < 0, e1, np.inf))
+    return (np.nan_to_num(lo_j, nan=-np.inf).max(axis=1),
+            np.nan_to_num(hi_j, nan=np.inf).min(axis=1))
+
+
 def path_deceleration(a: np.ndarray, b: np.ndarray, g: np.ndarray, theta_dot: np.ndarray,
                       torque: float, acceleration: float,
                       share: float = TORQUE_SHARE) -> np.ndarray:
@@ -90,13 +102,8 @@ def path_deceleration(a: np.ndarray, b: np.ndarray, g: np.ndarray, theta_dot: np
     lo = np.zeros(n)
     hi = np.full(n, np.inf)
     for c in (b + g, g):  # at full path speed, at rest
-        # |c - beta a| <= cap: per joint an interval of beta (a = 0: c alone decides)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            e1, e2 = (c - cap) / a, (c + cap) / a
-        lo_j = np.where(a > 0, e1, np.where(a < 0, e2, -np.inf))
-        hi_j = np.where(a > 0, e2, np.where(a < 0, e1, np.inf))
-        lo = np.maximum(lo, np.nan_to_num(lo_j, nan=-np.inf).max(axis=1))
-        hi = np.minimum(hi, np.nan_to_num(hi_j, nan=np.inf).min(axis=1))
+        lo_c, hi_c = beta_interval(a, c, cap)
+        lo, hi = np.maximum(lo, lo_c), np.minimum(hi, hi_c)
     beta = np.where(hi >= lo, hi, lo)
     vmax = np.abs(theta_dot).max(axis=1)
     with np.errstate(divide="ignore"):
@@ -167,5 +174,5 @@ def stop_check(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np
     return claimed, []
 
 
-__all__ = ["HEADER_KEY", "TORQUE_SHARE", "across_path", "header_entry", "path_deceleration",
-           "path_tables", "stop_check", "stop_table"]
+__all__ = ["HEADER_KEY", "TORQUE_SHARE", "across_path", "beta_interval", "header_entry",
+           "path_deceleration", "path_tables", "stop_check", "stop_table"]
