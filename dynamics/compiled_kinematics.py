@@ -61,6 +61,11 @@ class Buffered:
         self._eval()
         return [r.reshape(s, order="F") for r, s in zip(self.res, self._shapes, strict=True)]
 
+    def evaluate(self) -> None:
+        """Evaluate on the arguments already in :attr:`args`; the results are in
+        :attr:`res` (flat, column-major: the per-tick kernels read them there)."""
+        self._eval()
+
 
 def wrapped(a: np.ndarray) -> np.ndarray:
     """Angles in [-pi, pi)."""

@@ -11,6 +11,7 @@ import numpy as np
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import regressor_batch
 from sixplus3.errors import InputError
+from sixplus3.interaction._tick_kernel import envelope
 
 #: The share of the envelope a command (tau_ff plus the drive's PD) may ask for when the
 #: drive's gains are known (the rest: the drive's own rate estimate, which the guard's
@@ -100,22 +101,14 @@ def within_envelope(cmd: GuardCommand, kp: np.ndarray, kd: np.ndarray, theta: np
     wherever the drive's total tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref -
     vel) would leave +-``cap``.  A blocked platform then never gets more than the
     envelope from a reference that runs ahead."""
-    damp = kd * (cmd.theta_dot_ref - vel)
-    pd = kp * (cmd.theta_ref - theta) + damp
-    wanted = float(np.abs(cmd.tau_ff + pd).max())
-    if np.any(np.abs(cmd.tau_ff) > cap):  # the feed-forward alone beyond the share
-        cmd = GuardCommand(cmd.theta_ref, cmd.theta_dot_ref, np.clip(cmd.tau_ff, -cap, cap),
-                           cmd.mode, cmd.contact, cmd.wrench)
-    lo, hi = -cap - cmd.tau_ff, cap - cmd.tau_ff
-    if bool(np.all((pd >= lo) & (pd <= hi))):
-        return cmd, wanted
-    pd_c = np.clip(pd, np.minimum(lo, 0.0), np.maximum(hi, 0.0))
     ref, vref = cmd.theta_ref.copy(), cmd.theta_dot_ref.copy()
-    stiff = kp > 0
-    ref[stiff] = theta[stiff] + (pd_c - damp)[stiff] / kp[stiff]
-    soft = ~stiff & (kd > 0)
-    vref[soft] = vel[soft] + pd_c[soft] / kd[soft]
-    return GuardCommand(ref, vref, cmd.tau_ff, cmd.mode, cmd.contact, cmd.wrench), wanted
+    ff = np.array(cmd.tau_ff, dtype=float)
+    wanted, moved = envelope(ff, ref, vref, np.asarray(kp, dtype=float),
+                             np.asarray(kd, dtype=float), np.asarray(theta, dtype=float),
+                             np.asarray(vel, dtype=float), float(cap))
+    if not moved:
+        return cmd, wanted
+    return GuardCommand(ref, vref, ff, cmd.mode, cmd.contact, cmd.wrench), wanted
 
 
 def parse_gains(gains: tuple[object, object]) -> tuple[np.ndarray, np.ndarray]:

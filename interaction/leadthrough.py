@@ -51,9 +51,9 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.linalg import lapack
 
 from sixplus3.errors import InputError, check_number
+from sixplus3.interaction import _lead_kernel as kern
 from sixplus3.interaction import walls
 from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
@@ -85,6 +85,8 @@ HORIZON = 0.3
 PROBES = (0.005, 0.01, 0.02)
 #: Finite-difference steps: cranks [rad], the twist (metric units, m).
 CRANK_STEP, TWIST_STEP = 0.02, 0.001
+#: The walls near at once, at most (the four slacks' and a cliff ahead).
+MAX_WALLS = 8
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -95,16 +97,6 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _norm(a: np.ndarray) -> float:
     return math.sqrt(float(a @ a))
-
-
-def _exp3(r: np.ndarray) -> np.ndarray:
-    """exp([r]x) of a small rotation vector (one tick's turn)."""
-    t2 = float(r @ r)
-    K = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
-    if t2 < 1e-8:
-        return np.eye(3) + K + 0.5 * (K @ K)
-    t = math.sqrt(t2)
-    return np.eye(3) + (math.sin(t) / t) * K + ((1.0 - math.cos(t)) / t2) * (K @ K)
 
 
 def _six(name: str, value: object, lo: float, hi: float) -> np.ndarray:
@@ -165,7 +157,18 @@ class LeadThrough:
         self.cap = self.robot.limits.torque
         self.rate_cap = RATE_SHARE * self.robot.limits.velocity
         self.tool = np.asarray(self.robot.tool.xyz, dtype=float)
-        self._friction = self.robot.motors.friction
+        mot = self.robot.motors
+        self._viscous = np.asarray(mot.viscous_per_joint, dtype=float)
+        self._coulomb = np.asarray(mot.coulomb_per_joint, dtype=float)
+        self._cspeed = float(mot.coulomb_velocity)
+        self._accel_cap = np.array(self.accel, dtype=float)
+        self._speed_cap = np.array(self.speed, dtype=float)
+        # the per-tick kernels' work arrays (interaction/_lead_kernel.py)
+        self._lu = np.zeros((9, 9))
+        self._piv = np.zeros(9, dtype=np.int64)
+        self._G = np.zeros((MAX_WALLS, 9))
+        self._b = np.zeros(MAX_WALLS)
+        self._no_anchor = np.zeros(9)
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -183,16 +186,17 @@ class LeadThrough:
         self.v = np.zeros(6)  # the tool point's twist (v, omega) [m/s, rad/s]
         self.psi_dot = np.zeros(3)
         self._psi_dot_target = np.zeros(3)
-        self._walls: list[tuple[np.ndarray, float]] = []
+        self._walls = []
         self._theta_dot_ref = np.zeros(9)
-        self.port_energy = 0.0  # [J] what the person put into the robot (estimated)
-        self.tank = self.energy0
-        self.min_tank = self.energy0
+        # [J] the tank's initial energy, what the person put into the robot (estimated),
+        # the tank, its least value (interaction/_lead_kernel.py: E0, PORT, TANK, MIN_TANK)
+        self._sc = np.array([self.energy0, 0.0, self.energy0, self.energy0])
         self.min_margin = math.inf  # the reference's smallest singularity margin
         self.min_slack = math.inf
         self.walls_met = 0  # slow updates that found a wall ahead
         self._last_ff = np.zeros(9)
-        self._prev_theta: np.ndarray | None = None
+        self._prev_theta = np.zeros(9)
+        self._have_prev = False
         self._anchor_theta: np.ndarray | None = None
         self._prev_slack: tuple[np.ndarray, float] | None = None
 
@@ -229,6 +233,39 @@ class LeadThrough:
                                np.zeros(6))
             return self._bounded(cmd, th) if ok else cmd  # within the envelope all the same
 
+    # the tank's scalars (kept in the kernels' array)
+    @property
+    def port_energy(self) -> float:
+        """[J] the energy the person put into the robot (estimated)."""
+        return float(self._sc[kern.PORT])
+
+    @port_energy.setter
+    def port_energy(self, value: float) -> None:
+        self._sc[kern.PORT] = value
+
+    @property
+    def tank(self) -> float:
+        """[J] the energy tank (module doc, 4)."""
+        return float(self._sc[kern.TANK])
+
+    @property
+    def min_tank(self) -> float:
+        """[J] the tank's least value so far."""
+        return float(self._sc[kern.MIN_TANK])
+
+    @property
+    def _walls(self) -> list[tuple[np.ndarray, float]]:
+        """The walls near: (gradient (9,) in the walls' metric, bound) each."""
+        return list(self._wall_list)
+
+    @_walls.setter
+    def _walls(self, found: list[tuple[np.ndarray, float]]) -> None:
+        self._wall_list = list(found)[:MAX_WALLS]
+        for k, (g, b) in enumerate(self._wall_list):
+            self._G[k] = g
+            self._b[k] = b
+        self._n_walls = len(self._wall_list)
+
     def _step(self, theta: np.ndarray, tau: np.ndarray) -> GuardCommand:
         s = self.stream
         w, std, band, _ = s.update(theta, tau)
@@ -236,20 +273,17 @@ class LeadThrough:
         if not self._started:
             self._start(theta)
         off = self.R_ref @ self.tool
-        # the wrench at the tool point (m_tcp = m_c - off x f) and its thresholds
-        w_t = w.copy()
-        w_t[3:] = w[3:] - _cross(off, w[:3])
-        thr = self.n_sigma * std + band
-        thr[3:] += _norm(off) * float(thr[:3].max())
-        excess = np.abs(w_t) - thr
-        w_in = np.sign(w_t) * np.maximum(excess, 0.0)
-        # measured twist of the tool point, and the energy the person put in
-        lu, piv, _ = lapack.dgetrf(J)
-        xi = lapack.dgetrs(lu, piv, thd)[0]
-        v_meas = np.concatenate((xi[:3] + _cross(xi[3:6], off), xi[3:6]))
-        self.port_energy += float(w_t @ v_meas) * self.dt
+        # the wrench at the tool point, the input beyond the deadband, and the energy
+        # the person put in (the measured twist of the tool point)
+        w_t, w_in = np.empty(6), np.empty(6)
+        beyond, power, info = kern.lead_input(w, std, band, J, thd, off, self.n_sigma, w_t,
+                                              w_in, self._lu, self._piv)
+        if info != 0:
+            raise InputError("the Jacobian is singular here", value=info,
+                             valid="a pose off the singularities")
+        self._sc[kern.PORT] += power * self.dt
         if self.mode == "hold":
-            self._above = self._above + 1 if bool(np.any(excess > 0)) else 0
+            self._above = self._above + 1 if beyond else 0
             if self._above >= self.start_ticks:
                 self.mode = "lead"
                 self._still = 0
@@ -265,62 +299,31 @@ class LeadThrough:
         return self._command(J, M, h, thd, theta, w)
 
     def _admittance(self, w_in: np.ndarray) -> None:
-        m, d, dt = self.mass, self.damping, self.dt
-        kinetic = 0.5 * float(m @ self.v ** 2)
-        self.tank = self.energy0 + self.port_energy - kinetic
-        if self.tank > 4.0 * self.energy0:  # capped: the surplus is not kept
-            self.port_energy -= self.tank - 4.0 * self.energy0
-            self.tank = 4.0 * self.energy0
-        self.min_tank = min(self.min_tank, self.tank)
-        if self.tank <= 0.0:  # passivity: only the input that slows the platform
-            w_in = np.where(w_in * self.v > 0.0, 0.0, w_in)
-        v_prev, psi_prev = self.v.copy(), self.psi_dot.copy()
-        # the admittance's step and the cranks' wish within their caps, then the walls
-        # (the least change that keeps out of them) last: a wall that appears suddenly
-        # (the clearance's closest pair changing) is met at once, not braked into; one
-        # approached smoothly is met early (HORIZON), gently (WALL_RATE)
-        self.v = (self.v + dt / m * w_in) / (1.0 + dt * d / m)
-        for sl, a_max, v_max in ((slice(0, 3), self.accel[0], self.speed[0]),
-                                 (slice(3, 6), self.accel[1], self.speed[1])):
-            dv = self.v[sl] - v_prev[sl]
-            n = _norm(dv)
-            if n > a_max * dt:
-                self.v[sl] = v_prev[sl] + dv * (a_max * dt / n)
-            sp = _norm(self.v[sl])
-            if sp > v_max:
-                self.v[sl] *= v_max / sp
+        """The admittance's step (the tank first) and the cranks' wish within their caps,
+        then the walls (the least change that keeps out of them) last: a wall that
+        appears suddenly (the clearance's closest pair changing) is met at once, not
+        braked into; one approached smoothly is met early (HORIZON), gently
+        (WALL_RATE)."""
         wish = self._psi_dot_target if self.mode == "lead" else np.zeros(3)
-        step = CRANK_ACCELERATION * dt
-        self.psi_dot = psi_prev + np.clip(wish - psi_prev, -step, step)
+        kern.admittance(w_in, self.v, self.psi_dot, wish, self.mass, self.damping, self.dt,
+                        self._accel_cap, self._speed_cap, CRANK_ACCELERATION * self.dt,
+                        self._sc)
         self._keep_out()
 
     def _keep_out(self) -> None:
         """The twist and the crank rates (metric: rotations and cranks weighed by
         ``walls.ANGLE_SCALE``) kept out of the walls near: each wall's slack s may fall
-        at most as fast as braking stops it at the wall (a barrier: g . (v, psi_dot) >=
-        -sqrt(2 A max(s, 0)), A = BRAKE_SHARE a_max |g|: beyond a wall it may not fall,
-        and the platform is not pushed back against the person), by the least change
-        (cyclic projections)."""
-        if not self._walls:
-            return
-        L = walls.ANGLE_SCALE
-        x = np.concatenate((self.v[:3], self.v[3:] * L, self.psi_dot * L))
-        for _ in range(5):
-            for g_all, b in self._walls:
-                g = g_all if self.crank_gain > 0 else np.r_[g_all[:6], 0.0, 0.0, 0.0]
-                if float(g @ g) == 0.0:
-                    continue
-                into = float(g @ x)
-                if into < b:
-                    x = x + (b - into) / float(g @ g) * g
-        self.v = np.concatenate((x[:3], x[3:6] / L))
-        self.psi_dot = x[6:] / L
+        at most WALL_RATE s per second (a barrier: g . (v, psi_dot) >= -WALL_RATE max(s,
+        0): beyond a wall it may not fall, and the platform is not pushed back against
+        the person), by the least change (cyclic projections)."""
+        kern.keep_out(self.v, self.psi_dot, self._G, self._b, self._n_walls,
+                      self.crank_gain > 0, walls.ANGLE_SCALE)
 
     def _tick_lead(self, w_in: np.ndarray) -> None:
         still = (_norm(self.v[:3]) < REST_SPEED[0]
                  and _norm(self.v[3:]) < REST_SPEED[1])
-        self._still = self._still + 1 if (still and not np.any(w_in)) else 0
-        if self._still >= self.rest_ticks and not np.any(self.psi_dot):
+        self._still = self._still + 1 if (still and not w_in.any()) else 0
+        if self._still >= self.rest_ticks and not self.psi_dot.any():
             self.mode, self._above = "hold", 0
             self.v[:] = 0.0
             self._psi_dot_target[:] = 0.0
@@ -376,7 +379,7 @@ class LeadThrough:
             if n > self.crank_rate:
                 target *= self.crank_rate / n
         self._psi_dot_target = target
-        self._walls = []
+        found: list[tuple[np.ndarray, float]] = []
         # a wall is near when its slack is inside the band, or will be within HORIZON at
         # the rate it fell since the last update (the braking distance at full speed)
         t_now = self._tick * self.dt
@@ -393,6 +396,7 @@ class LeadThrough:
                 self.v[:] = 0.0
                 self.psi_dot[:] = 0.0
                 self._psi_dot_target[:] = 0.0
+                self._walls = []
                 return
             d = TWIST_STEP * np.eye(6)
             d[:, 3:] /= L
@@ -408,53 +412,37 @@ class LeadThrough:
                 if np.all(np.isfinite(g)) and float(g @ g) > 0.0:
                     # beyond a wall (s < 0) the platform goes no deeper, but is not
                     # pushed back against the person (that would be active, not passive)
-                    self._walls.append((g, -WALL_RATE * max(float(now[c]), 0.0)))
+                    found.append((g, -WALL_RATE * max(float(now[c]), 0.0)))
         if cliff is not None:
-            self._walls.append(cliff)
+            found.append(cliff)
+        self._walls = found
 
     # ------------------------------------------------------------------ command
     def _command(self, J: np.ndarray, M: np.ndarray, h: np.ndarray, thd: np.ndarray,
                  theta: np.ndarray, w: np.ndarray) -> GuardCommand:
-        dt = self.dt
-        off = self.R_ref @ self.tool
-        vc = self.v[:3] - _cross(self.v[3:], off)
-        xi = np.concatenate((vc, self.v[3:], self.psi_dot if self.mode == "lead"
-                             else np.zeros(3)))
-        rates = J @ xi
-        top = float(np.abs(rates).max())
-        if top > self.rate_cap:  # within the joints' rate share: the whole twist scaled
-            k = self.rate_cap / top
-            rates, xi = rates * k, xi * k
-            self.v *= k
-            self.psi_dot *= k
-        acc = (rates - self._theta_dot_ref) / dt
-        self._theta_dot_ref = rates
-        # integrate the reference (the pose, the cranks and the angles)
-        self.p_ref = self.p_ref + xi[:3] * dt
-        self.R_ref = _exp3(xi[3:6] * dt) @ self.R_ref
-        self.psi_ref = self.psi_ref + xi[6:] * dt
-        if self._anchor_theta is not None:  # this tick's slow update solved the pose
-            self.theta_ref = self._anchor_theta + rates * dt
-            self._anchor_theta = None
-        else:
-            self.theta_ref = self.theta_ref + rates * dt
-        ff = h - self._friction(thd) + self._friction(rates) + M @ acc
-        ff = np.clip(ff, -COMMAND_SHARE * self.cap, COMMAND_SHARE * self.cap)
+        has_anchor = self._anchor_theta is not None  # this tick's slow update solved it
+        anchor = self._anchor_theta if self._anchor_theta is not None else self._no_anchor
+        ff = np.empty(9)
+        kern.command(J, M, h, thd, self.v, self.psi_dot, self.mode == "lead",
+                     self._theta_dot_ref, self.p_ref, self.R_ref, self.psi_ref,
+                     self.theta_ref, anchor, has_anchor, self.tool, self.rate_cap, self.dt,
+                     self._viscous, self._coulomb, self._cspeed, COMMAND_SHARE * self.cap,
+                     ff)
+        self._anchor_theta = None
         self._last_ff = ff
         contact = bool(self.mode == "lead" or self._above > 0)
-        return self._bounded(GuardCommand(self.theta_ref.copy(), rates, ff, self.mode,
-                                          contact, w), theta)
+        return self._bounded(GuardCommand(self.theta_ref.copy(), self._theta_dot_ref.copy(),
+                                          ff, self.mode, contact, w), theta)
 
     def _bounded(self, cmd: GuardCommand, theta: np.ndarray) -> GuardCommand:
         """``cmd`` with the drive's whole command (tau_ff + PD) within the envelope, given
         its gains (the drive's rate feedback: the encoder's difference)."""
         if self.gains is None:
             return cmd
-        prev = self._prev_theta
-        vel = np.zeros(9) if prev is None else (theta - prev) * self.rate
-        self._prev_theta = theta.copy()
-        out, _ = within_envelope(cmd, self.gains[0], self.gains[1], theta, vel,
-                                 COMMAND_SHARE * self.cap)
-        return out
+        vel = ((theta - self._prev_theta) * self.rate if self._have_prev else np.zeros(9))
+        self._prev_theta[:] = theta
+        self._have_prev = True
+        return within_envelope(cmd, self.gains[0], self.gains[1], theta, vel,
+                               COMMAND_SHARE * self.cap)[0]
 
 __all__ = ["CRANK_DEADBAND", "LeadThrough", "RATE_SHARE", "REST_SPEED"]

@@ -50,6 +50,7 @@ from sixplus3.identification.base import (
     stacked_regressor,
 )
 from sixplus3.identification.signals import filter_log
+from sixplus3.interaction._tick_kernel import momentum, velocity
 from sixplus3.kinematics.robot import ik_jacobian, robot_fk
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -407,12 +408,16 @@ class WrenchStream:
         else:
             self.model = SingleState(self.robot)
         b, a = signal.butter(2, rate / 8.0, fs=rate)
-        self._b, self._a = b, a
+        self._b, self._a = np.asarray(b, dtype=float), np.asarray(a, dtype=float)
+        self.rate = float(rate)
         self._z = np.zeros((2, 9))  # the biquad's state (transposed direct form II)
-        self._prev_theta: np.ndarray | None = None
-        self._prev_tau: np.ndarray | None = None
-        self._prev_M: np.ndarray | None = None
-        self._p0: np.ndarray | None = None
+        # the observer's state, on preallocated arrays (interaction/_tick_kernel.py)
+        self._prev_theta = np.zeros(9)
+        self._have_theta = False
+        self._prev_tau = np.zeros(9)
+        self._prev_M = np.zeros((9, 9))
+        self._p0 = np.zeros(9)
+        self._flags = np.zeros(2, dtype=np.int64)  # a previous torque, a previous sample
         self._integral = np.zeros(9)
         self._r = np.zeros(9)
         sig = torque_sigma(self.robot, monitor_noise)
@@ -424,42 +429,29 @@ class WrenchStream:
         """Start again: the filter, the observer and the pose tracking forget the past
         (the next sample is the first)."""
         self._z[:] = 0.0
-        self._prev_theta = self._prev_tau = self._prev_M = self._p0 = None
-        self._integral = np.zeros(9)
-        self._r = np.zeros(9)
+        self._have_theta = False
+        self._flags[:] = 0
+        self._integral[:] = 0.0
+        self._r[:] = 0.0
         self.model.reset()
-
-    def _velocity(self, theta: np.ndarray) -> np.ndarray:
-        raw = np.zeros(9) if self._prev_theta is None else (theta - self._prev_theta) / self.dt
-        b, a, z = self._b, self._a, self._z
-        y = b[0] * raw + z[0]
-        z[0] = b[1] * raw - a[1] * y + z[1]
-        z[1] = b[2] * raw - a[2] * y
-        return y
 
     def update(self, theta: np.ndarray, tau: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
         theta = np.asarray(theta, dtype=float).reshape(9)
         tau = np.asarray(tau, dtype=float).reshape(9)
-        if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(tau))):
+        if not (np.isfinite(theta).all() and np.isfinite(tau).all()):
             raise InputError("theta and tau must be 9 finite numbers each", value=None,
                              valid="finite")
-        thd = self._velocity(theta)
+        thd = np.empty(9)
+        velocity(theta, self._prev_theta, self._have_theta, self.rate, self._b, self._a,
+                 self._z, thd)
         J, M, h, _ = self.model.state(theta, thd)
         #: this sample's state, for a controller built on the stream (lead-through)
         self.J, self.M, self.h, self.theta_dot = J, M, h, thd
-        held = tau if self._prev_tau is None else 0.5 * (tau + self._prev_tau)
-        p = M @ thd
-        if self._p0 is None:
-            self._p0 = p
-        else:
-            assert self._prev_M is not None
-            mdot = (M - self._prev_M) @ thd / self.dt
-            self._integral += (held - h + mdot + self._r) * self.dt
-            self._r = self.gain * (p - self._p0 - self._integral)
-        self._prev_theta, self._prev_tau, self._prev_M = theta, tau, M
-        A = J.T[:6]
-        w = A @ self._r
-        std = np.sqrt((A ** 2) @ self._var)
-        band = np.abs(A) @ ((np.abs(thd) < self.v_band) * self._fc)
-        return w, std, band, bool(np.any(np.abs(w) > self.n_sigma * std + band))
+        w, std, band = np.empty(6), np.empty(6), np.empty(6)
+        momentum(tau, thd, J, M, h, self._prev_tau, self._prev_M, self._p0, self._integral,
+                 self._r, self._flags, self.gain, self.dt, self._var, self._fc,
+                 self.v_band, w, std, band)
+        self._prev_theta[:] = theta
+        self._have_theta = True
+        return w, std, band, bool((np.abs(w) > self.n_sigma * std + band).any())

@@ -1,0 +1,188 @@
+"""The lead-through's per-tick arithmetic, compiled (numba): the wrench's deadband, the
+admittance with its caps and tank, the walls' least change, and the command
+(:class:`~sixplus3.interaction.leadthrough.LeadThrough`, whose module doc states each
+step; it keeps the state and the mode logic, these kernels the arithmetic, on its
+preallocated arrays).
+
+``sc``, the scalar state: [the tank's initial energy, the energy the person put in, the
+tank, the tank's least value]."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from sixplus3.interaction._tick_kernel import friction, lu_factor, lu_solve
+
+E0, PORT, TANK, MIN_TANK = 0, 1, 2, 3
+
+
+@njit(cache=True, error_model="numpy")
+def _cross(a, b, out):
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@njit(cache=True, error_model="numpy")
+def _exp3(r):
+    """exp([r]x) of a small rotation vector (one tick's turn)."""
+    t2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
+    K = np.zeros((3, 3))
+    K[0, 1], K[0, 2], K[1, 2] = -r[2], r[1], -r[0]
+    K[1, 0], K[2, 0], K[2, 1] = r[2], -r[1], r[0]
+    if t2 < 1e-8:
+        return np.eye(3) + K + 0.5 * (K @ K)
+    t = math.sqrt(t2)
+    return np.eye(3) + (math.sin(t) / t) * K + ((1.0 - math.cos(t)) / t2) * (K @ K)
+
+
+@njit(cache=True, error_model="numpy")
+def lead_input(w, std, band, J, thd, off, n_sigma, w_t, w_in, lu, piv):
+    """The wrench moved to the tool point ``w_t`` (m_tcp = m_c - off x f), and the input
+    beyond the deadband ``w_in`` (n_sigma std + band; the moments' band grows by |off|
+    times the largest force band); returns (whether any component is beyond, the power
+    w_t . v_meas of the measured twist J^-1 thd at the tool point, info: nonzero when J
+    is singular)."""
+    tmp = np.empty(3)
+    _cross(off, w[:3], tmp)
+    for k in range(3):
+        w_t[k] = w[k]
+        w_t[3 + k] = w[3 + k] - tmp[k]
+    thr = np.empty(6)
+    for k in range(6):
+        thr[k] = n_sigma * std[k] + band[k]
+    top = max(thr[0], max(thr[1], thr[2]))
+    lo = math.sqrt(off[0] * off[0] + off[1] * off[1] + off[2] * off[2])
+    for k in range(3, 6):
+        thr[k] += lo * top
+    beyond = False
+    for k in range(6):
+        ex = abs(w_t[k]) - thr[k]
+        if ex > 0.0:
+            beyond = True
+            w_in[k] = ex if w_t[k] > 0.0 else -ex
+        else:
+            w_in[k] = 0.0
+    info = lu_factor(J, lu, piv)
+    if info != 0:
+        return beyond, 0.0, info
+    xi = np.empty(9)
+    lu_solve(lu, piv, thd, xi)
+    _cross(xi[3:6], off, tmp)
+    power = 0.0
+    for k in range(3):
+        power += w_t[k] * (xi[k] + tmp[k]) + w_t[3 + k] * xi[3 + k]
+    return beyond, power, 0
+
+
+@njit(cache=True, error_model="numpy")
+def admittance(w_in, v, psi_dot, wish, mass, damping, dt, accel, speed, crank_step, sc):
+    """One semi-implicit step of M_v dv/dt + D_v v = w_in (in place on v), the energy
+    tank first (at T <= 0 only the input that slows the platform), then each block's
+    acceleration and speed caps, and the crank rates toward ``wish`` within
+    ``crank_step``."""
+    kinetic = 0.0
+    for k in range(6):
+        kinetic += 0.5 * mass[k] * v[k] * v[k]
+    sc[TANK] = sc[E0] + sc[PORT] - kinetic
+    if sc[TANK] > 4.0 * sc[E0]:  # capped: the surplus is not kept
+        sc[PORT] -= sc[TANK] - 4.0 * sc[E0]
+        sc[TANK] = 4.0 * sc[E0]
+    sc[MIN_TANK] = min(sc[MIN_TANK], sc[TANK])
+    empty = sc[TANK] <= 0.0
+    v_prev = v.copy()
+    for k in range(6):
+        f = 0.0 if (empty and w_in[k] * v[k] > 0.0) else w_in[k]
+        v[k] = (v[k] + dt / mass[k] * f) / (1.0 + dt * damping[k] / mass[k])
+    for b in range(2):
+        s = 3 * b
+        dv0, dv1, dv2 = v[s] - v_prev[s], v[s + 1] - v_prev[s + 1], v[s + 2] - v_prev[s + 2]
+        n = math.sqrt(dv0 * dv0 + dv1 * dv1 + dv2 * dv2)
+        if n > accel[b] * dt:
+            k = accel[b] * dt / n
+            v[s], v[s + 1], v[s + 2] = (v_prev[s] + dv0 * k, v_prev[s + 1] + dv1 * k,
+                                        v_prev[s + 2] + dv2 * k)
+        sp = math.sqrt(v[s] * v[s] + v[s + 1] * v[s + 1] + v[s + 2] * v[s + 2])
+        if sp > speed[b]:
+            for i in range(s, s + 3):
+                v[i] *= speed[b] / sp
+    for i in range(3):
+        d = wish[i] - psi_dot[i]
+        psi_dot[i] += min(max(d, -crank_step), crank_step)
+
+
+@njit(cache=True, error_model="numpy")
+def keep_out(v, psi_dot, G, b, n, cranks, scale):
+    """The least change of (v, omega L, psi_dot L) (the walls' metric, L = ``scale``)
+    that keeps g . x >= b for the ``n`` walls (rows of G, b), by cyclic projections (5
+    sweeps); without ``cranks`` the walls' crank columns are ignored.  In place."""
+    if n == 0:
+        return
+    x = np.empty(9)
+    for i in range(3):
+        x[i], x[3 + i], x[6 + i] = v[i], v[3 + i] * scale, psi_dot[i] * scale
+    m = 9 if cranks else 6
+    for _ in range(5):
+        for k in range(n):
+            gg = 0.0
+            into = 0.0
+            for i in range(m):
+                gg += G[k, i] * G[k, i]
+                into += G[k, i] * x[i]
+            if gg == 0.0 or into >= b[k]:
+                continue
+            f = (b[k] - into) / gg
+            for i in range(m):
+                x[i] += f * G[k, i]
+    for i in range(3):
+        v[i], v[3 + i], psi_dot[i] = x[i], x[3 + i] / scale, x[6 + i] / scale
+
+
+@njit(cache=True, error_model="numpy")
+def command(J, M, h, thd, v, psi_dot, lead, tdr, p_ref, R_ref, psi_ref, theta_ref, anchor,
+            has_anchor, tool, rate_cap, dt, viscous, coulomb, speed, cap, ff):
+    """The reference: the joint rates J (v_centre, omega, psi_dot) (the whole twist
+    scaled within ``rate_cap``, v and psi_dot too), integrated into the pose, the cranks
+    and the angles (from ``anchor`` when the slow update solved the pose); ``tdr`` (the
+    rate reference) updated in place; tau_ff = h - friction(thd) + friction(rates) +
+    M (the reference's acceleration), within +-cap, into ``ff``."""
+    off = R_ref @ tool
+    xi = np.empty(9)
+    tmp = np.empty(3)
+    _cross(v[3:6], off, tmp)
+    for i in range(3):
+        xi[i] = v[i] - tmp[i]
+        xi[3 + i] = v[3 + i]
+        xi[6 + i] = psi_dot[i] if lead else 0.0
+    rates = J @ xi
+    top = 0.0
+    for i in range(9):
+        top = max(top, abs(rates[i]))
+    if top > rate_cap:  # within the joints' rate share: the whole twist scaled
+        k = rate_cap / top
+        for i in range(9):
+            rates[i] *= k
+            xi[i] *= k
+        for i in range(6):
+            v[i] *= k
+        for i in range(3):
+            psi_dot[i] *= k
+    acc = (rates - tdr) / dt
+    tdr[:] = rates
+    for i in range(3):
+        p_ref[i] += xi[i] * dt
+        psi_ref[i] += xi[6 + i] * dt
+    R_ref[:, :] = _exp3(xi[3:6] * dt) @ R_ref
+    for i in range(9):
+        base = anchor[i] if has_anchor else theta_ref[i]
+        theta_ref[i] = base + rates[i] * dt
+    f0 = np.empty(9)
+    f1 = np.empty(9)
+    friction(thd, viscous, coulomb, speed, f0)
+    friction(rates, viscous, coulomb, speed, f1)
+    Ma = M @ acc
+    for i in range(9):
+        ff[i] = min(max(h[i] - f0[i] + f1[i] + Ma[i], -cap), cap)

@@ -1,0 +1,296 @@
+"""The per-tick arithmetic of the wrench observer, the lead-through and the envelope,
+compiled (numba; docs/leadthrough.md, "Cost per tick").
+
+A 1 kHz loop in Python cannot afford numpy's per-call overhead on 9-vectors (about a
+microsecond a call, a few hundred calls a tick): these kernels do a tick's small linear
+algebra in compiled code, on preallocated arrays, with the same formulas (and the same
+order of operations) as the Python they replaced.  Their callers
+(:mod:`~sixplus3.interaction.compiled_state`, :class:`~sixplus3.interaction.wrench.
+WrenchStream`, :class:`~sixplus3.interaction.leadthrough.LeadThrough`,
+:func:`~sixplus3.interaction.guard_parts.within_envelope`) keep the state and the logic.
+
+The 9 x 9 solves are an LU factorisation with partial pivoting (LAPACK's dgetrf
+convention: row i swapped with ``piv[i]``), checked against scipy's in
+tests/test_tick_kernel.py.  Matrices from CasADi's buffers are column-major and flat
+(``jx[i + 9 j]``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: A pivot below this (relative to the matrix's largest entry) is singular.
+SINGULAR = 1e-14
+
+
+@njit(cache=True, error_model="numpy")
+def lu_factor(a, lu, piv):
+    """LU of the (9, 9) ``a`` into ``lu`` (in place, L unit below, U on and above) and
+    ``piv``; returns 0, or k + 1 when the k-th pivot is singular."""
+    n = a.shape[0]
+    scale = 0.0
+    for i in range(n):
+        for j in range(n):
+            lu[i, j] = a[i, j]
+            scale = max(scale, abs(a[i, j]))
+    tiny = SINGULAR * max(scale, 1e-300)
+    for k in range(n):
+        p = k
+        big = abs(lu[k, k])
+        for i in range(k + 1, n):
+            if abs(lu[i, k]) > big:
+                big, p = abs(lu[i, k]), i
+        piv[k] = p
+        if big <= tiny:
+            return k + 1
+        if p != k:
+            for j in range(n):
+                lu[k, j], lu[p, j] = lu[p, j], lu[k, j]
+        inv = 1.0 / lu[k, k]
+        for i in range(k + 1, n):
+            f = lu[i, k] * inv
+            lu[i, k] = f
+            if f != 0.0:
+                for j in range(k + 1, n):
+                    lu[i, j] -= f * lu[k, j]
+    return 0
+
+
+@njit(cache=True, error_model="numpy")
+def lu_solve(lu, piv, b, out):
+    """out = A^-1 b from :func:`lu_factor`'s factors (``out`` may be ``b``)."""
+    n = lu.shape[0]
+    for i in range(n):
+        out[i] = b[i]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            out[k], out[p] = out[p], out[k]
+    for i in range(n):
+        s = out[i]
+        for j in range(i):
+            s -= lu[i, j] * out[j]
+        out[i] = s
+    for i in range(n - 1, -1, -1):
+        s = out[i]
+        for j in range(i + 1, n):
+            s -= lu[i, j] * out[j]
+        out[i] = s / lu[i, i]
+
+
+@njit(cache=True, error_model="numpy")
+def lu_solve_t(lu, piv, b, out):
+    """out = A^-T b from :func:`lu_factor`'s factors (``out`` may be ``b``)."""
+    n = lu.shape[0]
+    for i in range(n):
+        out[i] = b[i]
+    for i in range(n):  # U^T z = b
+        s = out[i]
+        for j in range(i):
+            s -= lu[j, i] * out[j]
+        out[i] = s / lu[i, i]
+    for i in range(n - 1, -1, -1):  # L^T w = z
+        s = out[i]
+        for j in range(i + 1, n):
+            s -= lu[j, i] * out[j]
+        out[i] = s
+    for k in range(n - 1, -1, -1):  # y = P^T w
+        p = piv[k]
+        if p != k:
+            out[k], out[p] = out[p], out[k]
+
+
+@njit(cache=True, error_model="numpy")
+def _wrap(a):
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@njit(cache=True, error_model="numpy")
+def predict(x, lu, piv, theta, theta_prev, step):
+    """x += A^-1 (theta - theta_prev) (the previous sample's factors: a first-order
+    prediction of the next pose)."""
+    for i in range(9):
+        step[i] = theta[i] - theta_prev[i]
+    lu_solve(lu, piv, step, step)
+    for i in range(9):
+        x[i] += step[i]
+
+
+@njit(cache=True, error_model="numpy")
+def newton(x, th, jx, theta, lu, piv, step, tol):
+    """One Newton step of forward kinematics at x, given theta(x) ``th`` and d theta / d x
+    ``jx`` (flat, column-major): factor J_x; (the largest angle error, info); x moved
+    by J_x^-1 (theta - th) when neither converged (error < ``tol``) nor singular."""
+    a = np.empty((9, 9))
+    for j in range(9):
+        for i in range(9):
+            a[i, j] = jx[i + 9 * j]
+    info = lu_factor(a, lu, piv)
+    err = 0.0
+    for i in range(9):
+        step[i] = _wrap(theta[i] - th[i])
+        err = max(err, abs(step[i]))
+    if err < tol or info != 0:
+        return err, info
+    lu_solve(lu, piv, step, step)
+    for i in range(9):
+        x[i] += step[i]
+    return err, info
+
+
+@njit(cache=True, error_model="numpy")
+def _skew(r):
+    k = np.zeros((3, 3))
+    k[0, 1], k[0, 2], k[1, 2] = -r[2], r[1], -r[0]
+    k[1, 0], k[2, 0], k[2, 1] = r[2], -r[1], r[0]
+    return k
+
+
+@njit(cache=True, error_model="numpy")
+def rotation_and_inverse_left_jacobian(r):
+    """(exp([r]x), J_l(r)^-1) in closed form (series near r = 0; near a half turn J_l
+    inverted numerically)."""
+    t2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
+    K = _skew(r)
+    K2 = K @ K
+    eye = np.eye(3)
+    if t2 < 1e-8:
+        return eye + K + 0.5 * K2, eye - 0.5 * K + K2 / 12.0
+    t = math.sqrt(t2)
+    s, c = math.sin(t), math.cos(t)
+    R = eye + (s / t) * K + ((1.0 - c) / t2) * K2
+    if abs(s) < 1e-6:
+        Jl = eye + (1.0 - c) / t2 * K + (t - s) / (t2 * t) * K2
+        return R, np.linalg.inv(Jl)
+    return R, eye - 0.5 * K + (1.0 / t2 - (1.0 + c) / (2.0 * t * s)) * K2
+
+
+@njit(cache=True, error_model="numpy")
+def friction(w, viscous, coulomb, speed, out):
+    """out = viscous w + coulomb tanh(w / speed) (per joint)."""
+    for i in range(9):
+        out[i] = viscous[i] * w[i] + coulomb[i] * math.tanh(w[i] / speed)
+
+
+@njit(cache=True, error_model="numpy")
+def observer_state(lu, piv, jx, q0, qa, c, r, thd, armature, viscous, coulomb, speed,
+                   J, M, h, R):
+    """The observer's state from the compiled model's outputs at x (r = x[3:6]):
+    M = J_x^-T Q_a J_x^-1 + diag(I_a), h = J_x^-T (Q_0 - Q_a J_x^-1 c) + friction(thd),
+    J = J_x blockdiag(I, J_l(r)^-1, I), R = exp([r]x) (into the outputs)."""
+    Qa = np.empty((9, 9))
+    for j in range(9):
+        for i in range(9):
+            Qa[i, j] = qa[i + 9 * j]
+    B = np.empty((9, 9))  # J_x^-T Q_a, column by column
+    col = np.empty(9)
+    for j in range(9):
+        lu_solve_t(lu, piv, Qa[:, j].copy(), col)
+        B[:, j] = col
+    Mt = np.empty((9, 9))  # (B J_x^-1)^T = J_x^-T B^T, column by column
+    for j in range(9):
+        lu_solve_t(lu, piv, B[j, :].copy(), col)
+        Mt[:, j] = col
+    for i in range(9):
+        for j in range(9):
+            M[i, j] = 0.5 * (Mt[j, i] + Mt[i, j])
+        M[i, i] += armature[i]
+    lu_solve_t(lu, piv, q0, h)
+    cs = np.empty(9)
+    lu_solve(lu, piv, c, cs)
+    fr = np.empty(9)
+    friction(thd, viscous, coulomb, speed, fr)
+    for i in range(9):
+        s = 0.0
+        for j in range(9):
+            s += B[i, j] * cs[j]
+        h[i] = h[i] - s + fr[i]
+    Rm, Jli = rotation_and_inverse_left_jacobian(r)
+    R[:, :] = Rm
+    for j in range(9):
+        for i in range(9):
+            J[i, j] = jx[i + 9 * j]
+    for i in range(9):
+        a0, a1, a2 = J[i, 3], J[i, 4], J[i, 5]
+        for k in range(3):
+            J[i, 3 + k] = a0 * Jli[0, k] + a1 * Jli[1, k] + a2 * Jli[2, k]
+
+
+@njit(cache=True, error_model="numpy")
+def velocity(theta, prev, have_prev, rate, b, a, z, out):
+    """The encoder's difference through the biquad (b, a) (transposed direct form II,
+    state z (2, 9)) into ``out``."""
+    for i in range(9):
+        raw = (theta[i] - prev[i]) * rate if have_prev else 0.0
+        y = b[0] * raw + z[0, i]
+        z[0, i] = b[1] * raw - a[1] * y + z[1, i]
+        z[1, i] = b[2] * raw - a[2] * y
+        out[i] = y
+
+
+@njit(cache=True, error_model="numpy")
+def momentum(tau, thd, J, M, h, prev_tau, prev_M, p0, integral, r, flags, gain, dt, var,
+             fc, v_band, w, std, band):
+    """One sample of the momentum observer (:class:`~sixplus3.interaction.wrench.
+    WrenchStream`): the residual r from the generalized momentum M thd and the drive's
+    torque held over the last tick; the platform wrench J^T r (first six), its standard
+    deviation and the friction band of the slow joints.  ``flags``: [a previous torque,
+    a previous sample]."""
+    held = np.empty(9)
+    for i in range(9):
+        held[i] = 0.5 * (tau[i] + prev_tau[i]) if flags[0] else tau[i]
+    p = M @ thd
+    if not flags[1]:
+        p0[:] = p
+    else:
+        mdot = (M - prev_M) @ thd / dt
+        for i in range(9):
+            integral[i] += (held[i] - h[i] + mdot[i] + r[i]) * dt
+        for i in range(9):
+            r[i] = gain * (p[i] - p0[i] - integral[i])
+    prev_tau[:] = tau
+    prev_M[:, :] = M
+    flags[0] = 1
+    flags[1] = 1
+    for k in range(6):
+        s = 0.0
+        s2 = 0.0
+        sb = 0.0
+        for i in range(9):
+            a = J[i, k]
+            s += a * r[i]
+            s2 += a * a * var[i]
+            if abs(thd[i]) < v_band:
+                sb += abs(a) * fc[i]
+        w[k] = s
+        std[k] = math.sqrt(s2)
+        band[k] = sb
+
+
+@njit(cache=True, error_model="numpy")
+def envelope(tau_ff, ref, vref, kp, kd, theta, vel, cap):
+    """The drive's whole command tau_ff + Kp (ref - theta) + Kd (vref - vel) kept within
+    +-cap (:func:`~sixplus3.interaction.guard_parts.within_envelope`): tau_ff clipped to
+    the cap, then the reference moved toward the measured angles (or, with Kp = 0, the
+    rate reference toward the measured rate) where the PD would leave it.  In place;
+    returns (the largest |total| asked before, whether anything moved)."""
+    wanted = 0.0
+    moved = False
+    for i in range(9):
+        damp = kd[i] * (vref[i] - vel[i])
+        pd = kp[i] * (ref[i] - theta[i]) + damp
+        wanted = max(wanted, abs(tau_ff[i] + pd))
+        if abs(tau_ff[i]) > cap:
+            tau_ff[i] = min(max(tau_ff[i], -cap), cap)
+            moved = True
+        lo, hi = -cap - tau_ff[i], cap - tau_ff[i]
+        if pd < lo or pd > hi:
+            pd_c = min(max(pd, min(lo, 0.0)), max(hi, 0.0))
+            if kp[i] > 0.0:
+                ref[i] = theta[i] + (pd_c - damp) / kp[i]
+            elif kd[i] > 0.0:
+                vref[i] = vel[i] + pd_c / kd[i]
+            moved = True
+    return wanted, moved
