@@ -16,6 +16,9 @@ A pose the closed-form inverse kinematics cannot solve has every slack -1.  The 
 stand inside the gate's limits by the guards, so a guided motion that stays inside them
 is a motion the gate accepts.
 
+The slacks are computed by a compiled kernel (:mod:`sixplus3.interaction._walls_kernel`:
+the same numbers as the gate's checks composed, to 1e-10, tests/test_tick_kernel.py).
+
 The cranks climb the **crank score**: the singularity slack, less how deep the
 spherical and range slacks are inside their walls' band (clearance is a wall only: the
 cranks barely change it)."""
@@ -26,12 +29,13 @@ import math
 
 import numpy as np
 
+from sixplus3.cache import cached
+from sixplus3.interaction import _walls_kernel as wk
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.checks import actuated_bounds
-from sixplus3.kinematics.collision import clearance
-from sixplus3.kinematics.robot import robot_ik
-from sixplus3.kinematics.spherical import spherical_tilts
-from sixplus3.robot_description.robot import Robot
+from sixplus3.kinematics.collision import BASE_BODIES, PAIRS, hub_segments, radii
+from sixplus3.kinematics.spherical import spherical_reference
+from sixplus3.robot_description.robot import NUM_LEGS, Robot
 
 #: The singularity wall stands this far above the limits' smallest margin.
 MARGIN_GUARD = 0.05
@@ -48,35 +52,65 @@ WALL_BAND = 0.1
 ANGLE_SCALE = 0.5
 
 
+class Walls:
+    """The slacks of one robot's poses (module doc), compiled
+    (:mod:`sixplus3.interaction._walls_kernel`): the robot's constants packed once."""
+
+    def __init__(self, robot: Robot) -> None:
+        geom, lim, col = robot.geometry, robot.limits, robot.collision
+        lo, hi = actuated_bounds(lim)
+        k = np.zeros(wk.N_K)
+        k[wk.K_CRANK] = geom.platform_crank
+        k[wk.K_L] = math.hypot(geom.platform_radius, geom.platform_crank)
+        k[wk.K_MARGIN] = lim.margin + MARGIN_GUARD
+        k[wk.K_TILT] = lim.spherical - TILT_GUARD
+        k[wk.K_LO], k[wk.K_HI], k[wk.K_RANGE] = lo, hi, RANGE_GUARD
+        k[wk.K_PLATE], k[wk.K_BASE] = col.plate_offset, col.base_top
+        k[wk.K_CLEAR] = CLEARANCE_GUARD
+        k[wk.K_L6], k[wk.K_L7] = geom.leg.l6, geom.leg.l7
+        self._const = (
+            k, geom.leg.packed(), robot.mode.array().astype(float),
+            np.array([geom.crank_axis_position(i) for i in range(NUM_LEGS)]),
+            np.array([geom.crank_axis_angle(i) for i in range(NUM_LEGS)]),
+            np.array([geom.leg_rotation(i) for i in range(NUM_LEGS)]),
+            np.array([geom.leg_origin(i) for i in range(NUM_LEGS)]),
+            np.ascontiguousarray(spherical_reference(robot)),
+            np.ascontiguousarray(hub_segments(robot)), radii(robot), PAIRS, BASE_BODIES)
+
+    def __call__(self, position: np.ndarray, rotation: np.ndarray, psi: np.ndarray,
+                 walls: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(the slacks (n, 4), the actuated angles (n, 9), solved (n,)) of the poses
+        (position (n, 3), rotation (n, 3, 3), psi (n, 3)); the clearance only on the
+        rows ``walls`` ((n,) bool; default all), +inf on the others."""
+        p = np.ascontiguousarray(position, dtype=float).reshape(-1, 3)
+        n = len(p)
+        R = np.ascontiguousarray(rotation, dtype=float).reshape(n, 3, 3)
+        ps = np.ascontiguousarray(psi, dtype=float).reshape(n, 3)
+        sel = (np.ones(n, dtype=np.bool_) if walls is None
+               else np.asarray(walls, dtype=np.bool_).reshape(n))
+        out, theta, ok = np.empty((n, 4)), np.empty((n, 9)), np.empty(n, dtype=np.bool_)
+        wk.batch_slacks(p, R, ps, sel, *self._const, out, theta, ok)
+        return out, theta, ok
+
+
+def walls_of(robot: Robot) -> Walls:
+    """The robot's :class:`Walls` (built once per robot)."""
+    return cached(("walls", robot.hash), lambda: Walls(robot))
+
+
 def slacks(robot: Robot, position: np.ndarray, rotation: np.ndarray, psi: np.ndarray,
            walls: np.ndarray | None = None) -> np.ndarray:
     """(n, 4) the slacks of the poses (module doc); the clearance (slow) only on the
     rows ``walls`` ((n,) bool; default all), +inf on the others."""
-    return slacks_and_angles(robot, position, rotation, psi, walls)[0]
+    return walls_of(robot)(position, rotation, psi, walls)[0]
 
 
 def slacks_and_angles(robot: Robot, position: np.ndarray, rotation: np.ndarray,
                       psi: np.ndarray, walls: np.ndarray | None = None
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(the slacks (n, 4), the actuated angles (n, 9), solved (n,)) of the poses."""
-    cfg = robot_ik(position, rotation, psi, robot)
-    lim = robot.limits
-    n = len(cfg)
-    out = np.full((n, 4), -1.0)
-    ok = cfg.ok
-    if not ok.any():
-        return out, cfg.theta, ok
-    out[ok, 0] = cfg.margins.minimum[ok] - (lim.margin + MARGIN_GUARD)
-    tilt = spherical_tilts(cfg).max(axis=(1, 2))
-    out[ok, 1] = (lim.spherical - TILT_GUARD) - tilt[ok]
-    lo, hi = actuated_bounds(lim)
-    th = cfg.theta
-    out[ok, 2] = np.minimum(th - lo, hi - th).min(axis=1)[ok] - RANGE_GUARD
-    sel = ok if walls is None else ok & np.asarray(walls, dtype=bool)
-    out[:, 3] = np.where(ok, np.inf, -1.0)
-    if sel.any():
-        out[sel, 3] = (clearance(cfg, sel)[sel] - CLEARANCE_GUARD) / 0.01
-    return out, cfg.theta, ok
+    return walls_of(robot)(position, rotation, psi, walls)
 
 
 def crank_score(sl: np.ndarray) -> np.ndarray:
@@ -96,5 +130,5 @@ def moved(position: np.ndarray, rotation: np.ndarray, twist: np.ndarray
 
 
 __all__ = ["ANGLE_SCALE", "CLEARANCE_GUARD", "MARGIN_GUARD", "RANGE_GUARD",
-           "TILT_GUARD", "WALL_BAND", "crank_score", "moved", "slacks",
-           "slacks_and_angles"]
+           "TILT_GUARD", "WALL_BAND", "Walls", "crank_score", "moved", "slacks",
+           "slacks_and_angles", "walls_of"]

@@ -1,5 +1,6 @@
-"""The per-tick kernels (interaction/_tick_kernel.py) against independent derivations:
-the 9 x 9 LU against LAPACK's (scipy) and the envelope against its closed form.  The
+"""The per-tick kernels against independent derivations: the 9 x 9 LU
+(interaction/_tick_kernel.py) against LAPACK's (scipy), the envelope against its closed
+form, the walls' slacks (interaction/_walls_kernel.py) against the gate's own checks.  The
 observer's state built on them is checked against Pinocchio's in
 tests/test_leadthrough.py."""
 
@@ -10,7 +11,14 @@ import pytest
 from scipy.linalg import lu_factor as scipy_lu_factor
 from scipy.linalg import lu_solve as scipy_lu_solve
 
+from sixplus3.interaction import walls
 from sixplus3.interaction._tick_kernel import envelope, lu_factor, lu_solve, lu_solve_t
+from sixplus3.kinematics import rotations as rot
+from sixplus3.kinematics.checks import actuated_bounds
+from sixplus3.kinematics.collision import clearance
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.kinematics.spherical import spherical_tilts
+from sixplus3.robot_description.robot import Robot
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -62,3 +70,33 @@ def test_the_envelope_is_the_closed_form() -> None:
         out = ~inside
         np.testing.assert_allclose(np.abs(total[out]), cap, rtol=1e-9)
         assert moved == bool(out.any() or np.any(np.abs(ff) > cap))
+
+
+def test_the_walls_kernel_is_the_gates_checks_composed() -> None:
+    """interaction/_walls_kernel.py against robot_ik's margins, spherical_tilts, the
+    actuated range and the collision model's clearance (the gate's own functions), on
+    random poses around home (some without an assembly), clearance on some rows."""
+    robot = Robot.default()
+    rng = np.random.default_rng(11)
+    n = 120
+    pos = robot.home_position + rng.normal(0, 0.06, (n, 3))
+    R = rot.matrix_from_rotvec(rng.normal(0, 0.4, (n, 3)))
+    psi = robot.home_psi + rng.normal(0, 0.8, (n, 3))
+    sel = rng.random(n) < 0.6
+    sl, theta, ok = walls.slacks_and_angles(robot, pos, R, psi, sel)
+    cfg = robot_ik(pos, R, psi, robot)
+    lim, o = robot.limits, cfg.ok
+    assert 0 < o.sum() < n
+    np.testing.assert_array_equal(ok, o)
+    ref = np.full((n, 4), -1.0)
+    ref[o, 0] = cfg.margins.minimum[o] - (lim.margin + walls.MARGIN_GUARD)
+    ref[o, 1] = (lim.spherical - walls.TILT_GUARD) - spherical_tilts(cfg).max(axis=(1, 2))[o]
+    lo, hi = actuated_bounds(lim)
+    ref[o, 2] = np.minimum(cfg.theta - lo, hi - cfg.theta).min(axis=1)[o] - walls.RANGE_GUARD
+    ref[:, 3] = np.where(o, np.inf, -1.0)
+    both = o & sel
+    ref[both, 3] = (clearance(cfg, both)[both] - walls.CLEARANCE_GUARD) / 0.01
+    np.testing.assert_array_equal(np.isinf(sl), np.isinf(ref))
+    fin = np.isfinite(ref)
+    np.testing.assert_allclose(sl[fin], ref[fin], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(theta[o], cfg.theta[o], rtol=0, atol=1e-12)
