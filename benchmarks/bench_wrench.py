@@ -20,7 +20,8 @@ import numpy as np
 from sixplus3.control.drive.plant import WrenchProfile, run_on_plant
 from sixplus3.control.pipeline import run_plan
 from sixplus3.interaction.resolution import plot_resolution_map, resolution
-from sixplus3.interaction.wrench import WrenchStream, estimate
+from sixplus3.interaction.stream import WrenchStream
+from sixplus3.interaction.wrench import estimate
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 

@@ -14,7 +14,13 @@ import math
 import numpy as np
 from numba import njit
 
-from sixplus3.interaction._tick_kernel import friction, lu_factor, lu_solve
+from sixplus3.interaction._tick_kernel import (
+    friction,
+    lu_factor,
+    lu_solve,
+    matvec,
+    skew_squared,
+)
 
 E0, PORT, TANK, MIN_TANK = 0, 1, 2, 3
 
@@ -34,9 +40,9 @@ def _exp3(r):
     K[0, 1], K[0, 2], K[1, 2] = -r[2], r[1], -r[0]
     K[1, 0], K[2, 0], K[2, 1] = r[2], -r[1], r[0]
     if t2 < 1e-8:
-        return np.eye(3) + K + 0.5 * (K @ K)
+        return np.eye(3) + K + 0.5 * skew_squared(r)
     t = math.sqrt(t2)
-    return np.eye(3) + (math.sin(t) / t) * K + ((1.0 - math.cos(t)) / t2) * (K @ K)
+    return np.eye(3) + (math.sin(t) / t) * K + ((1.0 - math.cos(t)) / t2) * skew_squared(r)
 
 
 @njit(cache=True, error_model="numpy")
@@ -149,7 +155,8 @@ def command(J, M, h, thd, v, psi_dot, lead, tdr, p_ref, R_ref, psi_ref, theta_re
     and the angles (from ``anchor`` when the slow update solved the pose); ``tdr`` (the
     rate reference) updated in place; tau_ff = h - friction(thd) + friction(rates) +
     M (the reference's acceleration), within +-cap, into ``ff``."""
-    off = R_ref @ tool
+    off = np.empty(3)
+    matvec(R_ref, tool, off)
     xi = np.empty(9)
     tmp = np.empty(3)
     _cross(v[3:6], off, tmp)
@@ -157,7 +164,8 @@ def command(J, M, h, thd, v, psi_dot, lead, tdr, p_ref, R_ref, psi_ref, theta_re
         xi[i] = v[i] - tmp[i]
         xi[3 + i] = v[3 + i]
         xi[6 + i] = psi_dot[i] if lead else 0.0
-    rates = J @ xi
+    rates = np.empty(9)
+    matvec(J, xi, rates)
     top = 0.0
     for i in range(9):
         top = max(top, abs(rates[i]))
@@ -175,7 +183,12 @@ def command(J, M, h, thd, v, psi_dot, lead, tdr, p_ref, R_ref, psi_ref, theta_re
     for i in range(3):
         p_ref[i] += xi[i] * dt
         psi_ref[i] += xi[6 + i] * dt
-    R_ref[:, :] = _exp3(xi[3:6] * dt) @ R_ref
+    E = _exp3(xi[3:6] * dt)
+    Rn = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            Rn[i, j] = E[i, 0] * R_ref[0, j] + E[i, 1] * R_ref[1, j] + E[i, 2] * R_ref[2, j]
+    R_ref[:, :] = Rn
     for i in range(9):
         base = anchor[i] if has_anchor else theta_ref[i]
         theta_ref[i] = base + rates[i] * dt
@@ -183,6 +196,44 @@ def command(J, M, h, thd, v, psi_dot, lead, tdr, p_ref, R_ref, psi_ref, theta_re
     f1 = np.empty(9)
     friction(thd, viscous, coulomb, speed, f0)
     friction(rates, viscous, coulomb, speed, f1)
-    Ma = M @ acc
+    Ma = np.empty(9)
+    matvec(M, acc, Ma)
     for i in range(9):
         ff[i] = min(max(h[i] - f0[i] + f1[i] + Ma[i], -cap), cap)
+
+
+@njit(cache=True, error_model="numpy")
+def slow_scalars(sl, solved, n_probe, crank_step, band, prev_now, dt_prev, horizon, grad,
+                 active, inside):
+    """The slow update's arithmetic on its poses' slacks sl (interaction.leadthrough,
+    _slow_update: row 0 the reference, 1-6 the cranks turned by +- crank_step, 7.. the
+    probes): ``inside`` (n_probe,) whether each probe has an assembly and every slack
+    above min(the reference's, 0); ``grad`` (3,) the crank score's central gradient
+    (walls.crank_score: the singularity slack less how deep the spherical and range
+    slacks are inside ``band``); ``active`` (4,) the walls near: a slack inside ``band``
+    now or within ``horizon`` at the rate it fell since ``prev_now`` (``dt_prev`` ago; 0:
+    none).  Returns |grad| and the number of walls near."""
+    floor = 0.0
+    for c in range(4):
+        floor = min(floor, sl[0, c])
+    for m in range(n_probe):
+        ok = solved[7 + m]
+        for c in range(4):
+            ok = ok and sl[7 + m, c] >= floor
+        inside[m] = ok
+    gn = 0.0
+    for i in range(3):
+        up = sl[1 + i, 0] + min(sl[1 + i, 1] - band, 0.0) + min(sl[1 + i, 2] - band, 0.0)
+        down = sl[4 + i, 0] + min(sl[4 + i, 1] - band, 0.0) + min(sl[4 + i, 2] - band, 0.0)
+        grad[i] = (up - down) / (2.0 * crank_step)
+        gn += grad[i] * grad[i]
+    n_active = 0
+    for c in range(4):
+        ahead = sl[0, c]
+        if dt_prev > 0.0:
+            rate = (sl[0, c] - prev_now[c]) / dt_prev
+            if math.isfinite(rate) and rate < 0.0:
+                ahead = sl[0, c] + rate * horizon
+        active[c] = min(sl[0, c], ahead) < band
+        n_active += active[c]
+    return math.sqrt(gn), n_active

@@ -5,7 +5,7 @@ A 1 kHz loop in Python cannot afford numpy's per-call overhead on 9-vectors (abo
 microsecond a call, a few hundred calls a tick): these kernels do a tick's small linear
 algebra in compiled code, on preallocated arrays, with the same formulas (and the same
 order of operations) as the Python they replaced.  Their callers
-(:mod:`~sixplus3.interaction.compiled_state`, :class:`~sixplus3.interaction.wrench.
+(:mod:`~sixplus3.interaction.compiled_state`, :class:`~sixplus3.interaction.stream.
 WrenchStream`, :class:`~sixplus3.interaction.leadthrough.LeadThrough`,
 :func:`~sixplus3.interaction.guard_parts.within_envelope`) keep the state and the logic.
 
@@ -20,6 +20,8 @@ import math
 
 import numpy as np
 from numba import njit
+
+from sixplus3.dynamics._ccall import call_casadi
 
 #: A pivot below this (relative to the matrix's largest entry) is singular.
 SINGULAR = 1e-14
@@ -103,6 +105,27 @@ def lu_solve_t(lu, piv, b, out):
 
 
 @njit(cache=True, error_model="numpy")
+def matvec(A, x, out):
+    """out = A x (numba's @ calls BLAS: about a microsecond a call on these sizes)."""
+    for i in range(A.shape[0]):
+        s = 0.0
+        for j in range(A.shape[1]):
+            s += A[i, j] * x[j]
+        out[i] = s
+
+
+@njit(cache=True, error_model="numpy")
+def skew_squared(r):
+    """[r]x [r]x = r r^T - |r|^2 I."""
+    t2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
+    k2 = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            k2[i, j] = r[i] * r[j] - (t2 if i == j else 0.0)
+    return k2
+
+
+@njit(cache=True, error_model="numpy")
 def _wrap(a):
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
@@ -154,7 +177,7 @@ def rotation_and_inverse_left_jacobian(r):
     inverted numerically)."""
     t2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
     K = _skew(r)
-    K2 = K @ K
+    K2 = skew_squared(r)
     eye = np.eye(3)
     if t2 < 1e-8:
         return eye + K + 0.5 * K2, eye - 0.5 * K + K2 / 12.0
@@ -233,7 +256,7 @@ def velocity(theta, prev, have_prev, rate, b, a, z, out):
 @njit(cache=True, error_model="numpy")
 def momentum(tau, thd, J, M, h, prev_tau, prev_M, p0, integral, r, flags, gain, dt, var,
              fc, v_band, w, std, band):
-    """One sample of the momentum observer (:class:`~sixplus3.interaction.wrench.
+    """One sample of the momentum observer (:class:`~sixplus3.interaction.stream.
     WrenchStream`): the residual r from the generalized momentum M thd and the drive's
     torque held over the last tick; the platform wrench J^T r (first six), its standard
     deviation and the friction band of the slow joints.  ``flags``: [a previous torque,
@@ -241,11 +264,17 @@ def momentum(tau, thd, J, M, h, prev_tau, prev_M, p0, integral, r, flags, gain, 
     held = np.empty(9)
     for i in range(9):
         held[i] = 0.5 * (tau[i] + prev_tau[i]) if flags[0] else tau[i]
-    p = M @ thd
+    p = np.empty(9)
+    matvec(M, thd, p)
     if not flags[1]:
         p0[:] = p
     else:
-        mdot = (M - prev_M) @ thd / dt
+        mdot = np.empty(9)
+        for i in range(9):
+            s = 0.0
+            for j in range(9):
+                s += (M[i, j] - prev_M[i, j]) * thd[j]
+            mdot[i] = s / dt
         for i in range(9):
             integral[i] += (held[i] - h[i] + mdot[i] + r[i]) * dt
         for i in range(9):
@@ -294,3 +323,66 @@ def envelope(tau_ff, ref, vref, kp, kd, theta, vel, cap):
                 vref[i] = vel[i] + pd_c / kd[i]
             moved = True
     return wanted, moved
+
+
+@njit(cache=True, error_model="numpy")
+def native_state(kin_ptrs, kx, kth, kjx, obs_ptrs, ox, oxd, ojx, oq0, oqa, oc, x, lu, piv,
+                 step, theta, theta_prev, have, newton_max, tol, thd,
+                 armature, viscous, coulomb, speed, J, M, h, R):
+    """One sample of :class:`~sixplus3.interaction.compiled_state.CompiledState` in one
+    call, the generated C called by address (dynamics/native.py: ``kin_ptrs`` on the
+    buffers kx -> (kth, kjx), ``obs_ptrs`` on (ox, oxd) -> (., ojx, oq0, oqa, oc)): x
+    predicted from the previous sample (``have``), then Newton's steps (at most
+    newton_max + 1 evaluations) to ``tol``, then the observer's state at (x, J_x^-1 thd)
+    into J, M, h, R.  Returns (the largest angle error, the LU's info); the caller
+    accepts the sample when info is 0 and the error below 1e-8."""
+    if have:
+        predict(x, lu, piv, theta, theta_prev, step)
+    err, info = math.inf, 0
+    for _ in range(newton_max + 1):
+        kx[:] = x
+        call_casadi(kin_ptrs[0], kin_ptrs[1], kin_ptrs[2], kin_ptrs[3], kin_ptrs[4])
+        err, info = newton(x, kth, kjx, theta, lu, piv, step, tol)
+        if err < tol or info != 0:
+            break
+    if info != 0 or err >= 1e-8:
+        return err, info
+    ox[:] = x
+    lu_solve(lu, piv, thd, oxd)
+    call_casadi(obs_ptrs[0], obs_ptrs[1], obs_ptrs[2], obs_ptrs[3], obs_ptrs[4])
+    observer_state(lu, piv, ojx, oq0, oqa, oc, x[3:6], thd, armature, viscous, coulomb,
+                   speed, J, M, h, R)
+    theta_prev[:] = theta
+    return err, info
+
+
+@njit(cache=True, error_model="numpy")
+def stream_tick(theta, tau, prev_theta, rate, b, a, z, thd,
+                kin_ptrs, kx, kth, kjx, obs_ptrs, ox, oxd, ojx, oq0, oqa, oc,
+                x, lu, piv, step, theta_prev, newton_max, tol, armature, viscous, coulomb,
+                speed, J, M, h, R,
+                prev_tau, prev_M, p0, integral, r, flags, gain, dt, var, fc, v_band,
+                n_sigma, w, std, band):
+    """One sample of :class:`~sixplus3.interaction.stream.WrenchStream` in one call,
+    after its first (a previous sample and its x): the readings checked, the velocity
+    filter, :func:`native_state`, the momentum observer.  Returns 0 (no contact), 1 (a
+    contact: a component of w beyond n_sigma std + band), -1 (a reading not finite:
+    nothing changed), -2 (forward kinematics did not converge: the filter moved on, the
+    observer did not; the caller starts again from the full forward kinematics)."""
+    for i in range(9):
+        if not (math.isfinite(theta[i]) and math.isfinite(tau[i])):
+            return -1
+    velocity(theta, prev_theta, True, rate, b, a, z, thd)
+    err, info = native_state(kin_ptrs, kx, kth, kjx, obs_ptrs, ox, oxd, ojx, oq0, oqa, oc,
+                             x, lu, piv, step, theta, theta_prev, True,
+                             newton_max, tol, thd, armature, viscous, coulomb, speed, J, M,
+                             h, R)
+    if info != 0 or err >= 1e-8:
+        return -2
+    momentum(tau, thd, J, M, h, prev_tau, prev_M, p0, integral, r, flags, gain, dt, var,
+             fc, v_band, w, std, band)
+    prev_theta[:] = theta
+    for k in range(6):
+        if abs(w[k]) > n_sigma * std[k] + band[k]:
+            return 1
+    return 0

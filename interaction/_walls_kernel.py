@@ -42,68 +42,237 @@ N_K = 12
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _mv(A, x):
-    """A x of a 3 x 3 and a 3-vector (numba's @ calls BLAS: a microsecond each)."""
-    out = np.empty(3)
-    for i in range(3):
-        out[i] = A[i, 0] * x[0] + A[i, 1] * x[1] + A[i, 2] * x[2]
-    return out
+def _mv(A, x0, x1, x2):
+    """A x of a 3 x 3 and a vector's three scalars (no arrays: numba's @ calls BLAS, a
+    microsecond each, and small arrays cost an allocation)."""
+    return (A[0, 0] * x0 + A[0, 1] * x1 + A[0, 2] * x2,
+            A[1, 0] * x0 + A[1, 1] * x1 + A[1, 2] * x2,
+            A[2, 0] * x0 + A[2, 1] * x1 + A[2, 2] * x2)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _mtv(A, x):
-    """A^T x of a 3 x 3 and a 3-vector."""
-    out = np.empty(3)
-    for i in range(3):
-        out[i] = A[0, i] * x[0] + A[1, i] * x[1] + A[2, i] * x[2]
-    return out
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _mm(A, B):
-    """A B of two 3 x 3."""
-    out = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
-    return out
-
-
-@njit(cache=True, error_model="numpy")
-def _rot(axis, a):
+def _rx(a, x0, x1, x2):
+    """R_x(a) x."""
     c, s = math.cos(a), math.sin(a)
-    R = np.zeros((3, 3))
-    i, j = (1, 2) if axis == 0 else (0, 1)
-    R[axis, axis] = 1.0
-    R[i, i], R[i, j], R[j, i], R[j, j] = c, -s, s, c
-    return R
+    return x0, c * x1 - s * x2, s * x1 + c * x2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _rz(a, x0, x1, x2):
+    """R_z(a) x."""
+    c, s = math.cos(a), math.sin(a)
+    return c * x0 - s * x1, s * x0 + c * x1, x2
 
 
 @njit(cache=True, error_model="numpy")
-def _u_joint(theta, ld):
+def _u_joint(theta, ld0, ld1, ld2):
     """(a, b) of the U joint: R_x(theta + a) R_z(b) y = ld (kinematics.robot)."""
     c, s = math.cos(theta), math.sin(theta)
-    uy = c * ld[1] + s * ld[2]
-    uz = -s * ld[1] + c * ld[2]
-    return math.atan2(uz, uy), math.atan2(-ld[0], math.hypot(uy, uz))
+    uy = c * ld1 + s * ld2
+    uz = -s * ld1 + c * ld2
+    return math.atan2(uz, uy), math.atan2(-ld0, math.hypot(uy, uz))
+
+
+@njit(cache=True, error_model="numpy")
+def _angle(u0, u1, u2, v0, v1, v2):
+    return math.acos(min(max(u0 * v0 + u1 * v1 + u2 * v2, -1.0), 1.0))
+
+
+@njit(cache=True, error_model="numpy")
+def _tilt(i, row, R, psi, geo, crank_angle, leg_rot, sph_ref):
+    """The largest tilt of leg i's three spherical joints from their axes at home."""
+    Rl = leg_rot[i]
+    tilt = 0.0
+    for j in range(3):
+        s0, s1 = sph_ref[i, j, 0], sph_ref[i, j, 1]
+        # u = Rl Q s0 (the leg's body), v = the other side's frame times s1
+        q0 = row[QM + 0] * s0[0] + row[QM + 1] * s0[1] + row[QM + 2] * s0[2]
+        q1 = row[QM + 3] * s0[0] + row[QM + 4] * s0[1] + row[QM + 5] * s0[2]
+        q2 = row[QM + 6] * s0[0] + row[QM + 7] * s0[1] + row[QM + 8] * s0[2]
+        u0, u1, u2 = _mv(Rl, q0, q1, q2)
+        if j < 2:
+            th = row[TH + 1 + j]
+            tip = PG if j == 0 else PH
+            end = PE if j == 0 else PF
+            length = geo[3] if j == 0 else geo[4]
+            ua, ub = _u_joint(th, (row[end] - row[tip]) / length,
+                              (row[end + 1] - row[tip + 1]) / length,
+                              (row[end + 2] - row[tip + 2]) / length)
+            w0, w1, w2 = _rz(ub, s1[0], s1[1], s1[2])
+            w0, w1, w2 = _rx(th + ua, w0, w1, w2)
+            v0, v1, v2 = _mv(Rl, w0, w1, w2)
+        else:
+            w0, w1, w2 = _rz(crank_angle[i] + psi[i], s1[0], s1[1], s1[2])
+            v0, v1, v2 = _mv(R, w0, w1, w2)
+        tilt = max(tilt, _angle(u0, u1, u2, v0, v1, v2))
+    return tilt
+
+
+_EPS = 2.220446049250313e-16
+
+
+@njit(cache=True, error_model="numpy")
+def sym_extremes(A, d, e, v, p):
+    """(the smallest, the largest) eigenvalue of the symmetric n x n ``A`` (overwritten;
+    d, e, v, p (n,) work): Householder's tridiagonalisation, then the implicit QL
+    iteration with shifts (eigenvalues only; Numerical Recipes' tqli).  Twice as fast
+    as numba's ``eigvalsh`` (LAPACK's dsyevd with its copies and workspace) on 9 x 9,
+    with its accuracy: each eigenvalue to a few eps times the largest
+    (tests/test_tick_kernel.py)."""
+    n = A.shape[0]
+    for k in range(n - 2):
+        nrm = 0.0
+        for i in range(k + 1, n):
+            nrm += A[i, k] * A[i, k]
+        nrm = math.sqrt(nrm)
+        d[k] = A[k, k]
+        if nrm == 0.0:
+            e[k] = 0.0
+            continue
+        alpha = -nrm if A[k + 1, k] >= 0.0 else nrm
+        for i in range(k + 1, n):
+            v[i] = A[i, k]
+        v[k + 1] -= alpha
+        vtv = 0.0
+        for i in range(k + 1, n):
+            vtv += v[i] * v[i]
+        e[k] = alpha
+        beta = 2.0 / vtv
+        vp = 0.0
+        for i in range(k + 1, n):
+            s = 0.0
+            for j in range(k + 1, n):
+                s += A[i, j] * v[j]
+            p[i] = beta * s
+            vp += v[i] * p[i]
+        K = 0.5 * beta * vp
+        for i in range(k + 1, n):
+            p[i] -= K * v[i]
+        for i in range(k + 1, n):
+            for j in range(k + 1, n):
+                A[i, j] -= v[i] * p[j] + p[i] * v[j]
+    d[n - 2] = A[n - 2, n - 2]
+    d[n - 1] = A[n - 1, n - 1]
+    e[n - 2] = A[n - 1, n - 2]
+    e[n - 1] = 0.0
+    for l in range(n):
+        for _ in range(60):
+            m = l
+            while m < n - 1:
+                dd = abs(d[m]) + abs(d[m + 1])
+                if abs(e[m]) <= _EPS * dd:
+                    break
+                m += 1
+            if m == l:
+                break
+            g = (d[l + 1] - d[l]) / (2.0 * e[l])
+            r = math.sqrt(g * g + 1.0)
+            g = d[m] - d[l] + e[l] / (g + (r if g >= 0.0 else -r))
+            s = c = 1.0
+            pp = 0.0
+            i = m - 1
+            underflow = False
+            while i >= l:
+                f = s * e[i]
+                b = c * e[i]
+                r = math.sqrt(f * f + g * g)
+                e[i + 1] = r
+                if r == 0.0:
+                    d[i + 1] -= pp
+                    e[m] = 0.0
+                    underflow = True
+                    break
+                s = f / r
+                c = g / r
+                g = d[i + 1] - pp
+                r = (d[i] - g) * s + 2.0 * c * b
+                pp = s * r
+                d[i + 1] = g + pp
+                g = c * r - b
+                i -= 1
+            if underflow:
+                continue
+            d[l] -= pp
+            e[l] = g
+            e[m] = 0.0
+    lo, hi = d[0], d[0]
+    for i in range(1, n):
+        lo = min(lo, d[i])
+        hi = max(hi, d[i])
+    return lo, hi
+
+
+@njit(cache=True, error_model="numpy")
+def _platform_margin(p, R, P, Ri, k, J, G, vec):
+    """sigma_min / sigma_max of the platform's 9 x 9 Jacobian (rotations scaled by 1 / L,
+    cranks by 1 / crank), from the eigenvalues of J^T J (LAPACK's 9 x 9 SVD costs 25 us
+    in numba, LAPACK's eigvalsh 5 us, :func:`sym_extremes` 3 us).  J, G (9, 9), vec (4, 9):
+    work."""
+    J[:, :] = 0.0
+    L, c = k[K_L], k[K_CRANK]
+    z0, z1, z2 = R[0, 2], R[1, 2], R[2, 2]
+    for i in range(3):
+        r0, r1, r2 = P[i, 0] - p[0], P[i, 1] - p[1], P[i, 2] - p[2]
+        s0, s1, s2 = P[i, 0] - Ri[i, 0], P[i, 1] - Ri[i, 1], P[i, 2] - Ri[i, 2]
+        for a in range(3):
+            J[3 * i + a, a] = 1.0
+        # omega x r = -[r]x omega, scaled by 1 / L
+        J[3 * i + 0, 4], J[3 * i + 0, 5] = r2 / L, -r1 / L
+        J[3 * i + 1, 3], J[3 * i + 1, 5] = -r2 / L, r0 / L
+        J[3 * i + 2, 3], J[3 * i + 2, 4] = r1 / L, -r0 / L
+        J[3 * i + 0, 6 + i] = (z1 * s2 - z2 * s1) / c
+        J[3 * i + 1, 6 + i] = (z2 * s0 - z0 * s2) / c
+        J[3 * i + 2, 6 + i] = (z0 * s1 - z1 * s0) / c
+    for a in range(9):
+        for b in range(a, 9):
+            g = 0.0
+            for r in range(9):
+                g += J[r, a] * J[r, b]
+            G[a, b] = g
+            G[b, a] = g
+    lo, hi = sym_extremes(G, vec[0], vec[1], vec[2], vec[3])
+    return math.sqrt(max(lo, 0.0) / hi)
+
+
+# the leg's capsules' ends (A-D, D-P, B-G, G-E, C-H, H-F): an offset into the leg
+# kernel's row, or A, B, C (fixed in the leg frame: -1, -2, -3)
+_A, _B, _C = -1, -2, -3
+_CAPS = ((_A, PD, _B, PG, _C, PH), (PD, PP, PG, PE, PH, PF))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _leg_point(row, at, k):
+    """A capsule's end in the leg frame: A the origin, B = (l6, 0, 0), C = (-l7, 0, 0),
+    the others from the leg kernel's row."""
+    if at == _A:
+        return 0.0, 0.0, 0.0
+    if at == _B:
+        return k[K_L6], 0.0, 0.0
+    if at == _C:
+        return -k[K_L7], 0.0, 0.0
+    return row[at], row[at + 1], row[at + 2]
 
 
 @njit(cache=True, error_model="numpy")
 def pose_slacks(p, R, psi, with_clearance, k, geo, mode, crank_pos, crank_angle, leg_rot,
-                leg_org, sph_ref, hubs, radii, pairs, base, out, theta, caps, mid, half):
+                leg_org, sph_ref, hubs, radii, pairs, base, out, theta, caps, mid, half,
+                rows, P, Ri, J, G, vec):
     """The four slacks of one pose (interaction.walls) into ``out`` (4,) and its
     actuated angles into ``theta`` (9,); returns whether the pose has an assembly (if
-    not: every slack -1, theta 0)."""
-    rows = np.zeros((3, NF))
-    P = np.empty((3, 3))
-    Ri = np.empty((3, 3))
+    not: every slack -1, theta 0).  rows (3, NF), P, Ri (3, 3), J, G (9, 9), vec (4, 9): work."""
     for i in range(3):
         b = crank_angle[i] + psi[i]
-        loc = crank_pos[i] + k[K_CRANK] * np.array([math.cos(b), math.sin(b), 0.0])
-        P[i] = p + _mv(R, loc)
-        Ri[i] = p + _mv(R, crank_pos[i])
-        pl = _mtv(leg_rot[i], P[i] - leg_org[i])
-        st = ik_point(pl[0], pl[1], pl[2], geo, mode, rows[i])
+        c0 = crank_pos[i, 0] + k[K_CRANK] * math.cos(b)
+        c1 = crank_pos[i, 1] + k[K_CRANK] * math.sin(b)
+        x0, x1, x2 = _mv(R, c0, c1, crank_pos[i, 2])
+        P[i, 0], P[i, 1], P[i, 2] = p[0] + x0, p[1] + x1, p[2] + x2
+        x0, x1, x2 = _mv(R, crank_pos[i, 0], crank_pos[i, 1], crank_pos[i, 2])
+        Ri[i, 0], Ri[i, 1], Ri[i, 2] = p[0] + x0, p[1] + x1, p[2] + x2
+        Rl, o = leg_rot[i], leg_org[i]
+        d0, d1, d2 = P[i, 0] - o[0], P[i, 1] - o[1], P[i, 2] - o[2]
+        st = ik_point(Rl[0, 0] * d0 + Rl[1, 0] * d1 + Rl[2, 0] * d2,
+                      Rl[0, 1] * d0 + Rl[1, 1] * d1 + Rl[2, 1] * d2,
+                      Rl[0, 2] * d0 + Rl[1, 2] * d1 + Rl[2, 2] * d2, geo, mode, rows[i])
         if st != 0:
             out[:] = -1.0
             theta[:] = 0.0
@@ -115,50 +284,12 @@ def pose_slacks(p, R, psi, with_clearance, k, geo, mode, crank_pos, crank_angle,
         m = min(m, min(rows[i, MARGIN_I], rows[i, MARGIN_II]))
         for j in range(3):
             theta[3 * i + j] = rows[i, TH + j]
-    J = np.zeros((9, 9))
-    z = R[:, 2]
-    for i in range(3):
-        r = P[i] - p
-        s = P[i] - Ri[i]
-        for a in range(3):
-            J[3 * i + a, a] = 1.0
-        # omega x r = -[r]x omega, scaled by 1 / L
-        J[3 * i + 0, 4], J[3 * i + 0, 5] = r[2] / k[K_L], -r[1] / k[K_L]
-        J[3 * i + 1, 3], J[3 * i + 1, 5] = -r[2] / k[K_L], r[0] / k[K_L]
-        J[3 * i + 2, 3], J[3 * i + 2, 4] = r[1] / k[K_L], -r[0] / k[K_L]
-        J[3 * i + 0, 6 + i] = (z[1] * s[2] - z[2] * s[1]) / k[K_CRANK]
-        J[3 * i + 1, 6 + i] = (z[2] * s[0] - z[0] * s[2]) / k[K_CRANK]
-        J[3 * i + 2, 6 + i] = (z[0] * s[1] - z[1] * s[0]) / k[K_CRANK]
-    # sigma_min / sigma_max from the eigenvalues of J^T J (LAPACK's 9 x 9 SVD costs
-    # 25 us in numba, these 7 us; the same ratio to 1e-12 for margins above 1e-3,
-    # tests/test_leadthrough.py)
-    ev = np.linalg.eigvalsh(J.T @ J)
-    m = min(m, math.sqrt(max(ev[0], 0.0) / ev[-1]))
+    m = min(m, _platform_margin(p, R, P, Ri, k, J, G, vec))
     out[0] = m - k[K_MARGIN]
     # spherical joints: each one's tilt from its axis at home
     tilt = 0.0
     for i in range(3):
-        row = rows[i]
-        Q = np.empty((3, 3))
-        for a in range(3):
-            for c in range(3):
-                Q[a, c] = row[QM + 3 * a + c]
-        body = _mm(leg_rot[i], Q)
-        for j in range(3):
-            if j < 2:
-                th = row[TH + 1 + j]
-                tip = PG if j == 0 else PH
-                end = PE if j == 0 else PF
-                length = geo[3] if j == 0 else geo[4]
-                ld = (row[end:end + 3] - row[tip:tip + 3]) / length
-                ua, ub = _u_joint(th, ld)
-                other = _mm(_mm(leg_rot[i], _rot(0, th + ua)), _rot(2, ub))
-            else:
-                other = _mm(R, _rot(2, crank_angle[i] + psi[i]))
-            u = _mv(body, sph_ref[i, j, 0])
-            v = _mv(other, sph_ref[i, j, 1])
-            cosv = min(max(u[0] * v[0] + u[1] * v[1] + u[2] * v[2], -1.0), 1.0)
-            tilt = max(tilt, math.acos(cosv))
+        tilt = max(tilt, _tilt(i, rows[i], R, psi, geo, crank_angle, leg_rot, sph_ref))
     out[1] = k[K_TILT] - tilt
     # actuated range
     near = np.inf
@@ -168,29 +299,32 @@ def pose_slacks(p, R, psi, with_clearance, k, geo, mode, crank_pos, crank_angle,
     if not with_clearance:
         out[3] = np.inf
         return True
-    # legs apart: the collision model's capsules (kinematics.collision.capsules)
+    # legs apart: the collision model's capsules (kinematics.collision.capsules): the
+    # legs' (_CAPS), the hubs, the plate (raised by the plate offset), the cranks
     for i in range(3):
         row = rows[i]
         Rl, org = leg_rot[i], leg_org[i]
-        pts = np.zeros((9, 3))  # A, D, P, B, G, E, C, H, F in the leg frame
-        pts[1], pts[2] = row[PD:PD + 3], row[PP:PP + 3]
-        pts[3, 0] = k[K_L6]
-        pts[4], pts[5] = row[PG:PG + 3], row[PE:PE + 3]
-        pts[6, 0] = -k[K_L7]
-        pts[7], pts[8] = row[PH:PH + 3], row[PF:PF + 3]
-        for lk, (u, v) in enumerate(((0, 1), (1, 2), (3, 4), (4, 5), (6, 7), (7, 8))):
-            caps[6 * i + lk, 0] = _mv(Rl, pts[u]) + org
-            caps[6 * i + lk, 1] = _mv(Rl, pts[v]) + org
+        for lk in range(6):
+            for end in range(2):
+                y0, y1, y2 = _leg_point(row, _CAPS[end][lk], k)
+                x0, x1, x2 = _mv(Rl, y0, y1, y2)
+                caps[6 * i + lk, end, 0] = x0 + org[0]
+                caps[6 * i + lk, end, 1] = x1 + org[1]
+                caps[6 * i + lk, end, 2] = x2 + org[2]
     for i in range(3):
         caps[18 + i] = hubs[i]
-    up = k[K_PLATE] * z
+    u0, u1, u2 = k[K_PLATE] * R[0, 2], k[K_PLATE] * R[1, 2], k[K_PLATE] * R[2, 2]
     for i in range(3):
-        caps[21 + i, 0] = p + up
-        caps[21 + i, 1] = Ri[i] + up
-        caps[24 + i, 0] = Ri[i] + up
-        caps[24 + i, 1] = Ri[(i + 1) % 3] + up
-        caps[27 + i, 0] = Ri[i]
-        caps[27 + i, 1] = P[i]
+        nx = (i + 1) % 3
+        caps[21 + i, 0, 0], caps[21 + i, 0, 1], caps[21 + i, 0, 2] = (p[0] + u0, p[1] + u1,
+                                                                      p[2] + u2)
+        for a in range(3):
+            up = (u0, u1, u2)[a]
+            caps[21 + i, 1, a] = Ri[i, a] + up
+            caps[24 + i, 0, a] = Ri[i, a] + up
+            caps[24 + i, 1, a] = Ri[nx, a] + up
+            caps[27 + i, 0, a] = Ri[i, a]
+            caps[27 + i, 1, a] = P[i, a]
     clear = pose_clearance(caps, radii, pairs, base, k[K_BASE], -np.inf, mid, half)
     out[3] = (clear - k[K_CLEAR]) / 0.01
     return True
@@ -204,7 +338,81 @@ def batch_slacks(p, R, psi, with_clearance, k, geo, mode, crank_pos, crank_angle
     caps = np.zeros((radii.shape[0], 2, 3))
     mid = np.empty((radii.shape[0], 3))
     half = np.empty(radii.shape[0])
+    rows = np.zeros((3, NF))
+    P, Ri = np.empty((3, 3)), np.empty((3, 3))
+    J, G = np.empty((9, 9)), np.empty((9, 9))
+    vec = np.empty((4, 9))
     for n in range(p.shape[0]):
         ok[n] = pose_slacks(p[n], R[n], psi[n], with_clearance[n], k, geo, mode, crank_pos,
                             crank_angle, leg_rot, leg_org, sph_ref, hubs, radii, pairs,
-                            base, out[n], theta[n], caps, mid, half)
+                            base, out[n], theta[n], caps, mid, half, rows, P, Ri, J, G,
+                            vec)
+
+
+@njit(cache=True, error_model="numpy")
+def moved(p, R, tw, pos, rot):
+    """The pose (p (3,), R (3, 3)) moved by the twists tw (n, 6) (a translation and a
+    rotation vector, base frame) into pos (n, 3), rot (n, 3, 3): rot = exp([w]x) R
+    (Rodrigues; below |w|^2 = 1e-8 the coefficients' Taylor series, as
+    :func:`~sixplus3.kinematics.rotations.matrix_from_rotvec`)."""
+    E = np.empty((3, 3))
+    for n in range(tw.shape[0]):
+        w0, w1, w2 = tw[n, 3], tw[n, 4], tw[n, 5]
+        t2 = w0 * w0 + w1 * w1 + w2 * w2
+        if t2 < 1e-8:
+            a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
+            b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+        else:
+            t = math.sqrt(t2)
+            a = math.sin(t) / t
+            b = (1.0 - math.cos(t)) / t2
+        # I + a K + b K^2, K = [w]x, K^2 = w w^T - t2 I
+        E[0, 0] = 1.0 + b * (w0 * w0 - t2)
+        E[1, 1] = 1.0 + b * (w1 * w1 - t2)
+        E[2, 2] = 1.0 + b * (w2 * w2 - t2)
+        E[0, 1], E[1, 0] = -a * w2 + b * w0 * w1, a * w2 + b * w0 * w1
+        E[0, 2], E[2, 0] = a * w1 + b * w0 * w2, -a * w1 + b * w0 * w2
+        E[1, 2], E[2, 1] = -a * w0 + b * w1 * w2, a * w0 + b * w1 * w2
+        for i in range(3):
+            pos[n, i] = p[i] + tw[n, i]
+            for j in range(3):
+                rot[n, i, j] = E[i, 0] * R[0, j] + E[i, 1] * R[1, j] + E[i, 2] * R[2, j]
+
+
+@njit(cache=True, error_model="numpy")
+def update_poses(p, R, psi_ref, v, psi_dot, off, scale, crank_step, probes, tw, pos, rot,
+                 psi, u):
+    """The lead-through's slow update's poses (interaction.leadthrough, 5): row 0 the
+    reference, rows 1-3 and 4-6 each crank turned by +- ``crank_step``, rows 7.. the
+    probes ahead (``probes`` [m] along the direction u (9,) of the motion (v, psi_dot),
+    metric: rotations and cranks times ``scale``) of the tool point ``off`` (R tool);
+    tw (n, 6) work.  Returns |(v, omega scale, psi_dot scale)| (0: u = 0)."""
+    n_probe = probes.shape[0]
+    nx = 0.0
+    for i in range(9):
+        x = v[i] if i < 3 else (v[i] * scale if i < 6 else psi_dot[i - 6] * scale)
+        u[i] = x
+        nx += x * x
+    nx = math.sqrt(nx)
+    for i in range(9):
+        u[i] = u[i] / nx if nx > 0.0 else 0.0
+    tw[:, :] = 0.0
+    for r in range(7 + n_probe):
+        for i in range(3):
+            psi[r, i] = psi_ref[i]
+    for i in range(3):
+        psi[1 + i, i] += crank_step
+        psi[4 + i, i] -= crank_step
+    for m in range(n_probe):
+        r = 7 + m
+        d = probes[m]
+        # the tool point moves by u[:3] d: the centre by that less omega x off
+        w0, w1, w2 = u[3] * d / scale, u[4] * d / scale, u[5] * d / scale
+        tw[r, 0] = u[0] * d - (w1 * off[2] - w2 * off[1])
+        tw[r, 1] = u[1] * d - (w2 * off[0] - w0 * off[2])
+        tw[r, 2] = u[2] * d - (w0 * off[1] - w1 * off[0])
+        tw[r, 3], tw[r, 4], tw[r, 5] = w0, w1, w2
+        for i in range(3):
+            psi[r, i] += u[6 + i] * d / scale
+    moved(p, R, tw, pos, rot)
+    return nx

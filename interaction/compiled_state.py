@@ -26,13 +26,20 @@ import numpy as np
 
 from sixplus3.dynamics.codegen import compiled_small
 from sixplus3.dynamics.compiled_kinematics import Buffered, kinematics_buffer
+from sixplus3.dynamics.native import native
 from sixplus3.dynamics.symbolic import (
     observer_function,
     setup_parameters,
     structure,
 )
 from sixplus3.errors import InputError
-from sixplus3.interaction._tick_kernel import lu_solve, newton, observer_state, predict
+from sixplus3.interaction._tick_kernel import (
+    lu_solve,
+    native_state,
+    newton,
+    observer_state,
+    predict,
+)
 from sixplus3.kinematics.robot import robot_fk
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -67,6 +74,13 @@ class CompiledState:
         self._piv = np.zeros(9, dtype=np.int64)
         self._theta = np.zeros(9)
         self._step = np.zeros(9)
+        self._J, self._M = np.zeros((9, 9)), np.zeros((9, 9))
+        self._h, self._R = np.zeros(9), np.zeros((3, 3))
+        # the generated C called from the kernel itself (dynamics/native.py), where the
+        # libraries are on disk; else through CasADi's buffers (the same numbers)
+        nkin = native("kin_x", key, self._kin)
+        nobs = native("observer_p", key, self._obs)
+        self._native = None if nkin is None or nobs is None else (nkin, nobs)
 
     def reset(self) -> None:
         """Forget the previous sample (the next one starts from the full forward
@@ -100,6 +114,8 @@ class CompiledState:
         """(J (9, 9), M (9, 9), h (9,), tcp offset (3,)) of one sample."""
         theta = np.asarray(theta, dtype=float)
         theta_dot = np.asarray(theta_dot, dtype=float)
+        if self._native is not None and self._have:
+            return self._native_state(theta, theta_dot)
         self._fk(theta)
         obs, x = self._obs, self._x
         obs.args[0][:] = x
@@ -115,6 +131,48 @@ class CompiledState:
         #: the platform's pose and the crank angles of the last sample
         self.position, self.rotation, self.psi = x[0:3].copy(), R, x[6:9].copy()
         return J, M, h, R @ self._tool
+
+
+    def native_args(self) -> tuple[object, ...] | None:
+        """The arguments of :func:`~sixplus3.interaction._tick_kernel.native_state` from
+        ``kin_ptrs`` to ``R`` less theta, have and thd (in :func:`~sixplus3.interaction.
+        _tick_kernel.stream_tick`'s order), or None without the native path."""
+        if self._native is None:
+            return None
+        kin, obs = self._native
+        kb, ob = kin.buf, obs.buf
+        return (kin.ptrs, kb.args[0], kb.res[0], kb.res[1], obs.ptrs,
+                ob.args[0], ob.args[1], ob.res[1], ob.res[2], ob.res[3], ob.res[4], self._x,
+                self._lu, self._piv, self._step, self._theta, NEWTON, TOL, self._armature,
+                self._viscous, self._coulomb, self._speed, self._J, self._M, self._h,
+                self._R)
+
+    def native_done(self) -> None:
+        """After a sample taken by stream_tick: the pose of :meth:`state`."""
+        x = self._x
+        self.position, self.rotation, self.psi = x[0:3].copy(), self._R.copy(), x[6:9].copy()
+
+    def _native_state(self, theta: np.ndarray, theta_dot: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`state` in one compiled call (_tick_kernel.native_state), on the
+        previous sample's x and factors."""
+        assert self._native is not None
+        kin, obs = self._native
+        kb, ob = kin.buf, obs.buf
+        J, M, h, R = self._J, self._M, self._h, self._R
+        err, info = native_state(
+            kin.ptrs, kb.args[0], kb.res[0], kb.res[1], obs.ptrs,
+            ob.args[0], ob.args[1], ob.res[1], ob.res[2], ob.res[3], ob.res[4], self._x,
+            self._lu, self._piv, self._step, theta, self._theta, True, NEWTON, TOL,
+            theta_dot, self._armature, self._viscous, self._coulomb, self._speed, J, M, h,
+            R)
+        if info != 0 or err >= 1e-8:
+            self._have = False  # start again from the full forward kinematics next time
+            raise InputError("forward kinematics did not converge for these angles",
+                             value=float(err), valid="angles of an assembly")
+        x = self._x
+        self.position, self.rotation, self.psi = x[0:3].copy(), R.copy(), x[6:9].copy()
+        return J.copy(), M.copy(), h.copy(), R @ self._tool
 
 
 __all__ = ["CompiledState"]

@@ -7,7 +7,7 @@ tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref - theta_dot).
 Each tick:
 
 1. **The wrench** a person applies, from the drives alone: the momentum observer of
-   :class:`~sixplus3.interaction.wrench.WrenchStream` (its standard deviation ``std``
+   :class:`~sixplus3.interaction.stream.WrenchStream` (its standard deviation ``std``
    and, for joints slower than ``V_BAND``, the dry friction ``band``), moved to the tool
    centre point (the point a person holds).
 2. **A deadband with hysteresis.** At rest (mode ``hold``) a component counts only
@@ -25,7 +25,8 @@ Each tick:
    (the estimated wrench times the measured twist) - the virtual mass's kinetic energy,
    capped at 4 ``energy``.  At T <= 0 the admittance takes only the input that slows it
    down: the robot never gives the person more energy than it received.
-5. **Walls and cranks** (every ``slow_every`` ticks; :mod:`sixplus3.interaction.walls`):
+5. **Walls and cranks** (every ``slow_every`` ticks, in two halves on consecutive
+   ticks: :mod:`sixplus3.interaction.lead_walls`; :mod:`sixplus3.interaction.walls`):
    the reference pose's slacks against the walls of singularity, spherical cones,
    actuated range and clearance.  A wall is near when its slack is inside the band or
    would be within HORIZON at the rate it fell; its gradient in the twist and the crank
@@ -61,38 +62,19 @@ from sixplus3.interaction.guard_parts import (
     parse_gains,
     within_envelope,
 )
-from sixplus3.interaction.wrench import GAIN, MODEL_SIGMA, N_SIGMA, WrenchStream
+from sixplus3.interaction.lead_walls import CRANK_DEADBAND, WallUpdate
+from sixplus3.interaction.stream import WrenchStream
+from sixplus3.interaction.wrench import GAIN, MODEL_SIGMA, N_SIGMA
 from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Platform speeds below which the guided platform is at rest [m/s], [rad/s].
 REST_SPEED = (0.002, 0.02)
-#: Crank-score gradients below this are a plateau: the cranks stay.
-CRANK_DEADBAND = 0.05
 #: The cranks' acceleration cap [rad/s^2].
 CRANK_ACCELERATION = 5.0
 #: The guided joint rates stay within this share of the rate limit.
 RATE_SHARE = 0.5
-#: [1/s] the barrier's rate: a wall's slack may fall at most this fast per unit slack
-#: (an exponential approach: the deceleration it asks is WALL_RATE times the approach
-#: speed, 1.25 m/s^2 at the speed cap, within the acceleration cap).
-WALL_RATE = 5.0
-#: [s] a wall is near when the slack's fall since the last update would reach the band
-#: within this: the barrier starts early enough to slow the platform without a jerk.
-HORIZON = 0.3
-#: [m, metric] probes ahead along the current direction: each must have an assembly and
-#: be inside every wall (a leg's reach, a clearance's closest pair changing: walls no
-#: gradient announces); the motion approaches the farthest one inside.
-PROBES = (0.005, 0.01, 0.02)
-#: Finite-difference steps: cranks [rad], the twist (metric units, m).
-CRANK_STEP, TWIST_STEP = 0.02, 0.001
 #: The walls near at once, at most (the four slacks' and a cliff ahead).
 MAX_WALLS = 8
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b of two 3-vectors (numpy's cross costs ten times more for one pair)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                     a[0] * b[1] - a[1] * b[0]])
 
 
 def _norm(a: np.ndarray) -> float:
@@ -169,6 +151,8 @@ class LeadThrough:
         self._G = np.zeros((MAX_WALLS, 9))
         self._b = np.zeros(MAX_WALLS)
         self._no_anchor = np.zeros(9)
+        # the walls near and the cranks' climb, every slow_every ticks (lead_walls.py)
+        self._wu = WallUpdate(self.robot, self.tool, self.crank_gain, self.crank_rate)
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -191,14 +175,12 @@ class LeadThrough:
         # [J] the tank's initial energy, what the person put into the robot (estimated),
         # the tank, its least value (interaction/_lead_kernel.py: E0, PORT, TANK, MIN_TANK)
         self._sc = np.array([self.energy0, 0.0, self.energy0, self.energy0])
-        self.min_margin = math.inf  # the reference's smallest singularity margin
-        self.min_slack = math.inf
-        self.walls_met = 0  # slow updates that found a wall ahead
+        if hasattr(self, "_wu"):
+            self._wu.reset()
         self._last_ff = np.zeros(9)
         self._prev_theta = np.zeros(9)
         self._have_prev = False
         self._anchor_theta: np.ndarray | None = None
-        self._prev_slack: tuple[np.ndarray, float] | None = None
 
     def _start(self, theta: np.ndarray) -> None:
         st = self.stream.model
@@ -222,6 +204,7 @@ class LeadThrough:
             self.v[:] = 0.0
             self.psi_dot[:] = 0.0
             self._psi_dot_target[:] = 0.0
+            self._wu.pending = None
             self._theta_dot_ref = np.zeros(9)
             self._tick += 1
             ok = th.shape == (9,) and bool(np.all(np.isfinite(th)))
@@ -290,6 +273,8 @@ class LeadThrough:
                 self._slow_update()
             else:
                 w_in[:] = 0.0
+        elif self.mode == "lead" and self._wu.pending is not None:
+            self._walls = self._wu.second()  # the slow update's second half
         elif self.mode == "lead" and self._tick % self.slow_every == 0:
             self._slow_update()
         self._admittance(w_in)
@@ -302,8 +287,8 @@ class LeadThrough:
         """The admittance's step (the tank first) and the cranks' wish within their caps,
         then the walls (the least change that keeps out of them) last: a wall that
         appears suddenly (the clearance's closest pair changing) is met at once, not
-        braked into; one approached smoothly is met early (HORIZON), gently
-        (WALL_RATE)."""
+        braked into; one approached smoothly is met early (lead_walls.HORIZON), gently
+        (lead_walls.WALL_RATE)."""
         wish = self._psi_dot_target if self.mode == "lead" else np.zeros(3)
         kern.admittance(w_in, self.v, self.psi_dot, wish, self.mass, self.damping, self.dt,
                         self._accel_cap, self._speed_cap, CRANK_ACCELERATION * self.dt,
@@ -313,7 +298,7 @@ class LeadThrough:
     def _keep_out(self) -> None:
         """The twist and the crank rates (metric: rotations and cranks weighed by
         ``walls.ANGLE_SCALE``) kept out of the walls near: each wall's slack s may fall
-        at most WALL_RATE s per second (a barrier: g . (v, psi_dot) >= -WALL_RATE max(s,
+        at most lead_walls.WALL_RATE s per second (a barrier: g . (v, psi_dot) >= -WALL_RATE max(s,
         0): beyond a wall it may not fall, and the platform is not pushed back against
         the person), by the least change (cyclic projections)."""
         kern.keep_out(self.v, self.psi_dot, self._G, self._b, self._n_walls,
@@ -328,94 +313,44 @@ class LeadThrough:
             self.v[:] = 0.0
             self._psi_dot_target[:] = 0.0
             self._walls = []
+            self._wu.pending = None
 
     def _slow_update(self) -> None:
-        """The walls near and the cranks' climb (module doc, 5); the reference
-        re-anchored on the inverse kinematics of its pose."""
-        L = walls.ANGLE_SCALE
-        psi = np.repeat(self.psi_ref[None], 10, axis=0)
-        psi[1:4] += CRANK_STEP * np.eye(3)
-        psi[4:7] -= CRANK_STEP * np.eye(3)
-        tw = np.zeros((10, 6))
-        off = self.R_ref @ self.tool
-        # the way ahead, probed at fixed distances along the current direction (metric)
-        xm = np.concatenate((self.v[:3], self.v[3:] * L, self.psi_dot * L))
-        nx = _norm(xm)
-        u = xm / nx if nx > 0.0 else np.zeros(9)
-        for row, dist in zip((7, 8, 9), PROBES, strict=True):
-            w = u * dist
-            tw[row] = np.concatenate((w[:3] - _cross(w[3:6] / L, off), w[3:6] / L))
-            psi[row] += w[6:] / L
-        pos, rotm = walls.moved(self.p_ref, self.R_ref, tw)
-        rows = np.zeros(10, dtype=bool)
-        rows[[0, 7, 8, 9]] = True  # the clearance now and on the probes ahead
-        sl, angles, solved = walls.slacks_and_angles(self.robot, pos, rotm, psi, walls=rows)
-        self._anchor_theta = angles[0].copy() if solved[0] else None
-        now = sl[0]
-        if now[0] > -1.0:
-            self.min_margin = min(self.min_margin, float(now[0]) + self.robot.limits.margin
-                                  + walls.MARGIN_GUARD)
-        self.min_slack = min(self.min_slack, float(now.min()))
-        cliff = None
-        floor = min(float(now.min()), 0.0)
-        inside = [bool(solved[r]) and float(sl[r].min()) >= floor for r in (7, 8, 9)]
-        if nx > 0.0 and not inside[-1]:  # a wall crossed ahead that no gradient announced
-            # (no assembly: a leg's reach; a clearance's closest pair changing): approach
-            # the farthest probe before it, exponentially (WALL_RATE), along this direction
-            reach = 0.0
-            for dist, ok in zip(PROBES, inside, strict=True):
-                if not ok:
-                    break
-                reach = dist
-            cliff = (-u, -WALL_RATE * reach)
-            self.walls_met += 1
-        score = walls.crank_score(sl[:7])
-        grad = (score[1:4] - score[4:7]) / (2.0 * CRANK_STEP)
-        target = np.zeros(3)
-        if (self.crank_gain > 0 and self.mode == "lead"
-                and float(np.linalg.norm(grad)) > CRANK_DEADBAND):
-            target = self.crank_gain * grad
-            n = float(np.linalg.norm(target))
-            if n > self.crank_rate:
-                target *= self.crank_rate / n
-        self._psi_dot_target = target
-        found: list[tuple[np.ndarray, float]] = []
-        # a wall is near when its slack is inside the band, or will be within HORIZON at
-        # the rate it fell since the last update (the braking distance at full speed)
-        t_now = self._tick * self.dt
-        rate = np.zeros(4)
-        if self._prev_slack is not None and t_now > self._prev_slack[1]:
-            rate = (now - self._prev_slack[0]) / (t_now - self._prev_slack[1])
-        self._prev_slack = (now.copy(), t_now)
-        ahead = now + np.minimum(np.nan_to_num(rate, nan=0.0, posinf=0.0, neginf=0.0),
-                                 0.0) * HORIZON
-        active = [c for c in range(4) if min(now[c], ahead[c]) < walls.WALL_BAND]
-        if active:
-            self.walls_met += 1
-            if now.min() <= -1.0:  # the reference itself unsolvable: stand still
-                self.v[:] = 0.0
-                self.psi_dot[:] = 0.0
-                self._psi_dot_target[:] = 0.0
-                self._walls = []
-                return
-            d = TWIST_STEP * np.eye(6)
-            d[:, 3:] /= L
-            p2, r2 = walls.moved(self.p_ref, self.R_ref, d)
-            clear = 3 in active
-            sl2 = walls.slacks(self.robot, p2, r2, np.repeat(self.psi_ref[None], 6, axis=0),
-                               walls=np.full(6, clear))
-            if clear:  # the cranks' gradient of the clearance too
-                sl[1:7, 3] = walls.slacks(self.robot, pos[1:7], rotm[1:7], psi[1:7])[:, 3]
-            for c in active:
-                g = np.r_[(sl2[:, c] - now[c]) / TWIST_STEP,
-                          (sl[1:4, c] - sl[4:7, c]) / (2.0 * CRANK_STEP * L)]
-                if np.all(np.isfinite(g)) and float(g @ g) > 0.0:
-                    # beyond a wall (s < 0) the platform goes no deeper, but is not
-                    # pushed back against the person (that would be active, not passive)
-                    found.append((g, -WALL_RATE * max(float(now[c]), 0.0)))
-        if cliff is not None:
-            found.append(cliff)
-        self._walls = found
+        """The walls near and the cranks' climb, the first half (module doc, 5;
+        lead_walls.py); the reference re-anchored on the inverse kinematics of its
+        pose."""
+        f = self._wu.first(self.p_ref, self.R_ref, self.psi_ref, self.v, self.psi_dot,
+                           self._tick * self.dt, self.mode == "lead")
+        self._anchor_theta = f.anchor
+        self._psi_dot_target = f.target
+        if f.stand_still:  # the reference itself unsolvable: stand still
+            self.v[:] = 0.0
+            self.psi_dot[:] = 0.0
+            self._walls = []
+        elif f.walls is not None:
+            self._walls = f.walls
+        elif self.slow_every < 2:  # no tick between updates to take the second half
+            self._walls = self._wu.second()
+
+    # the slow update's record (lead_walls.WallUpdate)
+    @property
+    def min_margin(self) -> float:
+        """The reference's smallest singularity margin at the slow updates."""
+        return self._wu.min_margin
+
+    @min_margin.setter
+    def min_margin(self, value: float) -> None:
+        self._wu.min_margin = value
+
+    @property
+    def min_slack(self) -> float:
+        """The reference's smallest slack (walls.py) at the slow updates."""
+        return self._wu.min_slack
+
+    @property
+    def walls_met(self) -> int:
+        """Slow updates that found a wall near or ahead."""
+        return self._wu.walls_met
 
     # ------------------------------------------------------------------ command
     def _command(self, J: np.ndarray, M: np.ndarray, h: np.ndarray, thd: np.ndarray,

@@ -31,7 +31,6 @@ import numpy as np
 
 from sixplus3.cache import cached
 from sixplus3.interaction import _walls_kernel as wk
-from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.checks import actuated_bounds
 from sixplus3.kinematics.collision import BASE_BODIES, PAIRS, hub_segments, radii
 from sixplus3.kinematics.spherical import spherical_reference
@@ -90,8 +89,16 @@ class Walls:
         sel = (np.ones(n, dtype=np.bool_) if walls is None
                else np.asarray(walls, dtype=np.bool_).reshape(n))
         out, theta, ok = np.empty((n, 4)), np.empty((n, 9)), np.empty(n, dtype=np.bool_)
-        wk.batch_slacks(p, R, ps, sel, *self._const, out, theta, ok)
+        self.into(p, R, ps, sel, out, theta, ok)
         return out, theta, ok
+
+    def into(self, position: np.ndarray, rotation: np.ndarray, psi: np.ndarray,
+             walls: np.ndarray, out: np.ndarray, theta: np.ndarray, ok: np.ndarray
+             ) -> None:
+        """:meth:`__call__` into given arrays (C-contiguous float: position (n, 3),
+        rotation (n, 3, 3), psi (n, 3), out (n, 4), theta (n, 9); bool: walls, ok (n,)),
+        without a conversion or an allocation (a per-tick caller's)."""
+        wk.batch_slacks(position, rotation, psi, walls, *self._const, out, theta, ok)
 
 
 def walls_of(robot: Robot) -> Walls:
@@ -125,8 +132,11 @@ def moved(position: np.ndarray, rotation: np.ndarray, twist: np.ndarray
           ) -> tuple[np.ndarray, np.ndarray]:
     """The pose (position (3,), rotation (3, 3)) moved by the twists (n, 6) (a
     translation [m] and a rotation vector [rad] in the base frame): (n, 3), (n, 3, 3)."""
-    return (position + twist[:, :3],
-            np.einsum("nij,jk->nik", rot.matrix_from_rotvec(twist[:, 3:]), rotation))
+    tw = np.ascontiguousarray(twist, dtype=float).reshape(-1, 6)
+    pos, rotm = np.empty((len(tw), 3)), np.empty((len(tw), 3, 3))
+    wk.moved(np.ascontiguousarray(position, dtype=float),
+             np.ascontiguousarray(rotation, dtype=float), tw, pos, rotm)
+    return pos, rotm
 
 
 __all__ = ["ANGLE_SCALE", "CLEARANCE_GUARD", "MARGIN_GUARD", "RANGE_GUARD",

@@ -50,7 +50,6 @@ from sixplus3.identification.base import (
     stacked_regressor,
 )
 from sixplus3.identification.signals import filter_log
-from sixplus3.interaction._tick_kernel import momentum, velocity
 from sixplus3.kinematics.robot import ik_jacobian, robot_fk
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -361,97 +360,3 @@ def parameter_variance(robot: Robot, theta: np.ndarray, theta_dot: np.ndarray,
 __all__ = ["GAIN", "MODEL_SIGMA", "N_SIGMA", "StateModel", "V_BAND", "WrenchEstimate",
            "checked_covariance", "parameter_variance",
            "estimate", "momentum_observer", "to_tcp", "torque_sigma", "wrench_map"]
-
-
-class WrenchStream:
-    """The momentum observer fed one sample at a time, for a 1 kHz controller:
-    ``update(theta, tau)`` -> (wrench (6,), std (6,), band (6,), contact).
-
-    Small matrices on a multi-threaded BLAS cost more in thread hand-offs than in work
-    (measured: 7.7 ms a sample with another process busy, 0.9 ms on one thread), so the
-    stream limits this process's BLAS to one thread when it is built, as a real-time
-    loop would (``threadpoolctl``).
-
-    The velocity is causal here: the encoder's difference through a second-order
-    Butterworth low-pass at rate / 8 (its group delay, about 0.3 ms at 1 kHz, is the
-    price of running online; the offline :func:`estimate` filters without lag).  The
-    drive's torque is taken as held over the previous tick.  ``compiled``: the state
-    (forward kinematics, J, M, h) from the CasADi model compiled to C
-    (:class:`~sixplus3.interaction.compiled_state.CompiledState`, the same numbers to
-    1e-10) instead of Pinocchio.  Cost per sample: BENCHMARKS.md, "Sensorless touch" and
-    "Lead-through"."""
-
-    def __init__(self, robot: Robot, rate: float, gain: float = GAIN,
-                 monitor_noise: float = 0.005, model_sigma: float = MODEL_SIGMA,
-                 v_band: float = V_BAND, n_sigma: float = N_SIGMA,
-                 compiled: bool = False) -> None:
-        # deferred: threadpoolctl loads only when this runs
-        from threadpoolctl import threadpool_limits
-
-        self.robot = require_robot(robot)
-        self._blas = threadpool_limits(limits=1, user_api="blas")  # held with the stream
-        if not (isinstance(rate, (int, float)) and math.isfinite(rate)
-                and MIN_RATE <= rate <= 20000.0):
-            raise InputError(f"rate must be in [{MIN_RATE:g}, 20000] Hz, got {rate!r}",
-                             value=rate, valid=f"[{MIN_RATE:g}, 20000] Hz")
-        if not (isinstance(gain, (int, float)) and math.isfinite(gain)
-                and 1.0 <= gain <= min(2000.0, 2 * math.pi * rate / 4)):
-            raise InputError(f"gain must be in [1, {min(2000.0, 2 * math.pi * rate / 4):g}]"
-                             f"/s, got {gain!r}", value=gain, valid="a positive gain")
-        self.dt, self.gain = 1.0 / rate, float(gain)
-        if compiled:  # the CasADi model compiled to C (interaction/compiled_state.py)
-            from sixplus3.interaction.compiled_state import (
-                CompiledState,  # deferred: its first build compiles C (seconds, once)
-            )
-
-            self.model: SingleState | CompiledState = CompiledState(self.robot)
-        else:
-            self.model = SingleState(self.robot)
-        b, a = signal.butter(2, rate / 8.0, fs=rate)
-        self._b, self._a = np.asarray(b, dtype=float), np.asarray(a, dtype=float)
-        self.rate = float(rate)
-        self._z = np.zeros((2, 9))  # the biquad's state (transposed direct form II)
-        # the observer's state, on preallocated arrays (interaction/_tick_kernel.py)
-        self._prev_theta = np.zeros(9)
-        self._have_theta = False
-        self._prev_tau = np.zeros(9)
-        self._prev_M = np.zeros((9, 9))
-        self._p0 = np.zeros(9)
-        self._flags = np.zeros(2, dtype=np.int64)  # a previous torque, a previous sample
-        self._integral = np.zeros(9)
-        self._r = np.zeros(9)
-        sig = torque_sigma(self.robot, monitor_noise)
-        self._var = np.full(9, sig ** 2 * self.gain * self.dt / 2.0 + model_sigma ** 2)
-        self._fc = self.robot.motors.coulomb_per_joint
-        self.v_band, self.n_sigma = v_band, n_sigma
-
-    def reset(self) -> None:
-        """Start again: the filter, the observer and the pose tracking forget the past
-        (the next sample is the first)."""
-        self._z[:] = 0.0
-        self._have_theta = False
-        self._flags[:] = 0
-        self._integral[:] = 0.0
-        self._r[:] = 0.0
-        self.model.reset()
-
-    def update(self, theta: np.ndarray, tau: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
-        theta = np.asarray(theta, dtype=float).reshape(9)
-        tau = np.asarray(tau, dtype=float).reshape(9)
-        if not (np.isfinite(theta).all() and np.isfinite(tau).all()):
-            raise InputError("theta and tau must be 9 finite numbers each", value=None,
-                             valid="finite")
-        thd = np.empty(9)
-        velocity(theta, self._prev_theta, self._have_theta, self.rate, self._b, self._a,
-                 self._z, thd)
-        J, M, h, _ = self.model.state(theta, thd)
-        #: this sample's state, for a controller built on the stream (lead-through)
-        self.J, self.M, self.h, self.theta_dot = J, M, h, thd
-        w, std, band = np.empty(6), np.empty(6), np.empty(6)
-        momentum(tau, thd, J, M, h, self._prev_tau, self._prev_M, self._p0, self._integral,
-                 self._r, self._flags, self.gain, self.dt, self._var, self._fc,
-                 self.v_band, w, std, band)
-        self._prev_theta[:] = theta
-        self._have_theta = True
-        return w, std, band, bool((np.abs(w) > self.n_sigma * std + band).any())

@@ -19,19 +19,15 @@ def _clip01(x):
     return min(max(x, 0.0), 1.0)
 
 
-@njit(cache=True, error_model="numpy")
-def segment_distance(p1, q1, p2, q2):
-    """Distance between the segments [p1, q1] and [p2, q2] (3-vectors) [m]."""
-    a = b = c = e = f = 0.0
-    for k in range(3):
-        d1 = q1[k] - p1[k]
-        d2 = q2[k] - p2[k]
-        r = p1[k] - p2[k]
-        a += d1 * d1
-        e += d2 * d2
-        f += d2 * r
-        c += d1 * r
-        b += d1 * d2
+@njit(cache=True, inline="always", error_model="numpy")
+def _distance(d1x, d1y, d1z, d2x, d2y, d2z, rx, ry, rz):
+    """Distance between the segments p1 + s d1 and p2 + t d2 (s, t in [0, 1]), r = p1 - p2
+    (scalars: no array views, whose reference counts cost more than the arithmetic)."""
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * rx + d2y * ry + d2z * rz
+    c = d1x * rx + d1y * ry + d1z * rz
+    b = d1x * d2x + d1y * d2y + d1z * d2z
     den = a * e - b * b
     s = _clip01((b * f - c * e) / max(den, 1e-300)) if den > 1e-14 else 0.0
     t = (b * s + f) / max(e, 1e-300)
@@ -40,11 +36,28 @@ def segment_distance(p1, q1, p2, q2):
         s = _clip01(-c / max(a, 1e-300))
     elif t > 1.0:
         s = _clip01((b - c) / max(a, 1e-300))
-    dist2 = 0.0
-    for k in range(3):
-        dk = (p1[k] + (q1[k] - p1[k]) * s) - (p2[k] + (q2[k] - p2[k]) * t_c)
-        dist2 += dk * dk
-    return math.sqrt(dist2)
+    dx = rx + d1x * s - d2x * t_c
+    dy = ry + d1y * s - d2y * t_c
+    dz = rz + d1z * s - d2z * t_c
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@njit(cache=True, error_model="numpy")
+def segment_distance(p1, q1, p2, q2):
+    """Distance between the segments [p1, q1] and [p2, q2] (3-vectors) [m]."""
+    return _distance(q1[0] - p1[0], q1[1] - p1[1], q1[2] - p1[2], q2[0] - p2[0],
+                     q2[1] - p2[1], q2[2] - p2[2], p1[0] - p2[0], p1[1] - p2[1],
+                     p1[2] - p2[2])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def capsule_distance(caps, a, b):
+    """:func:`segment_distance` of the segments caps[a] and caps[b] ((K, 2, 3))."""
+    return _distance(caps[a, 1, 0] - caps[a, 0, 0], caps[a, 1, 1] - caps[a, 0, 1],
+                     caps[a, 1, 2] - caps[a, 0, 2], caps[b, 1, 0] - caps[b, 0, 0],
+                     caps[b, 1, 1] - caps[b, 0, 1], caps[b, 1, 2] - caps[b, 0, 2],
+                     caps[a, 0, 0] - caps[b, 0, 0], caps[a, 0, 1] - caps[b, 0, 1],
+                     caps[a, 0, 2] - caps[b, 0, 2])
 
 
 @njit(cache=True, error_model="numpy")
@@ -100,7 +113,7 @@ def pose_clearance(caps, radii, pairs, base, base_top, stop, mid, half):
         reach = best + half[a] + half[b]
         if reach > 0.0 and d2 >= reach * reach:
             continue
-        d = segment_distance(caps[a, 0], caps[a, 1], caps[b, 0], caps[b, 1])
+        d = capsule_distance(caps, a, b)
         best = min(best, d - radii[a] - radii[b])
         if best < stop:
             return best
@@ -127,6 +140,5 @@ def pair_distances(caps, radii, pairs):
     for m in prange(n):
         for j in range(p):
             a, b = pairs[j, 0], pairs[j, 1]
-            out[m, j] = (segment_distance(caps[m, a, 0], caps[m, a, 1], caps[m, b, 0],
-                                          caps[m, b, 1]) - radii[a] - radii[b])
+            out[m, j] = capsule_distance(caps[m], a, b) - radii[a] - radii[b]
     return out

@@ -315,3 +315,85 @@ def test_a_wall_no_gradient_announces_is_seen_ahead() -> None:
     assert lt.min_slack > -walls.CLEARANCE_GUARD / 0.01, lt.min_slack
     assert lt.min_margin >= ROBOT.limits.margin
     assert run.peak_command <= ROBOT.limits.torque
+
+
+def test_a_near_walls_gradient_arrives_the_tick_after_the_update() -> None:
+    """The slow update in two halves (interaction/lead_walls.py): the walls found last
+    stay in force until the near wall's gradient is computed, at the update's reference,
+    the tick after; that gradient is the finite difference of walls.slacks (the public,
+    allocating path) at that reference."""
+    from sixplus3.interaction import lead_walls as lw
+    from sixplus3.interaction import walls
+    from sixplus3.interaction.leadthrough import LeadThrough
+    from sixplus3.kinematics.robot import robot_ik
+
+    home = robot_ik(np.asarray(ROBOT.home_position), np.eye(3), np.asarray(ROBOT.home_psi),
+                    ROBOT)
+    lt = LeadThrough(ROBOT, 1000.0)
+    lt.step(home.theta[0], np.zeros(9))
+    lt.mode = "lead"
+    lt.p_ref = np.asarray(ROBOT.home_position) + [0.21, 0.0, 0.0]  # the clearance near
+    p, R, psi = lt.p_ref.copy(), lt.R_ref.copy(), lt.psi_ref.copy()
+    old = [(np.ones(9), -1.0)]
+    lt._walls = old
+    lt._slow_update()
+    assert lt._wu.pending is not None and lt._walls == old  # the last walls in force
+    lt.p_ref = p + [0.001, 0.0, 0.0]  # the reference moves on meanwhile
+    lt._walls = lt._wu.second()
+    assert lt._wu.pending is None and len(lt._walls) == 1
+    g, b = lt._walls[0]
+    now = walls.slacks(ROBOT, p[None], R[None], psi[None])[0]
+    assert 0.0 < now[3] < walls.WALL_BAND and now[:3].min() > walls.WALL_BAND
+    d = lw.TWIST_STEP * np.eye(6)
+    d[:, 3:] /= walls.ANGLE_SCALE
+    p2, r2 = walls.moved(p, R, d)
+    ref = (walls.slacks(ROBOT, p2, r2, np.repeat(psi[None], 6, axis=0))[:, 3]
+           - now[3]) / lw.TWIST_STEP
+    np.testing.assert_allclose(g[:6], ref, rtol=0, atol=1e-9)
+    assert g[0] < 0.0  # further along +x is into the wall
+    assert b == pytest.approx(-lw.WALL_RATE * now[3])
+    assert lt.walls_met == 1
+
+
+def test_the_native_tick_is_the_buffered_one() -> None:
+    """WrenchStream's one-call sample (the generated C called from the kernel by
+    address, dynamics/native.py) against the same stream through CasADi's buffers: the
+    same numbers, the same errors (a reading not finite, angles of no assembly) and the
+    same recovery after them."""
+    from sixplus3.dynamics.codegen import codegen_enabled
+    from sixplus3.dynamics.native import native
+    from sixplus3.interaction.stream import WrenchStream
+    from sixplus3.kinematics.robot import robot_ik_pose
+
+    robot = perturbed_plant(ROBOT, 6, mass=0.1, rotor=0.1, friction=1.2)
+    a = WrenchStream(robot, 1000.0, compiled=True)
+    b = WrenchStream(robot, 1000.0, compiled=True)
+    if codegen_enabled():
+        assert a._native is not None  # the libraries CompiledState built are found
+    b._native = None
+    assert native("no_such_function", "0", a.model._kin) is None  # type: ignore[union-attr]
+    cfg = robot_ik_pose([0.03, 0.02, 0.6], [0.2, 0.1, -0.3], [1.4, 1.7, 1.5], robot=robot)
+    rng = np.random.default_rng(4)
+    th = cfg.theta[0]
+    for k in range(40):
+        th = th + rng.normal(0.0, 0.002, 9)
+        tau = rng.normal(0.0, 2.0, 9)
+        reading = th
+        if k == 15:
+            reading = th.copy()
+            reading[2] = np.nan
+        elif k == 25:
+            reading = th + 3.0
+        outs = []
+        for s in (a, b):
+            try:
+                w, std, band, contact = s.update(reading, tau)
+                outs.append((w, std, band, contact, s.J.copy(), s.M.copy(), s.h.copy(),
+                             s.theta_dot.copy(), s.model.position, s.model.psi))
+            except InputError as exc:
+                outs.append(str(exc))
+        if isinstance(outs[0], str):
+            assert outs[0] == outs[1], k
+            continue
+        for u, v in zip(*outs, strict=True):
+            np.testing.assert_allclose(u, v, rtol=0, atol=1e-12, err_msg=str(k))

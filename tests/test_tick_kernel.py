@@ -2,7 +2,9 @@
 (interaction/_tick_kernel.py) against LAPACK's (scipy), the envelope against its closed
 form, the walls' slacks (interaction/_walls_kernel.py) against the gate's own checks.  The
 observer's state built on them is checked against Pinocchio's in
-tests/test_leadthrough.py."""
+tests/test_leadthrough.py.  The slow update's pieces: the 9 x 9 extreme eigenvalues
+against LAPACK's, the exp map against kinematics.rotations, its scalars against
+walls.crank_score and the tests written out in numpy."""
 
 from __future__ import annotations
 
@@ -11,6 +13,8 @@ import pytest
 from scipy.linalg import lu_factor as scipy_lu_factor
 from scipy.linalg import lu_solve as scipy_lu_solve
 
+from sixplus3.interaction import _lead_kernel as lead_kern
+from sixplus3.interaction import _walls_kernel as wk
 from sixplus3.interaction import walls
 from sixplus3.interaction._tick_kernel import envelope, lu_factor, lu_solve, lu_solve_t
 from sixplus3.kinematics import rotations as rot
@@ -100,3 +104,67 @@ def test_the_walls_kernel_is_the_gates_checks_composed() -> None:
     fin = np.isfinite(ref)
     np.testing.assert_allclose(sl[fin], ref[fin], rtol=0, atol=1e-10)
     np.testing.assert_allclose(theta[o], cfg.theta[o], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_extreme_eigenvalues_agree_with_lapack(seed: int) -> None:
+    """The walls kernel's eigenvalues (Householder + implicit QL) against LAPACK's
+    eigvalsh, on Gram matrices J^T J, some nearly singular or badly scaled: each to a
+    few eps of the largest."""
+    rng = np.random.default_rng(seed)
+    d, e, v, p = (np.empty(9) for _ in range(4))
+    for t in range(300):
+        J = rng.normal(size=(9, 9))
+        if t % 3 == 0:
+            J[:, 0] = J[:, 1] + 10.0 ** rng.uniform(-6, -1) * rng.normal(size=9)
+        if t % 4 == 0:
+            J[:, 3:6] *= 10.0 ** rng.uniform(-3, 3)
+        G = J.T @ J
+        ev = np.linalg.eigvalsh(G)
+        lo, hi = wk.sym_extremes(G.copy(), d, e, v, p)
+        assert abs(lo - ev[0]) <= 1e-14 * ev[-1]
+        assert abs(hi - ev[-1]) <= 1e-14 * ev[-1]
+    # a diagonal matrix (already tridiagonal, every off-diagonal zero) and a multiple of I
+    diag = np.diag(np.arange(9.0, 0.0, -1.0))
+    assert wk.sym_extremes(diag.copy(), d, e, v, p) == (1.0, 9.0)
+    assert wk.sym_extremes(3.0 * np.eye(9), d, e, v, p) == (3.0, 3.0)
+
+
+def test_moved_poses_are_rodrigues() -> None:
+    """The compiled exp map of the slow update's poses against
+    kinematics.rotations.matrix_from_rotvec (large and tiny rotations)."""
+    rng = np.random.default_rng(5)
+    tw = rng.normal(size=(40, 6)) * np.r_[np.ones(20), np.full(20, 1e-5)][:, None]
+    p, R = rng.normal(size=3), rot.matrix_from_rotvec(rng.normal(size=3))[0]
+    pos, rotm = np.empty((40, 3)), np.empty((40, 3, 3))
+    wk.moved(p, R, tw, pos, rotm)
+    np.testing.assert_allclose(pos, p + tw[:, :3], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(rotm, rot.matrix_from_rotvec(tw[:, 3:]) @ R, rtol=0,
+                               atol=1e-14)
+
+
+def test_the_slow_updates_scalars_are_the_walls_functions() -> None:
+    """_lead_kernel.slow_scalars against walls.crank_score's central gradient, the
+    probes' test and the walls near, written out in numpy."""
+    rng = np.random.default_rng(9)
+    grad, active, inside = np.empty(3), np.empty(4, dtype=np.bool_), np.empty(3, dtype=bool)
+    for t in range(200):
+        sl = rng.uniform(-0.3, 0.5, (10, 4))
+        if t % 5 == 0:
+            sl[rng.integers(7, 10)] = -1.0  # a probe without an assembly
+        solved = sl[:, 0] > -1.0
+        prev = sl[0] + rng.uniform(-0.1, 0.1, 4)
+        dt = 0.0 if t % 7 == 0 else 0.01
+        gn, n = lead_kern.slow_scalars(sl, solved, 3, 0.02, walls.WALL_BAND, prev, dt, 0.3,
+                                       grad, active, inside)
+        score = walls.crank_score(sl[:7])
+        ref = (score[1:4] - score[4:7]) / 0.04
+        np.testing.assert_allclose(grad, ref, rtol=0, atol=1e-12)
+        assert gn == pytest.approx(np.linalg.norm(ref), abs=1e-12)
+        floor = min(sl[0].min(), 0.0)
+        np.testing.assert_array_equal(inside, solved[7:] & (sl[7:].min(axis=1) >= floor))
+        rate = (sl[0] - prev) / dt if dt > 0 else np.zeros(4)
+        ahead = sl[0] + np.minimum(rate, 0.0) * 0.3
+        near = np.minimum(sl[0], ahead) < walls.WALL_BAND
+        np.testing.assert_array_equal(active, near)
+        assert n == near.sum()

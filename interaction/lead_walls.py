@@ -1,0 +1,190 @@
+"""The lead-through's slow update (:mod:`~sixplus3.interaction.leadthrough`, module doc
+5; docs/leadthrough.md, "Walls and cranks"): every ``slow_every`` ticks, the walls near
+the reference pose and the cranks' climb, from exact slacks
+(:mod:`~sixplus3.interaction.walls`).
+
+It runs in two halves so that no tick carries the whole of it:
+
+1. :meth:`WallUpdate.first`: the reference, each crank turned by +- CRANK_STEP and the
+   probes ahead (10 poses, every slack): the anchor (the reference's inverse
+   kinematics), the cranks' wish (the crank score's gradient), the probes (a wall
+   crossed ahead that no gradient announced: a *cliff*) and which walls are near.
+   With none near, the walls are decided now.
+2. :meth:`WallUpdate.second`, the tick after, only when a wall is near: its gradient in
+   the twist (6 more poses at the first half's reference) and the crank rates (from
+   the first half): each a barrier g . (v, psi_dot) >= -WALL_RATE max(s, 0).  The walls
+   found last stay in force until then (one tick).
+
+Every kernel the halves call is loaded when a :class:`WallUpdate` is built (numba's
+cache costs milliseconds the first time a process calls each), not in the loop."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sixplus3.interaction import _lead_kernel as kern
+from sixplus3.interaction import _walls_kernel as wk
+from sixplus3.interaction import walls
+from sixplus3.robot_description.robot import Robot
+
+#: Crank-score gradients below this are a plateau: the cranks stay.
+CRANK_DEADBAND = 0.05
+#: [1/s] the barrier's rate: a wall's slack may fall at most this fast per unit slack
+#: (an exponential approach: the deceleration it asks is WALL_RATE times the approach
+#: speed, 1.25 m/s^2 at the speed cap, within the acceleration cap).
+WALL_RATE = 5.0
+#: [s] a wall is near when the slack's fall since the last update would reach the band
+#: within this: the barrier starts early enough to slow the platform without a jerk.
+HORIZON = 0.3
+#: [m, metric] probes ahead along the current direction: each must have an assembly and
+#: be inside every wall (a leg's reach, a clearance's closest pair changing: walls no
+#: gradient announces); the motion approaches the farthest one inside.
+PROBES = (0.005, 0.01, 0.02)
+#: Finite-difference steps: cranks [rad], the twist (metric units, m).
+CRANK_STEP, TWIST_STEP = 0.02, 0.001
+
+#: A wall: (g (9,), b): g . (v, omega L, psi_dot L) >= b.
+Wall = tuple[np.ndarray, float]
+
+
+@dataclass
+class Found:
+    """What the first half decided."""
+
+    anchor: np.ndarray | None  # the reference's actuated angles (None: no assembly)
+    target: np.ndarray  # the cranks' wish [rad/s]
+    walls: list[Wall] | None  # None: a wall is near, its gradient is due (second)
+    stand_still: bool  # the reference itself has no assembly
+
+
+class WallUpdate:
+    """The slow update's two halves on arrays allocated once (module doc).
+
+    Rows of the poses: 0 the reference, 1-3 and 4-6 each crank turned by +-
+    CRANK_STEP, 7-9 the probes, 10-15 the reference moved by TWIST_STEP along each
+    twist axis (rotations / ANGLE_SCALE).  :attr:`min_margin`, :attr:`min_slack`,
+    :attr:`walls_met`: the reference's smallest singularity margin and slack seen, and
+    how many updates met a wall."""
+
+    def __init__(self, robot: Robot, tool: np.ndarray, crank_gain: float,
+                 crank_rate: float) -> None:
+        self.robot = robot
+        self.tool = np.asarray(tool, dtype=float)
+        self.crank_gain, self.crank_rate = crank_gain, crank_rate
+        self._fn = walls.walls_of(robot)
+        self._probes = np.array(PROBES)
+        self._tw = np.zeros((10, 6))
+        self._dtw = TWIST_STEP * np.eye(6)
+        self._dtw[:, 3:] /= walls.ANGLE_SCALE
+        self._pos, self._rot = np.zeros((16, 3)), np.zeros((16, 3, 3))
+        self._psi, self._u = np.zeros((16, 3)), np.zeros(9)
+        self._sel = np.ones(16, dtype=np.bool_)  # every slack, the clearance too
+        self._sl, self._angles = np.zeros((16, 4)), np.zeros((16, 9))
+        self._solved = np.zeros(16, dtype=np.bool_)
+        self._inside = np.zeros(len(PROBES), dtype=np.bool_)
+        self._active = np.zeros(4, dtype=np.bool_)
+        self._grad = np.zeros(3)
+        self.reset()
+        self._warm()
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the past updates (the rate a slack fell, a half due, the minima)."""
+        self.pending: tuple[np.ndarray, np.ndarray, Wall | None, np.ndarray, np.ndarray,
+                            np.ndarray] | None = None
+        self._prev = (np.zeros(4), math.inf)  # the reference's slacks last time, and when
+        self.min_margin = math.inf
+        self.min_slack = math.inf
+        self.walls_met = 0
+
+    def _warm(self) -> None:
+        """Every kernel of both halves called once on these arrays (their types), at the
+        robot's home: numba loads each from its cache here, not in a tick."""
+        p = np.asarray(self.robot.home_position, dtype=float)
+        psi = np.asarray(self.robot.home_psi, dtype=float)
+        self.pending = (np.zeros(4), np.ones(4, dtype=np.bool_), None, p, np.eye(3), psi)
+        self.first(p, np.eye(3), psi, np.zeros(6), np.zeros(3), 0.0, True)
+        self.second()
+
+    def first(self, p: np.ndarray, R: np.ndarray, psi_ref: np.ndarray, v: np.ndarray,
+              psi_dot: np.ndarray, t_now: float, lead: bool) -> Found:
+        """The first half at the reference (p, R, psi_ref) moving at (v, psi_dot) (the
+        tool point's twist, the crank rates), at time ``t_now`` [s]; ``lead``: the
+        cranks may climb."""
+        pos, rotm, psi, u, sl = self._pos, self._rot, self._psi, self._u, self._sl
+        nx = wk.update_poses(p, R, psi_ref, v, psi_dot, R @ self.tool, walls.ANGLE_SCALE,
+                             CRANK_STEP, self._probes, self._tw, pos, rotm, psi, u)
+        angles, solved = self._angles, self._solved
+        self._fn.into(pos[:10], rotm[:10], psi[:10], self._sel[:10], sl[:10], angles[:10],
+                      solved[:10])
+        anchor = angles[0].copy() if solved[0] else None
+        now = sl[0]
+        if now[0] > -1.0:
+            self.min_margin = min(self.min_margin, float(now[0]) + self.robot.limits.margin
+                                  + walls.MARGIN_GUARD)
+        prev, t_prev = self._prev
+        inside, active, grad = self._inside, self._active, self._grad
+        gnorm, n_active = kern.slow_scalars(sl, solved, len(PROBES), CRANK_STEP,
+                                            walls.WALL_BAND, prev, t_now - t_prev,
+                                            HORIZON, grad, active, inside)
+        self.min_slack = min(self.min_slack, float(now.min()))
+        cliff = None
+        if nx > 0.0 and not inside[-1]:  # a wall crossed ahead that no gradient announced
+            # (no assembly: a leg's reach; a clearance's closest pair changing): approach
+            # the farthest probe before it, exponentially (WALL_RATE), along this direction
+            reach = 0.0
+            for dist, ok in zip(PROBES, inside, strict=True):
+                if not ok:
+                    break
+                reach = dist
+            cliff = (-u, -WALL_RATE * reach)
+            self.walls_met += 1
+        target = np.zeros(3)
+        if self.crank_gain > 0 and lead and gnorm > CRANK_DEADBAND:
+            # the cranks climb the crank score (walls.crank_score) within crank_rate
+            target = self.crank_gain * grad
+            if self.crank_gain * gnorm > self.crank_rate:
+                target *= self.crank_rate / (self.crank_gain * gnorm)
+        # a wall is near when its slack is inside the band, or will be within HORIZON at
+        # the rate it fell since the last update (the braking distance at full speed)
+        self._prev = (now.copy(), t_now)
+        if not n_active:
+            return Found(anchor, target, [] if cliff is None else [cliff], False)
+        self.walls_met += 1
+        if now.min() <= -1.0:  # the reference itself unsolvable: stand still
+            return Found(anchor, np.zeros(3), [], True)
+        self.pending = (now.copy(), active.copy(), cliff, p.copy(), R.copy(),
+                        psi_ref.copy())
+        return Found(anchor, target, None, False)
+
+    def second(self) -> list[Wall]:
+        """The second half (module doc): the walls, from the pending first half's."""
+        assert self.pending is not None, "no first half is pending"
+        now, active, cliff, p, R, psi_ref = self.pending
+        self.pending = None
+        pos, rotm, psi, sl, sel = self._pos, self._rot, self._psi, self._sl, self._sel
+        wk.moved(p, R, self._dtw, pos[10:], rotm[10:])
+        psi[10:] = psi_ref
+        sel[10:] = bool(active[3])  # the clearance only when it is near
+        self._fn.into(pos[10:], rotm[10:], psi[10:], sel[10:], sl[10:], self._angles[10:],
+                      self._solved[10:])
+        found: list[Wall] = []
+        scale = 2.0 * CRANK_STEP * walls.ANGLE_SCALE
+        for c in np.flatnonzero(active):
+            g = np.empty(9)
+            g[:6] = (sl[10:, c] - now[c]) / TWIST_STEP
+            g[6:] = (sl[1:4, c] - sl[4:7, c]) / scale
+            if np.all(np.isfinite(g)) and float(g @ g) > 0.0:
+                # beyond a wall (s < 0) the platform goes no deeper, but is not pushed
+                # back against the person (that would be active, not passive)
+                found.append((g, -WALL_RATE * max(float(now[c]), 0.0)))
+        if cliff is not None:
+            found.append(cliff)
+        return found
+
+
+__all__ = ["CRANK_DEADBAND", "CRANK_STEP", "HORIZON", "PROBES", "TWIST_STEP", "WALL_RATE",
+           "Found", "Wall", "WallUpdate"]

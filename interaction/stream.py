@@ -1,0 +1,168 @@
+"""The momentum observer one sample at a time, for a 1 kHz controller
+(docs/interaction.md, "Streaming"): :class:`WrenchStream`, on Pinocchio's state
+(:class:`~sixplus3.interaction.wrench.SingleState`) or the CasADi model compiled to C
+(:class:`~sixplus3.interaction.compiled_state.CompiledState`), whose sample is then one
+compiled call (:func:`~sixplus3.interaction._tick_kernel.stream_tick`)."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from scipy import signal
+
+from sixplus3.errors import InputError
+from sixplus3.interaction._tick_kernel import momentum, stream_tick, velocity
+from sixplus3.interaction.wrench import (
+    GAIN,
+    MIN_RATE,
+    MODEL_SIGMA,
+    N_SIGMA,
+    V_BAND,
+    SingleState,
+    torque_sigma,
+)
+from sixplus3.robot_description.robot import Robot, require_robot
+
+if TYPE_CHECKING:
+    from sixplus3.interaction.compiled_state import CompiledState
+
+
+class WrenchStream:
+    """The momentum observer fed one sample at a time, for a 1 kHz controller:
+    ``update(theta, tau)`` -> (wrench (6,), std (6,), band (6,), contact).
+
+    Small matrices on a multi-threaded BLAS cost more in thread hand-offs than in work
+    (measured: 7.7 ms a sample with another process busy, 0.9 ms on one thread), so the
+    stream limits this process's BLAS to one thread when it is built, as a real-time
+    loop would (``threadpoolctl``).
+
+    The velocity is causal here: the encoder's difference through a second-order
+    Butterworth low-pass at rate / 8 (its group delay, about 0.3 ms at 1 kHz, is the
+    price of running online; the offline :func:`estimate` filters without lag).  The
+    drive's torque is taken as held over the previous tick.  ``compiled``: the state
+    (forward kinematics, J, M, h) from the CasADi model compiled to C
+    (:class:`~sixplus3.interaction.compiled_state.CompiledState`, the same numbers to
+    1e-10) instead of Pinocchio.  Cost per sample: BENCHMARKS.md, "Sensorless touch" and
+    "Lead-through"."""
+
+    def __init__(self, robot: Robot, rate: float, gain: float = GAIN,
+                 monitor_noise: float = 0.005, model_sigma: float = MODEL_SIGMA,
+                 v_band: float = V_BAND, n_sigma: float = N_SIGMA,
+                 compiled: bool = False) -> None:
+        # deferred: threadpoolctl loads only when this runs
+        from threadpoolctl import threadpool_limits
+
+        self.robot = require_robot(robot)
+        self._blas = threadpool_limits(limits=1, user_api="blas")  # held with the stream
+        if not (isinstance(rate, (int, float)) and math.isfinite(rate)
+                and MIN_RATE <= rate <= 20000.0):
+            raise InputError(f"rate must be in [{MIN_RATE:g}, 20000] Hz, got {rate!r}",
+                             value=rate, valid=f"[{MIN_RATE:g}, 20000] Hz")
+        if not (isinstance(gain, (int, float)) and math.isfinite(gain)
+                and 1.0 <= gain <= min(2000.0, 2 * math.pi * rate / 4)):
+            raise InputError(f"gain must be in [1, {min(2000.0, 2 * math.pi * rate / 4):g}]"
+                             f"/s, got {gain!r}", value=gain, valid="a positive gain")
+        self.dt, self.gain = 1.0 / rate, float(gain)
+        if compiled:  # the CasADi model compiled to C (interaction/compiled_state.py)
+            from sixplus3.interaction.compiled_state import (
+                CompiledState,  # deferred: its first build compiles C (seconds, once)
+            )
+
+            self._compiled: CompiledState | None = CompiledState(self.robot)
+            self.model: SingleState | CompiledState = self._compiled
+            # one compiled call per sample where the model's C is on disk
+            # (_native_update)
+            self._native = self._compiled.native_args()
+        else:
+            self.model = SingleState(self.robot)
+            self._compiled, self._native = None, None
+        b, a = signal.butter(2, rate / 8.0, fs=rate)
+        self._b, self._a = np.asarray(b, dtype=float), np.asarray(a, dtype=float)
+        self.rate = float(rate)
+        self._z = np.zeros((2, 9))  # the biquad's state (transposed direct form II)
+        # the observer's state, on preallocated arrays (interaction/_tick_kernel.py)
+        self._prev_theta = np.zeros(9)
+        self._have_theta = False
+        self._prev_tau = np.zeros(9)
+        self._prev_M = np.zeros((9, 9))
+        self._p0 = np.zeros(9)
+        self._flags = np.zeros(2, dtype=np.int64)  # a previous torque, a previous sample
+        self._integral = np.zeros(9)
+        self._r = np.zeros(9)
+        sig = torque_sigma(self.robot, monitor_noise)
+        self._var = np.full(9, sig ** 2 * self.gain * self.dt / 2.0 + model_sigma ** 2)
+        self._fc = self.robot.motors.coulomb_per_joint
+        self.v_band, self.n_sigma = v_band, n_sigma
+        self._thd = np.zeros(9)
+        self._out = (np.zeros(6), np.zeros(6), np.zeros(6))
+        if self._native is not None:  # numba loads the kernel now, not at a sample: a
+            # reading not finite returns at once and changes nothing
+            self._tick(np.full(9, np.nan), np.zeros(9), self._native)
+
+    def reset(self) -> None:
+        """Start again: the filter, the observer and the pose tracking forget the past
+        (the next sample is the first)."""
+        self._z[:] = 0.0
+        self._have_theta = False
+        self._flags[:] = 0
+        self._integral[:] = 0.0
+        self._r[:] = 0.0
+        self.model.reset()
+
+    def update(self, theta: np.ndarray, tau: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+        theta = np.asarray(theta, dtype=float).reshape(9)
+        tau = np.asarray(tau, dtype=float).reshape(9)
+        if (self._native is not None and self._have_theta
+                and self._compiled is not None and self._compiled._have):
+            return self._native_update(theta, tau, self._native, self._compiled)
+        if not (np.isfinite(theta).all() and np.isfinite(tau).all()):
+            raise InputError("theta and tau must be 9 finite numbers each", value=None,
+                             valid="finite")
+        thd = np.empty(9)
+        velocity(theta, self._prev_theta, self._have_theta, self.rate, self._b, self._a,
+                 self._z, thd)
+        J, M, h, _ = self.model.state(theta, thd)
+        #: this sample's state, for a controller built on the stream (lead-through)
+        self.J, self.M, self.h, self.theta_dot = J, M, h, thd
+        w, std, band = np.empty(6), np.empty(6), np.empty(6)
+        momentum(tau, thd, J, M, h, self._prev_tau, self._prev_M, self._p0, self._integral,
+                 self._r, self._flags, self.gain, self.dt, self._var, self._fc,
+                 self.v_band, w, std, band)
+        self._prev_theta[:] = theta
+        self._have_theta = True
+        return w, std, band, bool((np.abs(w) > self.n_sigma * std + band).any())
+
+    def _tick(self, theta: np.ndarray, tau: np.ndarray, args: tuple[object, ...]) -> int:
+        """_tick_kernel.stream_tick on this stream's state: its code."""
+        w, std, band = self._out
+        tick: Any = stream_tick  # (mypy reads numba's Dispatcher.__call__ as fixed-arity)
+        return int(tick(theta, tau, self._prev_theta, self.rate, self._b, self._a, self._z,
+                        self._thd, *args, self._prev_tau, self._prev_M, self._p0,
+                        self._integral, self._r, self._flags, self.gain, self.dt,
+                        self._var, self._fc, self.v_band, self.n_sigma, w, std, band))
+
+    def _native_update(self, theta: np.ndarray, tau: np.ndarray, args: tuple[object, ...],
+                       model: CompiledState
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+        """:meth:`update` in one compiled call (_tick_kernel.stream_tick: the generated
+        C called from the kernel); J, M, h, theta_dot are then the model's arrays, valid
+        until the next sample."""
+        w, std, band = self._out
+        code = self._tick(theta, tau, args)
+        if code == -1:
+            raise InputError("theta and tau must be 9 finite numbers each", value=None,
+                             valid="finite")
+        if code == -2:
+            model.reset()  # start again from the full forward kinematics next time
+            raise InputError("forward kinematics did not converge for these angles",
+                             value=None, valid="angles of an assembly")
+        model.native_done()
+        self.J, self.M, self.h = model._J, model._M, model._h
+        self.theta_dot = self._thd
+        return w.copy(), std.copy(), band.copy(), code == 1
+
+
+__all__ = ["WrenchStream"]
