@@ -3,19 +3,24 @@
 the reference pose and the cranks' climb, from exact slacks
 (:mod:`~sixplus3.interaction.walls`).
 
-It runs in two halves so that no tick carries the whole of it:
+It runs in three stages on consecutive ticks, so that no tick carries the whole of it:
 
-1. :meth:`WallUpdate.first`: the reference, each crank turned by +- CRANK_STEP and the
-   probes ahead (10 poses, every slack): the anchor (the reference's inverse
-   kinematics), the cranks' wish (the crank score's gradient), the probes (a wall
-   crossed ahead that no gradient announced: a *cliff*) and which walls are near.
-   With none near, the walls are decided now.
-2. :meth:`WallUpdate.second`, the tick after, only when a wall is near: its gradient in
-   the twist (6 more poses at the first half's reference) and the crank rates (from
-   the first half): each a barrier g . (v, psi_dot) >= -WALL_RATE max(s, 0).  The walls
-   found last stay in force until then (one tick).
+1. :meth:`WallUpdate.first`: the poses (the reference, each crank turned by +-
+   CRANK_STEP, the probes ahead) and the slacks of the first five (the reference and
+   four of the cranks' poses): the anchor (the reference's inverse kinematics), at once.
+2. :meth:`WallUpdate.middle`, the tick after: the other five's slacks, then the cranks'
+   wish (the crank score's gradient), the probes (a wall crossed ahead that no gradient
+   announced: a *cliff*) and which walls are near.  With none near, the walls are
+   decided here.
+3. :meth:`WallUpdate.second`, the tick after that, only when a wall is near: its
+   gradient in the twist (6 more poses at the first stage's reference) and the crank
+   rates (from the first two): each a barrier g . (v, psi_dot) >= -WALL_RATE max(s, 0).
 
-Every kernel the halves call is loaded when a :class:`WallUpdate` is built (numba's
+The walls and the cranks' wish found last stay in force meanwhile (two ticks at most).
+:meth:`WallUpdate.update` runs all three at once (a guided motion's first tick; an
+update every tick or two).
+
+Every kernel the stages call is loaded when a :class:`WallUpdate` is built (numba's
 cache costs milliseconds the first time a process calls each), not in the loop."""
 
 from __future__ import annotations
@@ -50,18 +55,21 @@ CRANK_STEP, TWIST_STEP = 0.02, 0.001
 Wall = tuple[np.ndarray, float]
 
 
+#: Rows of the poses the first stage evaluates (the rest: the middle one's).
+SPLIT = 5
+
+
 @dataclass
 class Found:
-    """What the first half decided."""
+    """What the middle stage decided."""
 
-    anchor: np.ndarray | None  # the reference's actuated angles (None: no assembly)
     target: np.ndarray  # the cranks' wish [rad/s]
     walls: list[Wall] | None  # None: a wall is near, its gradient is due (second)
     stand_still: bool  # the reference itself has no assembly
 
 
 class WallUpdate:
-    """The slow update's two halves on arrays allocated once (module doc).
+    """The slow update's stages on arrays allocated once (module doc).
 
     Rows of the poses: 0 the reference, 1-3 and 4-6 each crank turned by +-
     CRANK_STEP, 7-9 the probes, 10-15 the reference moved by TWIST_STEP along each
@@ -92,7 +100,9 @@ class WallUpdate:
         self.reset()
 
     def reset(self) -> None:
-        """Forget the past updates (the rate a slack fell, a half due, the minima)."""
+        """Forget the past updates (the rate a slack fell, a stage due, the minima)."""
+        self.staged: tuple[float, float, bool, np.ndarray, np.ndarray, np.ndarray] | None
+        self.staged = None
         self.pending: tuple[np.ndarray, np.ndarray, Wall | None, np.ndarray, np.ndarray,
                             np.ndarray] | None = None
         self._prev = (np.zeros(4), math.inf)  # the reference's slacks last time, and when
@@ -101,26 +111,49 @@ class WallUpdate:
         self.walls_met = 0
 
     def _warm(self) -> None:
-        """Every kernel of both halves called once on these arrays (their types), at the
+        """Every kernel of the stages called once on these arrays (their types), at the
         robot's home: numba loads each from its cache here, not in a tick."""
         p = np.asarray(self.robot.home_position, dtype=float)
         psi = np.asarray(self.robot.home_psi, dtype=float)
-        self.pending = (np.zeros(4), np.ones(4, dtype=np.bool_), None, p, np.eye(3), psi)
         self.first(p, np.eye(3), psi, np.zeros(6), np.zeros(3), 0.0, True)
+        self.middle()
+        self.pending = (np.zeros(4), np.ones(4, dtype=np.bool_), None, p, np.eye(3), psi)
         self.second()
 
+    def update(self, p: np.ndarray, R: np.ndarray, psi_ref: np.ndarray, v: np.ndarray,
+               psi_dot: np.ndarray, t_now: float, lead: bool
+               ) -> tuple[np.ndarray | None, Found]:
+        """The three stages at once: (the anchor, what was found, the walls decided)."""
+        anchor = self.first(p, R, psi_ref, v, psi_dot, t_now, lead)
+        found = self.middle()
+        if found.walls is None:
+            found.walls = self.second()
+        return anchor, found
+
     def first(self, p: np.ndarray, R: np.ndarray, psi_ref: np.ndarray, v: np.ndarray,
-              psi_dot: np.ndarray, t_now: float, lead: bool) -> Found:
-        """The first half at the reference (p, R, psi_ref) moving at (v, psi_dot) (the
+              psi_dot: np.ndarray, t_now: float, lead: bool) -> np.ndarray | None:
+        """The first stage at the reference (p, R, psi_ref) moving at (v, psi_dot) (the
         tool point's twist, the crank rates), at time ``t_now`` [s]; ``lead``: the
-        cranks may climb."""
+        cranks may climb.  Returns the anchor: the reference's actuated angles (None:
+        it has no assembly)."""
         pos, rotm, psi, u, sl = self._pos, self._rot, self._psi, self._u, self._sl
         nx = wk.update_poses(p, R, psi_ref, v, psi_dot, R @ self.tool, walls.ANGLE_SCALE,
                              CRANK_STEP, self._probes, self._tw, pos, rotm, psi, u)
-        angles, solved = self._angles, self._solved
-        self._fn.into(pos[:10], rotm[:10], psi[:10], self._sel[:10], sl[:10], angles[:10],
-                      solved[:10])
-        anchor = angles[0].copy() if solved[0] else None
+        angles, solved, k = self._angles, self._solved, SPLIT
+        self._fn.into(pos[:k], rotm[:k], psi[:k], self._sel[:k], sl[:k], angles[:k],
+                      solved[:k])
+        self.staged = (nx, t_now, lead, p.copy(), R.copy(), psi_ref.copy())
+        return angles[0].copy() if solved[0] else None
+
+    def middle(self) -> Found:
+        """The middle stage (module doc), from the staged first."""
+        assert self.staged is not None, "no first stage is staged"
+        nx, t_now, lead, p, R, psi_ref = self.staged
+        self.staged = None
+        pos, rotm, psi, u, sl, k = self._pos, self._rot, self._psi, self._u, self._sl, SPLIT
+        solved = self._solved
+        self._fn.into(pos[k:10], rotm[k:10], psi[k:10], self._sel[k:10], sl[k:10],
+                      self._angles[k:10], solved[k:10])
         now = sl[0]
         if now[0] > -1.0:
             self.min_margin = min(self.min_margin, float(now[0]) + self.robot.limits.margin
@@ -152,17 +185,16 @@ class WallUpdate:
         # the rate it fell since the last update (the braking distance at full speed)
         self._prev = (now.copy(), t_now)
         if not n_active:
-            return Found(anchor, target, [] if cliff is None else [cliff], False)
+            return Found(target, [] if cliff is None else [cliff], False)
         self.walls_met += 1
         if now.min() <= -1.0:  # the reference itself unsolvable: stand still
-            return Found(anchor, np.zeros(3), [], True)
-        self.pending = (now.copy(), active.copy(), cliff, p.copy(), R.copy(),
-                        psi_ref.copy())
-        return Found(anchor, target, None, False)
+            return Found(np.zeros(3), [], True)
+        self.pending = (now.copy(), active.copy(), cliff, p, R, psi_ref)
+        return Found(target, None, False)
 
     def second(self) -> list[Wall]:
-        """The second half (module doc): the walls, from the pending first half's."""
-        assert self.pending is not None, "no first half is pending"
+        """The last stage (module doc): the walls, from the pending middle one's."""
+        assert self.pending is not None, "no middle stage is pending"
         now, active, cliff, p, R, psi_ref = self.pending
         self.pending = None
         pos, rotm, psi, sl, sel = self._pos, self._rot, self._psi, self._sl, self._sel
@@ -186,5 +218,5 @@ class WallUpdate:
         return found
 
 
-__all__ = ["CRANK_DEADBAND", "CRANK_STEP", "HORIZON", "PROBES", "TWIST_STEP", "WALL_RATE",
-           "Found", "Wall", "WallUpdate"]
+__all__ = ["CRANK_DEADBAND", "CRANK_STEP", "HORIZON", "PROBES", "SPLIT", "TWIST_STEP",
+           "WALL_RATE", "Found", "Wall", "WallUpdate"]

@@ -62,7 +62,7 @@ from sixplus3.interaction.guard_parts import (
     parse_gains,
     within_envelope,
 )
-from sixplus3.interaction.lead_walls import CRANK_DEADBAND, WallUpdate
+from sixplus3.interaction.lead_walls import CRANK_DEADBAND, Found, WallUpdate
 from sixplus3.interaction.stream import WrenchStream
 from sixplus3.interaction.wrench import GAIN, MODEL_SIGMA, N_SIGMA
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -204,7 +204,7 @@ class LeadThrough:
             self.v[:] = 0.0
             self.psi_dot[:] = 0.0
             self._psi_dot_target[:] = 0.0
-            self._wu.pending = None
+            self._wu.staged = self._wu.pending = None
             self._theta_dot_ref = np.zeros(9)
             self._tick += 1
             ok = th.shape == (9,) and bool(np.all(np.isfinite(th)))
@@ -270,11 +270,13 @@ class LeadThrough:
             if self._above >= self.start_ticks:
                 self.mode = "lead"
                 self._still = 0
-                self._slow_update()
+                self._slow_update(at_once=True)
             else:
                 w_in[:] = 0.0
+        elif self.mode == "lead" and self._wu.staged is not None:
+            self._found(self._wu.middle())  # the slow update's middle stage
         elif self.mode == "lead" and self._wu.pending is not None:
-            self._walls = self._wu.second()  # the slow update's second half
+            self._walls = self._wu.second()  # and its last
         elif self.mode == "lead" and self._tick % self.slow_every == 0:
             self._slow_update()
         self._admittance(w_in)
@@ -313,15 +315,23 @@ class LeadThrough:
             self.v[:] = 0.0
             self._psi_dot_target[:] = 0.0
             self._walls = []
-            self._wu.pending = None
+            self._wu.staged = self._wu.pending = None
 
-    def _slow_update(self) -> None:
-        """The walls near and the cranks' climb, the first half (module doc, 5;
-        lead_walls.py); the reference re-anchored on the inverse kinematics of its
-        pose."""
-        f = self._wu.first(self.p_ref, self.R_ref, self.psi_ref, self.v, self.psi_dot,
-                           self._tick * self.dt, self.mode == "lead")
-        self._anchor_theta = f.anchor
+    def _slow_update(self, at_once: bool = False) -> None:
+        """The walls near and the cranks' climb (module doc, 5; lead_walls.py): its first
+        stage (the reference re-anchored on the inverse kinematics of its pose), or
+        every stage ``at_once`` (the guided motion's first tick; an update every tick
+        or two)."""
+        args = (self.p_ref, self.R_ref, self.psi_ref, self.v, self.psi_dot,
+                self._tick * self.dt, self.mode == "lead")
+        if at_once or self.slow_every < 3:
+            self._anchor_theta, found = self._wu.update(*args)
+            self._found(found)
+        else:
+            self._anchor_theta = self._wu.first(*args)
+
+    def _found(self, f: Found) -> None:
+        """The middle stage's decisions applied (lead_walls.py)."""
         self._psi_dot_target = f.target
         if f.stand_still:  # the reference itself unsolvable: stand still
             self.v[:] = 0.0
@@ -329,8 +339,6 @@ class LeadThrough:
             self._walls = []
         elif f.walls is not None:
             self._walls = f.walls
-        elif self.slow_every < 2:  # no tick between updates to take the second half
-            self._walls = self._wu.second()
 
     # the slow update's record (lead_walls.WallUpdate)
     @property

@@ -317,10 +317,10 @@ def test_a_wall_no_gradient_announces_is_seen_ahead() -> None:
     assert run.peak_command <= ROBOT.limits.torque
 
 
-def test_a_near_walls_gradient_arrives_the_tick_after_the_update() -> None:
-    """The slow update in two halves (interaction/lead_walls.py): the walls found last
+def test_a_near_walls_gradient_arrives_two_ticks_after_the_update() -> None:
+    """The slow update in three stages (interaction/lead_walls.py): the walls found last
     stay in force until the near wall's gradient is computed, at the update's reference,
-    the tick after; that gradient is the finite difference of walls.slacks (the public,
+    two ticks after; that gradient is the finite difference of walls.slacks (the public,
     allocating path) at that reference."""
     from sixplus3.interaction import lead_walls as lw
     from sixplus3.interaction import walls
@@ -337,8 +337,11 @@ def test_a_near_walls_gradient_arrives_the_tick_after_the_update() -> None:
     old = [(np.ones(9), -1.0)]
     lt._walls = old
     lt._slow_update()
-    assert lt._wu.pending is not None and lt._walls == old  # the last walls in force
+    assert lt._wu.staged is not None and lt._walls == old  # the last walls in force
     lt.p_ref = p + [0.001, 0.0, 0.0]  # the reference moves on meanwhile
+    lt._found(lt._wu.middle())
+    assert lt._wu.pending is not None and lt._walls == old  # a wall is near: still
+    lt.p_ref = p + [0.002, 0.0, 0.0]
     lt._walls = lt._wu.second()
     assert lt._wu.pending is None and len(lt._walls) == 1
     g, b = lt._walls[0]
