@@ -62,77 +62,103 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t: Any, theta: Any, tau: 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     prefix = f"{title}_" if title else ""
-    names = actuated_joint_names()
-    lim = robot.limits
-    sub = subtitle(robot, limits if limits is not None else lim, planned_torque)
-    files = []
-    # joints A, B, C of a leg: colour and line style both differ (B and C move alike)
-    styles = [{"color": "tab:blue", "ls": "-"}, {"color": "tab:green", "ls": "--"},
-              {"color": "tab:purple", "ls": "-."}]
-
-    def per_leg(values: Any, ylabel: str, hw: float, fname: str, what: str,
-                planned: float | None = None) -> str:
-        fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
-        for i, ax in enumerate(axes):
-            for j in range(3 * i, 3 * i + 3):
-                ax.plot(t, values[:, j], lw=1.2, label=names[j], **styles[j % 3])
-            for sgn in (1, -1):
-                ax.axhline(sgn * hw, color="r", ls="--", lw=1.0,
-                           label="hardware limit" if sgn == 1 else None)
-                if planned is not None:
-                    ax.axhline(sgn * planned, color="orange", ls=":", lw=1.2,
-                               label="planned to" if sgn == 1 else None)
-            ax.set_ylabel(ylabel, fontsize=8)
-            ax.set_ylim(-1.08 * hw, 1.08 * hw)
-            ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
-        axes[-1].set_xlabel("t [s]")
-        peak = float(np.abs(values).max())
-        axes[0].set_title(f"{title}: {what}, peak {peak:.3g} of {hw:.3g} "
-                          f"({100 * peak / hw:.1f} %)\n{sub}", fontsize=9)
-        fig.tight_layout()
-        return save_figure(fig, out / f"{prefix}{fname}.png")
-
-    files.append(per_leg(tau, "torque [N m]", torque_limit, "torques", "actuator torques",
-                         planned_torque))
+    fig = _Figure(plt, title, subtitle(robot, limits if limits is not None else
+                                       robot.limits, planned_torque))
+    files = [_torques(fig, t, tau, torque_limit, planned_torque,
+                      out / f"{prefix}torques.png")]
     if theta_dot is not None and theta_ddot is not None:
-        dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
-        jerk = np.diff(theta_ddot, axis=0) / dt
-        trate = np.diff(np.asarray(tau), axis=0) / dt
-        tm = 0.5 * (np.asarray(t)[1:] + np.asarray(t)[:-1])
-        fig, axes = plt.subplots(4, 1, figsize=(9, 9.5), sharex=True)
-        panels = ((axes[0], t, theta_dot, lim.velocity, "speed [rad/s]", "hardware limit"),
-                  (axes[1], t, theta_ddot, lim.acceleration, "acceleration [rad/s^2]",
-                   "hardware limit"),
-                  (axes[2], tm, jerk, lim.jerk, "jerk [rad/s^3]", "jerk limit"),
-                  (axes[3], tm, trate, lim.torque_rate, "torque rate [N m/s]",
-                   "planner's bound (not a gate limit)"))
-        for ax, tt, values, hw, label, what in panels:
-            for j in range(9):
-                ax.plot(tt, values[:, j], lw=1.0, label=names[j], color=LEG_COLOURS[j // 3],
-                        ls=JOINT_STYLES[j % 3])
-            limit_line = None
-            for sgn in (1, -1):
-                line = ax.axhline(sgn * hw, color="r", ls="--", lw=1.0, label=what)
-                limit_line = limit_line or line
-            ax.set_ylabel(label, fontsize=8)
-            top = max(1.08 * hw, 1.05 * float(np.abs(values).max()) if values.size else 0.0)
-            ax.set_ylim(-top, top)
-            ax.legend(handles=[limit_line], loc="upper right", fontsize=7)
-        handles = axes[0].get_lines()[:9]
-        fig.legend(handles=handles, labels=[h.get_label() for h in handles],
-                   loc="center right", fontsize=7)
-        axes[-1].set_xlabel("t [s]")
-        axes[0].set_title(
-            f"{title}: joint speeds (peak {np.abs(theta_dot).max() / lim.velocity:.0%} of "
-            f"the limit), accelerations ({np.abs(theta_ddot).max() / lim.acceleration:.0%}),"
-            f"\njerk between samples ({np.abs(jerk).max() / lim.jerk:.0%}) and torque rate "
-            f"({np.abs(trate).max() / lim.torque_rate:.0%} of the planner's bound)\n{sub}",
-            fontsize=9)
-        fig.subplots_adjust(left=0.12, right=0.84, top=0.91, bottom=0.06, hspace=0.12)
-        files.append(save_figure(fig, out / f"{prefix}rates.png"))
+        files.append(_rates(fig, robot.limits, t, tau, theta_dot, theta_ddot,
+                            out / f"{prefix}rates.png"))
+    files.append(_margins(fig, robot, t, position, quaternion, psi, margin,
+                          out / f"{prefix}margins.png"))
+    files.append(_joints(fig, robot.limits, t, theta, psi, out / f"{prefix}joints.png"))
+    files.append(_platform(fig, t, position, quaternion, out / f"{prefix}platform.png"))
+    return files
 
+
+class _Figure:
+    """What every figure of :func:`plot_trajectory` shares: pyplot, the title, the
+    subtitle (the robot and the limits), the joints' names and styles."""
+
+    def __init__(self, plt: Any, title: str, sub: str) -> None:
+        self.plt, self.title, self.sub = plt, title, sub
+        self.names = actuated_joint_names()
+        # joints A, B, C of a leg: colour and line style both differ (B and C move alike)
+        self.styles = [{"color": "tab:blue", "ls": "-"}, {"color": "tab:green", "ls": "--"},
+                       {"color": "tab:purple", "ls": "-."}]
+
+
+def _torques(f: _Figure, t: Any, tau: Any, hw: float, planned: float | None,
+             path: Path) -> str:
+    """The actuator torques, one panel per leg, with the hardware limit and the torque
+    planned to."""
+    fig, axes = f.plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    for i, ax in enumerate(axes):
+        for j in range(3 * i, 3 * i + 3):
+            ax.plot(t, tau[:, j], lw=1.2, label=f.names[j], **f.styles[j % 3])
+        for sgn in (1, -1):
+            ax.axhline(sgn * hw, color="r", ls="--", lw=1.0,
+                       label="hardware limit" if sgn == 1 else None)
+            if planned is not None:
+                ax.axhline(sgn * planned, color="orange", ls=":", lw=1.2,
+                           label="planned to" if sgn == 1 else None)
+        ax.set_ylabel("torque [N m]", fontsize=8)
+        ax.set_ylim(-1.08 * hw, 1.08 * hw)
+        ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
+    axes[-1].set_xlabel("t [s]")
+    peak = float(np.abs(tau).max())
+    axes[0].set_title(f"{f.title}: actuator torques, peak {peak:.3g} of {hw:.3g} "
+                      f"({100 * peak / hw:.1f} %)\n{f.sub}", fontsize=9)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def _rates(f: _Figure, lim: Limits, t: Any, tau: Any, theta_dot: Any, theta_ddot: Any,
+           path: Path) -> str:
+    """Joint speeds, accelerations, jerk between samples and torque rate, with their
+    limits."""
+    dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
+    jerk = np.diff(theta_ddot, axis=0) / dt
+    trate = np.diff(np.asarray(tau), axis=0) / dt
+    tm = 0.5 * (np.asarray(t)[1:] + np.asarray(t)[:-1])
+    fig, axes = f.plt.subplots(4, 1, figsize=(9, 9.5), sharex=True)
+    panels = ((axes[0], t, theta_dot, lim.velocity, "speed [rad/s]", "hardware limit"),
+              (axes[1], t, theta_ddot, lim.acceleration, "acceleration [rad/s^2]",
+               "hardware limit"),
+              (axes[2], tm, jerk, lim.jerk, "jerk [rad/s^3]", "jerk limit"),
+              (axes[3], tm, trate, lim.torque_rate, "torque rate [N m/s]",
+               "planner's bound (not a gate limit)"))
+    for ax, tt, values, hw, label, what in panels:
+        for j in range(9):
+            ax.plot(tt, values[:, j], lw=1.0, label=f.names[j], color=LEG_COLOURS[j // 3],
+                    ls=JOINT_STYLES[j % 3])
+        limit_line = None
+        for sgn in (1, -1):
+            line = ax.axhline(sgn * hw, color="r", ls="--", lw=1.0, label=what)
+            limit_line = limit_line or line
+        ax.set_ylabel(label, fontsize=8)
+        top = max(1.08 * hw, 1.05 * float(np.abs(values).max()) if values.size else 0.0)
+        ax.set_ylim(-top, top)
+        ax.legend(handles=[limit_line], loc="upper right", fontsize=7)
+    handles = axes[0].get_lines()[:9]
+    fig.legend(handles=handles, labels=[h.get_label() for h in handles],
+               loc="center right", fontsize=7)
+    axes[-1].set_xlabel("t [s]")
+    axes[0].set_title(
+        f"{f.title}: joint speeds (peak {np.abs(theta_dot).max() / lim.velocity:.0%} of "
+        f"the limit), accelerations ({np.abs(theta_ddot).max() / lim.acceleration:.0%}),"
+        f"\njerk between samples ({np.abs(jerk).max() / lim.jerk:.0%}) and torque rate "
+        f"({np.abs(trate).max() / lim.torque_rate:.0%} of the planner's bound)\n{f.sub}",
+        fontsize=9)
+    fig.subplots_adjust(left=0.12, right=0.84, top=0.91, bottom=0.06, hspace=0.12)
+    return save_figure(fig, path)
+
+
+def _margins(f: _Figure, robot: Robot, t: Any, position: Any, quaternion: Any, psi: Any,
+             margin: float, path: Path) -> str:
+    """The seven singularity margins along the motion, with the threshold."""
     cfg = robot_ik(position, Rotation.from_quat(quaternion).as_matrix(), psi, robot)
-    fig, ax = plt.subplots(figsize=(9, 4.8))
+    fig, ax = f.plt.subplots(figsize=(9, 4.8))
     for i in range(3):
         ax.plot(t, cfg.margins.leg_type1[:, i], lw=1.0, label=f"leg {i} type I")
         ax.plot(t, cfg.margins.leg_type2[:, i], lw=1.4, ls=":", label=f"leg {i} type II")
@@ -142,35 +168,41 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t: Any, theta: Any, tau: 
     ax.set_ylim(0, 1)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("singularity margin (0 singular .. 1)")
-    ax.set_title(f"{title}: singularity margins, threshold {margin:g} (red)\n{sub}",
+    ax.set_title(f"{f.title}: singularity margins, threshold {margin:g} (red)\n{f.sub}",
                  fontsize=9)
     ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
     fig.tight_layout()
-    files.append(save_figure(fig, out / f"{prefix}margins.png"))
+    return save_figure(fig, path)
 
+
+def _joints(f: _Figure, lim: Limits, t: Any, theta: Any, psi: Any, path: Path) -> str:
+    """Each actuated and crank angle relative to its start, one panel per leg."""
     th_deg, psi_deg = np.degrees(np.asarray(theta)), np.degrees(np.asarray(psi))
     room = min(float(np.degrees(np.asarray(theta) - lim.theta_min).min()),
                float(np.degrees(lim.theta_max - np.asarray(theta)).min()))
-    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    fig, axes = f.plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     for i, ax in enumerate(axes):
         for j in range(3 * i, 3 * i + 3):
             ax.plot(t, th_deg[:, j] - th_deg[0, j], lw=1.2,
-                    label=f"{names[j]} (from {th_deg[0, j]:.1f})", **styles[j % 3])
+                    label=f"{f.names[j]} (from {th_deg[0, j]:.1f})", **f.styles[j % 3])
         ax.plot(t, psi_deg[:, i] - psi_deg[0, i], "k", ls=":", lw=1.2,
                 label=f"crank psi {i} (from {psi_deg[0, i]:.1f})")
         ax.axhline(0.0, color="0.6", lw=0.6)
         ax.set_ylabel("from the start [deg]", fontsize=8)
         ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
     axes[-1].set_xlabel("t [s]")
-    axes[0].set_title(f"{title}: each actuated and crank angle relative to its start "
+    axes[0].set_title(f"{f.title}: each actuated and crank angle relative to its start "
                       f"(legend: start [deg])\nclosest to the actuated range "
                       f"{np.degrees(lim.theta_min):g}..{np.degrees(lim.theta_max):g} deg: "
-                      f"{room:.1f} deg\n{sub}", fontsize=9)
+                      f"{room:.1f} deg\n{f.sub}", fontsize=9)
     fig.tight_layout()
-    files.append(save_figure(fig, out / f"{prefix}joints.png"))
+    return save_figure(fig, path)
 
+
+def _platform(f: _Figure, t: Any, position: Any, quaternion: Any, path: Path) -> str:
+    """The platform's centre and rotation relative to its start."""
     pos = 1000 * np.asarray(position)
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    fig, axes = f.plt.subplots(2, 1, figsize=(9, 6), sharex=True)
     for k, c in enumerate("xyz"):
         axes[0].plot(t, pos[:, k] - pos[0, k], lw=1.2, label=f"{c} (from {pos[0, k]:.1f})")
     rot = Rotation.from_quat(quaternion)
@@ -185,9 +217,8 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t: Any, theta: Any, tau: 
         ax.axhline(0.0, color="0.6", lw=0.6)
         ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
     start_rpy = np.degrees(rot[0].as_euler("xyz"))
-    axes[0].set_title(f"{title}: platform pose relative to its start\n(start: centre [mm] "
+    axes[0].set_title(f"{f.title}: platform pose relative to its start\n(start: centre [mm] "
                       f"in the legend, roll/pitch/yaw {start_rpy[0]:.1f}/{start_rpy[1]:.1f}/"
-                      f"{start_rpy[2]:.1f} deg)\n{sub}", fontsize=9)
+                      f"{start_rpy[2]:.1f} deg)\n{f.sub}", fontsize=9)
     fig.tight_layout()
-    files.append(save_figure(fig, out / f"{prefix}platform.png"))
-    return files
+    return save_figure(fig, path)
