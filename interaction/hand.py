@@ -202,6 +202,71 @@ class LeadRun:
                 "lead_share": float(np.mean(self.modes == "lead")), "events": self.events}
 
 
+class _Grip:
+    """The simulated hand on the platform of a MuJoCo simulation: its anchor over time,
+    and the spring-damper's force (and with a grip, moment) applied at the tool point
+    each sub-step, with the power it puts in."""
+
+    def __init__(self, hand: Hand, sim: Any, tool: np.ndarray, sub_dt: float) -> None:
+        # deferred: Pinocchio's SO(3) exp and log, only when a run is made
+        import pinocchio as pin
+
+        self.pin, self.hand, self.sub_dt = pin, hand, sub_dt
+        self.mj, self.m, self.d = sim.mj, sim.model, sim.data
+        self.body = self.mj.mj_name2id(self.m, self.mj.mjtObj.mjOBJ_BODY, "platform_free")
+        self.tool = tool
+        self.jac, self.jac_r = np.zeros((3, self.m.nv)), np.zeros((3, self.m.nv))
+        self.p0, _ = self.point()
+        self.R0 = self.rotation()
+        self.grips = hand.stiffness_rot > 0 or hand.damping_rot > 0
+        self.f, self.m_, self.e = np.zeros(3), np.zeros(3), 0.0
+
+    def rotation(self) -> np.ndarray:
+        return np.array(self.d.xmat[self.body]).reshape(3, 3)
+
+    def point(self) -> tuple[np.ndarray, np.ndarray]:
+        """The tool point and its velocity."""
+        d, body = self.d, self.body
+        p = np.asarray(d.xpos[body] + d.xmat[body].reshape(3, 3) @ self.tool)
+        self.mj.mj_jac(self.m, d, self.jac, self.jac_r, p, body)
+        return p, self.jac @ d.qvel
+
+    def aim(self, t: float) -> None:
+        """The anchor at time t (held over the tick): position, velocity, orientation
+        and angular velocity."""
+        hand, pin = self.hand, self.pin
+        a = self.p0 + hand.target(t)
+        self.a, self.ad = a, (self.p0 + hand.target(t + 1e-3) - a) / 1e-3
+        if self.grips:
+            r1, r2 = hand.turn(t), hand.turn(t + 1e-3)
+            Ra = pin.exp3(r1) @ self.R0
+            self.Ra, self.wa = Ra, pin.log3(pin.exp3(r2) @ self.R0 @ Ra.T) / 1e-3
+
+    def push(self) -> None:
+        """The hand's force (and moment) on the platform for the next sub-step; ``e``
+        the energy it puts in over it."""
+        hand, d, body = self.hand, self.d, self.body
+        p, v = self.point()
+        f = hand.stiffness * (self.a - p) + hand.damping * (self.ad - v)
+        nf = float(np.linalg.norm(f))
+        if nf > hand.max_force:
+            f *= hand.max_force / nf
+        torque = np.zeros(3)
+        e = float(f @ v)
+        if self.grips:
+            w = self.jac_r @ d.qvel
+            R = self.rotation()
+            torque = (hand.stiffness_rot * self.pin.log3(self.Ra @ R.T)
+                      + hand.damping_rot * (self.wa - w))
+            nt = float(np.linalg.norm(torque))
+            if nt > hand.max_torque:
+                torque *= hand.max_torque / nt
+            e += float(torque @ w)
+        d.xfrc_applied[body, :3] = f
+        d.xfrc_applied[body, 3:] = np.cross(p - d.xipos[body], f) + torque
+        self.f, self.m_, self.e = f, torque, e * self.sub_dt
+
+
 def run_lead(model: Robot, plant: Robot, hand: Hand, lead: LeadThrough | None = None,
              rate: float = 1000.0, kp: float = KP, kd: float = KD, seed: int = 0,
              torque_noise: float = TORQUE_NOISE, timestep: float = TIMESTEP,
@@ -209,9 +274,6 @@ def run_lead(model: Robot, plant: Robot, hand: Hand, lead: LeadThrough | None = 
     """The hand guides the platform of ``plant`` (from ``start``, Pinocchio's q of
     ``model``; default its home) through the drives, ``lead`` (default: a LeadThrough
     of ``model`` with the drive's gains) in the loop, for the hand's duration."""
-    # deferred: Pinocchio's SO(3) exp and log, only when a run is made
-    import pinocchio as pin
-
     model, plant = require_robot(model), require_robot(plant)
     lt = lead if lead is not None else LeadThrough(model, rate, drive_gains=(kp, kd))
     if abs(lt.rate - rate) > 1e-9 or lt.robot.hash != model.hash:
@@ -222,22 +284,8 @@ def run_lead(model: Robot, plant: Robot, hand: Hand, lead: LeadThrough | None = 
                      rate_feedback="encoder")
     q0 = np.asarray(home(model).q[0] if start is None else start, dtype=float)
     loop.start(q0)
-    mj, m, d = loop.sim.mj, loop.sim.model, loop.sim.data
-    body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, "platform_free")
-    tool = np.asarray(model.tool.xyz, dtype=float)
-    jac = np.zeros((3, m.nv))
-
-    jac_r = np.zeros((3, m.nv))
-
-    def point() -> tuple[np.ndarray, np.ndarray]:
-        p = np.asarray(d.xpos[body] + d.xmat[body].reshape(3, 3) @ tool)
-        mj.mj_jac(m, d, jac, jac_r, p, body)
-        return p, jac @ d.qvel
-
+    g = _Grip(hand, loop.sim, np.asarray(model.tool.xyz, dtype=float), timestep)
     n = int(round(hand.duration * rate))
-    p0, _ = point()
-    R0 = np.array(d.xmat[body]).reshape(3, 3)
-    grips = hand.stiffness_rot > 0 or hand.damping_rot > 0
     out_t = np.arange(n) / rate
     tcp, anchor, force = np.empty((n, 3)), np.empty((n, 3)), np.zeros((n, 3))
     speed, angle, torque = np.empty(n), np.empty(n), np.zeros((n, 3))
@@ -251,46 +299,10 @@ def run_lead(model: Robot, plant: Robot, hand: Hand, lead: LeadThrough | None = 
     # ran before): the torque monitor's first reading is the plant's holding torque
     th0 = loop.encoder()
     applied = SingleState(plant).state(th0, np.zeros(9))[2]
-    state: dict[str, Any] = {"f": np.zeros(3), "m": np.zeros(3), "e": 0.0}
-    sub_dt = timestep
-
-    def aim(t: float) -> None:
-        """The anchor at time t (held over the tick): position, velocity, orientation
-        and angular velocity."""
-        a = p0 + hand.target(t)
-        state["a"], state["ad"] = a, (p0 + hand.target(t + 1e-3) - a) / 1e-3
-        if grips:
-            r1, r2 = hand.turn(t), hand.turn(t + 1e-3)
-            Ra = pin.exp3(r1) @ R0
-            state["Ra"], state["wa"] = Ra, pin.log3(pin.exp3(r2) @ R0 @ Ra.T) / 1e-3
-
-    def push(_s: int) -> None:
-        p, v = point()
-        f = hand.stiffness * (state["a"] - p) + hand.damping * (state["ad"] - v)
-        nf = float(np.linalg.norm(f))
-        if nf > hand.max_force:
-            f *= hand.max_force / nf
-        torque = np.zeros(3)
-        e = float(f @ v)
-        if grips:
-            w = jac_r @ d.qvel
-            R = np.array(d.xmat[body]).reshape(3, 3)
-            torque = (hand.stiffness_rot * pin.log3(state["Ra"] @ R.T)
-                      + hand.damping_rot * (state["wa"] - w))
-            nt = float(np.linalg.norm(torque))
-            if nt > hand.max_torque:
-                torque *= hand.max_torque / nt
-            e += float(torque @ w)
-        d.xfrc_applied[body, :3] = f
-        d.xfrc_applied[body, 3:] = np.cross(p - d.xipos[body], f) + torque
-        state["f"] = f
-        state["m"] = torque
-        state["e"] = e * sub_dt
-
-    t_k = 0.0
+    touches = hand.stiffness > 0 or hand.damping > 0 or g.grips
     for k in range(n):
         t_k = k / rate
-        aim(t_k)
+        g.aim(t_k)
         th = loop.encoder()
         tau = loop.monitor(applied)
         th_log[k], tau_log[k] = th, tau
@@ -299,26 +311,25 @@ def run_lead(model: Robot, plant: Robot, hand: Hand, lead: LeadThrough | None = 
         rate_ref[k], ff_ref[k] = cmd.theta_dot_ref, cmd.tau_ff
         de = 0.0
 
-        def hook(s: int) -> None:
+        def hook(_s: int) -> None:
             nonlocal de
-            push(s)
-            de += state["e"]
+            g.push()
+            de += g.e
 
         tick = loop.tick(cmd.theta_ref, cmd.theta_dot_ref, cmd.tau_ff,
-                         hook if (hand.stiffness > 0 or hand.damping > 0 or grips) else None,
-                         theta=th)
+                         hook if touches else None, theta=th)
         applied = tick.applied
         peak_cmd = max(peak_cmd, float(np.abs(tick.command).max()))
         peak_app = max(peak_app, float(np.abs(tick.applied).max()))
         energy += de
         e_min = min(e_min, energy)
-        p, v = point()
+        p, v = g.point()
         tcp[k], speed[k] = p, float(np.linalg.norm(v))
-        anchor[k] = p0 + hand.target(t_k)
-        force[k], torque[k] = state["f"], state["m"]
-        R = np.array(d.xmat[body]).reshape(3, 3)
-        angle[k] = float(np.linalg.norm(pin.log3(R @ R0.T)))
-        d.xfrc_applied[body] = 0.0
+        anchor[k] = g.p0 + hand.target(t_k)
+        force[k], torque[k] = g.f, g.m_
+        R = g.rotation()
+        angle[k] = float(np.linalg.norm(g.pin.log3(R @ g.R0.T)))
+        g.d.xfrc_applied[g.body] = 0.0
     log = DriveLog(t=out_t, theta=th_log, tau=tau_log, name="lead",
                    meta={"plant": plant.name, "seed": seed, "torque_noise": torque_noise,
                          "lead": True})
