@@ -181,45 +181,11 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     n = n_file + int(round(after * rate))
     leg = contact is not None and contact.point in LEG_LINKS
     k_on = 0  # the body region is there from when the point last approached it
+    p_s = normal = None
     if contact is not None:
         n = min(n, int(round((contact.at + after) * rate)) + 1)
-        k_c = int(round(contact.at * rate))
-        rates = columns(data, "vel")
-        if leg:  # a leg link's centre of mass, from MuJoCo's kinematics of the model
-            planned, v_c = _link_path(model, cfg, rates, k_c, contact.point, timestep)
-        else:
-            R_all = rot.matrix_from_quat(rep.quaternion[:k_c + 1])
-            planned = rep.position[:k_c + 1] + np.einsum("nij,j->ni", R_all, tool)
-            one = cfg.take(np.arange(n_file) == k_c)
-            if contact.point == "tcp":
-                v_c = tcp_velocity(one, rates[k_c:k_c + 1])[0]
-            else:  # the centre's velocity: the first three of J^-1 theta_dot
-                v_c = np.linalg.solve(ik_jacobian(one), rates[k_c:k_c + 1, :, None])[0, 0:3, 0]
-        p_s = planned[k_c]
-        if contact.normal is not None:
-            normal = np.asarray(contact.normal, dtype=float)
-        else:
-            sp = float(np.linalg.norm(v_c))
-            if sp < 1e-6:
-                raise InputError(f"the point does not move at {contact.at:g} s: give the "
-                                 "contact's normal", value=contact.at, valid="a moving instant")
-            normal = v_c / sp
-        ahead = (planned - p_s) @ normal <= 1e-9
-        k_on = k_c
-        while k_on > 0 and ahead[k_on - 1]:
-            k_on -= 1
-    if isinstance(guard, ContactGuard):  # a guard of this file, run again from t = 0
-        if guard.path.resolve() != Path(path).resolve() or guard.robot.hash != model.hash:
-            raise InputError("the guard given is for another file or robot",
-                             value=str(guard.path), valid=str(path))
-        if guard.reaction != reaction:
-            raise InputError("the guard given has another reaction", value=guard.reaction,
-                             valid=reaction)
-        guard.reset(drive_gains=(kp, kd))
-        g: ContactGuard | None = guard
-    else:
-        g = (ContactGuard(model, path, rate, reaction=reaction, drive_gains=(kp, kd),
-                          parameter_cov=parameter_cov) if guard else None)
+        p_s, normal, k_on = _where(contact, model, rep, cfg, rate, tool, leg, timestep)
+    g = _guard(guard, path, model, rate, reaction, kp, kd, parameter_cov)
     # the drives: the one drive loop, with the rate feedback a drive without an
     # observer has (the encoder's difference, which the guard's bound assumes too)
     loop = DriveLoop(plant, rate, kp, kd, timestep, torque_noise, seed,
@@ -228,8 +194,10 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     mj, m, d = loop.sim.mj, loop.sim.model, loop.sim.data
     body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY,
                          contact.point if (contact is not None and leg) else "platform_free")
-    person = None if contact is None else _Region(contact, p_s, normal, d, body, tool, leg,
-                                                  timestep)
+    person = None
+    if contact is not None:
+        assert p_s is not None and normal is not None
+        person = _Region(contact, p_s, normal, d, body, tool, leg, timestep)
     force = np.zeros(n)
     speed_n = np.zeros(n)
     flags = np.zeros(n, dtype=bool)
@@ -260,7 +228,7 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
             person.peak = 0.0
             jac = np.zeros((3, m.nv))
             mj.mj_jac(m, d, jac, None, _point(d, body, tool, leg), body)
-            speed_n[k] = float((jac @ d.qvel) @ normal)
+            speed_n[k] = float((jac @ d.qvel) @ person.n)
         d.xfrc_applied[body] = 0.0
     run = _outcome(contact, g is not None, rate, force, speed_n, flags, modes, peak_cmd,
                    g.events if g is not None else [])
@@ -272,6 +240,60 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
                              {"region": contact.region.name, "kind": contact.kind,
                               "at": contact.at}})
     return run
+
+
+def _where(contact: Contact, model: Robot, rep: Any, cfg: Any, rate: float,
+           tool: np.ndarray, leg: bool, timestep: float
+           ) -> tuple[np.ndarray, np.ndarray, int]:
+    """Where the body region is (module doc): the contact point's planned position at
+    the contact, the surface's normal (given, or the point's direction of motion) and
+    the sample from which the region is in the way (the point's last approach)."""
+    data = rep.data
+    n_file = len(data)
+    k_c = int(round(contact.at * rate))
+    rates = columns(data, "vel")
+    if leg:  # a leg link's centre of mass, from MuJoCo's kinematics of the model
+        planned, v_c = _link_path(model, cfg, rates, k_c, contact.point, timestep)
+    else:
+        R_all = rot.matrix_from_quat(rep.quaternion[:k_c + 1])
+        planned = rep.position[:k_c + 1] + np.einsum("nij,j->ni", R_all, tool)
+        one = cfg.take(np.arange(n_file) == k_c)
+        if contact.point == "tcp":
+            v_c = tcp_velocity(one, rates[k_c:k_c + 1])[0]
+        else:  # the centre's velocity: the first three of J^-1 theta_dot
+            v_c = np.linalg.solve(ik_jacobian(one), rates[k_c:k_c + 1, :, None])[0, 0:3, 0]
+    p_s = planned[k_c]
+    if contact.normal is not None:
+        normal = np.asarray(contact.normal, dtype=float)
+    else:
+        sp = float(np.linalg.norm(v_c))
+        if sp < 1e-6:
+            raise InputError(f"the point does not move at {contact.at:g} s: give the "
+                             "contact's normal", value=contact.at, valid="a moving instant")
+        normal = v_c / sp
+    ahead = (planned - p_s) @ normal <= 1e-9
+    k_on = k_c
+    while k_on > 0 and ahead[k_on - 1]:
+        k_on -= 1
+    return p_s, normal, k_on
+
+
+def _guard(guard: bool | ContactGuard, path: str | Path, model: Robot, rate: float,
+           reaction: str, kp: float, kd: float,
+           parameter_cov: tuple[np.ndarray, np.ndarray] | None) -> ContactGuard | None:
+    """The guard in the loop: the one given (of this file and model, reset), a new
+    one, or none."""
+    if isinstance(guard, ContactGuard):  # a guard of this file, run again from t = 0
+        if guard.path.resolve() != Path(path).resolve() or guard.robot.hash != model.hash:
+            raise InputError("the guard given is for another file or robot",
+                             value=str(guard.path), valid=str(path))
+        if guard.reaction != reaction:
+            raise InputError("the guard given has another reaction", value=guard.reaction,
+                             valid=reaction)
+        guard.reset(drive_gains=(kp, kd))
+        return guard
+    return (ContactGuard(model, path, rate, reaction=reaction, drive_gains=(kp, kd),
+                         parameter_cov=parameter_cov) if guard else None)
 
 
 class _Region:
