@@ -55,6 +55,69 @@ def _silent(text: str) -> None:
 PFL_TRIES = 3
 
 
+def _planned(sol: Solution) -> str:
+    """The line that says how the plan was found and what it costs."""
+    assert sol.check is not None  # plan() returns only checked plans
+    how = ("the time-optimal NLP" if sol.source == "ocp" else
+           "the stop-at-waypoints baseline (the NLP failed or was slower)")
+    base = (f"baseline {sol.baseline_time:.4f} s" if sol.baseline_time is not None
+            else "no admissible baseline")
+    return (f"  planned: {sol.final_time:.4f} s motion from {how} ({base}), {sol.solves} "
+            f"NLP solve(s), IPOPT {sol.total_iterations} iterations ({sol.iterations} in "
+            f"the last), {sol.solve_time:.2f} s solving ({sol.function_time:.2f} s of it "
+            f"evaluating the NLP's functions), {sol.wall_time:.2f} s in all; dense "
+            f"re-check: max|tau| {sol.check.max_torque_ratio:.3f} of the limit, min margin "
+            f"{sol.check.min_margin:.3f}")
+
+
+def _smoothed(sol: Solution, rate: float, task: Task) -> Smoothed:
+    """The plan sampled at ``rate`` (planner/smoothing.py), starting exactly at the
+    task's start state when it has one."""
+    sm = smooth(sol, rate=rate)
+    if task.start_theta is not None:
+        # the first sample is the robot's state, exactly (FK -> plan -> IK returns it to
+        # rounding; anything more would be a bug, not a motion to send)
+        gap = float(np.abs(sm.theta[0] - task.start_theta).max())
+        if gap > 1e-9:
+            raise TrajectoryFileError(f"the plan does not start at the given state: "
+                                      f"{gap:.2e} rad away", value=gap, valid="<= 1e-9 rad")
+        sm.theta[0] = task.start_theta
+    return sm
+
+
+def _beside(task: Task, sol: Solution, sm: Smoothed, rep: ValidationReport, robot: Robot,
+            out: Path, stem: str, plots: bool, html: bool, say: Callable[[str], None]
+            ) -> tuple[list[str], Path | None]:
+    """The plots and the MeshCat page beside the written file, as asked."""
+    files: list[str] = []
+    if plots:
+        from sixplus3.visualization.plots import (
+            plot_trajectory,  # deferred: matplotlib loads only when plots are asked for
+        )
+
+        files = plot_trajectory(robot, out, sm.t, sm.theta, rep.tau, rep.position,
+                                rep.quaternion, rep.psi, robot.limits.torque,
+                                sol.limits.margin, stem, theta_dot=sm.theta_dot,
+                                theta_ddot=sm.theta_ddot, planned_torque=sol.limits.torque,
+                                limits=sol.limits)
+        say(f"  plots: {', '.join(Path(f).name for f in files)}")
+    html_path = None
+    if html:
+        # deferred: meshcat loads only when the page is asked for
+        from sixplus3.visualization.meshcat_player import (
+            frames_from_samples,
+            write_html,
+        )
+
+        wps = (sol.task or task).waypoints
+        frames = frames_from_samples(robot, sm.t, rep.position, rep.quaternion, rep.psi,
+                                     title=f"sixplus3: {task.name}", theta_dot=sm.theta_dot,
+                                     waypoints=[w.position for w in wps])
+        html_path = write_html(frames, out / f"{stem}.html")
+        say(f"  MeshCat page: {html_path} (slowed down {frames.slowdown:.0f}x)")
+    return files, html_path
+
+
 def run_plan(task: Task, out_dir: str | Path, robot: Robot,
              rate: float = 1000.0, html: bool = True, plots: bool = True,
              options: PlannerOptions | None = None,
@@ -70,12 +133,9 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
     :class:`InfeasibleTaskError` for an infeasible task and :class:`TrajectoryFileError`
     if the smoothed trajectory fails its validation; in both cases nothing is written.
     """
-    listener: PlanProgress | None = None
-    say: Callable[[str], None] = _silent
-    if isinstance(progress, PlanProgress):
-        listener, say = progress, progress.stage
-    elif progress is not None:
-        say = progress
+    listener = progress if isinstance(progress, PlanProgress) else None
+    say: Callable[[str], None] = (progress.stage if isinstance(progress, PlanProgress)
+                                  else progress if progress is not None else _silent)
     # power and force limiting (docs/safety.md): the task's and the site's body regions,
     # as rows of the NLP (planner/pfl.py)
     if not isinstance(task, Task):
@@ -104,27 +164,9 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
         f"{task.n_segments * task.segment_nodes} intervals) ...")
     sol = plan_problem(problem)
     secs["plan"] = time.perf_counter() - t0
-    assert sol.check is not None  # plan() returns only checked plans
-    how = ("the time-optimal NLP" if sol.source == "ocp" else
-           "the stop-at-waypoints baseline (the NLP failed or was slower)")
-    base = (f"baseline {sol.baseline_time:.4f} s" if sol.baseline_time is not None
-            else "no admissible baseline")
-    say(f"  planned: {sol.final_time:.4f} s motion from {how} ({base}), {sol.solves} NLP "
-        f"solve(s), IPOPT {sol.total_iterations} iterations ({sol.iterations} in the last), "
-        f"{sol.solve_time:.2f} s solving ({sol.function_time:.2f} s of it evaluating the "
-        f"NLP's functions), {sol.wall_time:.2f} s in all; dense re-check: "
-        f"max|tau| {sol.check.max_torque_ratio:.3f} of the limit, min margin "
-        f"{sol.check.min_margin:.3f}")
+    say(_planned(sol))
     t1 = time.perf_counter()
-    sm = smooth(sol, rate=rate)
-    if task.start_theta is not None:
-        # the first sample is the robot's state, exactly (FK -> plan -> IK returns it to
-        # rounding; anything more would be a bug, not a motion to send)
-        gap = float(np.abs(sm.theta[0] - task.start_theta).max())
-        if gap > 1e-9:
-            raise TrajectoryFileError(f"the plan does not start at the given state: "
-                                      f"{gap:.2e} rad away", value=gap, valid="<= 1e-9 rad")
-        sm.theta[0] = task.start_theta
+    sm = _smoothed(sol, rate, task)
     secs["smooth"] = time.perf_counter() - t1
     say(f"  sampled at {rate:g} Hz, {sm.smoothed_segments} transitions certified by "
         f"Ruckig (jerk limit {sm.jerk_limit:.3g} rad/s^3): {len(sm.t)} samples, duration "
@@ -164,32 +206,7 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
         f"N m, min margins {rep.min_margin_leg_type1:.3f}/{rep.min_margin_leg_type2:.3f}/"
         f"{rep.min_margin_platform:.3f}")
     say(f"  wrote {csv_path}")
-    files: list[str] = []
-    stem = csv_path.stem
-    if plots:
-        from sixplus3.visualization.plots import (
-            plot_trajectory,  # deferred: matplotlib loads only when plots are asked for
-        )
-
-        files = plot_trajectory(robot, out, sm.t, sm.theta, rep.tau, rep.position,
-                                rep.quaternion, rep.psi, robot.limits.torque,
-                                sol.limits.margin, stem, theta_dot=sm.theta_dot,
-                                theta_ddot=sm.theta_ddot, planned_torque=sol.limits.torque,
-                                limits=sol.limits)
-        say(f"  plots: {', '.join(Path(f).name for f in files)}")
-    html_path = None
-    if html:
-        # deferred: meshcat loads only when the page is asked for
-        from sixplus3.visualization.meshcat_player import (
-            frames_from_samples,
-            write_html,
-        )
-
-        wps = (sol.task or task).waypoints
-        frames = frames_from_samples(robot, sm.t, rep.position, rep.quaternion, rep.psi,
-                                     title=f"sixplus3: {task.name}", theta_dot=sm.theta_dot,
-                                     waypoints=[w.position for w in wps])
-        html_path = write_html(frames, out / f"{stem}.html")
-        say(f"  MeshCat page: {html_path} (slowed down {frames.slowdown:.0f}x)")
+    files, html_path = _beside(task, sol, sm, rep, robot, out, csv_path.stem, plots, html,
+                               say)
     secs["total"] = time.perf_counter() - t0
     return PlanOutputs(sol, sm, rep, csv_path, html_path, files, secs)
