@@ -94,6 +94,38 @@ def parse_log(raw: bytes, robot: Robot, name: str = "log") -> DriveLog:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise _bad(name, "not UTF-8 text", "a UTF-8 CSV text file") from None
+    meta, header, rows = _lines(text, name)
+    cols, joint_units = _columns(header, name)
+    if len(rows) < MIN_SAMPLES:
+        raise _bad(name, f"{len(rows)} samples, too short", f">= {MIN_SAMPLES} samples",
+                   len(rows))
+    data = _numbers(rows, header, name)
+    t = data[:, cols["t"]]
+    _time_grid(t, meta, name)
+    kin = meta.get("robot_kinematics")
+    if kin is not None and kin != kinematic_hash(robot):
+        raise _bad(name, f"taken on another robot (kinematics {short_repr(kin, 20)}, this "
+                   f"robot's {kinematic_hash(robot)})", "a log of this robot's "
+                   "geometry, drive train, offsets and directions")
+    theta = np.c_[[data[:, cols[f"{j}_{'pos' if joint_units == 'pos' else 'counts'}"]]
+                   for j in JOINTS]].T
+    tau = np.c_[[data[:, cols[f"{j}_{'tau' if joint_units == 'pos' else 'torque_0p1pct'}"]]
+                 for j in JOINTS]].T
+    vcol = "vel" if joint_units == "pos" else "counts_per_s"
+    vel = (np.c_[[data[:, cols[f"{j}_{vcol}"]] for j in JOINTS]].T
+           if all(f"{j}_{vcol}" in cols for j in JOINTS) else None)
+    counts = None
+    if joint_units == "counts":
+        if np.any(theta != np.rint(theta)) or np.abs(theta).max() > 2.0**62:
+            raise _bad(name, "an encoder count is not a whole number", "integer counts")
+        counts = theta.astype(np.int64)
+        theta, vel, tau = from_drive_units(robot, theta, vel, tau)
+    return DriveLog(t=t, theta=theta, tau=tau, theta_dot=vel, meta=meta, name=name,
+                    counts=counts)
+
+
+def _lines(text: str, name: str) -> tuple[dict[str, Any], list[str], list[str]]:
+    """(the format comment's mapping, the column names, the data rows) of a log's text."""
     meta: dict[str, Any] = {}
     rows: list[str] = []
     header: list[str] | None = None
@@ -119,6 +151,12 @@ def parse_log(raw: bytes, robot: Robot, name: str = "log") -> DriveLog:
         rows.append(s)
     if header is None:
         raise _bad(name, "no column names", "a row naming the columns")
+    return meta, header, rows
+
+
+def _columns(header: list[str], name: str) -> tuple[dict[str, int], str]:
+    """(each column's index, the joints' units: "pos" or "counts"), every column known
+    and every needed one there."""
     cols = {c: i for i, c in enumerate(header)}
     if len(cols) != len(header):
         raise _bad(name, "a column is named twice", "unique column names")
@@ -136,9 +174,11 @@ def parse_log(raw: bytes, robot: Robot, name: str = "log") -> DriveLog:
     if missing:
         raise _bad(name, f"missing column {missing[0]} (a log has all nine joints, in one "
                    "kind of units)", "t, 9 positions and 9 torques", missing[0])
-    if len(rows) < MIN_SAMPLES:
-        raise _bad(name, f"{len(rows)} samples, too short", f">= {MIN_SAMPLES} samples",
-                   len(rows))
+    return cols, joint_units
+
+
+def _numbers(rows: list[str], header: list[str], name: str) -> np.ndarray:
+    """The rows' values, each a decimal number (no NaN, inf or other spellings)."""
     width = len(header)
     data = np.empty((len(rows), width))
     for k, row in enumerate(rows):
@@ -154,7 +194,11 @@ def parse_log(raw: bytes, robot: Robot, name: str = "log") -> DriveLog:
             data[k, c] = float(f)
     if not np.all(np.isfinite(data)):
         raise _bad(name, "a value is out of range", "finite numbers")
-    t = data[:, cols["t"]]
+    return data
+
+
+def _time_grid(t: np.ndarray, meta: dict[str, Any], name: str) -> None:
+    """The times increase on a uniform grid that matches the header's rate."""
     dt = np.diff(t)
     if t[0] < 0 or np.any(dt <= 0):
         k = int(np.argmax(dt <= 0)) + 1 if np.any(dt <= 0) else 0
@@ -170,26 +214,6 @@ def parse_log(raw: bytes, robot: Robot, name: str = "log") -> DriveLog:
                                   and abs(meta["rate_hz"] * period - 1.0) < 1e-3):
         raise _bad(name, f"its header says {meta['rate_hz']!r} Hz, its times "
                    f"{1 / period:.6g} Hz", "a header rate that matches the times")
-    kin = meta.get("robot_kinematics")
-    if kin is not None and kin != kinematic_hash(robot):
-        raise _bad(name, f"taken on another robot (kinematics {short_repr(kin, 20)}, this "
-                   f"robot's {kinematic_hash(robot)})", "a log of this robot's "
-                   "geometry, drive train, offsets and directions")
-    theta = np.c_[[data[:, cols[f"{j}_{'pos' if joint_units == 'pos' else 'counts'}"]]
-                   for j in JOINTS]].T
-    tau = np.c_[[data[:, cols[f"{j}_{'tau' if joint_units == 'pos' else 'torque_0p1pct'}"]]
-                 for j in JOINTS]].T
-    vcol = "vel" if joint_units == "pos" else "counts_per_s"
-    vel = (np.c_[[data[:, cols[f"{j}_{vcol}"]] for j in JOINTS]].T
-           if all(f"{j}_{vcol}" in cols for j in JOINTS) else None)
-    counts = None
-    if joint_units == "counts":
-        if np.any(theta != np.rint(theta)) or np.abs(theta).max() > 2.0**62:
-            raise _bad(name, "an encoder count is not a whole number", "integer counts")
-        counts = theta.astype(np.int64)
-        theta, vel, tau = from_drive_units(robot, theta, vel, tau)
-    return DriveLog(t=t, theta=theta, tau=tau, theta_dot=vel, meta=meta, name=name,
-                    counts=counts)
 
 
 def counts_per_rad(robot: Robot) -> float:
