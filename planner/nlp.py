@@ -162,35 +162,12 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
                                                          time_scale, duration)
     tmax = safety["torque"] * lim.torque
     lb, ub = point_bounds(problem, x0, lim, bounds)
-    # smoothness rows (transcription.smoothness_rows): per limit, 2 x 9N rows in [-1, 1]
-    smooth_lo, smooth_hi = np.full(36 * N, -1.0), np.full(36 * N, 1.0)
     cap = bounds.duration_cap
     T_lo, T_hi = ((0.0, np.inf if cap is None else cap) if duration is None
                   else (duration, duration))
     lbx, ubx = variable_bounds(problem, wp_x, tmax, safety["acceleration"] * lim.acceleration,
                                T_hi, bounds.cranks)
-    lbg = np.r_[np.zeros(18 * N), np.tile(lb, 2 * N + 1), smooth_lo, T_lo]
-    if bounds.clearance is not None and bounds.clearance_waypoints is not None:
-        for k in problem.waypoint_nodes():  # the nodes' rows come first, point by point
-            first = 18 * N + NODE_ROWS * k
-            lbg[first + CLEARANCE_ROWS.start:first + CLEARANCE_ROWS.stop] = \
-                bounds.clearance_waypoints
-    ubg = np.r_[np.zeros(18 * N), np.tile(ub, 2 * N + 1), smooth_hi, T_hi]
-    tcp_p = np.zeros(0)
-    if problem.motion_limits.has_tcp:  # the rows of tcp_rows, last
-        lbg = np.r_[lbg, np.full(2 * (2 * N + 1), -np.inf)]
-        ubg = np.r_[ubg, np.full(2 * (2 * N + 1), TCP_SAFETY**2)]
-        tcp_p = np.array([problem.motion_limits.tcp_speed**-2,
-                          problem.motion_limits.tcp_acceleration**-2])
-    pfl_p = np.zeros(0)
-    if problem.pfl:  # the power and force limiting rows, after the tcp rows: each
-        # point's C at the start's pose (the poses move little between solves; the gate
-        # judges the smoothed file exactly, and the pipeline re-plans with a lower share)
-        for point in pfl_points(problem.robot):  # the tool centre point, the centre
-            C = pfl_matrices(problem.robot, pts[0], problem.pfl, point)
-            lbg = np.r_[lbg, np.full(2 * N + 1, -np.inf)]
-            ubg = np.r_[ubg, np.full(2 * N + 1, problem.options.pfl_share)]
-            pfl_p = np.r_[pfl_p, C.transpose(0, 2, 1).reshape(2 * N + 1, 9).ravel()]
+    lbg, ubg, tcp_p, pfl_p = _row_bounds(problem, bounds, lb, ub, T_lo, T_hi, pts[0])
     _, acc0, tau0, _ = profile  # (9, 2N+1): the nodes, then the midpoints
     z0 = np.vstack([x0.T, xd0.T, xdd0.T, tau0[:, :N + 1]])
     w0 = np.clip(np.r_[z0.ravel(order="F"), tau0[:, N + 1:].ravel(order="F"),
@@ -209,24 +186,8 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
     args.update(p=np.r_[D, lim.jerk, lim.torque_rate, weights,
                         problem.interval_fractions(), tcp_p, pfl_p], lbx=lbx / D,
                 ubx=ubx / D, lbg=lbg, ubg=ubg)
-    with entry.lock:
-        relay = entry.relay
-        if problem.progress is not None:
-            relay.listener = iteration_listener(problem, D[-S:], lbg, ubg)
-        relay.count, relay.limit = 0, max_iter
-        t_start = time.perf_counter()
-        try:
-            with keyboard_interrupts():
-                res = entry.solver(**args)
-        finally:
-            relay.listener, relay.limit = None, None
-        solve_time = time.perf_counter() - t_start
-        stats = entry.solver.stats()
-    status = str(stats.get("return_status", "unknown"))
-    iterations = int(stats.get("iter_count", 0))
-    function_time = float(sum(v for k, v in stats.items() if k.startswith("t_wall_nlp_")))
-    if status == "User_Requested_Stop" and max_iter is not None:
-        status = "Maximum_Iterations_Exceeded"  # the relay's cap (a start's)
+    res, status, iterations, solve_time, function_time = _run(problem, entry, args, D,
+                                                               lbg, ubg, max_iter)
     w = np.array(res["x"]).ravel() * D
     Z = w[:36 * (N + 1)].reshape(N + 1, 36)
     x, xd, u, tau = Z[:, 0:9], Z[:, 9:18], Z[:, 18:27], Z[:, 27:36]
@@ -259,6 +220,67 @@ def solve_nlp(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
                   f"{sol.final_time:.4f} s; dense re-check "
                   + ("ok" if sol.check.ok else "; ".join(sol.check.violations)))
     return sol
+
+
+def _row_bounds(problem: Problem, bounds: Bounds, lb: np.ndarray, ub: np.ndarray,
+                T_lo: float, T_hi: float, pose0: Any
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(lbg, ubg) of the NLP's rows in their order (the integration, the points' rows,
+    the smoothness rows, the duration, the tcp rows, the PFL rows), and the tcp and PFL
+    rows' parameters."""
+    N = problem.n_intervals
+    # smoothness rows (transcription.smoothness_rows): per limit, 2 x 9N rows in [-1, 1]
+    smooth_lo, smooth_hi = np.full(36 * N, -1.0), np.full(36 * N, 1.0)
+    lbg = np.r_[np.zeros(18 * N), np.tile(lb, 2 * N + 1), smooth_lo, T_lo]
+    if bounds.clearance is not None and bounds.clearance_waypoints is not None:
+        for k in problem.waypoint_nodes():  # the nodes' rows come first, point by point
+            first = 18 * N + NODE_ROWS * k
+            lbg[first + CLEARANCE_ROWS.start:first + CLEARANCE_ROWS.stop] = \
+                bounds.clearance_waypoints
+    ubg = np.r_[np.zeros(18 * N), np.tile(ub, 2 * N + 1), smooth_hi, T_hi]
+    tcp_p = np.zeros(0)
+    if problem.motion_limits.has_tcp:  # the rows of tcp_rows, last
+        lbg = np.r_[lbg, np.full(2 * (2 * N + 1), -np.inf)]
+        ubg = np.r_[ubg, np.full(2 * (2 * N + 1), TCP_SAFETY**2)]
+        tcp_p = np.array([problem.motion_limits.tcp_speed**-2,
+                          problem.motion_limits.tcp_acceleration**-2])
+    pfl_p = np.zeros(0)
+    if problem.pfl:  # the power and force limiting rows, after the tcp rows: each
+        # point's C at the start's pose (the poses move little between solves; the gate
+        # judges the smoothed file exactly, and the pipeline re-plans with a lower share)
+        for point in pfl_points(problem.robot):  # the tool centre point, the centre
+            C = pfl_matrices(problem.robot, pose0, problem.pfl, point)
+            lbg = np.r_[lbg, np.full(2 * N + 1, -np.inf)]
+            ubg = np.r_[ubg, np.full(2 * N + 1, problem.options.pfl_share)]
+            pfl_p = np.r_[pfl_p, C.transpose(0, 2, 1).reshape(2 * N + 1, 9).ravel()]
+    return lbg, ubg, tcp_p, pfl_p
+
+
+def _run(problem: Problem, entry: Any, args: dict[str, Any], D: np.ndarray,
+         lbg: np.ndarray, ubg: np.ndarray, max_iter: int | None
+         ) -> tuple[Any, str, int, float, float]:
+    """IPOPT on ``args`` (the progress relayed, ``max_iter`` its cap): (the result, its
+    status, iterations, the solve's wall time, the time in the NLP's functions)."""
+    S = problem.task.n_segments
+    with entry.lock:
+        relay = entry.relay
+        if problem.progress is not None:
+            relay.listener = iteration_listener(problem, D[-S:], lbg, ubg)
+        relay.count, relay.limit = 0, max_iter
+        t_start = time.perf_counter()
+        try:
+            with keyboard_interrupts():
+                res = entry.solver(**args)
+        finally:
+            relay.listener, relay.limit = None, None
+        solve_time = time.perf_counter() - t_start
+        stats = entry.solver.stats()
+    status = str(stats.get("return_status", "unknown"))
+    iterations = int(stats.get("iter_count", 0))
+    function_time = float(sum(v for k, v in stats.items() if k.startswith("t_wall_nlp_")))
+    if status == "User_Requested_Stop" and max_iter is not None:
+        status = "Maximum_Iterations_Exceeded"  # the relay's cap (a start's)
+    return res, status, iterations, solve_time, function_time
 
 
 def iteration_listener(problem: Problem, d_time: np.ndarray, lbg: np.ndarray,
