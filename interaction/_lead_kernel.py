@@ -21,6 +21,7 @@ from sixplus3.interaction._tick_kernel import (
     matvec,
     skew_squared,
 )
+from sixplus3.interaction._walls_kernel import moved
 
 E0, PORT, TANK, MIN_TANK = 0, 1, 2, 3
 
@@ -237,3 +238,42 @@ def slow_scalars(sl, solved, n_probe, crank_step, band, prev_now, dt_prev, horiz
         active[c] = min(sl[0, c], ahead) < band
         n_active += active[c]
     return math.sqrt(gn), n_active
+
+
+@njit(cache=True, error_model="numpy")
+def update_poses(p, R, psi_ref, v, psi_dot, off, scale, crank_step, probes, tw, pos, rot,
+                 psi, u):
+    """The lead-through's slow update's poses (interaction.leadthrough, 5): row 0 the
+    reference, rows 1-3 and 4-6 each crank turned by +- ``crank_step``, rows 7.. the
+    probes ahead (``probes`` [m] along the direction u (9,) of the motion (v, psi_dot),
+    metric: rotations and cranks times ``scale``) of the tool point ``off`` (R tool);
+    tw (n, 6) work.  Returns |(v, omega scale, psi_dot scale)| (0: u = 0)."""
+    n_probe = probes.shape[0]
+    nx = 0.0
+    for i in range(9):
+        x = v[i] if i < 3 else (v[i] * scale if i < 6 else psi_dot[i - 6] * scale)
+        u[i] = x
+        nx += x * x
+    nx = math.sqrt(nx)
+    for i in range(9):
+        u[i] = u[i] / nx if nx > 0.0 else 0.0
+    tw[:, :] = 0.0
+    for r in range(7 + n_probe):
+        for i in range(3):
+            psi[r, i] = psi_ref[i]
+    for i in range(3):
+        psi[1 + i, i] += crank_step
+        psi[4 + i, i] -= crank_step
+    for m in range(n_probe):
+        r = 7 + m
+        d = probes[m]
+        # the tool point moves by u[:3] d: the centre by that less omega x off
+        w0, w1, w2 = u[3] * d / scale, u[4] * d / scale, u[5] * d / scale
+        tw[r, 0] = u[0] * d - (w1 * off[2] - w2 * off[1])
+        tw[r, 1] = u[1] * d - (w2 * off[0] - w0 * off[2])
+        tw[r, 2] = u[2] * d - (w0 * off[1] - w1 * off[0])
+        tw[r, 3], tw[r, 4], tw[r, 5] = w0, w1, w2
+        for i in range(3):
+            psi[r, i] += u[6 + i] * d / scale
+    moved(p, R, tw, pos, rot)
+    return nx
