@@ -22,6 +22,7 @@ def names() -> list[str]:
 
 def load(name: str) -> Task:
     """The example task ``name`` (see :func:`names`); raises TaskError if unknown."""
+    # deferred: the planner's task (numpy) loads only when a task is; names() stays light
     from sixplus3.errors import TaskError
     from sixplus3.fileio import parse_yaml
     from sixplus3.planner.task import task_from_dict
