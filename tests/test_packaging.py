@@ -8,6 +8,7 @@ that has its own ``planner.py``, ``kinematics.py`` and ``design/`` package on th
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -59,9 +60,20 @@ def test_the_wheel_installs_only_the_sixplus3_namespace(wheel) -> None:
     top = {n.split("/")[0] for n in names}
     assert top == {"sixplus3", wheel.name.split("-")[0] + "-" + wheel.name.split("-")[1]
                    + ".dist-info"}, top
-    for part in ("robot_description", "kinematics", "dynamics", "design", "planner",
-                 "control", "visualization", "examples"):
-        assert f"sixplus3/{part}/__init__.py" in names
+    # every package pyproject's package-dir maps, and every module of its folder
+    table = (ROOT / "pyproject.toml").read_text().split("[tool.setuptools.package-dir]")[1]
+    dirs = dict(re.findall(r'^"([\w.]+)"\s*=\s*"([\w/]+)"', table.split("\n[")[0],
+                           flags=re.M))
+    assert {"sixplus3.identification", "sixplus3.interaction", "sixplus3.cli"} <= set(dirs)
+    missing = []
+    for pkg, folder in dirs.items():
+        base = pkg.replace(".", "/")
+        missing += [f"{base}/__init__.py"] if f"{base}/__init__.py" not in names else []
+        for py in (ROOT / folder).rglob("*.py"):
+            rel = py.relative_to(ROOT / folder).as_posix()
+            if "__pycache__" not in rel and f"{base}/{rel}" not in names:
+                missing.append(f"{base}/{rel}")
+    assert not missing, missing
     assert "sixplus3/robot_description/urdf/sixplus3.urdf" in names
     assert "sixplus3/examples/tilt60_x.yaml" in names
     assert any(n.endswith("dist-info/licenses/LICENSE") for n in names)
