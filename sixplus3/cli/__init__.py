@@ -5,8 +5,9 @@
 - :mod:`~sixplus3.cli.design`: ``design optimize | layout | figures``, ``report``,
   ``atlas``;
 - :mod:`~sixplus3.cli.plan`: ``plan``, ``move-to-start``, ``demo``;
-- :mod:`~sixplus3.cli.trajectory`: ``validate``, ``simulate``, ``export``, ``feed``,
-  ``play``;
+- :mod:`~sixplus3.cli.trajectory`: ``validate``, ``export``, ``feed``, ``play``;
+- :mod:`~sixplus3.cli.simulate`: ``simulate`` (with :mod:`~sixplus3.cli.contact`: a
+  person in the way, a hand guiding the platform);
 - :mod:`~sixplus3.cli.identify`: ``identify excite | estimate | check | plant``;
 - :mod:`~sixplus3.cli.interaction`: ``wrench``, ``wrench-resolution``;
 - :mod:`~sixplus3.cli.commission`: ``commission zero | directions | jog | theta``.
@@ -22,6 +23,7 @@ from sixplus3.cli import (  # noqa: F401 - registers the commands
     interaction,
     plan,
     robot,
+    simulate,
     trajectory,
 )
 from sixplus3.cli.app import main, run

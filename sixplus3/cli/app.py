@@ -252,6 +252,31 @@ def current_robot() -> Robot:
 
 
 #: Set by a command whose process may end without the interpreter's teardown.
+def task_robot(task_file: str | None) -> Robot:
+    """The invocation's robot with a task file's setup (payload, tool, mounting)."""
+    robot = current_robot()
+    if task_file is None:
+        return robot
+    from sixplus3.planner.task import load_task
+
+    return load_task(task_file).robot_for(robot)
+
+
+_gain_options = [
+    click.option("--kp", default=300.0, show_default=True, type=FLOAT,
+                 help="PD stiffness of the replay [N m/rad]."),
+    click.option("--kd", default=6.0, show_default=True, type=FLOAT,
+                 help="PD damping of the replay [N m s/rad]."),
+]
+
+
+def drive_gains(f: Any) -> Any:
+    """The drive's PD options (--kp, --kd) of a command that replays on a drive."""
+    for opt in reversed(_gain_options):
+        f = opt(f)
+    return f
+
+
 _FAST_EXIT = False
 
 
