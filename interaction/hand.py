@@ -219,7 +219,7 @@ class _Grip:
         self.p0, _ = self.point()
         self.R0 = self.rotation()
         self.grips = hand.stiffness_rot > 0 or hand.damping_rot > 0
-        self.f, self.m_, self.e = np.zeros(3), np.zeros(3), 0.0
+        self.f, self.moment, self.e = np.zeros(3), np.zeros(3), 0.0
 
     def rotation(self) -> np.ndarray:
         return np.array(self.d.xmat[self.body]).reshape(3, 3)
@@ -264,7 +264,7 @@ class _Grip:
             e += float(torque @ w)
         d.xfrc_applied[body, :3] = f
         d.xfrc_applied[body, 3:] = np.cross(p - d.xipos[body], f) + torque
-        self.f, self.m_, self.e = f, torque, e * self.sub_dt
+        self.f, self.moment, self.e = f, torque, e * self.sub_dt
 
 
 def run_lead(model: Robot, plant: Robot, hand: Hand, lead: LeadThrough | None = None,
@@ -326,7 +326,7 @@ def run_lead(model: Robot, plant: Robot, hand: Hand, lead: LeadThrough | None = 
         p, v = g.point()
         tcp[k], speed[k] = p, float(np.linalg.norm(v))
         anchor[k] = g.p0 + hand.target(t_k)
-        force[k], torque[k] = g.f, g.m_
+        force[k], torque[k] = g.f, g.moment
         R = g.rotation()
         angle[k] = float(np.linalg.norm(g.pin.log3(R @ g.R0.T)))
         g.d.xfrc_applied[g.body] = 0.0
