@@ -23,6 +23,7 @@ import time
 import numpy as np
 
 from sixplus3.design import atlas as at
+from sixplus3.design import atlas_data as ad
 from sixplus3.robot_description.robot import Robot
 
 
@@ -31,8 +32,8 @@ def main() -> None:
     ap.add_argument("--layers", nargs="+", type=float, default=[0.30, 0.46])
     args = ap.parse_args()
     robot = Robot.default()
-    st = at.AtlasSettings()
-    xs, ys, zs = at.position_grid(robot, st.step)
+    st = ad.AtlasSettings()
+    xs, ys, zs = ad.position_grid(robot, st.step)
     pick = np.array([zs[np.argmin(np.abs(zs - z))] for z in args.layers])
     grid = (xs, ys, pick)
     print(f"grid {len(xs)} x {len(ys)} x {len(pick)} at z = {pick.tolist()} m, "
@@ -57,7 +58,7 @@ def main() -> None:
     # cost model: pairs scale with the workspace volume and the direction count
     frac = float(ws) / (len(xs) * len(ys) * len(pick))
     for step, daz in ((0.02, 15.0), (0.005, 5.0)):
-        sx, sy, sz = at.position_grid(robot, step)
+        sx, sy, sz = ad.position_grid(robot, step)
         n_pos = len(sx) * len(sy) * len(sz)
         n_pairs = n_pos * frac * (360.0 / daz)
         core_s = n_pairs * cpu / pairs

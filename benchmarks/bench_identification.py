@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from sixplus3 import examples
-from sixplus3.control.drive.plant import TORQUE_NOISE, run_on_plant
+from sixplus3.control.drive.loop import TORQUE_NOISE
+from sixplus3.control.drive.plant import run_on_plant
 from sixplus3.control.pipeline import run_plan
 from sixplus3.identification.excite import ExcitationSettings, excite
 from sixplus3.identification.identify import check, identify

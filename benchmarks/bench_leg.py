@@ -18,7 +18,8 @@ import time
 import numba
 import numpy as np
 
-from sixplus3.kinematics.leg import DEFAULT_MODE, leg_eval_packed, leg_ik
+from sixplus3.kinematics.leg import leg_eval_packed, leg_ik
+from sixplus3.robot_description.assembly import DEFAULT_MODE
 from sixplus3.robot_description.geometry import LegGeometry
 
 

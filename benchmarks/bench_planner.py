@@ -24,10 +24,12 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sixplus3.dynamics.codegen import ensure_optimised
+from sixplus3.errors import InfeasibleTaskError
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.planner.analysis import largest_tilt
 from sixplus3.planner.certificate import certify
-from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
+from sixplus3.planner.options import PlannerOptions
+from sixplus3.planner.problem import Problem
 from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import load_task, task_from_dict
 from sixplus3.planner.toppra_baseline import toppra_along

@@ -38,8 +38,10 @@ import time
 import numpy as np
 
 from sixplus3.dynamics.codegen import ensure_optimised
+from sixplus3.errors import InfeasibleTaskError
 from sixplus3.planner.certificate import certify
-from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
+from sixplus3.planner.options import PlannerOptions
+from sixplus3.planner.problem import Problem
 from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
@@ -104,7 +106,7 @@ def first_solve(doc: dict, psi: np.ndarray, base: object, robot: Robot
     homotopy's first step), as ``planner.strategy.first_solve`` does it."""
     from sixplus3.planner import solvers
     from sixplus3.planner.nlp import solve_nlp
-    from sixplus3.planner.ocp import PlannerOptions
+    from sixplus3.planner.options import PlannerOptions
     from sixplus3.planner.strategy import initial_bounds
 
     problem = Problem(task_from_dict(doc), robot, PlannerOptions(max_iter=300))

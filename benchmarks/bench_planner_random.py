@@ -20,7 +20,9 @@ import time
 import numpy as np
 
 from sixplus3.dynamics.codegen import ensure_optimised
-from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem
+from sixplus3.errors import InfeasibleTaskError
+from sixplus3.planner.options import PlannerOptions
+from sixplus3.planner.problem import Problem
 from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot

@@ -35,7 +35,7 @@ from sixplus3.dynamics.codegen import ensure_optimised
 from sixplus3.errors import InfeasibleTaskError
 from sixplus3.planner import options as planner_options
 from sixplus3.planner.certificate import certify
-from sixplus3.planner.ocp import Problem
+from sixplus3.planner.problem import Problem
 from sixplus3.planner.statics import choose_static_psi
 from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import task_from_dict

@@ -18,7 +18,7 @@ import dataclasses
 import numpy as np
 
 from sixplus3 import examples
-from sixplus3.planner.ocp import Problem
+from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import actuated_profile
 from sixplus3.planner.strategy import solve
 from sixplus3.robot_description.robot import Robot

@@ -19,6 +19,7 @@ import numba
 import numpy as np
 
 from sixplus3.design import atlas as at
+from sixplus3.design import atlas_data as ad
 from sixplus3.robot_description.robot import Robot
 
 
@@ -29,8 +30,8 @@ def main() -> None:
     args = ap.parse_args()
     numba.set_num_threads(1)
     robot = Robot.default()
-    st = at.AtlasSettings()
-    xs, ys, zs = at.position_grid(robot, st.step)
+    st = ad.AtlasSettings()
+    xs, ys, zs = ad.position_grid(robot, st.step)
     z = zs[np.argmin(np.abs(zs - args.z))]
     X, Y = np.meshgrid(xs, ys, indexing="ij")
     pts = np.c_[X.ravel(), Y.ravel(), np.full(X.size, z)]

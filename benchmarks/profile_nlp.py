@@ -45,7 +45,8 @@ from sixplus3.dynamics.codegen import ensure_optimised  # noqa: E402
 from sixplus3.errors import InfeasibleTaskError  # noqa: E402
 from sixplus3.planner import solvers  # noqa: E402
 from sixplus3.planner.nlp import solve_nlp  # noqa: E402
-from sixplus3.planner.ocp import PlannerOptions, Problem  # noqa: E402
+from sixplus3.planner.options import PlannerOptions
+from sixplus3.planner.problem import Problem
 from sixplus3.planner.strategy import initial_bounds  # noqa: E402
 from sixplus3.planner.task import task_from_dict  # noqa: E402
 from sixplus3.robot_description.robot import Robot  # noqa: E402

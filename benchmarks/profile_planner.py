@@ -25,7 +25,7 @@ import numpy as np
 from bench_planner_heldout import heldout_task
 
 from sixplus3.dynamics.codegen import compiled_functions, ensure_optimised
-from sixplus3.planner.ocp import Problem
+from sixplus3.planner.problem import Problem
 from sixplus3.planner.solvers import ipopt_solver
 from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import task_from_dict

@@ -49,7 +49,7 @@ from bench_planner_heldout import first_solve, first_starts  # noqa: E402
 
 from sixplus3.planner import solvers  # noqa: E402
 from sixplus3.planner.nlp import point_bounds, start_point  # noqa: E402
-from sixplus3.planner.ocp import Problem  # noqa: E402
+from sixplus3.planner.problem import Problem
 from sixplus3.planner.transcription import (  # noqa: E402
     CLEARANCE_ROWS,
     NODE_ROWS,

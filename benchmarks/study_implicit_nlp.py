@@ -36,8 +36,8 @@ from sixplus3.dynamics.lifted import NQ, implicit_functions, lifted_functions  #
 from sixplus3.dynamics.symbolic import setup_parameters  # noqa: E402
 from sixplus3.planner import solvers  # noqa: E402
 from sixplus3.planner.nlp import point_bounds, start_point  # noqa: E402
-from sixplus3.planner.ocp import Problem  # noqa: E402
 from sixplus3.planner.options import ACC_SCALE, ROW_SCALE  # noqa: E402
+from sixplus3.planner.problem import Problem
 from sixplus3.planner.transcription import (  # noqa: E402
     integration_rows,
     layout,

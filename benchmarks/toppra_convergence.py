@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from sixplus3.dynamics.codegen import ensure_optimised
-from sixplus3.planner.ocp import PlannerOptions, Problem
+from sixplus3.planner.options import PlannerOptions
+from sixplus3.planner.problem import Problem
 from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import load_task
 from sixplus3.planner.toppra_baseline import toppra_along

@@ -10,19 +10,23 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control.drive.smoothing import Smoothed, check_rate, smooth
+from sixplus3.control.drive.smoothing import Smoothed, smooth
 from sixplus3.control.file.trajectory_file import check_samples, output_path
-from sixplus3.control.gate.validation import ValidationReport, validate_and_write
+from sixplus3.control.gate.motion_input import check_rate
+from sixplus3.control.gate.validation import validate_and_write
+from sixplus3.control.report import ValidationReport
 from sixplus3.errors import TaskError, TrajectoryFileError, ValidationFailed
-from sixplus3.planner.ocp import PlannerOptions, Solution, plan_problem
+from sixplus3.planner.ocp import plan_problem
+from sixplus3.planner.options import PlannerOptions
 from sixplus3.planner.pfl import PFL_SAFETY, task_regions
 from sixplus3.planner.problem import Problem
+from sixplus3.planner.solution import Solution
 from sixplus3.planner.task import Task
 from sixplus3.progress import PlanProgress
 from sixplus3.robot_description.robot import Robot, require_robot
 
 
-def demo_task(robot: Robot) -> dict:
+def demo_task(robot: Robot) -> dict[str, Any]:
     """The built-in task of ``sixplus3 demo``: tilt 30 deg about x at the robot's home
     and come back."""
     home = list(require_robot(robot).home_position)

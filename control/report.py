@@ -7,6 +7,7 @@ Data only: :mod:`sixplus3.control.gate.findings` makes the findings, and
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -52,7 +53,7 @@ class ValidationReport:
     max_spherical_tilt_deg: float
     theta_range_ok: bool
     findings: list[Finding] = field(default_factory=list)
-    tolerances: dict = field(default_factory=dict)
+    tolerances: dict[str, Any] = field(default_factory=dict[str, Any])
     checked_points: int = 0  # samples + midpoints evaluated with the full dynamics
     tau: np.ndarray | None = None  # (M, 9) [N m] on the samples
     position: np.ndarray | None = None  # (M, 3) platform [m]
@@ -66,13 +67,13 @@ class ValidationReport:
     #: max |jerk| of the interpolant over the intervals / (C_JERK x the jerk limit): above
     #: 1 no motion within the jerk limit has these samples (control/gate/interval.py)
     max_interpolant_jerk_ratio: float = 0.0
-    header: dict | None = field(default=None, repr=False)  # validate_file only
+    header: dict[str, Any] | None = field(default=None, repr=False)  # validate_file only
     #: the samples validated, exactly as read (validate_file): send these
     data: np.ndarray | None = field(default=None, repr=False)
     rate_hz: float | None = None  # the rate the samples were judged at [Hz]
     #: trajectory_file.samples_fingerprint of (t, theta, theta_dot, theta_ddot, rate)
     fingerprint: str | None = field(default=None, repr=False)
-    limits: dict | None = None  # the limits judged by (the robot's, or tighter)
+    limits: dict[str, Any] | None = None  # the limits judged by (the robot's, or tighter)
     max_tcp_speed: float = 0.0  # [m/s] the tool centre point (samples and midpoints)
     max_tcp_acceleration: float = 0.0  # [m/s^2] (samples: finite difference)
     #: the body regions judged for power and force limiting (ISO/TS 15066), and the
@@ -103,7 +104,7 @@ class ValidationReport:
             return 2
         return 1 if self.findings else 0
 
-    def summary(self) -> dict:
+    def summary(self) -> dict[str, Any]:
         keys = ("ok", "samples", "robot_hash", "max_torque_ratio", "max_velocity_ratio",
                 "max_acceleration_ratio", "max_jerk_ratio", "min_margin_leg_type1",
                 "min_margin_leg_type2", "min_margin_platform", "min_clearance",

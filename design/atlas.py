@@ -68,22 +68,12 @@ from numpy.typing import ArrayLike
 
 from sixplus3.cache import cached
 from sixplus3.design import _atlas_kernel as _kernel
-
-# the atlas's dataset, summaries, files and figures (re-exported: the atlas API)
 from sixplus3.design.atlas_data import (
     BINDING,
-    CRANKS,
     PSI_RANGE_DEG,
-    THRESHOLDS_DEG,
     AtlasSettings,
-    all_directions,
     build_dataset,
-    figures,
-    headline,
-    load,
     position_grid,
-    save,
-    volumes,
 )
 from sixplus3.design.cluster import check_scheduler, check_workers, map_tasks
 from sixplus3.dynamics import codegen
@@ -431,7 +421,4 @@ def home_polar(robot: Robot, settings: AtlasSettings | None = None,
             "locked": r["max_tilt"][1, 0, :, 0]}
 
 
-__all__ = ["BINDING", "CRANKS", "PSI_RANGE_DEG", "THRESHOLDS_DEG", "AtlasSettings",
-           "all_directions", "build_dataset", "compute_atlas", "figures", "headline",
-           "home_polar", "largest_tilts", "load", "position_grid", "rotations", "save",
-           "volumes"]
+__all__ = ["check_run", "compute_atlas", "home_polar", "largest_tilts", "rotations"]

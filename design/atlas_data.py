@@ -3,8 +3,7 @@
 :func:`sixplus3.design.atlas.compute_atlas` computes the largest tilts; this module
 covers the robot's reachable region with a grid (:func:`position_grid`) and turns
 them into a self-describing dataset (:func:`build_dataset`), reads the volumes
-and the headline from it, writes and reads it (NetCDF) and draws its figures.  The
-names are re-exported by :mod:`sixplus3.design.atlas`.
+and the headline from it, writes and reads it (NetCDF) and draws its figures.
 """
 
 from __future__ import annotations
@@ -13,7 +12,7 @@ import math
 from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -134,7 +133,7 @@ def position_grid(robot: Robot, step: float,
 
 
 def build_dataset(robot: Robot, st: AtlasSettings, xs: np.ndarray, ys: np.ndarray,
-                  zs: np.ndarray, cat: dict, shape: tuple,
+                  zs: np.ndarray, cat: dict[str, Any], shape: tuple[int, ...],
              wall: float, npos: int, workers: int | None) -> xr.Dataset:
 
     # deferred: xarray (optional) loads only when this runs
@@ -207,12 +206,12 @@ def all_directions(ds: xr.Dataset) -> xr.DataArray:
     return ds["max_tilt"].min("azimuth", skipna=False)
 
 
-def volumes(ds: xr.Dataset, thresholds_deg: ArrayLike = THRESHOLDS_DEG) -> dict:
+def volumes(ds: xr.Dataset, thresholds_deg: ArrayLike = THRESHOLDS_DEG) -> dict[str, Any]:
     """{cranks: {torsion: {threshold: litres}}}: volume of the positions where every
     direction tilts at least each threshold (each grid cell counts step^3)."""
     step = float(ds.attrs["step_m"])
     alld = all_directions(ds)
-    out: dict = {}
+    out: dict[str, Any] = {}
     for c in ds["cranks"].values.tolist():
         out[c] = {}
         for t in ds["torsion"].values.tolist():
@@ -257,7 +256,7 @@ def load(path: str | Path) -> xr.Dataset:
 
 
 def figures(ds: xr.Dataset, out_dir: str | Path, robot: Robot | None = None,
-            polar: dict | None = None, layers: int = 6) -> list[Path]:
+            polar: dict[str, Any] | None = None, layers: int = 6) -> list[Path]:
     """Per-layer maps of the all-direction tilt (free vs locked), the volume-vs-tilt
     curve, and the polar plot at home (``polar`` from :func:`home_polar`)."""
     # deferred: matplotlib loads only when this runs

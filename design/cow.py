@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy import ndimage
@@ -62,7 +62,7 @@ class COW:
     xs: np.ndarray  # (nx,) [m]
     ys: np.ndarray  # (ny,) [m]
     zs: np.ndarray  # (nz,) [m]
-    masks: dict  # limit set -> (nz, nx, ny) bool
+    masks: dict[str, Any]  # limit set -> (nz, nx, ny) bool
     footprint: np.ndarray  # (k, 2) hull polygon [m]
     footprint_area: float  # [m^2]
     step: float

@@ -30,7 +30,7 @@ from sixplus3.design.cow import (
 )
 from sixplus3.design.readings import READINGS
 from sixplus3.design.search import PAPER_DESIGN, Reading
-from sixplus3.design.workspace import counted_reading, halfplane_grid
+from sixplus3.design.workspace import counted_reading
 from sixplus3.fileio import save_figure
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
@@ -220,4 +220,4 @@ def _cow_figure(plt: Any, cow: COW, path: Path, ratios: dict[str, float],
     return save_figure(fig, path, dpi=110)
 
 
-__all__ = ["FigureSummary", "halfplane_grid", "make_figures"]
+__all__ = ["FigureSummary", "make_figures"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -93,7 +94,7 @@ class RobotCheck:
     --json``), ``lines`` (its text report), ``inside`` (home is inside the robot's
     constant-orientation workspace) and ``cow_line`` (that verdict in one line)."""
 
-    doc: dict
+    doc: dict[str, Any]
     lines: tuple[str, ...]
     inside: bool
     cow_line: str

@@ -17,6 +17,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -24,7 +25,7 @@ from tqdm import tqdm
 from sixplus3.design import _kernel
 from sixplus3.design.workspace import halfplane_grid
 from sixplus3.errors import InputError
-from sixplus3.kinematics.leg import AssemblyMode
+from sixplus3.robot_description.assembly import AssemblyMode
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 
 #: The paper's optimum (l2, l4, ex) [m].
@@ -116,7 +117,7 @@ class DesignResult:
     local_optima: list[tuple[float, float, float, float]] = field(default_factory=list)
     # (l2, l4, ex, area) of the refined optimum around each coarse seed, best seed first
 
-    def as_json(self) -> dict:
+    def as_json(self) -> dict[str, Any]:
         out = asdict(self)
         out["reading"] = asdict(self.reading)
         return out
@@ -203,7 +204,7 @@ def check_steps(coarse_step: float, fine_step: float, *ws_steps: float) -> None:
 
 
 def optimize(coarse_step: float = 0.01, fine_step: float = 0.001, ws_step: float = 0.005,
-             reading: Reading | None = None, progress: bool | Callable = False,
+             reading: Reading | None = None, progress: bool | Callable[..., Any] = False,
              seed_tolerance: float = SEED_TOLERANCE, max_seeds: int = MAX_SEEDS
              ) -> DesignResult:
     """Two-stage grid search; ties go to the first design in (l2, l4, ex) order.

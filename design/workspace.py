@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 
 from sixplus3.errors import InputError
-from sixplus3.kinematics.leg import DEFAULT_MODE, AssemblyMode, LegEval, LegState, leg_eval_packed
+from sixplus3.kinematics.leg import LegEval, LegState, leg_eval_packed
+from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 
 #: The paper's design limit on the actuated angles [rad].

@@ -59,7 +59,7 @@ def clearance_rows(caps: Any, robot: Robot) -> ca.SX:
 
     r = radii(robot)
     pair_idx, base_idx = near_pairs(robot, PAIR_MARGIN)
-    fams: dict[str, list] = {"legs": [], "platform": [], "base": []}
+    fams: dict[str, list[Any]] = {"legs": [], "platform": [], "base": []}
     for m in pair_idx:
         a, b = PAIRS[m]
         d = segment_distance(*caps[a], *caps[b]) - float(r[a] + r[b])

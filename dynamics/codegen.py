@@ -383,7 +383,7 @@ def compiled_profile(robot: Robot) -> tuple[ca.Function, ca.DM]:
     return cached(("compiled-profile", robot.hash), make)
 
 
-def _wait_with_progress(procs: list[subprocess.Popen], libs: list[Path]) -> None:
+def _wait_with_progress(procs: list[subprocess.Popen[bytes]], libs: list[Path]) -> None:
     """Wait for the compilers (and background builds of ``libs``), showing the elapsed
     time (a tqdm line on a terminal, a line every 30 s otherwise) so a first run never
     looks hung."""

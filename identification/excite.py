@@ -22,6 +22,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -75,7 +76,7 @@ class ExcitationSettings:
 
 @dataclass
 class Tour:
-    task: dict
+    task: dict[str, Any]
     t: np.ndarray
     theta: np.ndarray
     theta_dot: np.ndarray
@@ -90,17 +91,17 @@ class Excitation:
     duration: float
     condition: float
     log_det: float
-    tours: list[dict]
+    tours: list[dict[str, Any]]
     planned: int
     refused: int
     per_tour: list[float] = field(default_factory=list)
 
 
 def _tour_task(robot: Robot, rng: np.random.Generator, st: ExcitationSettings,
-               k: int) -> dict:
+               k: int) -> dict[str, Any]:
     home = list(robot.home_position)
     psi0 = [math.degrees(p) for p in robot.home_psi]
-    wps: list[dict] = [{"position": home}]
+    wps: list[dict[str, Any]] = [{"position": home}]
     for _ in range(st.waypoints):
         p = [home[i] + float(rng.uniform(-st.reach, st.reach)) for i in range(3)]
         rpy = [float(rng.uniform(-st.tilt, st.tilt)) for _ in range(2)] + [

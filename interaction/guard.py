@@ -467,4 +467,4 @@ class ContactGuard:
         return self._command(sdd, mode_out, wrench)
 
 
-__all__ = ["ContactGuard", "GuardCommand"]
+__all__ = ["ContactGuard"]

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sixplus3.control.file.trajectory_file import columns
+from sixplus3.control.file.file_format import columns
 from sixplus3.control.gate.stop import (
     TORQUE_SHARE,
     across_path,

@@ -62,7 +62,7 @@ from sixplus3.interaction.guard_parts import (
     parse_gains,
     within_envelope,
 )
-from sixplus3.interaction.lead_walls import CRANK_DEADBAND, Found, WallUpdate
+from sixplus3.interaction.lead_walls import Found, WallUpdate
 from sixplus3.interaction.stream import WrenchStream
 from sixplus3.interaction.wrench import GAIN, MODEL_SIGMA, N_SIGMA
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -388,4 +388,4 @@ class LeadThrough:
         return within_envelope(cmd, self.gains[0], self.gains[1], theta, vel,
                                COMMAND_SHARE * self.cap)[0]
 
-__all__ = ["CRANK_DEADBAND", "LeadThrough", "RATE_SHARE", "REST_SPEED"]
+__all__ = ["LeadThrough", "RATE_SHARE", "REST_SPEED"]

@@ -69,7 +69,7 @@ def resolution_map(robot: Robot, z: float | None = None, half: float = 0.15,
 
 
 def plot_resolution_map(robot: Robot, path: str, z: float | None = None,
-                        step: float = 0.01) -> dict:
+                        step: float = 0.01) -> dict[str, Any]:
     # deferred: matplotlib loads only when this runs
     import matplotlib
 

@@ -1,9 +1,7 @@
 """Kinematics of sixplus3: the RU/2-RUS leg (paper §III-IV)."""
 
 from sixplus3.kinematics.leg import (
-    DEFAULT_MODE,
     SINGULAR_TOL,
-    AssemblyMode,
     LegEval,
     LegState,
     leg_eval,
@@ -13,6 +11,7 @@ from sixplus3.kinematics.leg import (
     leg_ik_point,
     status_reason,
 )
+from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
 
 __all__ = [
     "DEFAULT_MODE", "SINGULAR_TOL", "AssemblyMode", "LegEval", "LegState", "leg_eval",

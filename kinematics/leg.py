@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -161,7 +162,7 @@ class LegState:
         return LegState(**{k: getattr(self, k)[i:i + 1] for k in self.__dataclass_fields__})
 
 
-def _as_points(points: np.ndarray | list, name: str = "points") -> np.ndarray:
+def _as_points(points: np.ndarray | list[Any], name: str = "points") -> np.ndarray:
     arr = as_float_array(points, name, "(n, 3) or (3,) [m]")
     if arr.ndim == 1:
         arr = arr[None, :]
@@ -190,7 +191,7 @@ def leg_ik(
 
 
 def leg_ik_point(
-    p: np.ndarray | list,
+    p: np.ndarray | list[Any],
     geometry: LegGeometry = DEFAULT_GEOMETRY,
     mode: AssemblyMode | str = DEFAULT_MODE,
     load: LegLoad = DEFAULT_LOAD,
@@ -302,7 +303,7 @@ def leg_fk(
     return LegState._from_rows(rows)
 
 
-def leg_fk_point(theta: np.ndarray | list, geometry: LegGeometry = DEFAULT_GEOMETRY,
+def leg_fk_point(theta: np.ndarray | list[Any], geometry: LegGeometry = DEFAULT_GEOMETRY,
                  mode: AssemblyMode | str = DEFAULT_MODE,
                  hint_theta_s: np.ndarray | None = None) -> LegState:
     """FK of one theta (3,); raises :class:`ConvergenceError` when no assembly is found."""

@@ -154,7 +154,7 @@ class Retiming:
         return self.reference / self.duration
 
 
-def retime_path(robot: Robot, limits: Limits, s: np.ndarray, path: Callable,
+def retime_path(robot: Robot, limits: Limits, s: np.ndarray, path: Callable[..., Any],
                 jerk: bool = True, at_rest: bool = False, max_iter: int = 500) -> Retiming:
     """Minimum-time re-timing of the path x(s) on the grid ``s`` (M+1,), under
     ``limits``' torque, velocity and acceleration limits and, with ``jerk``, its jerk and

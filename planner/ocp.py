@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 from sixplus3.errors import InfeasibleTaskError
 from sixplus3.planner.options import PlannerOptions
 from sixplus3.planner.problem import Problem
-from sixplus3.planner.solution import DenseCheck, Solution, dense_check
+from sixplus3.planner.solution import Solution
 from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import Task
 from sixplus3.robot_description.robot import Robot
@@ -67,5 +67,4 @@ def plan_problem(problem: Problem) -> Solution:
     return sol
 
 
-__all__ = ["DenseCheck", "InfeasibleTaskError", "PlannerOptions", "Problem", "Solution",
-           "dense_check", "plan", "plan_problem"]
+__all__ = ["plan", "plan_problem"]

@@ -171,7 +171,7 @@ class Problem:
         Under t -> a t on a fixed path theta_dot scales by 1/a, theta_ddot and the
         inertial torques (tau - tau_gravity) by 1/a^2, exactly for the links and the
         rotors; the joint friction scales less (its viscous part by 1/a), which the
-        dense check of the result covers (:func:`strategy.retime` keeps the original
+        dense check of the result covers (:func:`timing.retime` keeps the original
         plan if it fails).  Samples whose gravity torque alone exceeds the fraction get
         the largest stretch the formula allows (1e3-fold headroom floor), i.e. they are
         reported as needing a very slow motion.

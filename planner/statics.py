@@ -20,7 +20,8 @@ from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN, pose_masks
 from sixplus3.kinematics.collision import clearance, closest
 from sixplus3.kinematics.leg import failing_chain, status_reason
 from sixplus3.kinematics.robot import robot_ik
-from sixplus3.planner.task import Task, Waypoint
+from sixplus3.planner.task import Task
+from sixplus3.planner.waypoint import Waypoint
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 

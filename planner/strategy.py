@@ -339,4 +339,4 @@ def fixed_duration(problem: Problem, sol: Solution, target: float, psi_wp: np.nd
 
 
 __all__ = ["admitting", "finish", "first_solve", "fixed_duration", "initial_bounds",
-           "resolve", "retime", "solve", "stretched", "tcp_limited", "target_duration", "tightened"]
+           "resolve", "solve", "target_duration", "tightened"]

@@ -47,6 +47,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import jsonschema
 import numpy as np
@@ -161,7 +162,7 @@ class Task:
     name: str = "task"
     #: node intervals per segment; None: :data:`AUTO_NODES` (see :attr:`segment_nodes`)
     nodes_per_segment: int | None = None
-    source: dict | None = None  # the validated file content, for the trajectory header
+    source: dict[str, Any] | None = None  # the validated file content, for the trajectory header
     #: "platform": waypoints are the platform centre's poses; "tcp": the tool's
     frame: str = "platform"
     #: the physical setup the task replaces on the robot (None: the robot's own)
@@ -229,7 +230,7 @@ class Task:
 
     def robot_for(self, robot: Robot) -> Robot:
         """``robot`` with the task's payload, tool and mounting (its limits unchanged)."""
-        changes: dict = {}
+        changes: dict[str, Any] = {}
         if self.payload is not None:
             changes["payload"] = self.payload
         if self.tool is not None:

@@ -11,14 +11,8 @@ In two lines, as example-robot-data does::
 from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
 from sixplus3.robot_description.geometry import GRAVITY, LegGeometry, LegLoad
 from sixplus3.robot_description.limits import Limits
-from sixplus3.robot_description.robot import (
-    MOUNTINGS,
-    POINT_MASS,
-    MassModel,
-    Robot,
-    RobotGeometry,
-    load_robot,
-)
+from sixplus3.robot_description.masses import POINT_MASS, MassModel
+from sixplus3.robot_description.robot import MOUNTINGS, Robot, RobotGeometry, load_robot
 
 __all__ = ["DEFAULT_MODE", "GRAVITY", "MOUNTINGS", "POINT_MASS", "AssemblyMode",
            "LegGeometry", "LegLoad", "Limits", "MassModel", "Robot", "RobotGeometry",

@@ -310,7 +310,7 @@ def pose_yourdfpy(urdf: Any, clm: ClosedLoopModel, q: np.ndarray) -> None:
     urdf.update_cfg({**angles, **same})
 
 
-def _check_sizes(pairs: list, act: list, where: str) -> None:
+def _check_sizes(pairs: list[Any], act: list[Any], where: str) -> None:
     if len(pairs) != 3 * NUM_LEGS or len(act) != 3 * NUM_LEGS:
         raise InputError(f"{where}: expected {3 * NUM_LEGS} closures and "
                          f"{3 * NUM_LEGS} actuated joints, got {len(pairs)} and {len(act)}",

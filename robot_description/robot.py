@@ -40,8 +40,7 @@ from sixplus3.robot_description.hardware import (
     people_limits,
 )
 from sixplus3.robot_description.limits import Limits
-from sixplus3.robot_description.masses import (  # noqa: F401 - re-exported
-    POINT_MASS,
+from sixplus3.robot_description.masses import (
     BodyInertials,
     MassModel,
 )

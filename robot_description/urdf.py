@@ -35,15 +35,8 @@ from typing import Any
 import numpy as np
 
 from sixplus3.cache import cached
-from sixplus3.robot_description.robot import (
-    NUM_LEGS,
-    POINT_MASS,
-    BodyInertials,
-    MassModel,
-    Robot,
-    RobotGeometry,
-    require_robot,
-)
+from sixplus3.robot_description.masses import POINT_MASS, BodyInertials, MassModel
+from sixplus3.robot_description.robot import NUM_LEGS, Robot, RobotGeometry, require_robot
 
 URDF_DIR = Path(__file__).resolve().parent / "urdf"
 URDF_PATH = URDF_DIR / "sixplus3.urdf"

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import Sixplus3Error
-from sixplus3.planner.ocp import PlannerOptions
+from sixplus3.planner.options import PlannerOptions
 from sixplus3.planner.task import load_task
 from sixplus3.robot_description.robot import Robot, load_robot
 

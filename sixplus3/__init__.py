@@ -80,19 +80,20 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from sixplus3.control.drive.smoothing import smooth
     from sixplus3.control.file.trajectory_file import read_trajectory, write_trajectory
-    from sixplus3.control.gate.validation import (
-        ValidationReport,
-        validate_file,
-        validate_joint_trajectory,
-    )
+    from sixplus3.control.gate.validation import validate_file, validate_joint_trajectory
     from sixplus3.control.pipeline import run_plan
+    from sixplus3.control.report import ValidationReport
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.errors import Sixplus3Error
     from sixplus3.kinematics.leg import leg_ik
     from sixplus3.kinematics.robot import home, robot_fk, robot_ik, robot_ik_pose
-    from sixplus3.planner.ocp import PlannerOptions, Problem, Solution, plan
+    from sixplus3.planner.ocp import plan
+    from sixplus3.planner.options import PlannerOptions
+    from sixplus3.planner.problem import Problem
+    from sixplus3.planner.solution import Solution
     from sixplus3.planner.task import Task, load_task, task_from_dict
     from sixplus3.robot_description.assembly import AssemblyMode
     from sixplus3.robot_description.geometry import LegGeometry
     from sixplus3.robot_description.limits import Limits
-    from sixplus3.robot_description.robot import MassModel, Robot, RobotGeometry, load_robot
+    from sixplus3.robot_description.masses import MassModel
+    from sixplus3.robot_description.robot import Robot, RobotGeometry, load_robot

@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sixplus3.control.file import trajectory_file as tf
-from sixplus3.control.file.trajectory_file import COLUMNS, JOINTS, encode
+from sixplus3.control.file import file_format as ff
+from sixplus3.control.file.file_format import COLUMNS, JOINTS
+from sixplus3.control.file.trajectory_file import encode
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import home, robot_fk_batch
@@ -39,7 +40,7 @@ def zigzag(rate: float, eps: float, joints=range(9), n: int = 24,
     data[:, 37:40] = fk.cfg.position
     data[:, 40:44] = rot.quat_from_matrix(fk.rotation)
     data[:, 44:47] = fk.cfg.psi
-    header = {"format": tf.FORMAT, "rate_hz": float(rate), "samples": n,
+    header = {"format": ff.FORMAT, "rate_hz": float(rate), "samples": n,
               "duration_s": float(data[-1, 0]), "columns": COLUMNS,
               "robot": {"hash": robot.hash, "parameters": robot.as_dict()}}
     return encode(header, data)

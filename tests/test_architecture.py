@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from sixplus3.control.file.trajectory_file import COLUMNS, columns, samples_array
-from sixplus3.control.gate import validation
+from sixplus3.control.file.file_format import COLUMNS, columns
+from sixplus3.control.file.trajectory_file import samples_array
+from sixplus3.control.gate import motion_input, validation
 from sixplus3.errors import InputError
 from sixplus3.kinematics import checks
 from sixplus3.kinematics.robot import home, robot_fk_batch
@@ -140,8 +141,8 @@ def test_one_rotation_vector_function() -> None:
 @pytest.mark.parametrize("rate", [999.9, 10000.1, float("nan"), True, "1000"])
 def test_one_rate_check_names_its_range(rate) -> None:
     with pytest.raises(InputError, match=r"must be in \[1000, 10000\] Hz"):
-        validation.check_rate(rate)
-    assert validation.check_rate(1000) == 1000.0
+        motion_input.check_rate(rate)
+    assert motion_input.check_rate(1000) == 1000.0
 
 
 def _default_robot_calls() -> list[str]:
@@ -324,3 +325,80 @@ def test_every_import_inside_a_function_says_why() -> None:
                 if "# deferred:" not in " ".join(lines[max(0, i - 3):node.end_lineno]):
                     missing.append(f"{path.relative_to(root)}:{node.lineno}")
     assert not missing, missing
+
+
+def _package_dir() -> dict[str, str]:
+    text = (ROOT / "pyproject.toml").read_text()
+    table = text.split("[tool.setuptools.package-dir]", 1)[1].split("\n[", 1)[0]
+    return dict(re.findall(r'^"([\w.]+)"\s*=\s*"([\w/]+)"', table, flags=re.M))
+
+
+def _module_file(module: str, table: dict[str, str]) -> Path | None:
+    """The file of ``sixplus3.<...>`` as installed (package-dir), or None."""
+    parts = module.split(".")
+    for n in range(len(parts), 0, -1):
+        folder = table.get(".".join(parts[:n]))
+        if folder is not None:
+            base = ROOT.joinpath(folder, *parts[n:])
+            for f in (base.with_suffix(".py"), base / "__init__.py"):
+                if f.is_file():
+                    return f
+            return None
+    return None
+
+
+def _defined(path: Path) -> tuple[set[str], set[str]]:
+    """(names a module defines at its top level, names it imports there)."""
+    tree = ast.parse(path.read_text())
+    defined: set[str] = set()
+    imported: set[str] = set()
+    for node in tree.body:
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            imported |= {(a.asname or a.name).split(".")[0] for a in node.names}
+            continue
+        for sub in ast.walk(node):
+            if isinstance(sub, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                defined.add(sub.name)
+            elif isinstance(sub, ast.Name) and isinstance(sub.ctx, ast.Store):
+                defined.add(sub.id)
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            defined.add(node.name)
+    return defined, imported
+
+
+def test_names_are_imported_from_their_homes() -> None:
+    """Outside a package's ``__init__`` nothing is re-exported (issue 54, item 5): every
+    ``from sixplus3.<module> import name``, in the library, the tests, the benchmarks
+    and the scripts, imports a name that module defines (or a submodule), and no
+    module's ``__all__`` names a name it imported.  mypy's ``implicit_reexport = false``
+    keeps the library to it as well; this covers the files mypy does not read."""
+    table = _package_dir()
+    files = list(_modules())
+    for extra in ("tests", "benchmarks", "scripts"):
+        files += sorted((ROOT / extra).rglob("*.py"))
+    wrong = []
+    for path in files:
+        where = path.relative_to(ROOT)
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if not (isinstance(node, ast.ImportFrom) and node.module
+                    and node.module.startswith("sixplus3")):
+                continue
+            src = _module_file(node.module, table)
+            if src is None or src.name == "__init__.py":
+                continue
+            defined, _ = _defined(src)
+            wrong += [f"{where}:{node.lineno}: {node.module}.{a.name}" for a in node.names
+                      if a.name not in defined
+                      and _module_file(f"{node.module}.{a.name}", table) is None]
+        if path.name != "__init__.py" and path in set(_modules()):
+            defined, _ = _defined(path)
+            for node in tree.body:
+                if (isinstance(node, ast.Assign)
+                        and any(isinstance(t, ast.Name) and t.id == "__all__"
+                                for t in node.targets)
+                        and isinstance(node.value, (ast.List, ast.Tuple))):
+                    wrong += [f"{where}: __all__ re-exports {e.value}"
+                              for e in node.value.elts
+                              if isinstance(e, ast.Constant) and e.value not in defined]
+    assert not wrong, wrong

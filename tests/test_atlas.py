@@ -13,6 +13,7 @@ pytest.importorskip("dask.distributed")
 
 from sixplus3.cli import main  # noqa: E402
 from sixplus3.design import atlas as at  # noqa: E402
+from sixplus3.design import atlas_data as ad
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics  # noqa: E402
 from sixplus3.kinematics.collision import clearance  # noqa: E402
 from sixplus3.kinematics.robot import robot_ik  # noqa: E402
@@ -23,13 +24,13 @@ from sixplus3.robot_description.robot import Robot  # noqa: E402
 
 ROBOT = Robot.default()
 #: largest_tilt's scheme: 5 deg scan, 0.5 deg bisection
-LT = at.AtlasSettings(scan_deg=5.0, resolution_deg=0.5, max_tilt_deg=180.0)
-COARSE = at.AtlasSettings(step=0.08, azimuth_step_deg=60.0, resolution_deg=2.0)
+LT = ad.AtlasSettings(scan_deg=5.0, resolution_deg=0.5, max_tilt_deg=180.0)
+COARSE = ad.AtlasSettings(step=0.08, azimuth_step_deg=60.0, resolution_deg=2.0)
 
 
 @pytest.fixture(scope="module")
 def coarse():
-    xs, ys, zs = at.position_grid(ROBOT, COARSE.step)
+    xs, ys, zs = ad.position_grid(ROBOT, COARSE.step)
     zs = zs[(zs > 0.5) & (zs < 0.7)]  # the default robot: 0.56 and 0.64 m
     return at.compute_atlas(ROBOT, COARSE, scheduler="synchronous", grid=(xs, ys, zs))
 
@@ -80,7 +81,7 @@ def test_one_point_per_layer_rechecked(coarse) -> None:
     t = coarse["max_tilt"]
     checked = 0
     for iz in range(coarse.sizes["z"]):
-        for mode in at.CRANKS:
+        for mode in ad.CRANKS:
             layer = t.isel(z=iz).sel(cranks=mode, torsion=0.0).values  # (A, x, y)
             ok = np.isfinite(layer) & (layer > 0) & (layer < COARSE.max_tilt_deg)
             if not ok.any():
@@ -100,25 +101,25 @@ def test_one_point_per_layer_rechecked(coarse) -> None:
 
 
 def test_data_file_round_trips(coarse, tmp_path) -> None:
-    path = at.save(coarse, tmp_path / "atlas.nc")
-    back = at.load(path)
+    path = ad.save(coarse, tmp_path / "atlas.nc")
+    back = ad.load(path)
     for name in ("max_tilt", "binding", "psi"):
         np.testing.assert_array_equal(back[name].values, coarse[name].values)
         assert back[name].dims == coarse[name].dims
     assert back["max_tilt"].attrs["units"] == "degree"
     assert back.attrs["robot_hash"] == ROBOT.hash
     assert list(back["cranks"].values) == ["free", "locked"]
-    assert at.volumes(back) == at.volumes(coarse)
+    assert ad.volumes(back) == ad.volumes(coarse)
 
 
 def test_volumes_and_headline(coarse) -> None:
-    v = at.volumes(coarse)
-    for mode in at.CRANKS:
+    v = ad.volumes(coarse)
+    for mode in ad.CRANKS:
         row = v[mode][0.0]
-        seq = [row["zero tilt"]] + [row[float(x)] for x in at.THRESHOLDS_DEG]
+        seq = [row["zero tilt"]] + [row[float(x)] for x in ad.THRESHOLDS_DEG]
         assert all(a >= b for a, b in zip(seq, seq[1:], strict=False))  # nested volumes
     assert v["free"][0.0][45.0] >= v["locked"][0.0][45.0]
-    assert "L of workspace" in at.headline(coarse)
+    assert "L of workspace" in ad.headline(coarse)
 
 
 def test_dask_local_cluster_matches_synchronous(coarse) -> None:
@@ -318,17 +319,17 @@ def test_free_candidates_are_the_leg_grid_then_pose_checks() -> None:
 def test_acceleration_criterion_only_shrinks_the_atlas() -> None:
     """A stricter torque check (accelerate at 2 g in every direction) never gives a
     larger tilt, free or locked, and binds somewhere (code 7)."""
-    xs, ys, zs = at.position_grid(ROBOT, COARSE.step)
+    xs, ys, zs = ad.position_grid(ROBOT, COARSE.step)
     grid = (xs[::2], ys[::2], zs[(zs > 0.2) & (zs < 0.5)][:2])
     base = at.compute_atlas(ROBOT, COARSE, scheduler="synchronous", grid=grid)
-    st = at.AtlasSettings(**{**COARSE.__dict__, "accel_g": 2.0})
+    st = ad.AtlasSettings(**{**COARSE.__dict__, "accel_g": 2.0})
     dyn = at.compute_atlas(ROBOT, st, scheduler="synchronous", grid=grid)
     a = np.nan_to_num(base["max_tilt"].values, nan=-1.0)
     b = np.nan_to_num(dyn["max_tilt"].values, nan=-1.0)
     assert np.all(b <= a)
     assert np.any(b < a)
-    assert (dyn["binding"].values == at.BINDING.index("torque")).sum() > (
-        base["binding"].values == at.BINDING.index("torque")).sum()
+    assert (dyn["binding"].values == ad.BINDING.index("torque")).sum() > (
+        base["binding"].values == ad.BINDING.index("torque")).sum()
     assert dyn.attrs["accel_g"] == 2.0 and "2 g" in dyn.attrs["torque_check"]
 
 

@@ -12,7 +12,8 @@ import yaml
 from click.testing import CliRunner
 
 from sixplus3.cli import main
-from sixplus3.control.file.trajectory_file import columns, read_trajectory
+from sixplus3.control.file.file_format import columns
+from sixplus3.control.file.trajectory_file import read_trajectory
 from sixplus3.control.formats.exports import drive_table, export_file
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import GeometryError, InputError, TrajectoryFileError
@@ -125,7 +126,7 @@ def test_the_ros2_yaml_reads_back_exactly_for_any_floats() -> None:
 
 
 def test_read_trajectory_names_its_columns(planned) -> None:
-    from sixplus3.control.file.trajectory_file import COLUMNS
+    from sixplus3.control.file.file_format import COLUMNS
     from sixplus3.errors import InputError
 
     path, data = planned

@@ -27,14 +27,12 @@ from hypothesis import strategies as st
 from sixplus3.cli import main as cli
 from sixplus3.control.drive.feed import prepare_feed
 from sixplus3.control.file import trajectory_file as tf
-from sixplus3.control.file.trajectory_file import COLUMNS, JOINTS, columns, encode, parse
+from sixplus3.control.file.file_format import COLUMNS, JOINTS, columns
+from sixplus3.control.file.trajectory_file import encode
+from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.gate import interval
-from sixplus3.control.gate.validation import (
-    RATE_RANGE,
-    validate_bytes,
-    validate_file,
-    validate_motion,
-)
+from sixplus3.control.gate.motion_input import RATE_RANGE
+from sixplus3.control.gate.validation import validate_bytes, validate_file, validate_motion
 from sixplus3.control.pipeline import run_plan
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed

@@ -27,10 +27,15 @@ from hypothesis import strategies as st
 
 from sixplus3.cli import main as cli
 from sixplus3.control.drive.feed import check_start, prepare_feed, retime
+from sixplus3.control.file import file_format as ff
 from sixplus3.control.file import trajectory_file as tf
-from sixplus3.control.file.trajectory_file import COLUMNS, JOINTS, encode, parse
+from sixplus3.control.file import trajectory_parse as tp
+from sixplus3.control.file.file_format import COLUMNS, JOINTS
+from sixplus3.control.file.trajectory_file import encode
+from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.gate import interval
-from sixplus3.control.gate.validation import RATE_RANGE, validate_bytes, validate_motion
+from sixplus3.control.gate.motion_input import RATE_RANGE
+from sixplus3.control.gate.validation import validate_bytes, validate_motion
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import InputError, Sixplus3Error, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics.robot import robot_fk_batch
@@ -197,8 +202,8 @@ def test_numbers_outside_the_strict_grammar_are_refused(planned, value) -> None:
     lines[5] = b",".join(row)
     body = b"\n".join(lines[1:])
     h = {k: v for k, v in header.items() if k != "integrity"}
-    h["integrity"] = {"algorithm": "sha256", "digest": tf.digest(h, body)}
-    forged = f"# {tf.FORMAT} ".encode() + tf._canonical(h) + b"\n" + body
+    h["integrity"] = {"algorithm": "sha256", "digest": ff.digest(h, body)}
+    forged = f"# {ff.FORMAT} ".encode() + ff._canonical(h) + b"\n" + body
     with pytest.raises(TrajectoryFileError):
         parse(forged)
 
@@ -218,7 +223,7 @@ def test_header_fields_of_the_wrong_type_are_named(planned, value, tmp_path) -> 
 
 def test_a_deeply_nested_header_is_refused(planned) -> None:
     _, raw, header, data = planned
-    head = f"# {tf.FORMAT} ".encode() + b'{"x":' + b"[" * 20000 + b"1" + b"]" * 20000 + b"}"
+    head = f"# {ff.FORMAT} ".encode() + b'{"x":' + b"[" * 20000 + b"1" + b"]" * 20000 + b"}"
     with pytest.raises(TrajectoryFileError):
         parse(head + b"\n" + _line1(raw)[1])
 
@@ -561,9 +566,9 @@ def test_a_sample_number_is_read_only_if_every_reader_reads_it_alike(planned, to
     lines[7] = b",".join(row)
     body = b"\n".join(lines[1:])
     h = {k: v for k, v in header.items() if k != "integrity"}
-    h["integrity"] = {"algorithm": "sha256", "digest": tf.digest(h, body)}
-    raw = f"# {tf.FORMAT} ".encode() + tf._canonical(h) + b"\n" + body
-    strict = re.fullmatch(tf.NUMBER, token) is not None
+    h["integrity"] = {"algorithm": "sha256", "digest": ff.digest(h, body)}
+    raw = f"# {ff.FORMAT} ".encode() + ff._canonical(h) + b"\n" + body
+    strict = re.fullmatch(tp.NUMBER, token) is not None
     try:
         _, got = parse(raw)
     except TrajectoryFileError:

@@ -18,7 +18,8 @@ from sixplus3.control.gate.validation import validate_and_write, validate_file
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import GeometryError, InputError, TaskError
 from sixplus3.fileio import parse_yaml
-from sixplus3.planner.task import Task, Waypoint, task_from_dict
+from sixplus3.planner.task import Task, task_from_dict
+from sixplus3.planner.waypoint import Waypoint
 from sixplus3.robot_description import hardware
 from sixplus3.robot_description.robot import Robot
 

@@ -308,7 +308,8 @@ def test_identified_plants_predict_unseen_plans(excitation, validation_plan, see
     (the torque monitor's noise and the 0.1 % quantisation), where the nominal model is
     far off; the identified robot file plans at once (the same compiled model)."""
     pytest.importorskip("mujoco")
-    from sixplus3.control.drive.plant import TORQUE_NOISE, run_on_plant
+    from sixplus3.control.drive.loop import TORQUE_NOISE
+    from sixplus3.control.drive.plant import run_on_plant
     from sixplus3.identification.identify import check, identify
 
     plant = perturbed_plant(ROBOT, seed)

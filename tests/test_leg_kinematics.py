@@ -9,15 +9,8 @@ import numpy as np
 import pytest
 
 from sixplus3.errors import ConvergenceError, GeometryError, InputError, UnreachableError
-from sixplus3.kinematics.leg import (
-    DEFAULT_MODE,
-    AssemblyMode,
-    leg_eval,
-    leg_fk,
-    leg_fk_point,
-    leg_ik,
-    leg_ik_point,
-)
+from sixplus3.kinematics.leg import leg_eval, leg_fk, leg_fk_point, leg_ik, leg_ik_point
+from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 
 GEO = LegGeometry()

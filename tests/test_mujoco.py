@@ -25,8 +25,9 @@ from sixplus3.control.drive.simulation import (
     mujoco_inverse_dynamics,
     simulate_file,
 )
-from sixplus3.control.file.trajectory_file import columns
-from sixplus3.control.gate.validation import FEEDFORWARD_TOL, validate_file
+from sixplus3.control.file.file_format import columns
+from sixplus3.control.gate.findings import FEEDFORWARD_TOL
+from sixplus3.control.gate.validation import validate_file
 from sixplus3.control.pipeline import run_plan
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError

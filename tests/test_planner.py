@@ -10,15 +10,17 @@ from scipy.spatial.transform import Rotation
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.symbolic import home_x, symbolic_robot
-from sixplus3.errors import InfeasibleTaskError, LimitError
+from sixplus3.errors import InfeasibleTaskError, LimitError, TaskError
 from sixplus3.kinematics.collision import PAIR_FAMILY, clearance
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.spherical import spherical_tilts
-from sixplus3.planner import solution, solvers, strategy
-from sixplus3.planner.ocp import PlannerOptions, Problem, dense_check, plan
-from sixplus3.planner.options import ROW_SCALE
+from sixplus3.planner import solution, solvers, strategy, timing
+from sixplus3.planner.ocp import plan
+from sixplus3.planner.options import ROW_SCALE, PlannerOptions
+from sixplus3.planner.problem import Problem
+from sixplus3.planner.solution import dense_check
 from sixplus3.planner.strategy import solve
-from sixplus3.planner.task import TaskError, load_task, task_from_dict
+from sixplus3.planner.task import load_task, task_from_dict
 from sixplus3.robot_description.physical import NO_MOTORS, MotorModel, Payload
 from sixplus3.robot_description.robot import Robot
 
@@ -394,7 +396,7 @@ def test_retiming_and_rest_splits(small_solution) -> None:
                                segment_times=sol.segment_times * a, xd=sol.xd / a,
                                xdd=sol.xdd / a**2, tau=tau_g + (sol.tau - tau_g) / a**2)
     slow = slow.checked()
-    fast = strategy.retime(Problem(sol.task, ROBOT), slow, platform_proxy=0.5)
+    fast = timing.retime(Problem(sol.task, ROBOT), slow, platform_proxy=0.5)
     assert fast.time_scale < 1.0 and fast.final_time < slow.final_time
     np.testing.assert_array_equal(fast.x, slow.x)
     worst = max(fast.check.max_torque_ratio, fast.check.max_velocity_ratio,
@@ -454,11 +456,11 @@ def test_an_overshoot_a_time_stretch_fixes_is_stretched_not_re_solved(
     the path is kept, the check passes, and no second NLP solve happens.  A stretch of
     more than 5% is not taken (the plan is re-solved as before)."""
     problem = Problem(small_solution.task, ROBOT)
-    fast = strategy.stretched(problem, small_solution, 0.97)  # 3% faster: over the limits
+    fast = timing.stretched(problem, small_solution, 0.97)  # 3% faster: over the limits
     assert not fast.check.ok
     assert all(v.startswith(("torque", "velocity", "acceleration"))
                for v in fast.check.violations)
-    fixed = strategy.retime(problem, fast, platform_proxy=0.5, max_stretch=1.05)
+    fixed = timing.retime(problem, fast, platform_proxy=0.5, max_stretch=1.05)
     assert fixed is not fast and fixed.check.ok
     np.testing.assert_array_equal(fixed.x, fast.x)
     worst = max(fixed.check.max_torque_ratio, fixed.check.max_velocity_ratio,
@@ -466,8 +468,8 @@ def test_an_overshoot_a_time_stretch_fixes_is_stretched_not_re_solved(
     assert 0.99 <= worst <= 0.995 + 1e-9
     assert fixed.final_time == pytest.approx(small_solution.final_time, rel=2e-3)
     # beyond the allowed stretch: unchanged
-    too_fast = strategy.stretched(problem, small_solution, 0.9)
-    assert strategy.retime(problem, too_fast, platform_proxy=0.5, max_stretch=1.05) is too_fast
+    too_fast = timing.stretched(problem, small_solution, 0.9)
+    assert timing.retime(problem, too_fast, platform_proxy=0.5, max_stretch=1.05) is too_fast
 
     # inside solve(): the first NLP plan overshoots (made 3% faster); one solve only
     calls = []
@@ -476,7 +478,7 @@ def test_an_overshoot_a_time_stretch_fixes_is_stretched_not_re_solved(
     def overshooting(*args, **kw):
         sol = solve_nlp(*args, **kw)
         calls.append(sol)
-        return strategy.stretched(problem, sol, 0.97) if len(calls) == 1 else sol
+        return timing.stretched(problem, sol, 0.97) if len(calls) == 1 else sol
 
     monkeypatch.setattr(strategy, "solve_nlp", overshooting)
     sol = solve(problem)

@@ -9,9 +9,12 @@ import pytest
 from sixplus3.control.gate.validation import validate_file
 from sixplus3.control.pipeline import run_plan
 from sixplus3.dynamics.symbolic import symbolic_robot
+from sixplus3.errors import InfeasibleTaskError
 from sixplus3.planner import strategy
 from sixplus3.planner.baseline import baseline_plan, line_check
-from sixplus3.planner.ocp import InfeasibleTaskError, PlannerOptions, Problem, plan
+from sixplus3.planner.ocp import plan
+from sixplus3.planner.options import PlannerOptions
+from sixplus3.planner.problem import Problem
 from sixplus3.planner.statics import check_crank_sides, choose_static_psi, static_candidates
 from sixplus3.planner.strategy import solve
 from sixplus3.planner.task import task_from_dict

@@ -15,7 +15,8 @@ import pytest
 from sixplus3.cache import BoundedCache
 from sixplus3.errors import InputError
 from sixplus3.planner import transcription
-from sixplus3.planner.ocp import Problem, plan
+from sixplus3.planner.ocp import plan
+from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import sample_cubic
 from sixplus3.planner.solvers import ipopt_solver
 from sixplus3.planner.strategy import solve

@@ -143,7 +143,7 @@ def test_a_starts_iteration_cap_stops_ipopt_there() -> None:
     enforced through the same callback: IPOPT stops after it, reported as exceeded."""
     from sixplus3.errors import InfeasibleTaskError
     from sixplus3.planner.nlp import Bounds, solve_nlp
-    from sixplus3.planner.ocp import Problem
+    from sixplus3.planner.problem import Problem
     from sixplus3.planner.statics import choose_static_psi
     from sixplus3.robot_description.robot import Robot
 

@@ -243,7 +243,7 @@ def test_a_plan_for_a_non_default_robot_is_refused_for_the_default(tmp_path,
     from sixplus3.cache import BoundedCache
     from sixplus3.control.pipeline import run_plan
     from sixplus3.planner import solvers
-    from sixplus3.planner.ocp import PlannerOptions
+    from sixplus3.planner.options import PlannerOptions
     from sixplus3.planner.task import task_from_dict
 
     monkeypatch.setenv("SIXPLUS3_NO_CODEGEN", "1")

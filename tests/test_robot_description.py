@@ -10,8 +10,9 @@ import yourdfpy
 
 from sixplus3.errors import GeometryError, InputError
 from sixplus3.robot_description import urdf as gen
+from sixplus3.robot_description.masses import POINT_MASS, MassModel
 from sixplus3.robot_description.model import closed_loop_model, load_model_from, parse_closures
-from sixplus3.robot_description.robot import POINT_MASS, MassModel, Robot, RobotGeometry
+from sixplus3.robot_description.robot import Robot, RobotGeometry
 from sixplus3.robot_description.urdf import robot_urdf
 
 

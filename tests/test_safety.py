@@ -67,7 +67,7 @@ def test_the_effective_mass_equals_mujocos_impulse_response(tool) -> None:
     skew direction, against 1 / (u^T A u) from Pinocchio and the IK Jacobian."""
     mujoco = pytest.importorskip("mujoco")
     from sixplus3.control.drive.simulation import MujocoRobot
-    from sixplus3.robot_description.robot import Tool
+    from sixplus3.robot_description.physical import Tool
 
     robot = ROBOT.replace(tool=Tool(xyz=tool)) if any(tool) else ROBOT
     dyn = ClosedLoopDynamics(robot)

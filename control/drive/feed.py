@@ -23,15 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.file.trajectory_file import JOINTS, check_samples, columns, read_bytes
-from sixplus3.control.gate.interval import check_torque_hold, held_torque
-from sixplus3.control.gate.validation import (
-    RATE_RANGE,
-    ValidationReport,
-    resample,
-    validate_bytes,
-    validate_motion,
-)
+from sixplus3.control.file.file_format import JOINTS, columns
+from sixplus3.control.file.trajectory_file import check_samples, read_bytes
+from sixplus3.control.gate.interval import check_torque_hold, held_torque, resample
+from sixplus3.control.gate.validation import validate_bytes, validate_motion
+from sixplus3.control.report import ValidationReport
 from sixplus3.errors import InputError, ValidationFailed
 from sixplus3.kinematics.robot import home, robot_fk_batch
 from sixplus3.kinematics.rotations import rotvec_from_quat
@@ -222,6 +218,5 @@ def udp_sender(address: tuple[str, int]) -> Callable[[bytes], object]:
     return lambda msg: sock.sendto(msg, address)
 
 
-__all__ = ["RATE_RANGE", "SPEED_RANGE", "FeedPlan", "check_speed", "check_start",
-           "robot_pose_from_home",
+__all__ = ["SPEED_RANGE", "FeedPlan", "check_speed", "check_start", "robot_pose_from_home",
            "parse_address", "prepare_feed", "retime", "send", "udp_sender"]

@@ -32,7 +32,7 @@ import numpy as np
 from sixplus3.control.drive.drive_log import DriveLog
 from sixplus3.control.drive.loop import TORQUE_NOISE, DriveLoop
 from sixplus3.control.drive.simulation import KD, KP, MujocoRobot, first_configuration
-from sixplus3.control.file.trajectory_file import columns
+from sixplus3.control.file.file_format import columns
 from sixplus3.control.file.trajectory_parse import NUMBER
 from sixplus3.control.gate.interval import held_torque
 from sixplus3.control.gate.validation import validate_file
@@ -219,5 +219,4 @@ def _apply_wrench(sim: MujocoRobot, body: int, w: np.ndarray) -> None:
     d.xfrc_applied[body, 3:] = mom + np.cross(origin - com, f)
 
 
-__all__ = ["PlantRun", "TORQUE_NOISE", "WrenchProfile", "read_wrench_profile",
-           "run_on_plant"]
+__all__ = ["PlantRun", "WrenchProfile", "read_wrench_profile", "run_on_plant"]

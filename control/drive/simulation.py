@@ -28,9 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control.file.trajectory_file import columns
+from sixplus3.control.file.file_format import columns
+from sixplus3.control.gate.findings import FEEDFORWARD_TOL
 from sixplus3.control.gate.interval import check_torque_hold, held_torque
-from sixplus3.control.gate.validation import FEEDFORWARD_TOL, check_rate, validate_file
+from sixplus3.control.gate.motion_input import check_rate
+from sixplus3.control.gate.validation import validate_file
 from sixplus3.control.report import ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError

@@ -38,7 +38,7 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from sixplus3.control.file.trajectory_file import check_samples
-from sixplus3.control.gate.validation import check_rate
+from sixplus3.control.gate.motion_input import check_rate
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InputError, SmoothingError
 from sixplus3.planner.solution import Solution, actuated_profile
@@ -143,7 +143,7 @@ def smooth(sol: Solution, rate: float = 1000.0) -> Smoothed:
                     max(p["time_stretch"] for p in parts))
 
 
-def _smooth_piece(sol: Solution, t0: float, t1: float, rate: float) -> dict:
+def _smooth_piece(sol: Solution, t0: float, t1: float, rate: float) -> dict[str, Any]:
     """One rest-to-rest piece [t0, t1] of the plan at ``rate`` (see the module doc).
 
     The piece is stretched uniformly (jerk scales as 1/a^3, acceleration 1/a^2, speed

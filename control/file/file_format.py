@@ -1,7 +1,7 @@
 """The trajectory file format: its name, columns, units, size cap, canonical header JSON
 and integrity digest (docs/validation.md).  The layer under the reader
 (:mod:`sixplus3.control.file.trajectory_parse`) and the writer
-(:mod:`sixplus3.control.file.trajectory_file`, which re-exports these names)."""
+(:mod:`sixplus3.control.file.trajectory_file`).  Import these names from here."""
 
 from __future__ import annotations
 
@@ -59,7 +59,7 @@ PLATFORM_BLOCKS = {
 }
 _JOINT_COLUMNS = {k: [COLUMNS.index(f"{j}_{k}") for j in JOINTS] for k in JOINT_KINDS}
 
-def _canonical(header: dict) -> bytes:
+def _canonical(header: dict[str, Any]) -> bytes:
     return json.dumps(header, sort_keys=True, separators=(",", ":"), allow_nan=False,
                       default=_jsonable).encode()
 
@@ -89,7 +89,7 @@ def _finite_tree(obj: Any) -> Any:
     return obj
 
 
-def digest(header: dict, body: bytes | memoryview) -> str:
+def digest(header: dict[str, Any], body: bytes | memoryview) -> str:
     """The integrity digest of a header (without ``integrity``) and the body bytes."""
     h = {k: v for k, v in header.items() if k != "integrity"}
     sha = hashlib.sha256(_canonical(h))

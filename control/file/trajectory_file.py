@@ -2,8 +2,8 @@
 
 Three modules: :mod:`~sixplus3.control.file.file_format` (names, columns, the canonical
 header and the digest), :mod:`~sixplus3.control.file.trajectory_parse` (reading the bytes one
-way only) and this one (writing, reading a file for a robot, and the names of both
-re-exported, so ``trajectory_file.parse`` and ``trajectory_file.COLUMNS`` keep working).
+way only) and this one (writing, and reading a file for a robot).  Each name is imported
+from its own module (``file_format.COLUMNS``, ``trajectory_parse.parse``).
 
 Layout (UTF-8 text; docs/validation.md is the contract)::
 
@@ -52,7 +52,7 @@ import numpy as np
 
 from sixplus3 import fileio
 from sixplus3.control.file.file_format import (
-    _JOINT_COLUMNS,  # noqa: F401 - the file's names, re-exported
+    _JOINT_COLUMNS,
     COLUMN_UNITS,
     COLUMNS,
     FORMAT,
@@ -66,12 +66,8 @@ from sixplus3.control.file.file_format import (
     columns,
     digest,
 )
-from sixplus3.control.file.trajectory_parse import (  # noqa: F401 - re-exported
-    MAX_HEADER_DEPTH,
-    NUMBER,
-    header_number,
+from sixplus3.control.file.trajectory_parse import (
     parse,
-    parse_header,
 )
 from sixplus3.errors import GeometryError, InputError, LimitError, TrajectoryFileError
 from sixplus3.fileio import atomic_write
@@ -118,7 +114,7 @@ def output_path(out_dir: str | Path, name: str, suffix: str = SUFFIX) -> Path:
     return path
 
 
-def encode(header: dict, data: np.ndarray) -> bytes:
+def encode(header: dict[str, Any], data: np.ndarray) -> bytes:
     """The bytes of a trajectory file: header line (with its digest), columns, rows."""
     buf = io.StringIO()
     np.savetxt(buf, data, delimiter=",", header=",".join(COLUMNS), comments="", fmt="%.17g")
@@ -230,7 +226,7 @@ RESERVED = ("format", "rate_hz", "samples", "duration_s", "columns", "units",
 def write_trajectory(path: str | Path, t: np.ndarray, theta: np.ndarray,
                      theta_dot: np.ndarray, theta_ddot: np.ndarray,
                      report: ValidationReport, robot: Robot, limits: Limits,
-                     meta: dict) -> Path:
+                     meta: dict[str, Any]) -> Path:
     """Write the validated trajectory of ``robot`` to ``path`` (one atomic file).
 
     ``report`` must be the passed :class:`~sixplus3.control.gate.validation.ValidationReport`
@@ -298,7 +294,7 @@ def write_trajectory(path: str | Path, t: np.ndarray, theta: np.ndarray,
 
 
 # ----------------------------------------------------------------------------- reading
-def check_robot(header: dict, robot: Robot, name: str) -> None:
+def check_robot(header: dict[str, Any], robot: Robot, name: str) -> None:
     """Refuse a header whose robot is not ``robot`` (or whose parameters do not give its
     recorded hash)."""
     rec = header.get("robot")
@@ -325,7 +321,7 @@ def check_robot(header: dict, robot: Robot, name: str) -> None:
             value=recorded.hash, valid=robot.hash)
 
 
-def _robot_diff(a: dict, b: dict, where: str = "") -> str:
+def _robot_diff(a: dict[str, Any], b: dict[str, Any], where: str = "") -> str:
     """The first parameter that differs between two robot dicts."""
     for k in sorted(set(a) | set(b)):
         if k == "name":
@@ -365,7 +361,7 @@ class TrajectoryData(NamedTuple):
       InputError says how to install it if it is missing).
     """
 
-    header: dict
+    header: dict[str, Any]
     data: np.ndarray
 
     def __getitem__(self, key: str | int) -> Any:  # type: ignore[override]

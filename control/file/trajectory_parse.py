@@ -50,7 +50,7 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def parse_header(line: bytes, name: str = "trajectory") -> dict:
+def parse_header(line: bytes, name: str = "trajectory") -> dict[str, Any]:
     """The header of a trajectory file's first line (without ``# FORMAT ``), parsed one
     way only: JSON without duplicate keys, NaN, Infinity or overflowing numbers, at most
     :data:`MAX_HEADER_DEPTH` deep, and byte for byte the canonical form the writer makes
@@ -85,7 +85,7 @@ def parse_header(line: bytes, name: str = "trajectory") -> dict:
     return header
 
 
-def header_number(header: dict, key: str, name: str, lo: float, hi: float,
+def header_number(header: dict[str, Any], key: str, name: str, lo: float, hi: float,
                   integer: bool = False) -> float:
     """``header[key]`` as a finite number in [lo, hi] (an int if ``integer``); a
     TrajectoryFileError naming the field and its range otherwise."""
@@ -101,7 +101,7 @@ def header_number(header: dict, key: str, name: str, lo: float, hi: float,
     return number
 
 
-def parse(raw: bytes, name: str = "trajectory") -> tuple[dict, np.ndarray]:
+def parse(raw: bytes, name: str = "trajectory") -> tuple[dict[str, Any], np.ndarray]:
     """Header and samples (n, 47) of a trajectory file's bytes, format-checked and
     integrity-checked (nothing physical: that is the validator's job)."""
     nl = raw.find(b"\n")

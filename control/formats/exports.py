@@ -41,16 +41,10 @@ import numpy as np
 import yaml
 
 from sixplus3.control.drive.drive_log import to_drive_units
-from sixplus3.control.file.trajectory_file import columns
-from sixplus3.control.gate.interval import check_torque_hold, held_torque, hermite
-from sixplus3.control.gate.validation import (
-    INTERPOLATED_RATE_RANGE,
-    RATE_RANGE,
-    check_rate,
-    resample,
-    validate_file,
-    validate_motion,
-)
+from sixplus3.control.file.file_format import columns
+from sixplus3.control.gate.interval import check_torque_hold, held_torque, hermite, resample
+from sixplus3.control.gate.motion_input import INTERPOLATED_RATE_RANGE, RATE_RANGE, check_rate
+from sixplus3.control.gate.validation import validate_file, validate_motion
 from sixplus3.control.report import ValidationReport
 from sixplus3.errors import InputError, ValidationFailed
 from sixplus3.robot_description.robot import Robot

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from sixplus3.control.file.trajectory_file import columns
+from sixplus3.control.file.file_format import columns
 from sixplus3.control.formats.exports import ros2_joint_trajectory
 from sixplus3.control.formats.ros_replay import write_replay_files
 from sixplus3.control.gate.validation import validate_file
@@ -256,7 +256,7 @@ def write_rosbag2(path: str | Path, robot: Robot, out_dir: str | Path,
     return out
 
 
-def _trajectory(T: Any, msg: dict, start_ns: int) -> Any:
+def _trajectory(T: Any, msg: dict[str, Any], start_ns: int) -> Any:
     """A JointTrajectory message of the typestore from the mapping of
     :func:`ros2_joint_trajectory`."""
     Duration = T["builtin_interfaces/msg/Duration"]

@@ -1,8 +1,7 @@
 """The gate's findings: the consistency tolerances, one :class:`Finding` (of
 :mod:`sixplus3.control.report`) per failed check, and the findings of the limits on
 samples, midpoints and whole intervals, each by the one limit rule
-(:mod:`sixplus3.kinematics.checks`).  :mod:`sixplus3.control.gate.validation` runs the checks
-and re-exports these names."""
+(:mod:`sixplus3.kinematics.checks`).  :mod:`sixplus3.control.gate.validation` runs the checks."""
 
 from __future__ import annotations
 
@@ -211,7 +210,7 @@ def tcp_findings(lim: Limits, t: np.ndarray, cfg: Any, v: np.ndarray, t_all: np.
             out.append(f)
     return out, tcp_v, tcp_a
 
-def failed(n: int, robot: Robot, findings: list[Finding], tol: dict) -> ValidationReport:
+def failed(n: int, robot: Robot, findings: list[Finding], tol: dict[str, Any]) -> ValidationReport:
     """The report of a motion refused before its limits were measured."""
     return ValidationReport(
         ok=False, samples=n, robot_hash=robot.hash, max_torque_ratio=math.inf,
@@ -263,7 +262,7 @@ def interval_findings(lim: Limits, dt: float, th: np.ndarray, v: np.ndarray, a: 
                     float(jerk.max()), torque)
 
 
-def limit_findings(lim: Limits, cfgs: list, tau: np.ndarray, v: np.ndarray, a: np.ndarray,
+def limit_findings(lim: Limits, cfgs: list[Any], tau: np.ndarray, v: np.ndarray, a: np.ndarray,
                     t: np.ndarray, rcond: np.ndarray, jerk: np.ndarray, t_int: np.ndarray,
                     sph: np.ndarray, clear: np.ndarray) -> list[Finding]:
     """Every limit on samples and midpoints (rows of the stacked arrays, in time order

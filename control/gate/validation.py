@@ -26,26 +26,21 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from sixplus3.control.file.file_format import columns
 from sixplus3.control.file.trajectory_file import (
-    COLUMNS,
     check_robot,
-    columns,
-    parse,
     read_bytes,
     samples_fingerprint,
     write_trajectory,
 )
+from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.gate import interval
-from sixplus3.control.gate.findings import (  # noqa: F401 - Tolerances, Finding, ... re-exported
+from sixplus3.control.gate.findings import (
     BRANCH_TOL,
-    FEEDFORWARD_TOL,
-    POSE_TOL,
-    REST_ACCELERATION_TOL,
-    REST_VELOCITY_TOL,
-    TIME_TOL,
     Tolerances,
     consistency_findings,
     failed,
@@ -58,18 +53,16 @@ from sixplus3.control.gate.findings import (  # noqa: F401 - Tolerances, Finding
     rest_findings,
     tcp_findings,
 )
-from sixplus3.control.gate.interval import hermite, hermite_midpoints, resample  # noqa: F401
-from sixplus3.control.gate.motion_input import (  # noqa: E402,F401 - re-exported
-    INTERPOLATED_RATE_RANGE,
+from sixplus3.control.gate.interval import hermite_midpoints
+from sixplus3.control.gate.motion_input import (  # noqa: E402
     RATE_RANGE,
     check_motion_arrays,
-    check_rate,
 )
 from sixplus3.control.gate.offload import OFFLOAD_SHARE, Offload
 from sixplus3.control.gate.pfl import judged_regions, pfl_check
 from sixplus3.control.gate.stop import HEADER_KEY as STOP_KEY
 from sixplus3.control.gate.stop import header_entry, stop_check, stop_table
-from sixplus3.control.report import Finding, ValidationReport  # noqa: F401 - re-exported
+from sixplus3.control.report import Finding, ValidationReport
 from sixplus3.errors import InputError, LimitError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.checks import (
@@ -355,7 +348,7 @@ def validate_joint_trajectory(theta: np.ndarray, theta_dot: np.ndarray,
     return validate_motion(t, theta, theta_dot, theta_ddot, robot, rate, x_guess, limits)
 
 
-def _header_limits(header: dict, robot: Robot, name: str) -> Limits:
+def _header_limits(header: dict[str, Any], robot: Robot, name: str) -> Limits:
     """The limits the file says it was made to, as a tightening of the robot's hardware
     limits (a task's, e.g. a tool centre point speed): the gate judges the file by them
     too.  A header can only make the gate stricter: a limit looser than the hardware's,
@@ -419,7 +412,7 @@ def _add_pfl(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np.n
 def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
                        theta_dot: np.ndarray, theta_ddot: np.ndarray, robot: Robot,
                        rate: float, x_guess: np.ndarray, limits: Limits | None = None,
-                       meta: dict | None = None) -> tuple[Path, ValidationReport]:
+                       meta: dict[str, Any] | None = None) -> tuple[Path, ValidationReport]:
     """Validate the motion (:func:`validate_motion`, the gate) and, only if it passes,
     write it as one atomic trajectory file: (path, report).  Raises
     :class:`~sixplus3.errors.ValidationFailed` (exit code 1 or 2, every finding) and
@@ -458,6 +451,5 @@ def validate_file(path: str | Path, robot: Robot,
     return validate_bytes(read_bytes(path), robot, Path(path).name, limits)
 
 
-__all__ = ["COLUMNS", "Finding", "Tolerances", "ValidationReport", "hermite",
-           "hermite_midpoints", "resample", "validate_and_write", "validate_bytes",
+__all__ = ["MAX_DURATION", "WINDOW", "validate_and_write", "validate_bytes",
            "validate_file", "validate_joint_trajectory", "validate_motion"]

@@ -184,7 +184,8 @@ def emit(text: str, out_file: str | None, inputs: tuple[str | None, ...] = (),
     click.echo(f"wrote {out_file}", err=True)
 
 
-class _StrictNumber(click.ParamType):
+# click >= 8.2 types ParamType as a generic; the bound (click>=8.1) keeps older ones
+class _StrictNumber(click.ParamType):  # type: ignore[type-arg]
     """A number on the command line in the files' one strict decimal grammar
     (:data:`sixplus3.control.file.trajectory_parse.NUMBER`: no '1_000', 'inf', 'nan', '0x10')."""
 

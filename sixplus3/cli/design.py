@@ -240,6 +240,8 @@ def atlas(out_dir: str, step: float, azimuth_step: float, torsions: tuple[float,
     import numpy as np
 
     from sixplus3.design import atlas as at
+    from sixplus3.design import atlas_data as ad
+    from sixplus3.design import cluster
 
     try:
         import dask.distributed  # noqa: F401
@@ -248,13 +250,13 @@ def atlas(out_dir: str, step: float, azimuth_step: float, torsions: tuple[float,
     except ImportError as exc:
         fail(f"the atlas needs the 'atlas' extra ({exc.name} is missing): "
              "pip install 'sixplus3[atlas]' (make install includes it)")
-    st = at.AtlasSettings(step=step, azimuth_step_deg=azimuth_step,
+    st = ad.AtlasSettings(step=step, azimuth_step_deg=azimuth_step,
                           torsions_deg=tuple(torsions) or (0.0,), max_tilt_deg=max_tilt,
                           resolution_deg=resolution, accel_g=accel_g).check()
     at.check_run(workers, chunk)
-    at.check_scheduler(scheduler)
+    cluster.check_scheduler(scheduler)
     robot = current_robot()
-    xs, ys, zs = at.position_grid(robot, st.step, z_range)
+    xs, ys, zs = ad.position_grid(robot, st.step, z_range)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     npos = len(xs) * len(ys) * len(zs)
@@ -265,21 +267,21 @@ def atlas(out_dir: str, step: float, azimuth_step: float, torsions: tuple[float,
     t0 = time.perf_counter()
     ds = at.compute_atlas(robot, st, scheduler=scheduler, workers=workers, chunk=chunk,
                           grid=(xs, ys, zs), progress=bars())
-    path = at.save(ds, out / "atlas.nc")
+    path = ad.save(ds, out / "atlas.nc")
     click.echo(f"wrote {path} ({time.perf_counter() - t0:.1f} s)")
     if not no_figures:
         polar = at.home_polar(robot, st)
-        for f in at.figures(ds, out, robot, polar):
+        for f in ad.figures(ds, out, robot, polar):
             click.echo(f"wrote {f}")
         click.echo("at home, largest tilt over directions: free "
                    f"{np.nanmin(polar['free']):.1f} deg (min) .. {np.nanmax(polar['free']):.1f}"
                    f" (max); locked {np.nanmin(polar['locked']):.1f} .. "
                    f"{np.nanmax(polar['locked']):.1f} deg")
-    vol = at.volumes(ds)
+    vol = ad.volumes(ds)
     t = next(iter(vol["free"]))
     click.echo("volume where every direction tilts at least [L]: "
                + "; ".join(f"{k:g} deg: free {vol['free'][t][k]:.2f}, locked "
-                           f"{vol['locked'][t][k]:.2f}" for k in at.THRESHOLDS_DEG)
+                           f"{vol['locked'][t][k]:.2f}" for k in ad.THRESHOLDS_DEG)
                + f" (zero-tilt workspace: free {vol['free'][t]['zero tilt']:.2f}, locked "
                f"{vol['locked'][t]['zero tilt']:.2f})")
-    click.echo(at.headline(ds))
+    click.echo(ad.headline(ds))

@@ -11,7 +11,7 @@ from sixplus3.cli.app import FLOAT, NUMERIC_ARGS, bars, current_robot, fail, mai
 
 
 def _check_rate(rate: float) -> None:
-    from sixplus3.control.gate.validation import check_rate
+    from sixplus3.control.gate.motion_input import check_rate
 
     check_rate(rate, name="--rate")
 
@@ -30,7 +30,7 @@ def _load_task_or_example(task_file: str) -> Any:
 
 def _run_plan(task: Any, out_dir: str, rate: float, html: bool, locked: bool) -> None:
     from sixplus3.control.pipeline import run_plan
-    from sixplus3.planner.ocp import PlannerOptions
+    from sixplus3.planner.options import PlannerOptions
     from sixplus3.progress import ConsoleProgress
 
     # quiet: no reporter at all, so the planner computes nothing for one

@@ -42,7 +42,8 @@ def leg(x: float, y: float, z: float, force: tuple[float, float, float] | None,
     """
     import numpy as np
 
-    from sixplus3.kinematics.leg import SINGULAR_TOL, AssemblyMode, leg_ik_point
+    from sixplus3.kinematics.leg import SINGULAR_TOL, leg_ik_point
+    from sixplus3.robot_description.assembly import AssemblyMode
 
     if not all(math.isfinite(v) for v in (x, y, z)):
         fail(f"the point must be three finite numbers [m], got {[x, y, z]}")
