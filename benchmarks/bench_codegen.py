@@ -20,7 +20,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from sixplus3.dynamics import codegen
+from sixplus3.dynamics import codegen, compiler
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.robot_description.robot import Robot
 
@@ -36,7 +36,7 @@ def per_call(f, args, repeat: int) -> float:
 def compile_into(directory, robot, flags) -> tuple[str, float]:
     """Generate and compile the planner's node library with ``flags``: (path, seconds)."""
     t0 = time.perf_counter()
-    lib = codegen.compile_library(directory, "node", codegen._source(symbolic_robot(robot).node_p),
+    lib = compiler.compile_library(directory, "node", codegen._source(symbolic_robot(robot).node_p),
                                   flags)
     return str(lib), time.perf_counter() - t0
 
@@ -56,7 +56,7 @@ def main() -> None:
           f"its Jacobian: {sr.node.jacobian().n_instructions()}")
     funcs = [("interpreted", sr.node)]
     with tempfile.TemporaryDirectory() as tmp:
-        for label, flags in (("quick", codegen.QUICK_CFLAGS), ("optimised", codegen.CFLAGS)):
+        for label, flags in (("quick", compiler.QUICK_CFLAGS), ("optimised", compiler.CFLAGS)):
             lib, secs = compile_into(Path(tmp), robot, flags)
             print(f"{label:9s} build (gcc {' '.join(flags)}): generate + compile {secs:.1f} s")
             ext = ca.external("node_p", lib)

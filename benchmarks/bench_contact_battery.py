@@ -34,8 +34,8 @@ from pathlib import Path
 import numpy as np
 
 from sixplus3.control.file.file_format import columns
-from sixplus3.control.file.trajectory_file import read_bytes
 from sixplus3.control.file.trajectory_parse import parse
+from sixplus3.control.file.trajectory_read import read_bytes
 from sixplus3.control.gate.validation import validate_file
 from sixplus3.identification.plants import perturbed_plant
 from sixplus3.interaction.guard import ContactGuard

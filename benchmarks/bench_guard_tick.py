@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from sixplus3.control.file.trajectory_file import read_trajectory
+from sixplus3.control.file.trajectory_read import read_trajectory
 from sixplus3.interaction.guard import ContactGuard
 from sixplus3.robot_description.robot import Robot
 

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from sixplus3.control.file.file_format import columns
-from sixplus3.control.file.trajectory_file import read_trajectory
+from sixplus3.control.file.trajectory_read import read_trajectory
 from sixplus3.control.pipeline import run_plan
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.codegen import ensure_optimised

@@ -17,7 +17,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.kinematics.robot import home, robot_fk, robot_ik, robot_ik_pose
+from sixplus3.kinematics.robot import home, robot_ik, robot_ik_pose
+from sixplus3.kinematics.robot_fk import robot_fk
 from sixplus3.robot_description.robot import Robot
 
 ROBOT = Robot.default()

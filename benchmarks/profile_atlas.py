@@ -19,6 +19,7 @@ import numba
 import numpy as np
 
 from sixplus3.design import atlas as at
+from sixplus3.design import atlas_checks as ac
 from sixplus3.design import atlas_data as ad
 from sixplus3.robot_description.robot import Robot
 
@@ -35,7 +36,7 @@ def main() -> None:
     z = zs[np.argmin(np.abs(zs - args.z))]
     X, Y = np.meshgrid(xs, ys, indexing="ij")
     pts = np.c_[X.ravel(), Y.ravel(), np.full(X.size, z)]
-    chk = at._Checker(robot, st.psi_step_deg)
+    chk = ac.PoseChecker(robot, st.psi_step_deg)
     ok, _, _ = chk.admissible(pts, np.broadcast_to(np.eye(3), (len(pts), 3, 3)), True)
     pts = pts[ok][::args.every]
     at.largest_tilts(robot, pts[:4], st.azimuths_deg, (0.0,), st)  # compile numba first

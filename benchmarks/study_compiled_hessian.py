@@ -10,7 +10,7 @@ compiled cost from instruction counts; this measures it:
 
 - the Hessian of lam' node_p over the point's 36 variables (upper triangle), an SX
   function with common subexpressions eliminated, generated to C (38 MB) and compiled
-  with the planner's quick flags (``dynamics.codegen.QUICK_CFLAGS``, gcc -O0), cached in
+  with the planner's quick flags (``dynamics.compiler.QUICK_CFLAGS``, gcc -O0), cached in
   ``~/.cache/sixplus3`` by its source's hash (the first run compiles it).  The
   optimised flags (gcc -O1) are out of reach here: gcc was killed when it had used the
   machine's 23 GB.
@@ -32,13 +32,8 @@ import time
 import casadi as ca
 import numpy as np
 
-from sixplus3.dynamics.codegen import (
-    CFLAGS,
-    QUICK_CFLAGS,
-    _source,
-    cached_library,
-    ensure_optimised,
-)
+from sixplus3.dynamics.codegen import _source, cached_library, ensure_optimised
+from sixplus3.dynamics.compiler import CFLAGS, QUICK_CFLAGS
 from sixplus3.dynamics.symbolic import home_x, symbolic_robot
 from sixplus3.robot_description.robot import Robot
 

@@ -43,7 +43,8 @@ from sixplus3.design.workspace import theta_within
 from sixplus3.errors import InputError
 from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import robot_ik
-from sixplus3.robot_description.robot import Robot, RobotGeometry, require_robot
+from sixplus3.robot_description.robot import Robot, require_robot
+from sixplus3.robot_description.robot_geometry import RobotGeometry
 
 if TYPE_CHECKING:
     from sixplus3.design.search import Reading

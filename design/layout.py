@@ -33,7 +33,8 @@ from sixplus3.design.cow import PAPER_RATIO, compute_cow
 from sixplus3.errors import InputError
 from sixplus3.kinematics.collision import layout_clearance
 from sixplus3.robot_description.geometry import LegGeometry
-from sixplus3.robot_description.robot import PAPER_PHASE, Robot
+from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot_geometry import PAPER_PHASE
 
 #: Most layouts of one sweep (per leg): a COW each, ~0.6 s at the default 2 cm grid.
 MAX_LAYOUTS = 2000

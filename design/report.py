@@ -19,10 +19,10 @@ from sixplus3.kinematics import collision
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.kinematics.robot import home
 from sixplus3.kinematics.spherical import spherical_tilts
+from sixplus3.robot_description.generated import check as urdf_stale
 from sixplus3.robot_description.geometry import LegLoad
 from sixplus3.robot_description.hardware import effective_limits, envelope_record
 from sixplus3.robot_description.robot import Robot, require_robot
-from sixplus3.robot_description.urdf import check as urdf_stale
 
 
 def leg_report(robot: Robot, ws_step: float = 0.005) -> str:

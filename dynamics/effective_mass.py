@@ -28,7 +28,8 @@ from typing import Any
 import numpy as np
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.kinematics.robot import RobotConfig, ik_jacobian
+from sixplus3.kinematics.robot import RobotConfig
+from sixplus3.kinematics.robot_fk import ik_jacobian
 from sixplus3.robot_description.body_regions import BodyRegion
 
 

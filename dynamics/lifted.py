@@ -25,16 +25,12 @@ from typing import Any
 
 import casadi as ca
 
-from sixplus3.dynamics.symbolic import (
-    N_SETUP,
-    NX,
-    ik_expressions,
-    motor_torques,
-    rotvec_matrix,
-)
+from sixplus3.dynamics.symbolic import N_SETUP, NX, motor_torques
+from sixplus3.dynamics.symbolic_ik import ik_expressions, rotvec_matrix
 from sixplus3.dynamics.tree import revolute_joints, tree_forces, tree_placements
 from sixplus3.robot_description.model import closed_loop_model
-from sixplus3.robot_description.robot import NUM_LEGS, Robot, require_robot
+from sixplus3.robot_description.robot import Robot, require_robot
+from sixplus3.robot_description.robot_geometry import NUM_LEGS
 
 #: the lifted joints of a leg, in this order (legs 0, 1, 2)
 LEG_JOINTS = ("A", "Ds2", "Ds3", "B", "Ga", "Gb", "C", "Ha", "Hb")

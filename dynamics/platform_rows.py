@@ -14,7 +14,7 @@ from typing import Any
 import casadi as ca
 
 from sixplus3.errors import SingularityError
-from sixplus3.robot_description.robot import NUM_LEGS, RobotGeometry
+from sixplus3.robot_description.robot_geometry import NUM_LEGS, RobotGeometry
 
 
 def platform_line_det(psi: Any, geom: RobotGeometry) -> Any:

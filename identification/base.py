@@ -25,13 +25,8 @@ from sixplus3.dynamics.compiled_kinematics import CompiledKinematics
 from sixplus3.dynamics.regressor import Layout, layout, regressor_batch
 from sixplus3.errors import InputError, Sixplus3Error
 from sixplus3.fileio import atomic_write
-from sixplus3.kinematics.robot import (
-    RobotConfig,
-    ik_jacobian,
-    robot_fk,
-    robot_fk_batch,
-    robot_ik_pose,
-)
+from sixplus3.kinematics.robot import RobotConfig, robot_ik_pose
+from sixplus3.kinematics.robot_fk import ik_jacobian, robot_fk, robot_fk_batch
 from sixplus3.kinematics.rotations import matrix_from_rotvec, rotvec_from_matrix
 from sixplus3.robot_description.robot import Robot
 

@@ -40,7 +40,7 @@ from sixplus3.interaction._tick_kernel import (
     observer_state,
     predict,
 )
-from sixplus3.kinematics.robot import robot_fk
+from sixplus3.kinematics.robot_fk import robot_fk
 from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Newton steps of forward kinematics at most per sample.

@@ -50,8 +50,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.file.trajectory_file import read_bytes
 from sixplus3.control.file.trajectory_parse import parse
+from sixplus3.control.file.trajectory_read import read_bytes
 from sixplus3.control.gate.stop import TORQUE_SHARE
 from sixplus3.control.gate.validation import validate_file
 from sixplus3.errors import InputError, ValidationFailed, check_number

@@ -21,7 +21,8 @@ from sixplus3.control.report import ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.interaction.guard_parts import parameter_std2, velocity_slope
 from sixplus3.kinematics import rotations as rot
-from sixplus3.kinematics.robot import ik_jacobian, robot_ik
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.kinematics.robot_fk import ik_jacobian
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 

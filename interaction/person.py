@@ -35,7 +35,8 @@ from sixplus3.errors import InputError, ValidationFailed, check_number
 from sixplus3.fileio import read_yaml
 from sixplus3.interaction.guard import ContactGuard
 from sixplus3.kinematics import rotations as rot
-from sixplus3.kinematics.robot import ik_jacobian, robot_ik
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.kinematics.robot_fk import ik_jacobian
 from sixplus3.kinematics.tcp import tcp_velocity
 from sixplus3.robot_description.body_regions import REGIONS, BodyRegion
 from sixplus3.robot_description.mjcf import TIMESTEP

@@ -34,7 +34,8 @@ from sixplus3.interaction import _walls_kernel as wk
 from sixplus3.kinematics.checks import actuated_bounds
 from sixplus3.kinematics.collision import BASE_BODIES, PAIRS, hub_segments, radii
 from sixplus3.kinematics.spherical import spherical_reference
-from sixplus3.robot_description.robot import NUM_LEGS, Robot
+from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot_geometry import NUM_LEGS
 
 #: The singularity wall stands this far above the limits' smallest margin.
 MARGIN_GUARD = 0.05

@@ -50,7 +50,7 @@ from sixplus3.identification.base import (
     stacked_regressor,
 )
 from sixplus3.identification.signals import filter_log
-from sixplus3.kinematics.robot import ik_jacobian, robot_fk
+from sixplus3.kinematics.robot_fk import ik_jacobian, robot_fk
 from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Default observer gain [1/s]: a step reaches 95 % of its value in 3 / K = 20 ms.

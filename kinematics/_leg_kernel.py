@@ -251,6 +251,37 @@ def _sigma_min_unit_rows(a0, a1, a2, b0, b1, b2, c0, c1, c2):
     return math.sqrt(lam) if lam > 0.0 else 0.0
 
 
+@njit(cache=True, inline="always", fastmath=_FM, error_model="numpy")
+def _torque_map(out, det_jp, det_jr, c0x, c0y, c0z, c1x, c1y, c1z, c2x, c2y, c2z,
+                k11, k21, k22, k31, k33, mass_g, accel_g):
+    """M = K^T J^-T (rows of ``out[MM:]``) from J's cofactor rows c0, c1, c2 and K's
+    entries, and the largest static torque ``out[TAU_EXT]`` of :func:`jacobian_point`."""
+    # N = S J'^-T: rows c0/det, dJp c1/det, dJp c2/det.
+    inv = 1.0 / det_jr
+    s = det_jp * inv
+    n0x, n0y, n0z = c0x * inv, c0y * inv, c0z * inv
+    n1x, n1y, n1z = c1x * s, c1y * s, c1z * s
+    n2x, n2y, n2z = c2x * s, c2y * s, c2z * s
+    # M = K^T N.
+    m0x = k11 * n0x + k21 * n1x + k31 * n2x
+    m0y = k11 * n0y + k21 * n1y + k31 * n2y
+    m0z = k11 * n0z + k21 * n1z + k31 * n2z
+    m1x, m1y, m1z = k22 * n1x, k22 * n1y, k22 * n1z
+    m2x, m2y, m2z = k33 * n2x, k33 * n2y, k33 * n2z
+    out[MM + 0], out[MM + 1], out[MM + 2] = m0x, m0y, m0z
+    out[MM + 3], out[MM + 4], out[MM + 5] = m1x, m1y, m1z
+    out[MM + 6], out[MM + 7], out[MM + 8] = m2x, m2y, m2z
+    # tau_ext = max_j max_{f in F} |m_j . f|,  F = {mg[0, cos a, sin a]} + a_g m g B^3:
+    # the ball adds a_g m g |m_j| and the gravity circle m g sqrt(m_jy^2 + m_jz^2).
+    t0 = mass_g * (math.sqrt(m0y * m0y + m0z * m0z)
+                   + accel_g * math.sqrt(m0x * m0x + m0y * m0y + m0z * m0z))
+    t1 = mass_g * (math.sqrt(m1y * m1y + m1z * m1z)
+                   + accel_g * math.sqrt(m1x * m1x + m1y * m1y + m1z * m1z))
+    t2 = mass_g * (math.sqrt(m2y * m2y + m2z * m2z)
+                   + accel_g * math.sqrt(m2x * m2x + m2y * m2y + m2z * m2z))
+    out[TAU_EXT] = max(t0, max(t1, t2))
+
+
 @njit(cache=True, fastmath=_FM, error_model="numpy")
 def jacobian_point(geo, mass_g, accel_g, out, margin_ii=True):
     """J, K (paper §III-C), J tilde (Prop. 1), M = K^T J^-T, determinants, margins, tau_ext.
@@ -338,30 +369,8 @@ def jacobian_point(geo, mass_g, accel_g, out, margin_ii=True):
             out[MM + i] = math.inf
         out[TAU_EXT] = math.inf
         return
-    # N = S J'^-T: rows c0/det, dJp c1/det, dJp c2/det.
-    inv = 1.0 / det_jr
-    s = det_jp * inv
-    n0x, n0y, n0z = c0x * inv, c0y * inv, c0z * inv
-    n1x, n1y, n1z = c1x * s, c1y * s, c1z * s
-    n2x, n2y, n2z = c2x * s, c2y * s, c2z * s
-    # M = K^T N.
-    m0x = k11 * n0x + k21 * n1x + k31 * n2x
-    m0y = k11 * n0y + k21 * n1y + k31 * n2y
-    m0z = k11 * n0z + k21 * n1z + k31 * n2z
-    m1x, m1y, m1z = k22 * n1x, k22 * n1y, k22 * n1z
-    m2x, m2y, m2z = k33 * n2x, k33 * n2y, k33 * n2z
-    out[MM + 0], out[MM + 1], out[MM + 2] = m0x, m0y, m0z
-    out[MM + 3], out[MM + 4], out[MM + 5] = m1x, m1y, m1z
-    out[MM + 6], out[MM + 7], out[MM + 8] = m2x, m2y, m2z
-    # tau_ext = max_j max_{f in F} |m_j . f|,  F = {mg[0, cos a, sin a]} + a_g m g B^3:
-    # the ball adds a_g m g |m_j| and the gravity circle m g sqrt(m_jy^2 + m_jz^2).
-    t0 = mass_g * (math.sqrt(m0y * m0y + m0z * m0z)
-                   + accel_g * math.sqrt(m0x * m0x + m0y * m0y + m0z * m0z))
-    t1 = mass_g * (math.sqrt(m1y * m1y + m1z * m1z)
-                   + accel_g * math.sqrt(m1x * m1x + m1y * m1y + m1z * m1z))
-    t2 = mass_g * (math.sqrt(m2y * m2y + m2z * m2z)
-                   + accel_g * math.sqrt(m2x * m2x + m2y * m2y + m2z * m2z))
-    out[TAU_EXT] = max(t0, max(t1, t2))
+    _torque_map(out, det_jp, det_jr, c0x, c0y, c0z, c1x, c1y, c1z, c2x, c2y, c2z,
+                k11, k21, k22, k31, k33, mass_g, accel_g)
 
 
 def _full_batch(points, geo, mode, mass_g, accel_g):

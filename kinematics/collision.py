@@ -32,7 +32,8 @@ import numpy as np
 from sixplus3.errors import GeometryError
 from sixplus3.kinematics import _geometry_kernel
 from sixplus3.kinematics.robot import home
-from sixplus3.robot_description.robot import NUM_LEGS, Robot
+from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot_geometry import NUM_LEGS
 
 if TYPE_CHECKING:
     from sixplus3.kinematics.robot import RobotConfig

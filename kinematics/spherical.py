@@ -12,7 +12,8 @@ import numpy as np
 
 from sixplus3.cache import cached
 from sixplus3.kinematics.robot import RobotConfig, axis_rotations, home, q_layout
-from sixplus3.robot_description.robot import NUM_LEGS, Robot
+from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot_geometry import NUM_LEGS
 
 
 def spherical_reference(robot: Robot) -> np.ndarray:

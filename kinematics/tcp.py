@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sixplus3.kinematics.robot import RobotConfig, ik_jacobian
+from sixplus3.kinematics.robot import RobotConfig
+from sixplus3.kinematics.robot_fk import ik_jacobian
 
 
 def tcp_velocity(cfg: RobotConfig, theta_dot: np.ndarray) -> np.ndarray:

@@ -54,8 +54,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sixplus3.errors import ConvergenceError, GeometryError, InputError, TaskError
-from sixplus3.fileio import read_yaml, short_repr
-from sixplus3.kinematics.robot import robot_fk
+from sixplus3.fileio import first_non_finite, read_yaml, short_repr
+from sixplus3.kinematics.robot_fk import robot_fk
 from sixplus3.planner.waypoint import Waypoint
 from sixplus3.robot_description.body_regions import all_names, regions
 from sixplus3.robot_description.hardware import PEOPLE_LIMITS, effective_limits, people_limits
@@ -288,26 +288,9 @@ def _path(error: jsonschema.ValidationError) -> str:
     return out or "(top level)"
 
 
-def _first_non_finite(doc: object, where: str = "") -> str | None:
-    """Path of the first NaN or infinite number in a loaded document, or None."""
-    if isinstance(doc, float) and not math.isfinite(doc):
-        return where or "(top level)"
-    if isinstance(doc, dict):
-        for k, v in doc.items():
-            hit = _first_non_finite(v, f"{where}.{k}" if where else str(k))
-            if hit:
-                return hit
-    if isinstance(doc, list):
-        for i, v in enumerate(doc):
-            hit = _first_non_finite(v, f"{where}[{i}]")
-            if hit:
-                return hit
-    return None
-
-
 def task_from_dict(doc: object, name: str = "task") -> Task:
     """Validate a task document (as loaded from YAML) and build the :class:`Task`."""
-    bad = _first_non_finite(doc)
+    bad = first_non_finite(doc)
     if bad:
         raise TaskError(f"task field {bad}: NaN or infinite; every number must be finite",
                         value=float("nan"), valid="finite numbers")

@@ -23,7 +23,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from sixplus3.dynamics.symbolic import rotvec_matrix
+from sixplus3.dynamics.symbolic_ik import rotvec_matrix
 
 
 @functools.lru_cache(maxsize=8)

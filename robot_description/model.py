@@ -22,7 +22,8 @@ import pinocchio as pin
 from sixplus3.cache import cached
 from sixplus3.errors import InputError
 from sixplus3.fileio import read_yaml
-from sixplus3.robot_description.robot import NUM_LEGS, Robot, require_robot
+from sixplus3.robot_description.robot import Robot, require_robot
+from sixplus3.robot_description.robot_geometry import NUM_LEGS
 from sixplus3.robot_description.urdf import actuated_joint_names, closure_pairs, robot_urdf
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED

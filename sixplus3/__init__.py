@@ -29,30 +29,30 @@ __version__ = "0.1.0"
 #: public name -> module that defines it
 _API = {
     "Robot": "sixplus3.robot_description.robot",
-    "RobotGeometry": "sixplus3.robot_description.robot",
-    "MassModel": "sixplus3.robot_description.robot",
+    "RobotGeometry": "sixplus3.robot_description.robot_geometry",
+    "MassModel": "sixplus3.robot_description.masses",
     "LegGeometry": "sixplus3.robot_description.geometry",
     "Limits": "sixplus3.robot_description.limits",
     "AssemblyMode": "sixplus3.robot_description.assembly",
     "load_robot": "sixplus3.robot_description.robot",
     "robot_ik": "sixplus3.kinematics.robot",
     "robot_ik_pose": "sixplus3.kinematics.robot",
-    "robot_fk": "sixplus3.kinematics.robot",
+    "robot_fk": "sixplus3.kinematics.robot_fk",
     "home": "sixplus3.kinematics.robot",
     "leg_ik": "sixplus3.kinematics.leg",
     "ClosedLoopDynamics": "sixplus3.dynamics.closed_loop",
     "Task": "sixplus3.planner.task",
     "load_task": "sixplus3.planner.task",
     "task_from_dict": "sixplus3.planner.task",
-    "Problem": "sixplus3.planner.ocp",
-    "PlannerOptions": "sixplus3.planner.ocp",
-    "Solution": "sixplus3.planner.ocp",
+    "Problem": "sixplus3.planner.problem",
+    "PlannerOptions": "sixplus3.planner.options",
+    "Solution": "sixplus3.planner.solution",
     "plan": "sixplus3.planner.ocp",
     "smooth": "sixplus3.control.drive.smoothing",
-    "ValidationReport": "sixplus3.control.gate.validation",
+    "ValidationReport": "sixplus3.control.report",
     "validate_joint_trajectory": "sixplus3.control.gate.validation",
     "validate_file": "sixplus3.control.gate.validation",
-    "read_trajectory": "sixplus3.control.file.trajectory_file",
+    "read_trajectory": "sixplus3.control.file.trajectory_read",
     "write_trajectory": "sixplus3.control.file.trajectory_file",
     "run_plan": "sixplus3.control.pipeline",
     "Sixplus3Error": "sixplus3.errors",
@@ -79,14 +79,16 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from sixplus3.control.drive.smoothing import smooth
-    from sixplus3.control.file.trajectory_file import read_trajectory, write_trajectory
+    from sixplus3.control.file.trajectory_file import write_trajectory
+    from sixplus3.control.file.trajectory_read import read_trajectory
     from sixplus3.control.gate.validation import validate_file, validate_joint_trajectory
     from sixplus3.control.pipeline import run_plan
     from sixplus3.control.report import ValidationReport
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.errors import Sixplus3Error
     from sixplus3.kinematics.leg import leg_ik
-    from sixplus3.kinematics.robot import home, robot_fk, robot_ik, robot_ik_pose
+    from sixplus3.kinematics.robot import home, robot_ik, robot_ik_pose
+    from sixplus3.kinematics.robot_fk import robot_fk
     from sixplus3.planner.ocp import plan
     from sixplus3.planner.options import PlannerOptions
     from sixplus3.planner.problem import Problem
@@ -96,4 +98,5 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from sixplus3.robot_description.geometry import LegGeometry
     from sixplus3.robot_description.limits import Limits
     from sixplus3.robot_description.masses import MassModel
-    from sixplus3.robot_description.robot import Robot, RobotGeometry, load_robot
+    from sixplus3.robot_description.robot import Robot, load_robot
+    from sixplus3.robot_description.robot_geometry import RobotGeometry

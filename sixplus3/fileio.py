@@ -268,6 +268,23 @@ def _fsync_dir(directory: Path) -> None:
         os.close(dfd)
 
 
+def first_non_finite(doc: object, where: str = "") -> str | None:
+    """Path of the first NaN or infinite number in a loaded document, or None."""
+    if isinstance(doc, float) and not math.isfinite(doc):
+        return where or "(top level)"
+    if isinstance(doc, dict):
+        for k, v in doc.items():
+            hit = first_non_finite(v, f"{where}.{k}" if where else str(k))
+            if hit:
+                return hit
+    if isinstance(doc, list):
+        for i, v in enumerate(doc):
+            hit = first_non_finite(v, f"{where}[{i}]")
+            if hit:
+                return hit
+    return None
+
+
 def finite_or_none(obj: Any) -> Any:
     """``obj`` with every NaN or infinite float (numpy's too) replaced by ``None``: JSON
     has no NaN, and strict parsers (JavaScript's ``JSON.parse``) refuse the bare ``NaN``

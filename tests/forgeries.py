@@ -11,7 +11,8 @@ from sixplus3.control.file.file_format import COLUMNS, JOINTS
 from sixplus3.control.file.trajectory_file import encode
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.kinematics import rotations as rot
-from sixplus3.kinematics.robot import home, robot_fk_batch
+from sixplus3.kinematics.robot import home
+from sixplus3.kinematics.robot_fk import robot_fk_batch
 from sixplus3.robot_description.robot import Robot
 
 ROBOT = Robot.default()

@@ -13,6 +13,7 @@ pytest.importorskip("dask.distributed")
 
 from sixplus3.cli import main  # noqa: E402
 from sixplus3.design import atlas as at  # noqa: E402
+from sixplus3.design import atlas_checks as ac
 from sixplus3.design import atlas_data as ad
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics  # noqa: E402
 from sixplus3.kinematics.collision import clearance  # noqa: E402
@@ -240,7 +241,7 @@ def test_atlas_holding_torque_is_pinocchios(payload, gravity) -> None:
     cfg = robot_ik(pos, R, psi, robot)
     ok = cfg.ok & (cfg.margins.minimum > 0.02)  # away from singular states
     assert ok.sum() > 30
-    chk = at._Checker(robot, 7.5)
+    chk = ac.PoseChecker(robot, 7.5)
     x = np.c_[pos, rotvec_from_matrix(R), psi][ok].T
     tau = np.asarray(chk.hold.map(x.shape[1])(x, chk.setup)).T  # signed
     ref = ClosedLoopDynamics(robot).holding_torques_batch(cfg.q[ok])
@@ -255,7 +256,7 @@ def test_acceleration_criterion_is_pinocchios_inverse_dynamics() -> None:
     acceleration_function, CasADi) against Pinocchio's closed-loop inverse dynamics with
     the actuated accelerations of that platform acceleration (ik_jacobian), motors'
     rotor inertia included; and the worst direction |tau_0| + |a| |A_j| reached."""
-    from sixplus3.kinematics.robot import ik_jacobian
+    from sixplus3.kinematics.robot_fk import ik_jacobian
     from sixplus3.robot_description.physical import Payload
 
     robot = Robot(payload=Payload(mass=0.8, com=(0.0, 0.01, 0.04)))
@@ -267,7 +268,7 @@ def test_acceleration_criterion_is_pinocchios_inverse_dynamics() -> None:
     cfg = robot_ik(pos, R, psi, robot)
     ok = cfg.ok & (cfg.margins.minimum > 0.05)
     assert ok.sum() > 30
-    chk = at._Checker(robot, 7.5, accel_g=1.0)
+    chk = ac.PoseChecker(robot, 7.5, accel_g=1.0)
     x = np.c_[pos, rotvec_from_matrix(R), psi][ok].T
     tau0, A = chk.hold.map(x.shape[1])(x, chk.setup)
     tau0 = np.asarray(tau0).T
@@ -293,7 +294,7 @@ def test_free_candidates_are_the_leg_grid_then_pose_checks() -> None:
     from sixplus3.design import _atlas_kernel as kern
 
     pos, R, _ = _random_poses(1500, 4)
-    chk = at._Checker(ROBOT, 7.5)
+    chk = ac.PoseChecker(ROBOT, 7.5)
     grid, packed = chk.psi_grid, chk.packed
     idx, stage, margin, leg_best = kern.free_candidates(pos, R, grid, chk.platform_grid,
                                                         *packed)

@@ -10,7 +10,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from sixplus3.dynamics import codegen
+from sixplus3.dynamics import codegen, compiler
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.robot_description.robot import Robot
 
@@ -24,12 +24,12 @@ def source() -> str:
 
 
 def _build_with(flags, source: str, directory) -> str:
-    return str(codegen.compile_library(directory, "margins", source, flags))
+    return str(compiler.compile_library(directory, "margins", source, flags))
 
 
 def test_quick_and_optimised_builds_agree_bit_for_bit(source, tmp_path) -> None:
-    quick = ca.external("margins", _build_with(codegen.QUICK_CFLAGS, source, tmp_path))
-    full = ca.external("margins", _build_with(codegen.CFLAGS, source, tmp_path))
+    quick = ca.external("margins", _build_with(compiler.QUICK_CFLAGS, source, tmp_path))
+    full = ca.external("margins", _build_with(compiler.CFLAGS, source, tmp_path))
     fq, ff = quick.jacobian(), full.jacobian()
     rng = np.random.default_rng(7)
     for _ in range(20):
@@ -43,30 +43,31 @@ def test_quick_and_optimised_builds_agree_bit_for_bit(source, tmp_path) -> None:
 
 
 def test_first_build_is_quick_and_the_optimised_one_follows(source, tmp_path) -> None:
-    quick = codegen._lib_path(tmp_path, "margins", source, codegen.QUICK_CFLAGS)
-    full = codegen._lib_path(tmp_path, "margins", source, codegen.CFLAGS)
-    libs = codegen._build({"margins": source}, tmp_path)
+    quick = compiler.lib_path(tmp_path, "margins", source, compiler.QUICK_CFLAGS)
+    full = compiler.lib_path(tmp_path, "margins", source, compiler.CFLAGS)
+    libs = compiler.build_libraries({"margins": source}, tmp_path)
     assert libs == {"margins": quick}  # returned at once: the quick build
     deadline = time.monotonic() + 300
-    while (not full.exists() or codegen._building(full)) and time.monotonic() < deadline:
+    while (not full.exists() or compiler.building(full)) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert full.exists(), "the background build never finished"
     # the background build cleaned up: no marker, source, partial or quick library left
     assert sorted(p.name for p in tmp_path.iterdir()) == [full.name]
     # the next process gets the optimised library, with nothing to compile
-    assert codegen._build({"margins": source}, tmp_path) == {"margins": full}
+    assert compiler.build_libraries({"margins": source}, tmp_path) == {"margins": full}
 
 
 def test_optimised_on_demand_and_stale_markers(source, tmp_path) -> None:
-    full = codegen._lib_path(tmp_path, "margins", source, codegen.CFLAGS)
+    full = compiler.lib_path(tmp_path, "margins", source, compiler.CFLAGS)
     mark = full.with_suffix(".building")
     mark.write_text("started long ago\n")
-    assert codegen._building(full)
-    old = time.time() - codegen.BACKGROUND_STALE_S - 10
+    assert compiler.building(full)
+    old = time.time() - compiler.BACKGROUND_STALE_S - 10
     os.utime(mark, (old, old))
-    assert not codegen._building(full)  # a dead build's marker does not block
+    assert not compiler.building(full)  # a dead build's marker does not block
     # optimised=True: compiled here (the stale marker is ignored), nothing quick
-    assert codegen._build({"margins": source}, tmp_path, optimised=True) == {"margins": full}
+    built = compiler.build_libraries({"margins": source}, tmp_path, optimised=True)
+    assert built == {"margins": full}
     assert full.exists()
     assert not any(p.name.endswith((".c", ".part")) for p in tmp_path.iterdir())
 
@@ -82,8 +83,8 @@ def test_the_loaded_build_is_reported(monkeypatch) -> None:
     loaded = codegen.loaded_libraries(robot)
     sr = symbolic_robot(robot)
     assert set(loaded) == set(codegen.COMPILED)
-    full = {name: codegen._lib_path(path.parent, name, codegen._source(getattr(sr, f"{name}_p")),
-                                    codegen.CFLAGS) for name, path in loaded.items()}
+    full = {name: compiler.lib_path(path.parent, name, codegen._source(getattr(sr, f"{name}_p")),
+                                    compiler.CFLAGS) for name, path in loaded.items()}
     assert (kind == "optimised") == all(loaded[n] == full[n] for n in loaded)
     assert all(p.name.startswith(f"sixplus3_{n}_") and p.exists() for n, p in loaded.items())
     monkeypatch.setenv("SIXPLUS3_NO_CODEGEN", "1")
@@ -95,15 +96,15 @@ def test_a_killed_background_build_is_seen_as_dead_and_cleaned_up(source, tmp_pa
     names a dead process, and the next build removes what it left and starts again."""
     import subprocess
 
-    full = codegen._lib_path(tmp_path, "margins", source, codegen.CFLAGS)
+    full = compiler.lib_path(tmp_path, "margins", source, compiler.CFLAGS)
     dead = subprocess.Popen(["true"])
     dead.wait()
     full.with_suffix(".building").write_text(f"{dead.pid}\n")
     left = tmp_path / f"{full.stem}_bg_abc.c"
     left.write_text("half a source")
-    assert not codegen._building(full)
-    quick = codegen._lib_path(tmp_path, "margins", source, codegen.QUICK_CFLAGS)
-    assert codegen._build({"margins": source}, tmp_path) == {"margins": quick}
+    assert not compiler.building(full)
+    quick = compiler.lib_path(tmp_path, "margins", source, compiler.QUICK_CFLAGS)
+    assert compiler.build_libraries({"margins": source}, tmp_path) == {"margins": quick}
     assert not left.exists()
     deadline = time.monotonic() + 300
     while not full.exists() and time.monotonic() < deadline:
@@ -153,28 +154,28 @@ def test_the_background_build_is_bounded_in_memory_and_alone(tmp_path, monkeypat
     at once took 5 GB each.  A background build starts only with enough memory
     available, under an address-space cap, and never beside another one."""
     started: list[dict] = []
-    real_available = codegen.memory_available
+    real_available = compiler.memory_available
 
     def fake_run(args, env=None, **kw):
         started.append(env or {})
 
-    monkeypatch.setattr(codegen.subprocess, "run", fake_run)
+    monkeypatch.setattr(compiler.subprocess, "run", fake_run)
     lib, quick = tmp_path / "sixplus3_node_a.so", tmp_path / "sixplus3_node_a_q.so"
-    monkeypatch.setattr(codegen, "memory_available", lambda need: False)
-    codegen._start_background("gcc", "int x;", lib, quick)
+    monkeypatch.setattr(compiler, "memory_available", lambda need: False)
+    compiler.start_background("gcc", "int x;", lib, quick)
     assert started == [] and not lib.with_suffix(".building").exists()
-    monkeypatch.setattr(codegen, "memory_available", lambda need: True)
+    monkeypatch.setattr(compiler, "memory_available", lambda need: True)
     other = tmp_path / "sixplus3_node_b.building"  # another structure's build, alive
     other.write_text(str(os.getpid()))
-    codegen._start_background("gcc", "int x;", lib, quick)
+    compiler.start_background("gcc", "int x;", lib, quick)
     assert started == []
     other.unlink()
-    codegen._start_background("gcc", "int x;", lib, quick)
+    compiler.start_background("gcc", "int x;", lib, quick)
     assert len(started) == 1
-    assert int(started[0]["CAP_KB"]) * 1024 == codegen.BACKGROUND_MAX_BYTES
+    assert int(started[0]["CAP_KB"]) * 1024 == compiler.BACKGROUND_MAX_BYTES
     assert "ulimit -v" in started[0]["BUILDER"]
     monkeypatch.setenv("SIXPLUS3_BUILD_MEMORY_GB", "6")
-    assert codegen.background_memory_cap() == 6 * 2 ** 30
+    assert compiler.background_memory_cap() == 6 * 2 ** 30
     monkeypatch.setenv("SIXPLUS3_BUILD_MEMORY_GB", "nonsense")
-    assert codegen.background_memory_cap() == codegen.BACKGROUND_MAX_BYTES
+    assert compiler.background_memory_cap() == compiler.BACKGROUND_MAX_BYTES
     assert real_available(1) and not real_available(2 ** 60)

@@ -123,7 +123,7 @@ def test_read_back_counts_give_the_start_state(tmp_path) -> None:
                            str(tmp_path), "--no-html", "--quiet"])
     assert res.exit_code == 0, res.output
     path = tmp_path / "tilt30_x.csv"
-    from sixplus3.control.file.trajectory_file import read_trajectory
+    from sixplus3.control.file.trajectory_read import read_trajectory
 
     first = read_trajectory(path, robot).joints("pos")[0]
     counts, _, _ = to_drive_units(robot, first[None], None, np.zeros((1, 9)))

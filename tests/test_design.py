@@ -16,7 +16,8 @@ from sixplus3.design.search import PAPER_DESIGN, Reading, design_grid, evaluate,
 from sixplus3.design.workspace import counted, halfplane_grid, usable_area
 from sixplus3.kinematics.leg import leg_eval, leg_ik
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
-from sixplus3.robot_description.robot import Robot, RobotGeometry
+from sixplus3.robot_description.robot import Robot
+from sixplus3.robot_description.robot_geometry import RobotGeometry
 
 SPEC = Reading()
 

@@ -8,7 +8,8 @@ import pytest
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError, SingularityError
 from sixplus3.kinematics.leg import leg_ik
-from sixplus3.kinematics.robot import home, robot_fk, robot_ik_pose
+from sixplus3.kinematics.robot import home, robot_ik_pose
+from sixplus3.kinematics.robot_fk import robot_fk
 from sixplus3.robot_description.masses import POINT_MASS
 from sixplus3.robot_description.physical import MotorModel
 from sixplus3.robot_description.robot import Robot

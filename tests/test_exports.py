@@ -13,7 +13,7 @@ from click.testing import CliRunner
 
 from sixplus3.cli import main
 from sixplus3.control.file.file_format import columns
-from sixplus3.control.file.trajectory_file import read_trajectory
+from sixplus3.control.file.trajectory_read import read_trajectory
 from sixplus3.control.formats.exports import drive_table, export_file
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import GeometryError, InputError, TrajectoryFileError

@@ -565,7 +565,8 @@ def test_errors_carry_the_value_and_the_valid_range(valid, tmp_path) -> None:
     """Every error raised on purpose says what was wrong and what is allowed, as
     attributes (the CLI prints the message; a program reads these)."""
     from sixplus3.errors import Sixplus3Error
-    from sixplus3.kinematics.robot import robot_fk, robot_ik_pose
+    from sixplus3.kinematics.robot import robot_ik_pose
+    from sixplus3.kinematics.robot_fk import robot_fk
 
     _, raw, header, data = valid
     bad_file = tmp_path / "x.csv"

@@ -38,7 +38,7 @@ from sixplus3.control.gate.motion_input import RATE_RANGE
 from sixplus3.control.gate.validation import validate_bytes, validate_motion
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import InputError, Sixplus3Error, TrajectoryFileError, ValidationFailed
-from sixplus3.kinematics.robot import robot_fk_batch
+from sixplus3.kinematics.robot_fk import robot_fk_batch
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -616,7 +616,7 @@ def _no_contact_by_sampling(path, robot, name: str) -> None:
     minimum minus half the sampling pitch is a lower bound of the true clearance."""
     from scipy.spatial.transform import Rotation
 
-    from sixplus3.control.file.trajectory_file import read_trajectory
+    from sixplus3.control.file.trajectory_read import read_trajectory
     from sixplus3.kinematics import collision
     from sixplus3.kinematics.robot import robot_ik
 
@@ -691,7 +691,7 @@ def _export_at_the_lowest_rate_is_within_the_limit(path: Path, robot: Robot,
 
     from sixplus3.control.formats.exports import export_file
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-    from sixplus3.kinematics.robot import robot_fk
+    from sixplus3.kinematics.robot_fk import robot_fk
 
     rate = 10.0
     try:

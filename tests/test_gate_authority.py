@@ -13,7 +13,7 @@ import yaml
 from click.testing import CliRunner
 
 from sixplus3.cli import main as cli
-from sixplus3.control.file.trajectory_file import read_trajectory
+from sixplus3.control.file.trajectory_read import read_trajectory
 from sixplus3.control.gate.validation import validate_and_write, validate_file
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import GeometryError, InputError, TaskError

@@ -11,11 +11,12 @@ from click.testing import CliRunner
 
 from sixplus3.cli import main
 from sixplus3.control.file.file_format import columns
-from sixplus3.control.file.trajectory_file import read_trajectory
+from sixplus3.control.file.trajectory_read import read_trajectory
 from sixplus3.control.gate.validation import validate_file
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import InfeasibleTaskError, TaskError
-from sixplus3.kinematics.robot import robot_fk, robot_ik
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.kinematics.robot_fk import robot_fk
 from sixplus3.kinematics.rotations import matrix_from_quat
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.task import move_to_start, task_from_dict

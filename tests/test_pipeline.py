@@ -16,7 +16,8 @@ from click.testing import CliRunner
 from sixplus3.cli import main
 from sixplus3.control.drive.smoothing import smooth
 from sixplus3.control.file.file_format import COLUMNS, columns
-from sixplus3.control.file.trajectory_file import read_trajectory, write_trajectory
+from sixplus3.control.file.trajectory_file import write_trajectory
+from sixplus3.control.file.trajectory_read import read_trajectory
 from sixplus3.control.gate.validation import validate_joint_trajectory
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import TrajectoryFileError

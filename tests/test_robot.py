@@ -16,13 +16,15 @@ from click.testing import CliRunner
 from scipy.spatial.transform import Rotation
 
 from sixplus3.cli import main as cli
-from sixplus3.control.file.trajectory_file import read_trajectory, write_trajectory
+from sixplus3.control.file.trajectory_file import write_trajectory
+from sixplus3.control.file.trajectory_read import read_trajectory
 from sixplus3.control.gate.validation import validate_file, validate_joint_trajectory
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import GeometryError, LimitError, TrajectoryFileError
 from sixplus3.kinematics.leg import leg_ik
-from sixplus3.kinematics.robot import home, robot_fk, robot_ik
+from sixplus3.kinematics.robot import home, robot_ik
+from sixplus3.kinematics.robot_fk import robot_fk
 from sixplus3.robot_description import Limits, MassModel, Robot
 from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.urdf import robot_urdf
@@ -85,7 +87,8 @@ def test_every_cache_is_keyed_by_the_robot() -> None:
     assert symbolic_robot(OTHER) is not symbolic_robot(DEFAULT)
     assert robot_urdf(OTHER) != robot_urdf(DEFAULT)
     # the committed URDF is the default robot's
-    from sixplus3.robot_description.urdf import URDF_PATH, same_text
+    from sixplus3.robot_description.generated import same_text
+    from sixplus3.robot_description.urdf import URDF_PATH
 
     assert same_text(URDF_PATH.read_text(), robot_urdf(DEFAULT))
 

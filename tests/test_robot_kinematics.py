@@ -11,7 +11,8 @@ from scipy.spatial.transform import Rotation
 
 from sixplus3.errors import ConvergenceError, InputError, UnreachableError
 from sixplus3.kinematics.leg import leg_ik
-from sixplus3.kinematics.robot import home, robot_fk, robot_ik, robot_ik_pose
+from sixplus3.kinematics.robot import home, robot_ik, robot_ik_pose
+from sixplus3.kinematics.robot_fk import robot_fk
 from sixplus3.kinematics.spherical import spherical_tilts
 from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import Robot

@@ -172,7 +172,7 @@ def test_a_pfl_plan_holds_the_limit_and_says_so(plans) -> None:
 
 
 def test_the_gate_refuses_a_file_that_names_a_set_and_breaks_it(plans, tmp_path) -> None:
-    from sixplus3.control.file.trajectory_file import read_trajectory
+    from sixplus3.control.file.trajectory_read import read_trajectory
     from sixplus3.control.gate.validation import validate_and_write
     from sixplus3.errors import ValidationFailed
     from sixplus3.kinematics.rotations import rotvec_from_quat
@@ -295,7 +295,8 @@ def test_under_a_tool_the_rows_and_the_gate_hold_the_centre_too(tmp_path) -> Non
     limit, the gate's the larger of the two."""
     from sixplus3.control.file.file_format import columns
     from sixplus3.control.pipeline import run_plan
-    from sixplus3.kinematics.robot import ik_jacobian, robot_ik
+    from sixplus3.kinematics.robot import robot_ik
+    from sixplus3.kinematics.robot_fk import ik_jacobian
     from sixplus3.kinematics.rotations import matrix_from_quat
     from sixplus3.planner.pfl import pfl_points
     from sixplus3.planner.task import task_from_dict

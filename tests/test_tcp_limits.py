@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from sixplus3.control.file.trajectory_file import read_trajectory
+from sixplus3.control.file.trajectory_read import read_trajectory
 from sixplus3.control.gate.validation import validate_file, validate_motion
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import LimitError

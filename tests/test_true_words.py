@@ -69,7 +69,7 @@ def test_design_figures_say_they_are_not_the_robot_in_use(tmp_path) -> None:
 
 
 def test_the_torque_rate_is_labelled_reported_not_a_gate_limit(tmp_path) -> None:
-    from sixplus3.control.file.trajectory_file import read_trajectory
+    from sixplus3.control.file.trajectory_read import read_trajectory
 
     res = _run("plan", "tilt30_x", "-o", str(tmp_path), "--no-html", "--quiet")
     assert res.exit_code == 0, res.output

@@ -24,12 +24,14 @@ from pathlib import Path
 import numpy as np
 
 from sixplus3.control.file.file_format import JOINTS, columns
-from sixplus3.control.file.trajectory_file import check_samples, read_bytes
+from sixplus3.control.file.trajectory_file import check_samples
+from sixplus3.control.file.trajectory_read import read_bytes
 from sixplus3.control.gate.interval import check_torque_hold, held_torque, resample
 from sixplus3.control.gate.validation import validate_bytes, validate_motion
 from sixplus3.control.report import ValidationReport
 from sixplus3.errors import InputError, ValidationFailed
-from sixplus3.kinematics.robot import home, robot_fk_batch
+from sixplus3.kinematics.robot import home
+from sixplus3.kinematics.robot_fk import robot_fk_batch
 from sixplus3.kinematics.rotations import rotvec_from_quat
 from sixplus3.robot_description.robot import Robot
 

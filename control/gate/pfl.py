@@ -20,7 +20,8 @@ from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.effective_mass import pfl_ratio, point_inverse_mass, point_map
 from sixplus3.errors import InputError
 from sixplus3.kinematics import rotations as rot
-from sixplus3.kinematics.robot import RobotConfig, ik_jacobian, robot_ik
+from sixplus3.kinematics.robot import RobotConfig, robot_ik
+from sixplus3.kinematics.robot_fk import ik_jacobian
 from sixplus3.robot_description import hardware
 from sixplus3.robot_description.body_regions import BodyRegion, names_of, regions
 from sixplus3.robot_description.robot import Robot

@@ -23,54 +23,26 @@ first and of the worst violation.
 
 from __future__ import annotations
 
-import math
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sixplus3.control.file.file_format import columns
-from sixplus3.control.file.trajectory_file import (
-    check_robot,
-    read_bytes,
-    samples_fingerprint,
-    write_trajectory,
-)
+from sixplus3.control.file.trajectory_file import samples_fingerprint, write_trajectory
 from sixplus3.control.file.trajectory_parse import parse
-from sixplus3.control.gate import interval
-from sixplus3.control.gate.findings import (
-    BRANCH_TOL,
-    Tolerances,
-    consistency_findings,
-    failed,
-    feedforward_findings,
-    finding,
-    grid_finding,
-    interval_findings,
-    limit_findings,
-    platform_findings,
-    rest_findings,
-    tcp_findings,
-)
-from sixplus3.control.gate.interval import hermite_midpoints
+from sixplus3.control.file.trajectory_read import check_robot, read_bytes
 from sixplus3.control.gate.motion_input import (  # noqa: E402
     RATE_RANGE,
     check_motion_arrays,
 )
-from sixplus3.control.gate.offload import OFFLOAD_SHARE, Offload
 from sixplus3.control.gate.pfl import judged_regions, pfl_check
 from sixplus3.control.gate.stop import HEADER_KEY as STOP_KEY
 from sixplus3.control.gate.stop import header_entry, stop_check, stop_table
-from sixplus3.control.report import Finding, ValidationReport
+from sixplus3.control.gate.window import merge_windows, validate_window
+from sixplus3.control.report import ValidationReport
 from sixplus3.errors import InputError, LimitError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
-from sixplus3.kinematics.checks import (
-    range_excess,
-)
-from sixplus3.kinematics.collision import clearance
-from sixplus3.kinematics.robot import robot_fk_batch
-from sixplus3.kinematics.spherical import spherical_tilts
 from sixplus3.robot_description.body_regions import BodyRegion, names_of
 from sixplus3.robot_description.hardware import judged_limits
 from sixplus3.robot_description.limits import Limits
@@ -79,8 +51,6 @@ from sixplus3.robot_description.robot import Robot, require_robot
 #: Samples checked at once: a longer motion is checked in windows of this many samples
 #: (sharing their end samples), so the checks' memory does not grow with its length.
 WINDOW = 8192
-#: Longest motion accepted [s].
-MAX_DURATION = 3600.0
 
 
 def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
@@ -138,202 +108,24 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
         raise InputError("x_guess (n, 9) is needed to seed the forward kinematics",
                          value=None, valid=f"({n}, 9)")
     if n <= WINDOW:
-        rep = _validate_window(t, th, v, a, robot, rate, xg, lim, pf, tf_, midpoints,
+        rep = validate_window(t, th, v, a, robot, rate, xg, lim, pf, tf_, midpoints,
                                rate_range=rate_range)
     else:
         reps = []
         for i0 in range(0, n - 1, WINDOW - 1):
             sl = slice(i0, min(n, i0 + WINDOW))
-            reps.append(_validate_window(
+            reps.append(validate_window(
                 t[sl], th[sl], v[sl], a[sl], robot, rate, xg[sl], lim,
                 None if pf is None else pf[sl], None if tf_ is None else tf_[sl],
                 midpoints, k0=i0, rest=(i0 == 0, sl.stop == n), n_total=n,
                 rate_range=rate_range))
             if reps[-1].tau is None:  # a window that could not be checked through
                 break
-        rep = _merge(reps, n)
+        rep = merge_windows(reps, n)
     rep.rate_hz = rate
     rep.fingerprint = samples_fingerprint(t, th, v, a, rate)
     rep.limits = lim.as_dict()
     return rep
-
-
-def _merge(reps: list[ValidationReport], n: int) -> ValidationReport:
-    """One report of consecutive windows that share their end samples."""
-    first = reps[0]
-    by_check: dict[str, Finding] = {}
-    for r in reps:
-        for f in r.findings:
-            old = by_check.get(f.check)
-            if old is None:
-                by_check[f.check] = f
-                continue
-            worst = f if f.excess > old.excess else old
-            by_check[f.check] = replace(
-                old, count=old.count + f.count, worst_t=worst.worst_t,
-                worst_where=worst.worst_where, worst_value=worst.worst_value,
-                excess=max(old.excess, f.excess))
-    complete = all(r.tau is not None for r in reps) and len(reps) > 0
-
-    def cat(name: str) -> np.ndarray | None:
-        if not complete:
-            return None
-        parts = [getattr(r, name) for r in reps]
-        return np.concatenate([parts[0]] + [p[1:] for p in parts[1:]])
-
-    ffs = [r.feedforward_error for r in reps if r.feedforward_error is not None]
-    rates = [r.max_torque_rate for r in reps if r.max_torque_rate is not None]
-    findings = list(by_check.values())
-    return ValidationReport(
-        ok=not findings and complete, samples=n, robot_hash=first.robot_hash,
-        max_torque_ratio=max(r.max_torque_ratio for r in reps),
-        max_velocity_ratio=max(r.max_velocity_ratio for r in reps),
-        max_acceleration_ratio=max(r.max_acceleration_ratio for r in reps),
-        max_jerk_ratio=max(r.max_jerk_ratio for r in reps),
-        min_margin_leg_type1=min(r.min_margin_leg_type1 for r in reps),
-        min_margin_leg_type2=min(r.min_margin_leg_type2 for r in reps),
-        min_margin_platform=min(r.min_margin_platform for r in reps),
-        min_clearance=min(r.min_clearance for r in reps),
-        max_spherical_tilt_deg=max(r.max_spherical_tilt_deg for r in reps),
-        theta_range_ok=all(r.theta_range_ok for r in reps), findings=findings,
-        tolerances=first.tolerances,
-        checked_points=sum(r.checked_points for r in reps) - (len(reps) - 1),
-        tau=cat("tau"), position=cat("position"), quaternion=cat("quaternion"),
-        psi=cat("psi"), feedforward_error=max(ffs) if ffs else None,
-        max_torque_rate=max(rates) if rates else None,
-        max_tcp_speed=max(r.max_tcp_speed for r in reps),
-        max_tcp_acceleration=max(r.max_tcp_acceleration for r in reps),
-        duration=reps[-1].duration,
-        max_interpolant_jerk_ratio=max(r.max_interpolant_jerk_ratio for r in reps))
-
-
-def _validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray,
-                     robot: Robot, rate: float, x_guess: np.ndarray, lim: Limits,
-                     platform: np.ndarray | None, tau_file: np.ndarray | None,
-                     midpoints: bool, k0: int = 0, rest: tuple[bool, bool] = (True, True),
-                     n_total: int | None = None,
-                     rate_range: tuple[float, float] = RATE_RANGE) -> ValidationReport:
-    """:func:`validate_motion` of samples k0 .. k0 + len(t) - 1 of a motion of
-    ``n_total`` samples; ``rest``: whether this window holds the start / the end."""
-    n = len(t)
-    f: Finding | None
-    # ------------------------------------------------------------ grid and rate
-    grid = grid_finding(t, th, v, a, rate, rate_range, k0, n_total, MAX_DURATION)
-    tol = Tolerances(1.0 / rate if math.isfinite(rate) and rate > 0 else math.nan, lim.jerk)
-    tol_d = tol.as_dict() if grid is None or grid.check != "rate" else {}
-    if grid is not None:
-        return failed(n, robot, [grid], tol_d)
-    dt = tol.dt
-    # ------------------------------------------------------------ rest, consistency
-    findings = rest_findings(t, v, a, rest)
-    jumps, jerk = consistency_findings(t, th, v, a, tol)
-    findings += jumps
-    t_int = t[:-1]
-    # ------------------------------------------------------------ forward kinematics
-    # a worker for the dynamics, forked now if this process may fork (control/gate/offload.py)
-    offload = Offload(robot, n + (n - 1 if midpoints else 0))
-    try:
-        x_guess = np.asarray(x_guess, dtype=float)
-        fk = robot_fk_batch(th, x_guess, robot)
-        if not fk.converged.all():
-            f = finding("forward kinematics (no pose reproduces the joints)", "defect", "rad",
-                         1e-10, fk.residual - 1e-10, fk.residual, t, ["platform"])
-            if f:
-                findings.append(f)
-            return failed(n, robot, findings, tol_d)
-        cfg = fk.cfg
-        offload.q[:n], offload.v[:n], offload.a[:n] = cfg.q, v, a
-        offload.submit(0, n)  # the samples' dynamics: in the worker if there is one
-        # ------------------------------------------------------------ between the samples
-        fkm = None
-        mid_finding = None
-        if midpoints:
-            pm, vm, am = hermite_midpoints(dt, th, v, a)
-            tm = t[:-1] + dt / 2
-            # seed: halfway between the neighbouring samples' poses (small steps)
-            fkm = robot_fk_batch(pm, 0.5 * (fk.x[:-1] + fk.x[1:]), robot)
-            if not fkm.converged.all():
-                mid_finding = finding("forward kinematics between samples", "limit", "rad",
-                                       1e-10, fkm.residual - 1e-10, fkm.residual, tm,
-                                       ["platform"])
-                fkm = None
-        cfg_points = [cfg] + ([fkm.cfg] if fkm is not None else [])
-        n_all = n + (len(tm) if fkm is not None else 0)
-        v_all, a_all, t_all = v, a, t
-        if fkm is not None:
-            v_all, a_all, t_all = np.r_[v, vm], np.r_[a, am], np.r_[t, tm]
-            offload.q[n:n_all] = fkm.cfg.q
-        offload.v[n:n_all], offload.a[n:n_all] = v_all[n:], a_all[n:]
-        # every point's dynamics: the samples' (sent after the first forward kinematics,
-        # above) and the next midpoints up to OFFLOAD_SHARE of all points in the worker,
-        # the rest here after the branch check, the spherical joints and the clearance
-        split = max(n, int(round(OFFLOAD_SHARE * n_all))) if offload.pid else n
-        offload.submit(n, split)
-        # a second seed, each sample from the previous sample's solution: the two agree
-        # unless the motion switches assembly branch (or the guesses were on another branch)
-        fk2 = robot_fk_batch(th, np.r_[fk.x[:1], fk.x[:-1]], robot, margins=False)
-        branch = np.abs(fk2.x - fk.x).max(axis=1)
-        branch = np.where(fk2.converged, branch, np.inf)
-        f = finding("forward-kinematics branch continuity", "defect", "", BRANCH_TOL,
-                     branch - BRANCH_TOL, branch, t, ["platform"])
-        if f:
-            findings.append(f)
-        quat = rot.quat_from_matrix(fk.rotation)
-        findings += platform_findings(t, cfg, quat, platform)
-        if mid_finding is not None:
-            findings.append(mid_finding)
-        sph = np.vstack([spherical_tilts(c).reshape(len(c), 9) for c in cfg_points])
-        clear = np.concatenate([clearance(c) for c in cfg_points])
-        # the interpolant's rates over whole intervals need no dynamics: done while the
-        # worker computes
-        extremes = interval.rate_extremes(dt, th, v, a)
-        # ------------------------------------------------------------ dynamics (Pinocchio)
-        offload.compute(split, n_all)
-        offload.wait()
-        tau_all, rcond_all = offload.tau[:n_all].copy(), offload.rcond[:n_all].copy()
-        tau = tau_all[:n]
-        checked = n_all
-        # ------------------------------------------------------------ whole intervals
-        between = interval_findings(lim, dt, th, v, a, t_int, tau_all, n,
-                                     offload.inertia[:n_all] if fkm is not None else None,
-                                     extremes)
-        findings += between.findings
-        ff_findings, ff_err = feedforward_findings(t, tau, tau_file)
-        findings += ff_findings
-        # ------------------------------------------------------------ limits everywhere
-        findings += limit_findings(lim, cfg_points, tau_all, v_all, a_all, t_all, rcond_all,
-                                    jerk, t_int, sph, clear)
-        tcp, tcp_v, tcp_a = tcp_findings(lim, t, cfg, v, t_all,
-                                         None if fkm is None else (fkm.cfg, vm))
-        findings += tcp
-        tilt = float(sph.max())
-        min_clear = float(clear.min())
-        th_all = np.vstack([c.theta for c in cfg_points])
-        theta_ok = bool(np.all(range_excess(th_all, lim) <= 0.0))
-        m1 = min(float(c.margins.leg_type1.min()) for c in cfg_points)
-        m2 = min(float(c.margins.leg_type2.min()) for c in cfg_points)
-        mp = min(float(c.margins.platform.min()) for c in cfg_points)
-        rep = ValidationReport(
-            ok=not findings, samples=n, robot_hash=robot.hash,
-            max_torque_ratio=max(float(np.nan_to_num(np.abs(tau_all), nan=np.inf).max()),
-                                 between.torque) / lim.torque,
-            max_velocity_ratio=max(float(np.abs(v_all).max()), between.velocity) / lim.velocity,
-            max_acceleration_ratio=max(float(np.abs(a_all).max()),
-                                       between.acceleration) / lim.acceleration,
-            max_jerk_ratio=float(jerk.max() / lim.jerk),
-            min_margin_leg_type1=m1, min_margin_leg_type2=m2, min_margin_platform=mp,
-            min_clearance=min_clear, max_spherical_tilt_deg=math.degrees(tilt),
-            theta_range_ok=theta_ok, findings=findings, tolerances=tol_d, checked_points=checked,
-            tau=tau, position=cfg.position.copy(), quaternion=quat, psi=cfg.psi.copy(),
-            feedforward_error=ff_err, duration=float(t[-1]),
-            max_interpolant_jerk_ratio=between.jerk / (interval.C_JERK * lim.jerk),
-            max_tcp_speed=float(np.nan_to_num(tcp_v, nan=np.inf).max()),
-            max_tcp_acceleration=float(np.nan_to_num(tcp_a, nan=np.inf).max()),
-            max_torque_rate=(float(np.nan_to_num(np.abs(np.diff(tau, axis=0)), nan=np.inf).max()
-                                   / np.diff(t).min()) if n > 1 else 0.0))
-        return rep
-    finally:
-        offload.close()
 
 
 def validate_joint_trajectory(theta: np.ndarray, theta_dot: np.ndarray,
@@ -451,5 +243,5 @@ def validate_file(path: str | Path, robot: Robot,
     return validate_bytes(read_bytes(path), robot, Path(path).name, limits)
 
 
-__all__ = ["MAX_DURATION", "WINDOW", "validate_and_write", "validate_bytes",
+__all__ = ["WINDOW", "validate_and_write", "validate_bytes",
            "validate_file", "validate_joint_trajectory", "validate_motion"]

@@ -239,7 +239,7 @@ def robot_export(fmt: str, out_file: str | None, contacts: bool, ros2_control: b
             from sixplus3.robot_description.ros2_control import with_ros2_control
 
             if start_file is not None:
-                from sixplus3.control.file.trajectory_file import read_trajectory
+                from sixplus3.control.file.trajectory_read import read_trajectory
 
                 initial = read_trajectory(start_file, robot).joints("pos")[0]
             else:

@@ -265,7 +265,7 @@ def play(csv_file: str, html_out: str | None, no_wait: bool, unsafe: bool,
     from dataclasses import replace
     from pathlib import Path
 
-    from sixplus3.control.file.trajectory_file import read_trajectory
+    from sixplus3.control.file.trajectory_read import read_trajectory
     from sixplus3.control.gate.validation import validate_file
     from sixplus3.visualization.meshcat_player import (
         animate,
