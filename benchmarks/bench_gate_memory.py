@@ -52,6 +52,7 @@ def main() -> None:
     if any(n < 2 or n > 1_100_000 for n in args.samples):
         ap.error("--samples must be in [2, 1100000]")
     from sixplus3.control.gate.validation import validate_and_write
+    from sixplus3.motion import Motion
     from sixplus3.robot_description.robot import Robot
 
     robot = Robot.default()
@@ -61,8 +62,8 @@ def main() -> None:
         for n in args.samples:
             t, th, thd, thdd, x = long_motion(robot, n, args.rate)
             t0 = time.perf_counter()
-            path, _ = validate_and_write(Path(tmp) / f"long{n}.csv", t, th, thd, thdd,
-                                         robot, args.rate, x)
+            motion = Motion(t, th, thd, thdd, args.rate)
+            path, _ = validate_and_write(Path(tmp) / f"long{n}.csv", motion, robot, x)
             wrote = time.perf_counter() - t0
             before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
             t0 = time.perf_counter()

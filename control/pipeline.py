@@ -85,7 +85,9 @@ def _smoothed(sol: Solution, rate: float, task: Task) -> Smoothed:
         if gap > 1e-9:
             raise TrajectoryFileError(f"the plan does not start at the given state: "
                                       f"{gap:.2e} rad away", value=gap, valid="<= 1e-9 rad")
-        sm.theta[0] = task.start_theta
+        theta = sm.theta.copy()
+        theta[0] = task.start_theta
+        sm = replace(sm, motion=sm.motion.with_theta(theta))
     return sm
 
 
@@ -99,11 +101,9 @@ def _beside(task: Task, sol: Solution, sm: Smoothed, rep: ValidationReport, robo
             plot_trajectory,  # deferred: matplotlib loads only when plots are asked for
         )
 
-        files = plot_trajectory(robot, out, sm.t, sm.theta, rep.tau, rep.position,
-                                rep.quaternion, rep.psi, robot.limits.torque,
-                                sol.limits.margin, stem, theta_dot=sm.theta_dot,
-                                theta_ddot=sm.theta_ddot, planned_torque=sol.limits.torque,
-                                limits=sol.limits)
+        files = plot_trajectory(robot, out, sm.motion, rep.tau,
+                                (rep.position, rep.quaternion, rep.psi), stem,
+                                limits=sol.limits, planned_torque=sol.limits.torque)
         say(f"  plots: {', '.join(Path(f).name for f in files)}")
     html_path = None
     if html:
@@ -183,8 +183,7 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
         meta["pfl"] = [r.name for r in regions]
     out.mkdir(parents=True, exist_ok=True)
     try:
-        _, rep = validate_and_write(csv_path, sm.t, sm.theta, sm.theta_dot, sm.theta_ddot,
-                                    robot, rate, sm.x_guess, sol.limits, meta)
+        _, rep = validate_and_write(csv_path, sm.motion, robot, sm.x_guess, sol.limits, meta)
     except ValidationFailed as exc:
         failed = exc.report if isinstance(exc.report, ValidationReport) else None
         found = failed.findings if failed is not None else []

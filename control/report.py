@@ -37,7 +37,7 @@ class Finding:
                 f"{self.count} failing")
 
 
-@dataclass
+@dataclass(frozen=True)
 class ValidationReport:
     ok: bool
     samples: int
@@ -71,7 +71,7 @@ class ValidationReport:
     #: the samples validated, exactly as read (validate_file): send these
     data: np.ndarray | None = field(default=None, repr=False)
     rate_hz: float | None = None  # the rate the samples were judged at [Hz]
-    #: trajectory_file.samples_fingerprint of (t, theta, theta_dot, theta_ddot, rate)
+    #: the judged motion's fingerprint (:attr:`sixplus3.motion.Motion.fingerprint`)
     fingerprint: str | None = field(default=None, repr=False)
     limits: dict[str, Any] | None = None  # the limits judged by (the robot's, or tighter)
     max_tcp_speed: float = 0.0  # [m/s] the tool centre point (samples and midpoints)

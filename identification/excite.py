@@ -32,6 +32,7 @@ from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InfeasibleTaskError, InputError, Sixplus3Error
 from sixplus3.identification.base import BaseParameters, base_parameters, stacked_regressor
 from sixplus3.identification.estimate import condition_number
+from sixplus3.motion import Motion
 from sixplus3.planner.ocp import plan
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
@@ -215,8 +216,9 @@ def excite(robot: Robot, out_dir: str | Path, st: ExcitationSettings | None = No
                            "base_parameters": base.rank, "settings": st.__dict__}}
     out.mkdir(parents=True, exist_ok=True)
     limits = task_from_dict(tours[order[0]].task).limits_for(robot)  # the plans' share
-    path, _ = validate_and_write(out / "excitation.csv", t, theta, np.vstack(v), np.vstack(a),
-                                 robot, rate, np.vstack(x), limits=limits, meta=meta)
+    path, _ = validate_and_write(out / "excitation.csv",
+                                 Motion(t, theta, np.vstack(v), np.vstack(a), rate), robot,
+                                 np.vstack(x), limits=limits, meta=meta)
     return Excitation(path=path, duration=float(t[-1]), condition=cond, log_det=ld,
                       tours=[tours[i].task for i in order], planned=len(tours),
                       refused=refused, per_tour=[condition_number(tr.Wb) for tr in tours])

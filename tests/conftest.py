@@ -43,6 +43,7 @@ SLOW_TESTS = {
     "test_gate.py::test_kill_9_at_random_moments_leaves_a_complete_file",
     "test_cli.py::test_robot_check_reports_the_model",
     "test_dynamics.py::test_unactuated_drop_conserves_energy_and_closures",
+    "test_motion_value.py::test_one_plan_checks_each_input_once",
 }
 
 

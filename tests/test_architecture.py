@@ -20,6 +20,7 @@ from sixplus3.kinematics import checks
 from sixplus3.kinematics.robot import home
 from sixplus3.kinematics.robot_fk import robot_fk_batch
 from sixplus3.kinematics.rotations import rotvec_from_quat
+from sixplus3.motion import Motion
 from sixplus3.robot_description.robot import Robot
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -66,7 +67,7 @@ def motion():
     d = 0.2 * np.array([0.2, -0.1, 0.15, 0.1, 0.2, -0.2, -0.15, 0.1, 0.05])
     th, v, a = h.theta[0] + p[:, None] * d, dp[:, None] * d, ddp[:, None] * d
     x = np.tile(np.r_[ROBOT.home_position, 0.0, 0.0, 0.0, ROBOT.home_psi], (len(t), 1))
-    rep = validation.validate_motion(t, th, v, a, ROBOT, rate, x)
+    rep = validation.validate_motion(Motion(t, th, v, a, rate), ROBOT, x)
     assert rep.ok, rep.messages()
     cfg = robot_fk_batch(th, x, ROBOT).cfg
     return t, th, v, a, x, rep.tau, cfg, rate
@@ -75,7 +76,7 @@ def motion():
 def _verdicts(motion, limits):
     """(the gate's limit findings, the dense check's violated limits) on one motion."""
     t, th, v, a, x, tau, cfg, rate = motion
-    rep = validation.validate_motion(t, th, v, a, ROBOT, rate, x, limits=limits)
+    rep = validation.validate_motion(Motion(t, th, v, a, rate), ROBOT, x, limits=limits)
     gate = {f.check for f in rep.findings}
     dense = {m.split(" ")[0] for m in checks.measure_limits(cfg, tau, th, v, a, limits)
              .violations}
@@ -115,8 +116,8 @@ def test_one_column_accessor_round_trips_every_block() -> None:
     plat = {"position": rng.normal(size=(n, 3)), "quaternion": rng.normal(size=(n, 4)),
             "psi": rng.normal(size=(n, 3))}
     t = np.arange(n) / 1e3
-    data = samples_array(t, blocks["pos"], blocks["vel"], blocks["acc"], blocks["tau"],
-                         plat["position"], plat["quaternion"], plat["psi"])
+    data = samples_array(Motion(t, blocks["pos"], blocks["vel"], blocks["acc"], 1000.0),
+                         blocks["tau"], plat["position"], plat["quaternion"], plat["psi"])
     for kind, want in {**blocks, **plat}.items():
         np.testing.assert_array_equal(columns(data, kind), want)
     np.testing.assert_array_equal(columns(data, "platform"),

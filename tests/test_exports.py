@@ -12,11 +12,12 @@ import yaml
 from click.testing import CliRunner
 
 from sixplus3.cli import main
-from sixplus3.control.file.file_format import columns
+from sixplus3.control.file.file_format import columns, motion_of
 from sixplus3.control.file.trajectory_read import read_trajectory
 from sixplus3.control.formats.exports import drive_table, export_file
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import GeometryError, InputError, TrajectoryFileError
+from sixplus3.motion import Motion
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.physical import MotorModel
 from sixplus3.robot_description.robot import Robot
@@ -55,7 +56,7 @@ def test_drive_table_units(planned) -> None:
     dirs = (1, -1, 1, 1, -1, 1, -1, 1, 1)
     robot = ROBOT.replace(motors=MotorModel(zero_offsets=offs, directions=dirs))
     th, thd, tau = columns(data, "pos"), columns(data, "vel"), columns(data, "tau")
-    counts, vel, torque = drive_table(robot, data[:, 0], th, thd, tau)
+    counts, vel, torque = drive_table(robot, motion_of(data, 1000.0), tau)
     n, bits = 72 / 34, 20
     # back to joint angles: within half a count of the file
     back = counts / (n * 2 ** bits / (2 * math.pi)) * np.array(dirs) + np.array(offs)
@@ -121,7 +122,7 @@ def test_the_ros2_yaml_reads_back_exactly_for_any_floats() -> None:
             for _ in range(4)]
     vals[0][0, 0], vals[1][0, 1], vals[2][0, 2] = 1e-5, -0.0, 1e300
     vals[3][0, 3], vals[3][0, 4] = 5e-324, 1e16
-    msg = ros2_joint_trajectory(np.arange(n) / 1000.0, *vals)
+    msg = ros2_joint_trajectory(Motion(np.arange(n) / 1000.0, *vals[:3], 1000.0), vals[3])
     assert yaml.safe_load(ros2_yaml(msg)) == msg
 
 

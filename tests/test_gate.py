@@ -27,7 +27,7 @@ from hypothesis import strategies as st
 from sixplus3.cli import main as cli
 from sixplus3.control.drive.feed import prepare_feed
 from sixplus3.control.file import trajectory_file as tf
-from sixplus3.control.file.file_format import COLUMNS, JOINTS, columns
+from sixplus3.control.file.file_format import COLUMNS, JOINTS, columns, motion_of
 from sixplus3.control.file.trajectory_file import encode
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.gate import interval
@@ -36,6 +36,7 @@ from sixplus3.control.gate.validation import validate_bytes, validate_file, vali
 from sixplus3.control.pipeline import run_plan
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed
+from sixplus3.motion import Motion
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -192,8 +193,7 @@ def test_zeroed_accelerations_with_recomputed_torques_are_refused(valid) -> None
     from scipy.spatial.transform import Rotation
 
     x[:, 3:6] = Rotation.from_quat(data[:, 40:44]).as_rotvec()
-    rep = validate_motion(bad[:, 0], columns(bad, "pos"), columns(bad, "vel"),
-                          columns(bad, "acc"), ROBOT, 1000.0, x)
+    rep = validate_motion(motion_of(bad, 1000.0), ROBOT, x)
     bad[:, IDX["tau"]] = rep.tau  # the forger recomputes the torques for zero acceleration
     out = validate_bytes(forged(header, bad), ROBOT)
     assert out.exit_code == 2
@@ -251,8 +251,8 @@ def test_the_limit_exit_code_is_1_for_a_clean_violation(valid, tmp_path) -> None
     from scipy.spatial.transform import Rotation
 
     x = np.c_[data[:, 37:40], Rotation.from_quat(data[:, 40:44]).as_rotvec(), data[:, 44:47]]
-    rep = validate_motion(fast[:, 0], columns(fast, "pos"), columns(fast, "vel"),
-                          columns(fast, "acc"), ROBOT, 1000.0 / s, x)
+    rep = validate_motion(Motion(fast[:, 0], columns(fast, "pos"), columns(fast, "vel"),
+                                 columns(fast, "acc"), 1000.0 / s), ROBOT, x)
     fast[:, IDX["tau"]] = rep.tau  # consistent feed-forward
     path = tmp_path / "fast.csv"
     path.write_bytes(forged(header, fast, rate_hz=1000.0 / s))
@@ -342,13 +342,13 @@ def test_valid_motions_are_accepted(dx, dz, droll, duration, rate) -> None:
     thdd = np.array(sr.theta_ddot.map(n)(x.T, xd.T, xdd.T)).T
     thd[[0, -1]] = 0.0
     thdd[[0, -1]] = 0.0
-    rep = validate_motion(t, th, thd, thdd, ROBOT, rate, x)
+    rep = validate_motion(Motion(t, th, thd, thdd, rate), ROBOT, x)
     assert rep.ok, rep.messages()
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
-        path = tf.write_trajectory(Path(tmp) / "ok.csv", t, th, thd, thdd, rep, ROBOT,
-                                   ROBOT.limits, {"rate_hz": rate})
+        path = tf.write_trajectory(Path(tmp) / "ok.csv", Motion(t, th, thd, thdd, rep.rate_hz),
+                                   rep, ROBOT, ROBOT.limits, {"rate_hz": rate})
         again = validate_file(path, ROBOT)
         assert again.ok and again.exit_code == 0, again.messages()
 

@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -39,6 +40,7 @@ from sixplus3.control.gate.validation import validate_bytes, validate_motion
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import InputError, Sixplus3Error, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics.robot_fk import robot_fk_batch
+from sixplus3.motion import MAX_SAMPLES, Motion
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -246,7 +248,7 @@ def test_a_task_past_the_sample_cap_is_refused_before_the_solve(tmp_path) -> Non
 def test_a_slow_replay_past_the_cap_is_refused(planned) -> None:
     res, raw, _, _ = planned
     rep = validate_bytes(raw, ROBOT)
-    too_slow = rep.duration / tf.MAX_SAMPLES * 1000.0 / 2  # twice the cap
+    too_slow = rep.duration / MAX_SAMPLES * 1000.0 / 2  # twice the cap
     with pytest.raises(InputError, match="over the cap"):
         retime(rep, ROBOT, max(too_slow, 1e-6))
 
@@ -321,8 +323,7 @@ def test_planted_links_change_nothing_outside(planned, tmp_path_factory, name,
     rep = res.report
     sm = res.smoothed
     try:
-        tf.write_trajectory(out / "attack.csv", sm.t, sm.theta, sm.theta_dot,
-                            sm.theta_ddot, rep, ROBOT, ROBOT.limits, {})
+        tf.write_trajectory(out / "attack.csv", sm.motion, rep, ROBOT, ROBOT.limits, {})
     except TrajectoryFileError as exc:
         assert "link" in str(exc)
     _outside_unchanged(outside, before)
@@ -355,17 +356,16 @@ def test_no_lock_file_is_left_and_export_replaces_a_link_not_its_target(planned,
 def test_write_trajectory_writes_only_what_its_report_judged(planned, tmp_path) -> None:
     res, _, _, _ = planned
     sm, rep = res.smoothed, res.report
-    args = (sm.t, sm.theta, sm.theta_dot, sm.theta_ddot)
     other = sm.theta.copy()
     other[5, 2] += 1e-3
     with pytest.raises(TrajectoryFileError, match="other samples"):
-        tf.write_trajectory(tmp_path / "a.csv", sm.t, other, sm.theta_dot, sm.theta_ddot,
-                            rep, ROBOT, ROBOT.limits, {})
+        tf.write_trajectory(tmp_path / "a.csv", Motion(sm.t, other, sm.theta_dot, sm.theta_ddot,
+                                                       rep.rate_hz), rep, ROBOT, ROBOT.limits, {})
     for meta in ({"rate_hz": 500.0}, {"format": "x"}, {"robot": {}}, {"validation": {}}):
         with pytest.raises(InputError, match="may not set"):
-            tf.write_trajectory(tmp_path / "a.csv", *args, rep, ROBOT, ROBOT.limits, meta)
+            tf.write_trajectory(tmp_path / "a.csv", sm.motion, rep, ROBOT, ROBOT.limits, meta)
     assert not (tmp_path / "a.csv").exists()
-    path = tf.write_trajectory(tmp_path / "a.csv", *args, rep, ROBOT, ROBOT.limits,
+    path = tf.write_trajectory(tmp_path / "a.csv", sm.motion, rep, ROBOT, ROBOT.limits,
                                {"rate_hz": rep.rate_hz, "note": "ok"})
     assert validate_bytes(path.read_bytes(), ROBOT).ok
 
@@ -386,8 +386,9 @@ def test_the_feed_checks_the_robots_start_state(planned, tmp_path) -> None:
     assert r.exit_code == 2 and "leg1_B" in r.output
     # the same angles, but the file's first pose on another branch than the robot's
     rep = validate_bytes(raw, ROBOT)
-    rep.position = rep.position.copy()
-    rep.position[0, 2] += 0.01
+    moved = rep.position.copy()
+    moved[0, 2] += 0.01
+    rep = dataclasses.replace(rep, position=moved)
     with pytest.raises(ValidationFailed, match="assembly branch"):
         check_start(rep, ROBOT, first)
 
@@ -452,12 +453,16 @@ def test_validate_names_the_robot_and_limits_it_judged_by(planned, tmp_path) -> 
 def test_validate_motion_refuses_malformed_arguments() -> None:
     t = np.arange(3) / 1000.0
     z = np.zeros((3, 9))
+    motion = Motion(t, z, z, z, 1000.0)
     for bad in (dict(x_guess=np.zeros((2, 9))), dict(robot="default"),
-                dict(rate="fast")):
-        kw = {"t": t, "theta": z, "theta_dot": z, "theta_ddot": z, "robot": ROBOT,
-              "rate": 1000.0, "x_guess": z, **bad}
+                dict(motion=(t, z, z, z, 1000.0)), dict(limits={"torque": 5.0})):
+        kw = {"motion": motion, "robot": ROBOT, "x_guess": z, **bad}
         with pytest.raises(InputError):
             validate_motion(**kw)
+    with pytest.raises(InputError, match="rate must be a number"):
+        Motion(t, z, z, z, "fast")
+    with pytest.raises(InputError, match=r"theta_dot must be \(3, 9\)"):
+        Motion(t, z, z[:2], z, 1000.0)
 
 
 def test_no_command_leaves_a_tmp_or_lock_file(planned) -> None:
@@ -508,8 +513,6 @@ def test_any_bytes_spliced_into_line_1_get_a_named_error(planned, junk, at) -> N
 
 
 def test_plan_arguments_are_named_errors() -> None:
-    import dataclasses
-
     from sixplus3.errors import TaskError
     from sixplus3.planner.ocp import plan
 
@@ -752,7 +755,7 @@ def test_the_stop_table_travels_in_the_header_and_a_forged_one_is_refused(planne
     a faster stop anywhere, or of the wrong length or form, is a defect (exit 2); a
     slower one is the file's own choice; one of another definition (torque share, form)
     is not used; none is accepted."""
-    from sixplus3.control.file.file_format import columns
+    from sixplus3.control.file.file_format import motion_of
     from sixplus3.control.gate.stop import stop_table
 
     _, raw, header, data = planned
@@ -760,8 +763,7 @@ def test_the_stop_table_travels_in_the_header_and_a_forged_one_is_refused(planne
     beta = rep.stop_deceleration
     assert rep.ok and beta is not None and len(beta) == len(data)
     lim = ROBOT.limits.tightened(**header["limits"])
-    mine = stop_table(ROBOT, rep, columns(data, "vel"), columns(data, "acc"), lim,
-                      float(header["rate_hz"]))
+    mine = stop_table(ROBOT, rep, motion_of(data, float(header["rate_hz"])), lim)
     assert np.all(beta <= mine * (1 + 1e-6)) and np.allclose(beta, mine, rtol=1e-5)
     table = header["stop"]["deceleration"]
     k = int(np.argmin(beta))  # the sample whose stop is slowest

@@ -18,6 +18,7 @@ from sixplus3.control.gate.validation import validate_and_write, validate_file
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import GeometryError, InputError, TaskError
 from sixplus3.fileio import parse_yaml
+from sixplus3.motion import Motion
 from sixplus3.planner.task import Task, task_from_dict
 from sixplus3.planner.waypoint import Waypoint
 from sixplus3.robot_description import hardware
@@ -213,18 +214,22 @@ def test_validate_and_write_caps_and_types(tmp_path) -> None:
     big = np.broadcast_to(np.zeros(9), (10 ** 8, 9))
     t = np.broadcast_to(np.zeros(1), (10 ** 8,))
     with pytest.raises(InputError, match="120000"):
-        validate_and_write(tmp_path / "x.csv", t, big, big, big, ROBOT, 1000.0, big)
+        validate_and_write(tmp_path / "x.csv", Motion(t, big, big, big, 1000.0), ROBOT, big)
     n = 130_000
     z = np.broadcast_to(np.zeros(9), (n, 9))
     with pytest.raises(InputError, match="120000"):
-        validate_and_write(tmp_path / "x.csv", np.arange(n) / 1e3, z, z, z, ROBOT, 1000.0, z)
+        validate_and_write(tmp_path / "x.csv", Motion(np.arange(n) / 1e3, z, z, z, 1000.0), ROBOT,
+                           z)
     z = np.zeros((5, 9))
     with pytest.raises(InputError, match="theta is missing"):
-        validate_and_write(tmp_path / "x.csv", np.arange(5) / 1e3, None, z, z, ROBOT, 1e3, z)
+        validate_and_write(tmp_path / "x.csv", Motion(np.arange(5) / 1e3, None, z, z, 1e3), ROBOT,
+                           z)
     with pytest.raises(InputError, match="rate must be a number"):
-        validate_and_write(tmp_path / "x.csv", np.arange(5) / 1e3, z, z, z, ROBOT, "1000", z)
+        validate_and_write(tmp_path / "x.csv", Motion(np.arange(5) / 1e3, z, z, z, "1000"), ROBOT,
+                           z)
     with pytest.raises(InputError, match="real numbers"):
-        validate_and_write(tmp_path / "x.csv", np.arange(5) / 1e3, z + 0j, z, z, ROBOT, 1e3, z)
+        validate_and_write(tmp_path / "x.csv", Motion(np.arange(5) / 1e3, z + 0j, z, z, 1e3),
+                           ROBOT, z)
     assert not list(tmp_path.iterdir())
 
 

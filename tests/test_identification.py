@@ -30,6 +30,7 @@ from sixplus3.identification.estimate import (
     pseudo_inertia,
 )
 from sixplus3.identification.plants import perturbed_plant, robot_with_parameters
+from sixplus3.motion import Motion
 from sixplus3.robot_description.robot import Robot
 
 ROBOT = Robot.default()
@@ -199,7 +200,8 @@ def test_logs_round_trip_in_joint_and_drive_units(tmp_path) -> None:
     back = read_log(path, ROBOT)
     assert np.array_equal(back.theta, th) and np.array_equal(back.tau, tau)
     assert back.meta["robot_kinematics"] == kinematic_hash(ROBOT)
-    counts, vel, torque = drive_table(ROBOT, t, th, np.zeros_like(th), tau)
+    zero = np.zeros_like(th)
+    counts, vel, torque = drive_table(ROBOT, Motion(t, th, zero, zero, 1000.0), tau)
     names = [f"leg{i}_{s}" for i in range(3) for s in "ABC"]
     text = ",".join(["t"] + [f"{n}_counts" for n in names] + [f"{n}_torque_0p1pct"
                                                                 for n in names]) + "\n"

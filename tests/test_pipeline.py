@@ -21,6 +21,7 @@ from sixplus3.control.file.trajectory_read import read_trajectory
 from sixplus3.control.gate.validation import validate_joint_trajectory
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import TrajectoryFileError
+from sixplus3.motion import Motion
 from sixplus3.planner.ocp import plan
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
@@ -92,9 +93,8 @@ def test_smoothing_keeps_the_plan_and_stretches_where_the_jerk_limit_binds() -> 
                                    atol=1e-15)
         assert slow.max_jerk <= slow.jerk_limit
         assert np.all(slow.theta_dot[[0, -1]] == 0) and np.all(slow.theta_ddot[[0, -1]] == 0)
-        rep = validate_joint_trajectory(slow.theta, slow.theta_dot, slow.theta_ddot,
-                                        sol.robot, 1000.0, slow.x_guess, tight.limits,
-                                        t=slow.t)
+        rep = validate_joint_trajectory(Motion(slow.t, slow.theta, slow.theta_dot, slow.theta_ddot,
+                                               1000.0), sol.robot, slow.x_guess, tight.limits)
         assert rep.ok, rep.messages()
 
 
@@ -103,8 +103,8 @@ def test_an_invalid_trajectory_is_never_written(planned, tmp_path) -> None:
     bad = dataclasses.replace(res.report, ok=False, findings=[])
     sm = res.smoothed
     with pytest.raises(TrajectoryFileError, match="refusing"):
-        write_trajectory(tmp_path / "bad.csv", sm.t, sm.theta, sm.theta_dot, sm.theta_ddot,
-                         bad, res.solution.robot, res.solution.limits, {})
+        write_trajectory(tmp_path / "bad.csv", sm.motion, bad, res.solution.robot,
+                         res.solution.limits, {})
     assert list(tmp_path.iterdir()) == []
 
 
@@ -196,10 +196,10 @@ def test_plots_show_excursions_legs_and_which_robot(planned, tmp_path, monkeypat
 
     monkeypatch.setattr(plots, "save_figure", keep)
     robot = Robot.default()
-    plots.plot_trajectory(robot, tmp_path, sm.t, sm.theta, rep.tau, rep.position,
-                          rep.quaternion, rep.psi, 10.0, 0.05, "small",
-                          theta_dot=sm.theta_dot, theta_ddot=sm.theta_ddot,
-                          planned_torque=9.0, limits=res.solution.limits)
+    assert res.solution.limits.margin == 0.05 and robot.limits.torque == 10.0
+    plots.plot_trajectory(robot, tmp_path, sm.motion, rep.tau,
+                          (rep.position, rep.quaternion, rep.psi), "small",
+                          limits=res.solution.limits, planned_torque=9.0)
     assert set(figs) == {"torques", "rates", "margins", "joints", "platform"}
     for name, axes in figs.items():
         assert f"robot {robot.name} ({robot.hash[:8]})" in axes[0][0].replace("\n", " "), name

@@ -25,6 +25,7 @@ from sixplus3.errors import GeometryError, LimitError, TrajectoryFileError
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.kinematics.robot import home, robot_ik
 from sixplus3.kinematics.robot_fk import robot_fk
+from sixplus3.motion import Motion
 from sixplus3.robot_description import Limits, MassModel, Robot
 from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.urdf import robot_urdf
@@ -170,10 +171,10 @@ def _slow_motion(robot: Robot, rate: float = 1000.0, duration: float = 0.4):
 
 def test_a_file_for_one_robot_is_refused_for_another(tmp_path) -> None:
     t, th, thd, thdd, x = _slow_motion(OTHER)
-    rep = validate_joint_trajectory(th, thd, thdd, OTHER, 1000.0, x, t=t)
+    rep = validate_joint_trajectory(Motion(t, th, thd, thdd, 1000.0), OTHER, x)
     assert rep.ok, rep.violations
-    csv = write_trajectory(tmp_path / "other.csv", t, th, thd, thdd, rep, OTHER,
-                           OTHER.limits, {"rate_hz": 1000.0})
+    csv = write_trajectory(tmp_path / "other.csv", Motion(t, th, thd, thdd, rep.rate_hz), rep,
+                           OTHER, OTHER.limits, {"rate_hz": 1000.0})
     header, _ = read_trajectory(csv, OTHER)
     assert header["robot"]["hash"] == OTHER.hash
     assert Robot.from_dict(header["robot"]["parameters"]) == OTHER
@@ -190,7 +191,7 @@ def test_a_file_for_one_robot_is_refused_for_another(tmp_path) -> None:
     assert r.exit_code == 0, r.output
     # the validator uses the robot it is given: the motion is checked with its dynamics
     heavy = OTHER.replace(masses=MassModel(platform=30.0))
-    rep_heavy = validate_joint_trajectory(th, thd, thdd, heavy, 1000.0, x, t=t)
+    rep_heavy = validate_joint_trajectory(Motion(t, th, thd, thdd, 1000.0), heavy, x)
     assert rep_heavy.max_torque_ratio > 1.5 * rep.max_torque_ratio
 
 

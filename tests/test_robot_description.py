@@ -9,6 +9,7 @@ import pytest
 import yourdfpy
 
 from sixplus3.errors import GeometryError, InputError
+from sixplus3.motion import Motion
 from sixplus3.robot_description import generated
 from sixplus3.robot_description import urdf as gen
 from sixplus3.robot_description.masses import POINT_MASS, MassModel
@@ -297,8 +298,8 @@ def test_ros2_control_starts_at_a_trajectory_files_first_sample(tmp_path) -> Non
     theta = np.tile(cfg.theta[0], (n, 1))
     zeros = np.zeros_like(theta)
     x = np.r_[cfg.position[0], np.reshape(rotvec_from_matrix(cfg.rotation[0]), -1), cfg.psi[0]]
-    path, _ = validate_and_write(tmp_path / "hold.csv", t, theta, zeros, zeros, robot,
-                                 1000.0, np.tile(x, (n, 1)))
+    path, _ = validate_and_write(tmp_path / "hold.csv", Motion(t, theta, zeros, zeros, 1000.0),
+                                 robot, np.tile(x, (n, 1)))
     out = tmp_path / "r.urdf"
     res = CliRunner().invoke(main, ["robot", "export", "urdf", "--ros2-control", "--start",
                                     str(path), "-o", str(out)])

@@ -179,8 +179,7 @@ def test_the_gate_refuses_a_file_that_names_a_set_and_breaks_it(plans, tmp_path)
 
     tr = read_trajectory(plans[0], ROBOT)
     x = np.c_[tr.platform_position, rotvec_from_quat(tr.platform_quaternion), tr.psi]
-    args = (tr.t, tr.joints("pos"), tr.joints("vel"), tr.joints("acc"), ROBOT,
-            float(tr.header["rate_hz"]), x)
+    args = (tr.motion, ROBOT, x)
     with pytest.raises(ValidationFailed) as err:
         validate_and_write(tmp_path / "x.csv", *args, meta={"pfl": ["hand"]})
     assert err.value.exit_code == 1 and "pfl hand" in str(err.value)

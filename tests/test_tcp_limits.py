@@ -77,8 +77,7 @@ def test_a_task_tcp_speed_limit_is_met_and_the_gate_checks_it(tmp_path) -> None:
     # the gate judges the unconstrained motion against a tcp limit: exit 1, named
     traj = read_trajectory(free.csv, ROBOT)
     x_guess = np.c_[traj.platform_position, np.zeros((len(traj.t), 3)), traj.psi]
-    rep = validate_motion(traj.t, traj.joints("pos"), traj.joints("vel"),
-                          traj.joints("acc"), ROBOT, 1000.0, x_guess,
+    rep = validate_motion(traj.motion, ROBOT, x_guess,
                           limits=ROBOT.limits.tightened(tcp_speed=0.1))
     assert rep.exit_code == 1 and any("tcp speed" in m for m in rep.messages())
     assert not any("tcp" in m for m in rep_free.messages())

@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from sixplus3.fileio import save_figure
 from sixplus3.kinematics.robot import robot_ik
+from sixplus3.motion import Motion
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
@@ -39,19 +40,21 @@ def subtitle(robot: Robot, limits: Limits, planned_torque: float | None = None) 
                                    + ", ".join(parts), 96))
 
 
-def plot_trajectory(robot: Robot, out_dir: str | Path, t: Any, theta: Any, tau: Any,
-                    position: Any, quaternion: Any, psi: Any, torque_limit: float,
-                    margin: float, title: str = "", theta_dot: Any = None,
-                    theta_ddot: Any = None, planned_torque: float | None = None,
-                    limits: Limits | None = None) -> list[str]:
-    """Write <title>_torques.png, <title>_margins.png, <title>_joints.png,
-    <title>_platform.png and, with the rates given, <title>_rates.png into ``out_dir``
+def plot_trajectory(robot: Robot, out_dir: str | Path, motion: Motion, tau: Any,
+                    poses: tuple[Any, Any, Any], title: str = "",
+                    limits: Limits | None = None,
+                    planned_torque: float | None = None) -> list[str]:
+    """Write <title>_torques.png, <title>_rates.png, <title>_margins.png,
+    <title>_joints.png and <title>_platform.png of ``motion`` into ``out_dir``
     (per-trajectory names: plans written to one folder do not overwrite each other).
+    ``tau`` (n, 9) the torques [N m] and ``poses`` the platform's (position (n, 3),
+    quaternion (n, 4), crank angles (n, 3)) at its samples (a validation report's).
 
     Torques, speeds and accelerations are drawn one panel per leg (its joints A, B, C),
     with the hardware limits (red, dashed) and the torque planned to (orange, dotted);
     legends sit outside the axes so that no limit line is hidden.  ``limits``: those the
-    file was planned to (default: the robot's), named in every title."""
+    file was planned to (default: the robot's), named in every title; the margins are
+    drawn against theirs."""
     # deferred: matplotlib loads only when this runs
     import matplotlib
 
@@ -59,20 +62,21 @@ def plot_trajectory(robot: Robot, out_dir: str | Path, t: Any, theta: Any, tau: 
     # deferred: matplotlib loads only when this runs
     import matplotlib.pyplot as plt
 
+    lim = limits if limits is not None else robot.limits
+    t = motion.t
+    position, quaternion, psi = poses
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     prefix = f"{title}_" if title else ""
-    fig = _Figure(plt, title, subtitle(robot, limits if limits is not None else
-                                       robot.limits, planned_torque))
-    files = [_torques(fig, t, tau, torque_limit, planned_torque,
-                      out / f"{prefix}torques.png")]
-    if theta_dot is not None and theta_ddot is not None:
-        files.append(_rates(fig, robot.limits, t, tau, theta_dot, theta_ddot,
-                            out / f"{prefix}rates.png"))
-    files.append(_margins(fig, robot, t, position, quaternion, psi, margin,
-                          out / f"{prefix}margins.png"))
-    files.append(_joints(fig, robot.limits, t, theta, psi, out / f"{prefix}joints.png"))
-    files.append(_platform(fig, t, position, quaternion, out / f"{prefix}platform.png"))
+    fig = _Figure(plt, title, subtitle(robot, lim, planned_torque))
+    files = [_torques(fig, t, tau, robot.limits.torque, planned_torque,
+                      out / f"{prefix}torques.png"),
+             _rates(fig, robot.limits, t, tau, motion.theta_dot, motion.theta_ddot,
+                    out / f"{prefix}rates.png"),
+             _margins(fig, robot, t, position, quaternion, psi, lim.margin,
+                      out / f"{prefix}margins.png"),
+             _joints(fig, robot.limits, t, motion.theta, psi, out / f"{prefix}joints.png"),
+             _platform(fig, t, position, quaternion, out / f"{prefix}platform.png")]
     return files
 
 

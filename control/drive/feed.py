@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.file.file_format import JOINTS, columns
+from sixplus3.control.file.file_format import JOINTS, columns, motion_of
 from sixplus3.control.file.trajectory_file import check_samples
 from sixplus3.control.file.trajectory_read import read_bytes
 from sixplus3.control.gate.interval import check_torque_hold, held_torque, resample
@@ -33,6 +33,7 @@ from sixplus3.errors import InputError, ValidationFailed
 from sixplus3.kinematics.robot import home
 from sixplus3.kinematics.robot_fk import robot_fk_batch
 from sixplus3.kinematics.rotations import rotvec_from_quat
+from sixplus3.motion import Motion
 from sixplus3.robot_description.robot import Robot
 
 #: Replay speeds accepted (1 = as planned).
@@ -41,18 +42,34 @@ SPEED_RANGE = (0.01, 1.0)
 
 @dataclass(frozen=True)
 class FeedPlan:
-    """What the feed sends: validated samples at ``rate`` [Hz]."""
+    """What the feed sends: the validated ``motion`` and its feed-forward torques."""
 
-    t: np.ndarray  # (n,) [s]
-    theta: np.ndarray  # (n, 9) [rad]
-    theta_dot: np.ndarray  # (n, 9) [rad/s]
-    theta_ddot: np.ndarray  # (n, 9) [rad/s^2]
+    motion: Motion  # the samples at their rate
     tau: np.ndarray  # (n, 9) feed-forward [N m] sent: the validated torques, held
     #: as ``torque_hold`` says (control/gate/interval.py, held_torque)
-    rate: float
     speed: float
     report: ValidationReport  # the validation of exactly these samples
     torque_hold: str = "mean"
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.motion.t
+
+    @property
+    def theta(self) -> np.ndarray:
+        return self.motion.theta
+
+    @property
+    def theta_dot(self) -> np.ndarray:
+        return self.motion.theta_dot
+
+    @property
+    def theta_ddot(self) -> np.ndarray:
+        return self.motion.theta_ddot
+
+    @property
+    def rate(self) -> float:
+        return self.motion.rate
 
     def messages(self) -> Iterator[bytes]:
         """One JSON datagram per sample, made as it is sent (memory does not grow with
@@ -94,13 +111,14 @@ def retime(report: ValidationReport, robot: Robot, speed: float) -> FeedPlan:
     assert report.data is not None and report.header is not None
     rate = float(report.header["rate_hz"])
     check_samples(float(report.data[-1, 0]) / speed, rate, f"the replay at speed {speed:g}")
-    tau_new, p, vel, acc, x_seed = resample(report, rate, speed)
-    rep = validate_motion(tau_new, p, vel, acc, robot, rate, x_seed)
+    t_new, p, vel, acc, x_seed = resample(report, rate, speed)
+    motion = Motion(t_new, p, vel, acc, rate)
+    rep = validate_motion(motion, robot, x_seed)
     if not rep.ok:
         raise ValidationFailed(f"the replay at speed {speed:g} fails validation: "
                                + "; ".join(rep.messages()), rep.exit_code, rep)
     assert rep.tau is not None
-    return FeedPlan(tau_new, p, vel, acc, rep.tau, rate, speed, rep)
+    return FeedPlan(motion, rep.tau, speed, rep)
 
 
 #: The robot's actuated angles and the file's first sample must agree to this [rad]
@@ -193,8 +211,7 @@ def prepare_feed(path: str | Path, robot: Robot, speed: float = 1.0,
     data = rep.data
     rate = float(rep.header["rate_hz"]) if rep.header else float("nan")
     if speed == 1.0:
-        plan = FeedPlan(data[:, 0], columns(data, "pos"), columns(data, "vel"),
-                        columns(data, "acc"), rep.tau, rate, 1.0, rep)
+        plan = FeedPlan(motion_of(data, rate), rep.tau, 1.0, rep)
     else:
         plan = retime(rep, robot, speed)
     return replace(plan, tau=held_torque(plan.tau, torque_hold), torque_hold=torque_hold)

@@ -41,16 +41,14 @@ from sixplus3.control.file.trajectory_file import check_samples
 from sixplus3.control.gate.motion_input import check_rate
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InputError, SmoothingError
+from sixplus3.motion import Motion
 from sixplus3.planner.solution import Solution, actuated_profile
 
 
 @dataclass(frozen=True)
 class Smoothed:
-    rate: float  # [Hz]
-    t: np.ndarray  # (M,) [s], exactly k / rate
-    theta: np.ndarray  # (M, 9) [rad]
-    theta_dot: np.ndarray  # (M, 9) [rad/s]
-    theta_ddot: np.ndarray  # (M, 9) [rad/s^2]
+    #: the samples at t = k / rate (read-only; :class:`~sixplus3.motion.Motion`)
+    motion: Motion
     x_guess: np.ndarray  # (M, 9) the plan's minimal coordinates near each sample
     planned_duration: float  # [s] the plan's, plus its dwells
     duration: float  # [s] of the output (a whole number of periods)
@@ -61,6 +59,31 @@ class Smoothed:
     max_deviation: float  # [rad] largest |theta_out - theta_plan| at the output samples
     #: largest uniform time stretch of a piece (>= 1; whole-period rounding included)
     time_stretch: float = 1.0
+
+    @property
+    def rate(self) -> float:
+        """[Hz]"""
+        return self.motion.rate
+
+    @property
+    def t(self) -> np.ndarray:
+        """(M,) [s], exactly k / rate"""
+        return self.motion.t
+
+    @property
+    def theta(self) -> np.ndarray:
+        """(M, 9) [rad]"""
+        return self.motion.theta
+
+    @property
+    def theta_dot(self) -> np.ndarray:
+        """(M, 9) [rad/s]"""
+        return self.motion.theta_dot
+
+    @property
+    def theta_ddot(self) -> np.ndarray:
+        """(M, 9) [rad/s^2]"""
+        return self.motion.theta_ddot
 
     @property
     def added_fraction(self) -> float:
@@ -135,7 +158,7 @@ def smooth(sol: Solution, rate: float = 1000.0) -> Smoothed:
            for key in ("theta", "theta_dot", "theta_ddot", "x_guess")}
     t = np.arange(len(cat["theta"])) / rate
     jerk = np.abs(np.diff(cat["theta_ddot"], axis=0)).max() / dt if len(t) > 1 else 0.0
-    return Smoothed(rate, t, cat["theta"], cat["theta_dot"], cat["theta_ddot"],
+    return Smoothed(Motion(t, cat["theta"], cat["theta_dot"], cat["theta_ddot"], rate),
                     cat["x_guess"], float(sol.final_time) + sum(d for *_, d in pieces),
                     float(t[-1]),
                     sum(p["stretched"] for p in parts), sum(p["smoothed"] for p in parts),

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from sixplus3.errors import InputError
+from sixplus3.motion import Motion
 from sixplus3.robot_description.urdf import actuated_joint_names
 
 FORMAT = "sixplus3-trajectory/2"
@@ -112,5 +113,13 @@ def columns(data: np.ndarray, kind: str) -> np.ndarray:
                      valid=", ".join([*JOINT_KINDS, *PLATFORM_BLOCKS]))
 
 
+def motion_of(data: np.ndarray, rate: float) -> Motion:
+    """The :class:`~sixplus3.motion.Motion` of (n, 47) samples in :data:`COLUMNS` order
+    declared at ``rate`` [Hz]: the times and the joints' angles, rates and
+    accelerations."""
+    return Motion(data[:, 0], columns(data, "pos"), columns(data, "vel"),
+                  columns(data, "acc"), rate)
+
+
 __all__ = ["COLUMNS", "FORMAT", "JOINTS", "JOINT_KINDS", "MAX_BYTES", "PLATFORM_BLOCKS",
-           "SUFFIX", "UNITS", "columns", "digest"]
+           "SUFFIX", "UNITS", "columns", "digest", "motion_of"]

@@ -38,7 +38,6 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
-import hashlib
 import io
 import math
 import os
@@ -64,15 +63,13 @@ from sixplus3.control.file.file_format import (
 )
 from sixplus3.errors import InputError, TrajectoryFileError
 from sixplus3.fileio import atomic_write
+from sixplus3.motion import MAX_SAMPLES, Motion
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
 if TYPE_CHECKING:
     from sixplus3.control.report import ValidationReport
 
-#: Most samples of a motion this package makes (a plan at a rate, its dwells, a slower
-#: replay): 2 minutes at 1 kHz.  Estimated before anything is allocated.
-MAX_SAMPLES = 120_000
 #: Longest output name [characters].
 MAX_NAME = 100
 _SAFE = re.compile(r"[^A-Za-z0-9._-]+")
@@ -116,15 +113,13 @@ def encode(header: dict[str, Any], data: np.ndarray) -> bytes:
     return first + body
 
 
-def samples_array(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
-                  theta_ddot: np.ndarray, tau: np.ndarray, position: np.ndarray,
+def samples_array(motion: Motion, tau: np.ndarray, position: np.ndarray,
                   quaternion: np.ndarray, psi: np.ndarray) -> np.ndarray:
     """(n, 47) rows in :data:`COLUMNS` order."""
-    n = len(t)
-    data = np.zeros((n, len(COLUMNS)))
-    data[:, 0] = t
-    for kind, values in (("pos", theta), ("vel", theta_dot), ("acc", theta_ddot),
-                         ("tau", tau)):
+    data = np.zeros((len(motion), len(COLUMNS)))
+    data[:, 0] = motion.t
+    for kind, values in (("pos", motion.theta), ("vel", motion.theta_dot),
+                         ("acc", motion.theta_ddot), ("tau", tau)):
         data[:, _JOINT_COLUMNS[kind]] = values
     for kind, values in (("position", position), ("quaternion", quaternion), ("psi", psi)):
         data[:, PLATFORM_BLOCKS[kind]] = values
@@ -194,18 +189,6 @@ def check_samples(duration: float, rate: float, what: str) -> int:
     return int(n)
 
 
-def samples_fingerprint(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
-                        theta_ddot: np.ndarray, rate: float) -> str:
-    """SHA-256 of a motion's samples (as float64) and its rate: what a validation report
-    records of the motion it judged, and what :func:`write_trajectory` checks."""
-    sha = hashlib.sha256(repr(float(rate)).encode())
-    for arr in (t, theta, theta_dot, theta_ddot):
-        a = np.ascontiguousarray(np.asarray(arr, dtype=np.float64))
-        sha.update(repr(a.shape).encode())
-        sha.update(a.tobytes())
-    return sha.hexdigest()
-
-
 #: Limits of the header the gate reports but does not enforce at the samples.
 REPORTED_ONLY = ("torque_rate",)
 #: Header fields the writer sets itself; ``meta`` may not name them.
@@ -214,15 +197,13 @@ RESERVED = ("format", "rate_hz", "samples", "duration_s", "columns", "units",
             "integrity")
 
 
-def write_trajectory(path: str | Path, t: np.ndarray, theta: np.ndarray,
-                     theta_dot: np.ndarray, theta_ddot: np.ndarray,
-                     report: ValidationReport, robot: Robot, limits: Limits,
-                     meta: dict[str, Any]) -> Path:
-    """Write the validated trajectory of ``robot`` to ``path`` (one atomic file).
+def write_trajectory(path: str | Path, motion: Motion, report: ValidationReport,
+                     robot: Robot, limits: Limits, meta: dict[str, Any]) -> Path:
+    """Write the validated ``motion`` of ``robot`` to ``path`` (one atomic file).
 
-    ``report`` must be the passed :class:`~sixplus3.control.gate.validation.ValidationReport`
-    of exactly these samples, at its rate, for this robot (its fingerprint of the
-    samples and rate is recomputed here); anything else is refused and nothing is
+    ``report`` must be the passed :class:`~sixplus3.control.report.ValidationReport`
+    of exactly this motion, at its rate, for this robot (the fingerprints of the
+    samples and rate must agree); anything else is refused and nothing is
     written.  :func:`sixplus3.control.gate.validation.validate_and_write` validates and
     writes in one call.  ``meta`` adds header fields (task, planner, smoothing
     statistics); it may not set the fields the writer owns (:data:`RESERVED`), except
@@ -249,11 +230,10 @@ def write_trajectory(path: str | Path, t: np.ndarray, theta: np.ndarray,
             raise InputError(f"meta may not set the header field {key!r}: the writer sets "
                              "it from the validated samples", value=key,
                              valid=f"any field but {', '.join(RESERVED)}")
-    try:
-        mine = samples_fingerprint(t, theta, theta_dot, theta_ddot, rate)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"the samples are not numeric arrays: {exc}", value=None,
-                         valid="(n,) times and (n, 9) arrays") from None
+    if not isinstance(motion, Motion):
+        raise InputError("write_trajectory takes the validated Motion",
+                         value=type(motion).__name__, valid="a sixplus3.motion.Motion")
+    mine = motion.fingerprint
     if mine != report.fingerprint:
         raise TrajectoryFileError("refusing to write: the validation report is of other "
                                   "samples or another rate than these",
@@ -263,10 +243,10 @@ def write_trajectory(path: str | Path, t: np.ndarray, theta: np.ndarray,
         raise TrajectoryFileError(f"trajectory files end in {SUFFIX}, got {path.name}",
                                   value=path.name, valid=f"*{SUFFIX}")
     output_path(path.parent, path.stem)  # the name is safe and stays in its directory
-    data = samples_array(t, theta, theta_dot, theta_ddot, tau, position, quaternion, psi)
+    data = samples_array(motion, tau, position, quaternion, psi)
     header = {
-        "format": FORMAT, "rate_hz": float(rate), "samples": len(t),
-        "duration_s": float(t[-1]), "columns": COLUMNS, "units": UNITS,
+        "format": FORMAT, "rate_hz": float(rate), "samples": len(motion),
+        "duration_s": motion.duration, "columns": COLUMNS, "units": UNITS,
         "joint_names": JOINTS,
         "robot": {"hash": robot.hash, "parameters": robot.as_dict(),
                   "summary": robot.summary()},

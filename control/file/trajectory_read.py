@@ -12,9 +12,16 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from sixplus3 import fileio
-from sixplus3.control.file.file_format import COLUMN_UNITS, COLUMNS, MAX_BYTES, columns
+from sixplus3.control.file.file_format import (
+    COLUMN_UNITS,
+    COLUMNS,
+    MAX_BYTES,
+    columns,
+    motion_of,
+)
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.errors import GeometryError, InputError, LimitError, TrajectoryFileError
+from sixplus3.motion import Motion
 from sixplus3.robot_description.robot import Robot, require_robot
 
 if TYPE_CHECKING:
@@ -79,6 +86,7 @@ class TrajectoryData(NamedTuple):
 
     - ``traj["t"]``, ``traj["leg1_B_tau"]``, ``traj["platform_qw"]``: one column (n,);
     - ``traj.t``; ``traj.joints("pos" | "vel" | "acc" | "tau")``: (n, 9) in joint order;
+    - ``traj.motion``: the :class:`~sixplus3.motion.Motion` of its samples at its rate;
     - ``traj.platform_position`` (n, 3) [m], ``traj.platform_quaternion`` (n, 4)
       (x, y, z, w), ``traj.psi`` (n, 3) [rad];
     - ``traj.to_pandas()``: a DataFrame of the 46 named columns indexed by time
@@ -109,6 +117,10 @@ class TrajectoryData(NamedTuple):
     @property
     def t(self) -> np.ndarray:
         return self.data[:, 0]
+
+    @property
+    def motion(self) -> Motion:
+        return motion_of(self.data, float(self.header["rate_hz"]))
 
     def joints(self, kind: str) -> np.ndarray:
         return columns(self.data, kind)

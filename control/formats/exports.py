@@ -41,23 +41,25 @@ import numpy as np
 import yaml
 
 from sixplus3.control.drive.drive_log import to_drive_units
-from sixplus3.control.file.file_format import columns
+from sixplus3.control.file.file_format import columns, motion_of
 from sixplus3.control.gate.interval import check_torque_hold, held_torque, hermite, resample
 from sixplus3.control.gate.motion_input import INTERPOLATED_RATE_RANGE, RATE_RANGE, check_rate
 from sixplus3.control.gate.validation import validate_file, validate_motion
 from sixplus3.control.report import ValidationReport
 from sixplus3.errors import InputError, ValidationFailed
+from sixplus3.motion import Motion
 from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
 
 FORMATS = ("ros2-yaml", "ros2-json", "drive-csv")
 
 
-def ros2_joint_trajectory(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
-                          theta_ddot: np.ndarray, tau: np.ndarray,
+def ros2_joint_trajectory(motion: Motion, tau: np.ndarray,
                           frame_id: str = "base_link") -> dict[str, Any]:
-    """A ``trajectory_msgs/msg/JointTrajectory`` as a mapping (header stamp zero: start
-    on reception)."""
+    """A ``trajectory_msgs/msg/JointTrajectory`` of ``motion`` with the efforts ``tau``
+    (n, 9) [N m] as a mapping (header stamp zero: start on reception)."""
+    t, theta, theta_dot, theta_ddot = (motion.t, motion.theta, motion.theta_dot,
+                                       motion.theta_ddot)
     points = []
     for k in range(len(t)):
         ns_total = int(round(float(t[k]) * 1e9))
@@ -116,12 +118,12 @@ def drive_units(robot: Robot) -> dict[str, Any]:
             "axes": actuated_joint_names()}
 
 
-def drive_table(robot: Robot, t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
+def drive_table(robot: Robot, motion: Motion,
                 tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(position counts, velocity counts/s, torque in 0.1 % of rated), each (n, 9) int64,
-    of joint-side samples (:func:`sixplus3.control.drive.drive_log.to_drive_units`: the one
-    conversion, also the logs')."""
-    counts, vel, torque = to_drive_units(robot, theta, theta_dot, tau)
+    of ``motion`` and its torques ``tau`` (:func:`sixplus3.control.drive.drive_log.to_drive_units`:
+    the one conversion, also the logs')."""
+    counts, vel, torque = to_drive_units(robot, motion.theta, motion.theta_dot, tau)
     assert vel is not None
     return counts, vel, torque
 
@@ -157,11 +159,12 @@ def _check_interpolated(rep: ValidationReport, robot: Robot,
     motion) of the validated motion of ``rep`` resampled at ``rate``."""
 
     t, th, v, a, x = resample(rep, rate)
-    again = validate_motion(t, th, v, a, robot, rate, x, rate_range=INTERPOLATED_RATE_RANGE)
+    again = validate_motion(Motion(t, th, v, a, rate), robot, x,
+                            rate_range=INTERPOLATED_RATE_RANGE)
     if not again.ok:
         return t, th, v, a, again.tau, again, again
     dense = densify(t, th, v, a, x, rate, dense_rate_for(rate))
-    dense_rep = validate_motion(*dense[:4], robot, dense_rate_for(rate), dense[4])
+    dense_rep = validate_motion(Motion(*dense[:4], dense_rate_for(rate)), robot, dense[4])
     return t, th, v, a, again.tau, again, dense_rep
 
 
@@ -275,15 +278,15 @@ def export_file(path: str | Path, robot: Robot, fmt: str,
     if (rate is not None or goal) and not fmt.startswith("ros2"):
         raise InputError("--rate and --goal go with the ROS 2 forms (ros2-yaml, ros2-json)",
                          value=fmt, valid="ros2-yaml or ros2-json")
-    t, th, thd, thdd = (data[:, 0], columns(data, "pos"), columns(data, "vel"),
-                        columns(data, "acc"))
     tau = columns(data, "tau")
     r0 = float((rep.header or {}).get("rate_hz", 0.0))
+    motion = motion_of(data, r0)
     if rate is not None and snap_rate(rate, r0) != r0:
         t, th, thd, thdd, tau, _ = decimate(rep, robot, rate)
+        motion = Motion(t, th, thd, thdd, snap_rate(rate, r0))
     tau = held_torque(tau, torque_hold)
     if fmt.startswith("ros2"):
-        msg = ros2_joint_trajectory(t, th, thd, thdd, tau)
+        msg = ros2_joint_trajectory(motion, tau)
         if goal:
             msg = follow_joint_trajectory_goal(msg)
         if fmt == "ros2-json":
@@ -295,7 +298,8 @@ def export_file(path: str | Path, robot: Robot, fmt: str,
                     + yaml.safe_dump(tolerances, sort_keys=False,
                                      default_flow_style=False))
         return ros2_yaml(msg)
-    counts, vel, torque = drive_table(robot, t, th, thd, tau)
+    counts, vel, torque = drive_table(robot, motion, tau)
+    t = motion.t
     out = io.StringIO()
     out.write("# sixplus3 drive table " + json.dumps({
         "source": Path(path).name, "robot_hash": robot.hash,

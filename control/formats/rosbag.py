@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from sixplus3.control.file.file_format import columns
+from sixplus3.control.file.file_format import columns, motion_of
 from sixplus3.control.formats.exports import ros2_joint_trajectory
 from sixplus3.control.formats.ros_replay import write_replay_files
 from sixplus3.control.gate.validation import validate_file
@@ -203,7 +203,9 @@ def write_rosbag2(path: str | Path, robot: Robot, out_dir: str | Path,
                                exit_code=rep.exit_code, report=rep)
     assert rep.position is not None and rep.quaternion is not None and rep.psi is not None
     data = rep.data
-    t, th, thd = data[:, 0], columns(data, "pos"), columns(data, "vel")
+    assert rep.rate_hz is not None
+    motion = motion_of(data, rep.rate_hz)
+    t, thd = motion.t, motion.theta_dot
     cfg = robot_ik(rep.position, matrix_from_quat(rep.quaternion), rep.psi, robot,
                    platform_margins=False)
     names, iq, iv = revolute_joints(robot)
@@ -224,7 +226,7 @@ def write_rosbag2(path: str | Path, robot: Robot, out_dir: str | Path,
                                          "trajectory_msgs/msg/JointTrajectory",
                                          typestore=store, offered_qos_profiles=qos)
             writer.write(c_tr, start_ns, store.serialize_cdr(
-                _trajectory(T, ros2_joint_trajectory(t, th, thd, columns(data, "acc"),
+                _trajectory(T, ros2_joint_trajectory(motion,
                                                      columns(data, "tau")), start_ns),
                 "trajectory_msgs/msg/JointTrajectory"))
             for k in range(len(t)):

@@ -12,6 +12,8 @@ Jacobian, the effective mass from Pinocchio's reduced inertia (rotors included).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from sixplus3.control.gate.findings import finding
@@ -22,6 +24,7 @@ from sixplus3.errors import InputError
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import RobotConfig, robot_ik
 from sixplus3.kinematics.robot_fk import ik_jacobian
+from sixplus3.motion import Motion
 from sixplus3.robot_description import hardware
 from sixplus3.robot_description.body_regions import BodyRegion, names_of, regions
 from sixplus3.robot_description.robot import Robot
@@ -56,13 +59,14 @@ def platform_twist(cfg: RobotConfig, theta_dot: np.ndarray) -> np.ndarray:
     return out
 
 
-def pfl_check(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np.ndarray,
-              judged: tuple[BodyRegion, ...]) -> list[Finding]:
-    """The findings of the PFL check on the samples of a report whose forward kinematics
-    went through (``rep.position``, ``rep.quaternion``, ``rep.psi``); sets
-    ``rep.pfl`` and ``rep.max_pfl_ratio``.  No region: nothing checked."""
+def pfl_check(rep: ValidationReport, robot: Robot, motion: Motion,
+              judged: tuple[BodyRegion, ...]) -> ValidationReport:
+    """``rep`` with the PFL check on the samples of ``motion`` (a report whose forward
+    kinematics went through: ``rep.position``, ``rep.quaternion``, ``rep.psi``): its
+    findings added, ``pfl`` and ``max_pfl_ratio`` set.  No region: ``rep`` itself."""
     if not judged or rep.position is None or rep.quaternion is None or rep.psi is None:
-        return []
+        return rep
+    t, theta_dot = motion.t, motion.theta_dot
     dyn = ClosedLoopDynamics(robot)
     tool = tuple(float(c) for c in robot.tool.xyz)
     points = [tool] + ([] if tool == (0.0, 0.0, 0.0) else [(0.0, 0.0, 0.0)])
@@ -86,16 +90,15 @@ def pfl_check(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np.
             worst[sl] = np.where(better, wk, worst[sl])
         ratio[sl] = best
     ratio = np.nan_to_num(ratio, nan=np.inf)
-    rep.pfl = tuple(names_of(judged))
-    rep.max_pfl_ratio = float(ratio.max())
-    out = []
+    out: list[Finding] = []
     for k, region in enumerate(judged):
         mine = np.where(worst == k, ratio, 0.0)
         f = finding(f"pfl {region.name} (contact energy / ISO/TS 15066 limit)", "limit", "",
                     1.0, mine - 1.0, mine, t, ["tcp"])
         if f:
             out.append(f)
-    return out
+    return replace(rep, pfl=tuple(names_of(judged)), max_pfl_ratio=float(ratio.max()),
+                   findings=list(rep.findings) + out, ok=rep.ok and not out)
 
 
 __all__ = ["judged_regions", "pfl_check"]

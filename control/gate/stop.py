@@ -40,6 +40,7 @@ from sixplus3.control.report import Finding, ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
+from sixplus3.motion import Motion
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
@@ -124,10 +125,11 @@ def across_path(a: np.ndarray, b: np.ndarray, theta_dot: np.ndarray,
     return b - a * along[:, None]
 
 
-def stop_table(robot: Robot, rep: ValidationReport, theta_dot: np.ndarray,
-               theta_ddot: np.ndarray, limits: Limits, rate: float) -> np.ndarray:
+def stop_table(robot: Robot, rep: ValidationReport, motion: Motion,
+               limits: Limits) -> np.ndarray:
     """beta (n,) of a validated motion (its report's poses and Pinocchio torques)."""
     assert rep.tau is not None
+    theta_dot, theta_ddot = motion.theta_dot, motion.theta_ddot
     M, g, _ = path_tables(robot, rep)
     a = np.einsum("nij,nj->ni", M, theta_dot)
     b = across_path(a, rep.tau - g, theta_dot, theta_ddot)
@@ -144,11 +146,11 @@ def header_entry(beta: np.ndarray) -> dict[str, Any]:
             "deceleration": [float(f"{x:.6g}") for x in down]}
 
 
-def stop_check(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np.ndarray,
-               theta_ddot: np.ndarray, limits: Limits, rate: float, entry: object
-               ) -> tuple[np.ndarray | None, list[Finding]]:
+def stop_check(rep: ValidationReport, robot: Robot, motion: Motion, limits: Limits,
+               entry: object) -> tuple[np.ndarray | None, list[Finding]]:
     """(the file's table if it holds, findings): the header's ``stop`` against the table
     recomputed from the samples.  No entry: (None, [])."""
+    t = motion.t
     if entry is None:
         return None, []
     bad = [finding("stop table (the header's form)", "defect", "", 0.0,
@@ -165,7 +167,7 @@ def stop_check(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np
     claimed = np.asarray(table, dtype=float)
     if rep.tau is None or rep.position is None:
         return None, []
-    mine = stop_table(robot, rep, theta_dot, theta_ddot, limits, rate)
+    mine = stop_table(robot, rep, motion, limits)
     over = np.where(np.isfinite(claimed), claimed, np.inf) - mine * (1.0 + SLACK)
     f = finding("stop table (a deceleration the torque limits do not allow)", "defect",
                 "1/s", 0.0, over, claimed, t, ["path"])

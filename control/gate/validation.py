@@ -23,18 +23,18 @@ first and of the worst violation.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from sixplus3.control.file.file_format import columns
-from sixplus3.control.file.trajectory_file import samples_fingerprint, write_trajectory
+from sixplus3.control.file.file_format import columns, motion_of
+from sixplus3.control.file.trajectory_file import write_trajectory
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.file.trajectory_read import check_robot, read_bytes
 from sixplus3.control.gate.motion_input import (  # noqa: E402
     RATE_RANGE,
-    check_motion_arrays,
 )
 from sixplus3.control.gate.pfl import judged_regions, pfl_check
 from sixplus3.control.gate.stop import HEADER_KEY as STOP_KEY
@@ -43,7 +43,8 @@ from sixplus3.control.gate.window import merge_windows, validate_window
 from sixplus3.control.report import ValidationReport
 from sixplus3.errors import InputError, LimitError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
-from sixplus3.robot_description.body_regions import BodyRegion, names_of
+from sixplus3.motion import Motion
+from sixplus3.robot_description.body_regions import names_of
 from sixplus3.robot_description.hardware import judged_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -53,16 +54,24 @@ from sixplus3.robot_description.robot import Robot, require_robot
 WINDOW = 8192
 
 
-def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
-                    theta_ddot: np.ndarray, robot: Robot, rate: float,
-                    x_guess: np.ndarray, limits: Limits | None = None,
-                    platform: np.ndarray | None = None,
-                    tau_file: np.ndarray | None = None,
-                    midpoints: bool = True,
+def _check_arguments(who: str, motion: object, robot: object, limits: object) -> None:
+    """The gate's doors: a Motion, a Robot and Limits (or None), else an InputError."""
+    require_robot(robot)
+    if not isinstance(motion, Motion):
+        raise InputError(f"{who} takes a sixplus3.motion.Motion",
+                         value=type(motion).__name__, valid="a Motion")
+    if limits is not None and not isinstance(limits, Limits):
+        raise InputError("limits must be a Limits (or None)", value=type(limits).__name__,
+                         valid="Limits or None")
+
+
+def validate_motion(motion: Motion, robot: Robot, x_guess: np.ndarray,
+                    limits: Limits | None = None, platform: np.ndarray | None = None,
+                    tau_file: np.ndarray | None = None, midpoints: bool = True,
                     rate_range: tuple[float, float] = RATE_RANGE) -> ValidationReport:
     """Validate a sampled motion of ``robot``: every check of docs/validation.md.
 
-    t (n,) [s]; theta, theta_dot, theta_ddot (n, 9); ``rate`` [Hz] the declared rate;
+    ``motion``: the samples and their declared rate (:class:`~sixplus3.motion.Motion`);
     ``x_guess`` (n, 9) minimal coordinates seeding the forward kinematics (e.g. the
     file's platform columns; only a starting guess, and the first one is checked);
     ``limits`` tighter than the robot's (default: the robot's hardware limits);
@@ -72,44 +81,45 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
     each sample; :data:`INTERPOLATED_RATE_RANGE` for consumers that interpolate the
     quintic through the points, such as a decimated ROS 2 JointTrajectory).
 
-    A motion of more than :data:`WINDOW` samples is checked window by window (each
-    window shares its last sample with the next, so every interval is checked once), so
-    that the memory of the checks does not grow with the length of the motion.
+    The report is frozen and holds the judged limits, the rate and the motion's
+    fingerprint.  A motion of more than :data:`WINDOW` samples is checked window by
+    window (each window shares its last sample with the next, so every interval is
+    checked once), so that the memory of the checks does not grow with its length.
     """
-    require_robot(robot)
-    if limits is not None and not isinstance(limits, Limits):
-        raise InputError("limits must be a Limits (or None)", value=type(limits).__name__,
-                         valid="Limits or None")
-    check_motion_arrays(t, theta, theta_dot, theta_ddot, rate)
+    _check_arguments("validate_motion", motion, robot, limits)
     # the hardware is the authority: the robot's limits, tightened by the site's
     # (robot_description.hardware); ``limits`` (a task's or a header's) only tighten them
-    lim = judged_limits(robot, limits)
-    try:
-        t = np.asarray(t, dtype=float).reshape(-1)
-        arrays = [np.asarray(a, dtype=float) for a in (theta, theta_dot, theta_ddot)]
-        extra = {k: (None if a is None else np.asarray(a, dtype=float))
-                 for k, a in (("x_guess", x_guess), ("platform", platform),
-                              ("tau_file", tau_file))}
-        rate = float(rate)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"the motion must be numeric arrays and a rate: {exc}"[:200],
-                         value=None, valid="(n,) times, (n, 9) arrays, a rate [Hz]") from None
-    n = len(t)
-    for name, arr, width in (("theta", arrays[0], 9), ("theta_dot", arrays[1], 9),
-                             ("theta_ddot", arrays[2], 9), ("x_guess", extra["x_guess"], 9),
-                             ("platform", extra["platform"], 10),
-                             ("tau_file", extra["tau_file"], 9)):
-        if arr is not None and arr.shape != (n, width):
-            raise InputError(f"{name} must be ({n}, {width}), got {arr.shape}",
-                             value=arr.shape, valid=f"({n}, {width})")
-    th, v, a = arrays
+    return _judge(motion, robot, x_guess, judged_limits(robot, limits), platform, tau_file,
+                  midpoints, rate_range)
+
+
+def _judge(motion: Motion, robot: Robot, x_guess: np.ndarray, lim: Limits,
+           platform: np.ndarray | None = None, tau_file: np.ndarray | None = None,
+           midpoints: bool = True,
+           rate_range: tuple[float, float] = RATE_RANGE) -> ValidationReport:
+    """:func:`validate_motion` by the judged limits ``lim`` (checked arguments)."""
+    n = len(motion)
+    extra: dict[str, np.ndarray | None] = {}
+    for name, arr, width in (("x_guess", x_guess, 9), ("platform", platform, 10),
+                             ("tau_file", tau_file, 9)):
+        try:
+            extra[name] = None if arr is None else np.asarray(arr, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{name} must be numeric: {exc}"[:200], value=None,
+                             valid=f"({n}, {width}) numbers") from None
+        got = extra[name]
+        if got is not None and got.shape != (n, width):
+            raise InputError(f"{name} must be ({n}, {width}), got {got.shape}",
+                             value=got.shape, valid=f"({n}, {width})")
     xg, pf, tf_ = extra["x_guess"], extra["platform"], extra["tau_file"]
     if xg is None:
         raise InputError("x_guess (n, 9) is needed to seed the forward kinematics",
                          value=None, valid=f"({n}, 9)")
+    t, th, v, a, rate = (motion.t, motion.theta, motion.theta_dot, motion.theta_ddot,
+                         motion.rate)
     if n <= WINDOW:
         rep = validate_window(t, th, v, a, robot, rate, xg, lim, pf, tf_, midpoints,
-                               rate_range=rate_range)
+                              rate_range=rate_range)
     else:
         reps = []
         for i0 in range(0, n - 1, WINDOW - 1):
@@ -122,22 +132,14 @@ def validate_motion(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
             if reps[-1].tau is None:  # a window that could not be checked through
                 break
         rep = merge_windows(reps, n)
-    rep.rate_hz = rate
-    rep.fingerprint = samples_fingerprint(t, th, v, a, rate)
-    rep.limits = lim.as_dict()
-    return rep
+    return replace(rep, rate_hz=rate, fingerprint=motion.fingerprint, limits=lim.as_dict())
 
 
-def validate_joint_trajectory(theta: np.ndarray, theta_dot: np.ndarray,
-                              theta_ddot: np.ndarray, robot: Robot, rate: float,
-                              x_guess: np.ndarray, limits: Limits | None = None,
-                              t: np.ndarray | None = None) -> ValidationReport:
-    """:func:`validate_motion` of samples on the grid k / ``rate`` (the pipeline's check
-    before it writes anything)."""
-    check_motion_arrays(theta if t is None else t, theta, theta_dot, theta_ddot, rate)
-    n = len(theta)
-    t = np.arange(n) / rate if t is None else t
-    return validate_motion(t, theta, theta_dot, theta_ddot, robot, rate, x_guess, limits)
+def validate_joint_trajectory(motion: Motion, robot: Robot, x_guess: np.ndarray,
+                              limits: Limits | None = None) -> ValidationReport:
+    """:func:`validate_motion` with the drives' rates (the pipeline's check before it
+    writes anything)."""
+    return validate_motion(motion, robot, x_guess, limits)
 
 
 def _header_limits(header: dict[str, Any], robot: Robot, name: str) -> Limits:
@@ -178,32 +180,19 @@ def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory",
     except InputError as exc:
         raise TrajectoryFileError(f"{name}: header pfl: {exc}", value=exc.value,
                                   valid=exc.valid) from None
-    rep = validate_motion(data[:, 0], columns(data, "pos"), columns(data, "vel"),
-                          columns(data, "acc"), robot, rate, x_guess, limits=limits,
+    motion = motion_of(data, rate)
+    rep = validate_motion(motion, robot, x_guess, limits=limits,
                           platform=columns(data, "platform"), tau_file=columns(data, "tau"))
-    _add_pfl(rep, robot, data[:, 0], columns(data, "vel"), judged)
+    rep = pfl_check(rep, robot, motion, judged)
     if rep.ok:  # the stop table the file carries (control/gate/stop.py), if any
-        table, found = stop_check(rep, robot, data[:, 0], columns(data, "vel"),
-                                  columns(data, "acc"), limits, rate, header.get(STOP_KEY))
-        rep.stop_deceleration = table
-        if found:
-            rep.findings, rep.ok = list(rep.findings) + found, False
-    rep.header, rep.data = header, data
-    return rep
+        table, found = stop_check(rep, robot, motion, limits, header.get(STOP_KEY))
+        rep = replace(rep, stop_deceleration=table, ok=not found,
+                      findings=list(rep.findings) + found)
+    return replace(rep, header=header, data=data)
 
 
-def _add_pfl(rep: ValidationReport, robot: Robot, t: np.ndarray, theta_dot: np.ndarray,
-             judged: tuple[BodyRegion, ...]) -> None:
-    """The power and force limiting check (control/gate/pfl.py) into ``rep``."""
-    found = pfl_check(rep, robot, t, theta_dot, judged)
-    if found:
-        rep.findings = list(rep.findings) + found
-        rep.ok = False
-
-
-def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
-                       theta_dot: np.ndarray, theta_ddot: np.ndarray, robot: Robot,
-                       rate: float, x_guess: np.ndarray, limits: Limits | None = None,
+def validate_and_write(path: str | Path, motion: Motion, robot: Robot, x_guess: np.ndarray,
+                       limits: Limits | None = None,
                        meta: dict[str, Any] | None = None) -> tuple[Path, ValidationReport]:
     """Validate the motion (:func:`validate_motion`, the gate) and, only if it passes,
     write it as one atomic trajectory file: (path, report).  Raises
@@ -212,21 +201,19 @@ def validate_and_write(path: str | Path, t: np.ndarray, theta: np.ndarray,
 
     meta = dict(meta or {})
     judged = judged_regions(meta.get("pfl"))
-    rep = validate_joint_trajectory(theta, theta_dot, theta_ddot, robot, rate, x_guess,
-                                    limits, t=t)
-    _add_pfl(rep, robot, np.asarray(t, dtype=float), np.asarray(theta_dot, dtype=float),
-             judged)
+    _check_arguments("validate_and_write", motion, robot, limits)
+    lim = judged_limits(robot, limits)  # once: the gate and the header judge by them
+    rep = pfl_check(_judge(motion, robot, x_guess, lim), robot, motion, judged)
     if judged:
         meta["pfl"] = names_of(judged)  # the header names what the file was judged for
     if not rep.ok:
         raise ValidationFailed("the trajectory fails validation, nothing written: "
                                + "; ".join(rep.messages()), rep.exit_code, rep)
-    lim = judged_limits(robot, limits)
     # the stop table a controller looks up (control/gate/stop.py), in the header
-    rep.stop_deceleration = stop_table(robot, rep, np.asarray(theta_dot, dtype=float),
-                                       np.asarray(theta_ddot, dtype=float), lim, rate)
-    meta[STOP_KEY] = header_entry(rep.stop_deceleration)
-    out = write_trajectory(path, t, theta, theta_dot, theta_ddot, rep, robot, lim, meta)
+    table = stop_table(robot, rep, motion, lim)
+    rep = replace(rep, stop_deceleration=table)
+    meta[STOP_KEY] = header_entry(table)
+    out = write_trajectory(path, motion, rep, robot, lim, meta)
     return out, rep
 
 
