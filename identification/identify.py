@@ -7,7 +7,8 @@ any torque within its band: those rows say nothing about the model, the classic
 exclusion of identification practice).  :func:`identify` then estimates the base
 parameters (OLS, WLS, IRLS) and a physically consistent full set
 (:mod:`.estimate`), and returns the robot that realises it
-(:func:`.plants.robot_with_parameters`).  :func:`check` measures a robot's torque
+(:func:`.plants.robot_with_parameters`); the estimator is a parameter
+(:mod:`.estimators`).  :func:`check` measures a robot's torque
 prediction on a log.
 """
 
@@ -31,9 +32,8 @@ from sixplus3.identification.estimate import (
     Consistent,
     LeastSquares,
     check_consistent,
-    consistent,
-    least_squares,
 )
+from sixplus3.identification.estimators import ConsistentEstimator, Estimator, Problem
 from sixplus3.identification.plants import robot_with_parameters
 from sixplus3.identification.signals import Filtered, filter_log
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -147,11 +147,24 @@ def per_joint_rms(err: np.ndarray, joint: np.ndarray, n: int = 9) -> np.ndarray:
 
 def identify(logs: list[DriveLog], robot: Robot, cutoff: float | None = None,
              prior_weight: float = PRIOR_WEIGHT, robust: bool = True,
-             max_condition: float = MAX_CONDITION, name: str | None = None) -> Identification:
-    """Identify ``robot``'s dynamics from ``logs`` (module doc).  A poorly excited data
-    set (condition number of the weighted base regressor above ``max_condition``) is
-    refused, naming both."""
+             max_condition: float = MAX_CONDITION, name: str | None = None,
+             estimator: Estimator | None = None) -> Identification:
+    """Identify ``robot``'s dynamics from ``logs`` (module doc) with ``estimator``
+    (:mod:`.estimators`; default: :class:`~.estimators.ConsistentEstimator` with
+    ``prior_weight``, ``robust`` and ``max_condition``, which refuses a poorly excited
+    data set: a condition number of the weighted base regressor above
+    ``max_condition``, naming both).  Whatever the estimator, its full parameters are
+    checked to be physically consistent before a robot is made of them."""
     robot = require_robot(robot)
+    est_of: Estimator
+    if estimator is None:
+        est_of = ConsistentEstimator(prior_weight, robust, max_condition)
+    elif isinstance(estimator, Estimator):
+        est_of = estimator
+    else:
+        raise InputError("estimator must be an Estimator (a name and a call; "
+                         "sixplus3.identification.estimators)",
+                         value=type(estimator).__name__, valid="an Estimator")
     if not logs:
         raise InputError("no log given", value=0, valid="at least one log")
     t0 = time.perf_counter()
@@ -162,14 +175,9 @@ def identify(logs: list[DriveLog], robot: Robot, cutoff: float | None = None,
         raise InputError(f"{ds.rows} rows of moving joints for {base.rank} base parameters: "
                          "the logs are too short or the joints barely move", value=ds.rows,
                          valid=f"> {2 * base.rank} rows")
-    ls = least_squares(Wb, ds.tau, ds.joint, robust)
-    if not ls.condition <= max_condition:
-        raise InputError(f"the logs excite the base parameters too poorly: condition number "
-                         f"{ls.condition:.3g} > {max_condition:g} (plan an excitation with "
-                         "'sixplus3 identify excite')", value=ls.condition,
-                         valid=f"<= {max_condition:g}")
     pi0 = parameters(ClosedLoopDynamics(robot))
-    cons = consistent(Wb, ds.tau, ls.weights, base, pi0, prior_weight)
+    est = est_of(Problem(Wb, ds.tau, ds.joint, base, pi0))
+    ls, cons = est.ls, est.consistent
     check_consistent(cons.pi, base.layout, tol=1e-12)
     new = robot_with_parameters(robot, cons.pi, base.layout,
                                 name=name or f"{robot.name}-identified")

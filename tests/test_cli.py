@@ -134,3 +134,25 @@ def test_robot_ik_unreachable_exits_2_naming_the_leg() -> None:
     assert res.exit_code == 2
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and "leg 0" in lines[0] and "RU chain" in lines[0]
+
+
+def test_the_name_table_is_the_registries() -> None:
+    """The CLI's light name table (issue 54, item 3) is each registry's keys, in order,
+    and the help offers them."""
+    from sixplus3.cli import names
+    from sixplus3.control.formats.registry import FORMATS
+    from sixplus3.design.readings import READINGS
+    from sixplus3.robot_description.robot import NAMED_ROBOTS
+
+    assert names.EXPORT_FORMATS == (*FORMATS, "rosbag2")
+    assert names.ROBOTS == tuple(NAMED_ROBOTS)
+    assert names.READINGS == tuple(READINGS)
+    import re
+
+    def help_text(*args: str) -> str:  # unwrapped (click breaks lines at hyphens)
+        out = CliRunner().invoke(main, [*args, "--help"]).output
+        return re.sub(r"-\s+", "-", " ".join(out.split()))
+
+    assert all(n in help_text("export") for n in names.EXPORT_FORMATS)
+    assert all(n in help_text() for n in names.ROBOTS)
+    assert all(n in help_text("design", "optimize") for n in names.READINGS)

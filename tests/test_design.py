@@ -144,9 +144,6 @@ def test_design_cli(tmp_path) -> None:
             "seconds"} <= set(out)
     bad = runner.invoke(main, ["design", "optimize", "--reading", "nope"])
     assert bad.exit_code == 2
-    from sixplus3.cli.design import _reading_names
-
-    assert _reading_names() == list(READINGS)
 
 
 def test_figures_are_written(tmp_path) -> None:

@@ -14,7 +14,8 @@ from click.testing import CliRunner
 from sixplus3.cli import main
 from sixplus3.control.file.file_format import columns, motion_of
 from sixplus3.control.file.trajectory_read import read_trajectory
-from sixplus3.control.formats.exports import drive_table, export_file
+from sixplus3.control.formats.drive_csv import drive_table
+from sixplus3.control.formats.exports import export_file
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import GeometryError, InputError, TrajectoryFileError
 from sixplus3.motion import Motion
@@ -114,7 +115,7 @@ def test_the_ros2_yaml_reads_back_exactly_for_any_floats() -> None:
     """The hand-written YAML (a long motion's yaml.safe_dump held 2.8 GB) reads back with
     PyYAML as the message itself, for floats PyYAML 1.1 is fussy about (1e-05 without a
     '.', -0.0, subnormals, 1e16, 1e300)."""
-    from sixplus3.control.formats.exports import ros2_joint_trajectory, ros2_yaml
+    from sixplus3.control.formats.ros2 import ros2_joint_trajectory, ros2_yaml
 
     rng = np.random.default_rng(1)
     n = 40

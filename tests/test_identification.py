@@ -190,7 +190,7 @@ def test_a_log_reads_and_its_bad_forms_are_refused() -> None:
 
 
 def test_logs_round_trip_in_joint_and_drive_units(tmp_path) -> None:
-    from sixplus3.control.formats.exports import drive_table
+    from sixplus3.control.formats.drive_csv import drive_table
 
     rng = np.random.default_rng(2)
     t = np.arange(400) / 1000.0
@@ -519,3 +519,50 @@ def test_the_wrench_on_a_perturbed_plant_with_its_identified_robot(excitation, t
     e_id = np.sqrt(np.mean(np.sum(err[:, :3] ** 2, axis=1)))
     e_nom = np.sqrt(np.mean(np.sum((nominal.wrench[on] - push)[:, :3] ** 2, axis=1)))
     assert e_id < e_nom, (e_id, e_nom)
+
+
+def test_identify_takes_an_estimator(excitation) -> None:
+    """The estimator is a parameter (issue 54, item 3): the default is the consistent
+    one; any object with a name and a call is taken, and what it returns is still
+    checked to be physical before a robot is made of it."""
+    pytest.importorskip("mujoco")
+    from sixplus3.control.drive.plant import run_on_plant
+    from sixplus3.identification.estimate import Consistent, least_squares
+    from sixplus3.identification.estimators import (
+        ESTIMATORS,
+        ConsistentEstimator,
+        Estimate,
+        Estimator,
+        Problem,
+    )
+    from sixplus3.identification.identify import identify
+
+    log = run_on_plant(excitation.path, ROBOT, perturbed_plant(ROBOT, 5), seed=5).log
+    default = identify([log], ROBOT)
+    assert identify([log], ROBOT, estimator=ESTIMATORS["consistent"]()).robot.hash == \
+        default.robot.hash
+    assert isinstance(ConsistentEstimator(), Estimator)
+
+    class Nominal:
+        """Believes the nominal parameters whatever the data say."""
+
+        name = "nominal"
+
+        def __init__(self, shift: float = 0.0) -> None:
+            self.shift = shift
+
+        def __call__(self, p: Problem) -> Estimate:
+            pi = p.pi0.copy()
+            pi[0] += self.shift  # the first body's mass
+            return Estimate(least_squares(p.Wb, p.tau, p.joint),
+                            Consistent(pi, 0.0, 1.0, "none", "nominal", 0.0))
+
+    mine = identify([log], ROBOT, estimator=Nominal())
+    np.testing.assert_allclose(mine.beta_consistent, mine.beta_nominal, rtol=1e-9, atol=1e-12)
+    assert mine.residual_rms.mean() > default.residual_rms.mean()
+    with pytest.raises(InputError, match="not physically consistent"):
+        identify([log], ROBOT, estimator=Nominal(shift=-100.0))  # a negative mass
+    with pytest.raises(InputError, match="must be an Estimator"):
+        identify([log], ROBOT, estimator="consistent")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="prior weight"):
+        ConsistentEstimator(prior_weight=1e300)

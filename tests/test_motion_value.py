@@ -12,7 +12,8 @@ import pytest
 from sixplus3.control.file.file_format import columns, motion_of
 from sixplus3.control.file.trajectory_file import write_trajectory
 from sixplus3.control.file.trajectory_read import read_trajectory
-from sixplus3.control.formats.exports import drive_table, ros2_joint_trajectory
+from sixplus3.control.formats.drive_csv import drive_table
+from sixplus3.control.formats.ros2 import ros2_joint_trajectory
 from sixplus3.control.gate.validation import validate_and_write, validate_motion
 from sixplus3.errors import InputError, TrajectoryFileError
 from sixplus3.kinematics.robot import home

@@ -1,47 +1,26 @@
 """Exports of a validated trajectory for the controller side.
 
 Only a file that passes the gate is exported: :func:`export_file` validates the bytes it
-reads (for the robot of the invocation) and converts exactly those samples.
-
-- **ROS 2** (:func:`ros2_joint_trajectory`): a ``trajectory_msgs/msg/JointTrajectory``
-  as a plain mapping (YAML or JSON): ``joint_names`` (the nine actuated joints, legs
-  0..2 each A, B, C, as in the URDF), one point per sample with ``positions`` [rad],
-  ``velocities`` [rad/s], ``accelerations`` [rad/s^2], ``effort`` [N m] at the joint and
-  ``time_from_start`` {sec, nanosec}.  ``rclpy``'s ``set_message_fields`` takes it as
-  is; ``ros2 topic pub`` takes it on its command line only while it is under Linux's
-  128 KiB limit for one argument (a 0.14 s motion at 1 kHz is already ~135 KB): for
-  longer motions use ``--rate`` (fewer points, validated again), the FollowJointTrajectory
-  goal (:func:`follow_joint_trajectory_goal`) from a node, or the rosbag2 export
-  (:mod:`sixplus3.control.formats.rosbag`).
-- **Drive** (:func:`drive_table`): the same samples in the units of servo drives in
-  cyclic synchronous position or torque mode (e.g. Yaskawa SGD7S in CSP/CST), per axis:
-  position in encoder counts of the motor, velocity in counts/s, torque in 0.1 % of the
-  motor's rated torque.  With N the belt ratio, 2^b the counts per motor turn, d the
-  axis direction and theta_0 the zero offset (``Robot.motors``)::
-
-      counts   = round(d (theta - theta_0) N 2^b / (2 pi))
-      counts/s = round(d theta_dot N 2^b / (2 pi))    [the drive's velocity objects
-                                                     are integers]
-      torque   = round(1000 d tau / (N tau_rated))       [0.1 % of rated]
-
-  The header carries every parameter used.  Rounding the position to a count changes
-  the angle by at most half a count: 2 pi / (2 N 2^b) = 1.4 microrad at the joint.
+reads (for the robot of the invocation) and hands exactly those samples, as a
+:class:`~sixplus3.motion.Motion`, to the format asked for (the registry
+:mod:`sixplus3.control.formats.registry`: ROS 2 JointTrajectory as YAML or JSON,
+:mod:`~sixplus3.control.formats.ros2`; the servo drives' table,
+:mod:`~sixplus3.control.formats.drive_csv`).  The interpolated forms (ROS 2) may be
+decimated to a lower rate first (:func:`decimate`), and that motion is validated again
+as the controller will run it.
 """
 
 from __future__ import annotations
 
-import csv
-import io
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
-from sixplus3.control.drive.drive_log import to_drive_units
 from sixplus3.control.file.file_format import columns, motion_of
+from sixplus3.control.formats.export_format import Export
+from sixplus3.control.formats.registry import FORMATS
 from sixplus3.control.gate.interval import check_torque_hold, held_torque, hermite, resample
 from sixplus3.control.gate.motion_input import INTERPOLATED_RATE_RANGE, RATE_RANGE, check_rate
 from sixplus3.control.gate.validation import validate_file, validate_motion
@@ -49,83 +28,6 @@ from sixplus3.control.report import ValidationReport
 from sixplus3.errors import InputError, ValidationFailed
 from sixplus3.motion import Motion
 from sixplus3.robot_description.robot import Robot
-from sixplus3.robot_description.urdf import actuated_joint_names
-
-FORMATS = ("ros2-yaml", "ros2-json", "drive-csv")
-
-
-def ros2_joint_trajectory(motion: Motion, tau: np.ndarray,
-                          frame_id: str = "base_link") -> dict[str, Any]:
-    """A ``trajectory_msgs/msg/JointTrajectory`` of ``motion`` with the efforts ``tau``
-    (n, 9) [N m] as a mapping (header stamp zero: start on reception)."""
-    t, theta, theta_dot, theta_ddot = (motion.t, motion.theta, motion.theta_dot,
-                                       motion.theta_ddot)
-    points = []
-    for k in range(len(t)):
-        ns_total = int(round(float(t[k]) * 1e9))
-        points.append({
-            "positions": [float(v) for v in theta[k]],
-            "velocities": [float(v) for v in theta_dot[k]],
-            "accelerations": [float(v) for v in theta_ddot[k]],
-            "effort": [float(v) for v in tau[k]],
-            "time_from_start": {"sec": ns_total // 1_000_000_000,
-                                "nanosec": ns_total % 1_000_000_000},
-        })
-    return {"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": frame_id},
-            "joint_names": actuated_joint_names(), "points": points}
-
-
-def _yaml_float(x: float) -> str:
-    """A float as YAML 1.1 reads it back exactly (PyYAML wants a '.' before an exponent:
-    '1e-05' would be text)."""
-    r = repr(float(x))
-    if r in ("inf", "-inf", "nan"):
-        return {"inf": ".inf", "-inf": "-.inf", "nan": ".nan"}[r]
-    if "e" in r and "." not in r:
-        r = r.replace("e", ".0e")
-    return r
-
-
-def ros2_yaml(msg: dict[str, Any]) -> str:
-    """The JointTrajectory mapping of :func:`ros2_joint_trajectory` as block YAML, the
-    points' arrays in flow style, written line by line (``yaml.safe_dump`` of a long
-    motion held ~2.8 GB; this holds the text only).  ``yaml.safe_load`` returns ``msg``."""
-    h = msg["header"]
-    lines = ["header:", "  stamp:", f"    sec: {int(h['stamp']['sec'])}",
-             f"    nanosec: {int(h['stamp']['nanosec'])}",
-             f"  frame_id: {json.dumps(h['frame_id'])}", "joint_names:"]
-    lines += [f"- {json.dumps(n)}" for n in msg["joint_names"]]
-    lines.append("points:" if msg["points"] else "points: []")
-    for p in msg["points"]:
-        for k, key in enumerate(("positions", "velocities", "accelerations", "effort")):
-            lead = "- " if k == 0 else "  "
-            lines.append(f"{lead}{key}: [" + ", ".join(_yaml_float(v) for v in p[key]) + "]")
-        tf = p["time_from_start"]
-        lines += ["  time_from_start:", f"    sec: {int(tf['sec'])}",
-                  f"    nanosec: {int(tf['nanosec'])}"]
-    return "\n".join(lines) + "\n"
-
-
-def drive_units(robot: Robot) -> dict[str, Any]:
-    """The conversion parameters of :func:`drive_table` (recorded in its header)."""
-    m = robot.motors
-    return {"gear_ratio": m.gear_ratio, "encoder_bits": m.encoder_bits,
-            "counts_per_motor_turn": 2 ** m.encoder_bits,
-            "counts_per_joint_rad": m.gear_ratio * 2 ** m.encoder_bits / (2 * math.pi),
-            "rated_torque_motor_n_m": m.rated_torque,
-            "torque_unit": "0.1 % of the motor's rated torque",
-            "zero_offsets_rad": list(m.zero_offsets), "directions": list(m.directions),
-            "axes": actuated_joint_names()}
-
-
-def drive_table(robot: Robot, motion: Motion,
-                tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(position counts, velocity counts/s, torque in 0.1 % of rated), each (n, 9) int64,
-    of ``motion`` and its torques ``tau`` (:func:`sixplus3.control.drive.drive_log.to_drive_units`:
-    the one conversion, also the logs')."""
-    counts, vel, torque = to_drive_units(robot, motion.theta, motion.theta_dot, tau)
-    assert vel is not None
-    return counts, vel, torque
 
 
 def densify(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray,
@@ -240,78 +142,46 @@ def lowest_safe_rate(rep: ValidationReport, robot: Robot,
     return None
 
 
-def follow_joint_trajectory_goal(msg: dict[str, Any],
-                                 goal_time_tolerance_s: float = 0.0) -> dict[str, Any]:
-    """A ``control_msgs/action/FollowJointTrajectory`` goal around a JointTrajectory
-    mapping: empty path and goal tolerances (the controller's own) and the goal time
-    tolerance, in the form ``ros2 action send_goal`` takes."""
-    ns = int(round(goal_time_tolerance_s * 1e9))
-    return {"trajectory": msg, "path_tolerance": [], "goal_tolerance": [],
-            "goal_time_tolerance": {"sec": ns // 1_000_000_000,
-                                    "nanosec": ns % 1_000_000_000}}
-
-
 def export_file(path: str | Path, robot: Robot, fmt: str,
                 torque_hold: str | None = None, rate: float | None = None,
                 goal: bool = False) -> str:
     """Validate the trajectory file at ``path`` for ``robot`` and return its export in
-    ``fmt`` (one of :data:`FORMATS`); raises :class:`ValidationFailed` (nothing is
-    exported) when the file is not a valid motion within the limits.  The torque
-    (effort, drive torque) is as ``torque_hold`` says: ``mean``, each sample carries the
-    mean of its own and the next sample's torque, for a drive that holds it over the
-    tick (the default of ``drive-csv``); ``sample``, the sample's own (the default of the
-    ROS 2 forms, whose controllers interpolate between points).  ``rate`` (ROS 2 forms):
+    ``fmt`` (a name of :data:`~sixplus3.control.formats.registry.FORMATS`); raises
+    :class:`ValidationFailed` (nothing is exported) when the file is not a valid motion
+    within the limits.  The torque (effort, drive torque) is as ``torque_hold`` says
+    (default: the format's): ``mean``, each sample carries the mean of its own and the
+    next sample's torque, for a drive that holds it over the tick (``drive-csv``);
+    ``sample``, the sample's own (the ROS 2 forms, whose controllers interpolate
+    between points).  ``rate`` (ROS 2 forms):
     decimate to this rate first (:func:`decimate`, validated again); ``goal``: the ROS 2
-    forms as a FollowJointTrajectory goal (:func:`follow_joint_trajectory_goal`)."""
+    forms as a FollowJointTrajectory goal
+    (:func:`~sixplus3.control.formats.ros2.follow_joint_trajectory_goal`)."""
 
-    if fmt not in FORMATS:
+    form = FORMATS.get(fmt)
+    if form is None:
         raise InputError(f"unknown export format {fmt!r}", value=fmt,
                          valid=", ".join(FORMATS))
     if torque_hold is None:
-        torque_hold = "mean" if fmt == "drive-csv" else "sample"
+        torque_hold = form.torque_hold
     check_torque_hold(torque_hold)  # a bad mode is refused before the work
     rep = validate_file(path, robot)
     if rep.exit_code != 0 or rep.data is None:
         raise ValidationFailed("not exported: " + "; ".join(rep.messages()),
                                exit_code=rep.exit_code, report=rep)
     data = rep.data
-    if (rate is not None or goal) and not fmt.startswith("ros2"):
-        raise InputError("--rate and --goal go with the ROS 2 forms (ros2-yaml, ros2-json)",
-                         value=fmt, valid="ros2-yaml or ros2-json")
+    if (rate is not None or goal) and not form.interpolated:
+        names = [f.name for f in FORMATS.values() if f.interpolated]
+        raise InputError(f"--rate and --goal go with the ROS 2 forms ({', '.join(names)})",
+                         value=fmt, valid=" or ".join(names))
     tau = columns(data, "tau")
     r0 = float((rep.header or {}).get("rate_hz", 0.0))
     motion = motion_of(data, r0)
     if rate is not None and snap_rate(rate, r0) != r0:
         t, th, thd, thdd, tau, _ = decimate(rep, robot, rate)
         motion = Motion(t, th, thd, thdd, snap_rate(rate, r0))
-    tau = held_torque(tau, torque_hold)
-    if fmt.startswith("ros2"):
-        msg = ros2_joint_trajectory(motion, tau)
-        if goal:
-            msg = follow_joint_trajectory_goal(msg)
-        if fmt == "ros2-json":
-            return json.dumps(msg) + "\n"
-        if goal:
-            tolerances = {k: v for k, v in msg.items() if k != "trajectory"}
-            body = ros2_yaml(msg["trajectory"])
-            return ("trajectory:\n" + "".join(f"  {line}\n" for line in body.splitlines())
-                    + yaml.safe_dump(tolerances, sort_keys=False,
-                                     default_flow_style=False))
-        return ros2_yaml(msg)
-    counts, vel, torque = drive_table(robot, motion, tau)
-    t = motion.t
-    out = io.StringIO()
-    out.write("# sixplus3 drive table " + json.dumps({
-        "source": Path(path).name, "robot_hash": robot.hash,
-        "rate_hz": (rep.header or {}).get("rate_hz"), "torque_hold": torque_hold,
-        **drive_units(robot)}) + "\n")
-    w = csv.writer(out, lineterminator="\n")
-    names = actuated_joint_names()
-    w.writerow(["t_s"] + [f"{n}_{q}" for n in names for q in ("counts", "counts_per_s",
-                                                                "torque_0p1pct")])
-    for i in range(len(t)):
-        row: list[Any] = [f"{t[i]:.9f}"]
-        for j in range(len(names)):
-            row += [int(counts[i, j]), int(vel[i, j]), int(torque[i, j])]
-        w.writerow(row)
-    return out.getvalue()
+    return form.render(Export(Path(path).name, robot, motion, held_torque(tau, torque_hold),
+                              torque_hold, goal))
+
+
+__all__ = ["RATE_SNAP", "SAFE_RATE_LADDER", "decimate", "dense_rate_for", "densify",
+           "export_file", "lowest_safe_rate", "snap_rate"]

@@ -12,7 +12,7 @@ fails it) and writes a bag directory with, on the file's time grid:
 - ``/tf`` (``tf2_msgs/msg/TFMessage``), one per sample: ``base_link`` → ``platform``
   (the URDF's floating joint, which ``robot_state_publisher`` does not publish);
 - ``/joint_trajectory`` (``trajectory_msgs/msg/JointTrajectory``), once at the start:
-  the nine actuated joints (:func:`sixplus3.control.formats.exports.ros2_joint_trajectory`).
+  the nine actuated joints (:func:`sixplus3.control.formats.ros2.ros2_joint_trajectory`).
 
 With ``robot_state_publisher`` fed the URDF, RViz shows the whole robot move: the bag
 directory also holds ``robot.urdf``, ``sixplus3.rviz`` and ``replay.launch.py``
@@ -46,7 +46,7 @@ import numpy as np
 import yaml
 
 from sixplus3.control.file.file_format import columns, motion_of
-from sixplus3.control.formats.exports import ros2_joint_trajectory
+from sixplus3.control.formats.ros2 import ros2_joint_trajectory
 from sixplus3.control.formats.ros_replay import write_replay_files
 from sixplus3.control.gate.validation import validate_file
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics

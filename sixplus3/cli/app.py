@@ -23,6 +23,8 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
+from sixplus3.cli.names import ROBOTS
+
 if TYPE_CHECKING:
     from sixplus3.robot_description.robot import Robot
 
@@ -83,7 +85,7 @@ class _Group(click.Group):
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="sixplus3")
 @click.option("--robot", "robot_file", default=None, metavar="NAME|FILE",
-              help="A named robot (default, paper-as-stated, paper-mirror, compact: "
+              help=f"A named robot ({', '.join(ROBOTS)}: "
               "'sixplus3 robot list') or a file of robot parameters (YAML/JSON, keys as in "
               "'sixplus3 robot show --json'; missing keys keep the defaults). Default: the "
               "built robot ('default').")

@@ -22,6 +22,7 @@ from sixplus3.cli.app import (
     request_fast_exit,
     task_robot,
 )
+from sixplus3.cli.names import EXPORT_FORMATS
 
 
 @main.command()
@@ -117,7 +118,7 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
 @main.command("export")
 @click.argument("csv_file", type=click.Path(dir_okay=False))
 @click.option("--format", "fmt", required=True,
-              type=click.Choice(["ros2-yaml", "ros2-json", "drive-csv", "rosbag2"]),
+              type=click.Choice(EXPORT_FORMATS),
               help="ROS 2 trajectory_msgs/JointTrajectory, a servo-drive table "
                    "(encoder counts, counts/s, torque in 0.1 % of rated), or a ROS 2 bag "
                    "(MCAP directory: /joint_states of every joint, /tf, the trajectory; "
