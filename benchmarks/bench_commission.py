@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.drive.drive_log import counts_per_rad, read_log, write_log
 from sixplus3.control.drive.plant import run_jog
+from sixplus3.control.file.drive_log import counts_per_rad, read_log, write_log
 from sixplus3.identification.commission import check_directions, known_pose, zero_offsets
 from sixplus3.identification.plants import perturbed_plant
 from sixplus3.robot_description.robot import Robot

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.drive.drive_log import DriveLog, read_log, write_log
 from sixplus3.control.drive.plant import run_on_plant
+from sixplus3.control.file.drive_log import DriveLog, read_log, write_log
 from sixplus3.identification.identify import identify
 from sixplus3.identification.plants import perturbed_plant
 from sixplus3.robot_description.robot import Robot

@@ -10,16 +10,16 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control.drive.smoothing import Smoothed, smooth
-from sixplus3.control.file.trajectory_file import check_samples, output_path
-from sixplus3.control.gate.motion_input import check_rate
+from sixplus3.control.file.trajectory_file import output_path
 from sixplus3.control.gate.validation import validate_and_write
 from sixplus3.control.report import ValidationReport
 from sixplus3.errors import TaskError, TrajectoryFileError, ValidationFailed
+from sixplus3.motion import check_rate, check_samples
 from sixplus3.planner.ocp import plan_problem
 from sixplus3.planner.options import PlannerOptions
 from sixplus3.planner.pfl import PFL_SAFETY, task_regions
 from sixplus3.planner.problem import Problem
+from sixplus3.planner.smoothing import Smoothed, smooth
 from sixplus3.planner.solution import Solution
 from sixplus3.planner.task import Task
 from sixplus3.progress import PlanProgress

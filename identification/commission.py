@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from sixplus3.control.drive.drive_log import JOINTS, DriveLog, counts_per_rad
+from sixplus3.control.file.drive_log import JOINTS, DriveLog, counts_per_rad
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import N_BODY, N_MOTOR, parameters, regressor_batch
 from sixplus3.errors import InputError

@@ -26,7 +26,6 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control.drive.smoothing import smooth
 from sixplus3.control.gate.validation import validate_and_write
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InfeasibleTaskError, InputError, Sixplus3Error
@@ -34,6 +33,7 @@ from sixplus3.identification.base import BaseParameters, base_parameters, stacke
 from sixplus3.identification.estimate import condition_number
 from sixplus3.motion import Motion
 from sixplus3.planner.ocp import plan
+from sixplus3.planner.smoothing import smooth
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 

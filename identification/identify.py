@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control.drive.drive_log import DriveLog
+from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import N_BODY, N_MOTOR, parameters
 from sixplus3.errors import InputError

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from sixplus3.control.drive.drive_log import DriveLog
+from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import parameters
 from sixplus3.fileio import atomic_write, finite_or_none, save_figure, strict_json

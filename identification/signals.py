@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
-from sixplus3.control.drive.drive_log import DriveLog
+from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.errors import InputError, check_number
 
 ORDER = 4

@@ -25,9 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control.drive.drive_log import DriveLog
 from sixplus3.control.drive.loop import TORQUE_NOISE, DriveLoop
 from sixplus3.control.drive.simulation import KD, KP, MujocoRobot, first_configuration
+from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.control.file.file_format import columns
 from sixplus3.control.gate.interval import held_torque
 from sixplus3.control.gate.validation import validate_file

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control.drive.drive_log import DriveLog
+from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.errors import InputError, check_number
 from sixplus3.identification.base import poses_of
 from sixplus3.kinematics import rotations as rot

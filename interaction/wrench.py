@@ -40,7 +40,7 @@ import numpy as np
 from scipy import signal
 from scipy.linalg import lapack
 
-from sixplus3.control.drive.drive_log import DriveLog
+from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError
 from sixplus3.identification.base import (

@@ -48,7 +48,7 @@ _API = {
     "PlannerOptions": "sixplus3.planner.options",
     "Solution": "sixplus3.planner.solution",
     "plan": "sixplus3.planner.ocp",
-    "smooth": "sixplus3.control.drive.smoothing",
+    "smooth": "sixplus3.planner.smoothing",
     "ValidationReport": "sixplus3.control.report",
     "validate_joint_trajectory": "sixplus3.control.gate.validation",
     "validate_file": "sixplus3.control.gate.validation",
@@ -78,7 +78,6 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
-    from sixplus3.control.drive.smoothing import smooth
     from sixplus3.control.file.trajectory_file import write_trajectory
     from sixplus3.control.file.trajectory_read import read_trajectory
     from sixplus3.control.gate.validation import validate_file, validate_joint_trajectory
@@ -92,6 +91,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from sixplus3.planner.ocp import plan
     from sixplus3.planner.options import PlannerOptions
     from sixplus3.planner.problem import Problem
+    from sixplus3.planner.smoothing import smooth
     from sixplus3.planner.solution import Solution
     from sixplus3.planner.task import Task, load_task, task_from_dict
     from sixplus3.robot_description.assembly import AssemblyMode

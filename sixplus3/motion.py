@@ -33,6 +33,43 @@ from sixplus3.fileio import short_repr
 #: slower replay): 2 minutes at 1 kHz.  Checked before anything is allocated.
 MAX_SAMPLES = 120_000
 
+#: Controller rates accepted [Hz].  Below 1 kHz the gate and a sampled drive part: in a
+#: MuJoCo replay of feed-forward held for a tick + PD (300 / 6), plans that pass the
+#: gate peak at 133 N m at 100 Hz (tilt30_x: the PD loop near its discrete stability
+#: bound) and at 11.0 N m at 500 Hz (translate); at 1 kHz every example stays within
+#: 10 N m (docs/validation.md, "The lowest rate").  Above 10 kHz no drive listens.
+RATE_RANGE = (1000.0, 10000.0)
+#: Rates accepted for consumers that interpolate the quintic through the points instead
+#: of holding each (a ROS 2 JointTrajectory controller with positions, velocities and
+#: accelerations): the whole-interval checks prove that interpolated motion, at any rate.
+INTERPOLATED_RATE_RANGE = (10.0, 10000.0)
+
+
+def check_rate(rate: float, rate_range: tuple[float, float] = RATE_RANGE,
+               name: str = "controller rate") -> float:
+    """``rate`` [Hz] as a float if it is a finite number in ``rate_range`` (default
+    :data:`RATE_RANGE`), else an InputError naming the range: the one rate check of the
+    planner's pipeline, the smoothing, the MuJoCo replay and the CLI."""
+    lo, hi = rate_range
+    if not (isinstance(rate, (int, float)) and not isinstance(rate, bool)
+            and math.isfinite(rate) and lo <= rate <= hi):
+        raise InputError(f"{name} must be in [{lo:g}, {hi:g}] Hz, got {rate!r}", value=rate,
+                         valid=f"[{lo:g}, {hi:g}] Hz")
+    return float(rate)
+
+
+def check_samples(duration: float, rate: float, what: str) -> int:
+    """The number of samples of ``duration`` [s] at ``rate`` [Hz], refused (InputError
+    naming ``what``) past :data:`MAX_SAMPLES`, before anything is allocated."""
+    n = duration * rate + 1 if math.isfinite(duration * rate) else math.inf
+    if not n <= MAX_SAMPLES:
+        raise InputError(f"{what}: {duration:.6g} s at {rate:g} Hz would make {n:.6g} "
+                         f"samples, over the cap of {MAX_SAMPLES} ({MAX_SAMPLES / rate:g} s "
+                         "at this rate): shorten it, or plan it in parts", value=n,
+                         valid=f"<= {MAX_SAMPLES} samples")
+    return int(n)
+
+
 _ARRAYS = ("t", "theta", "theta_dot", "theta_ddot")
 
 
@@ -134,4 +171,5 @@ def samples_fingerprint(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
     return sha.hexdigest()
 
 
-__all__ = ["MAX_SAMPLES", "Motion", "samples_fingerprint"]
+__all__ = ["INTERPOLATED_RATE_RANGE", "MAX_SAMPLES", "RATE_RANGE", "Motion", "check_rate",
+           "check_samples", "samples_fingerprint"]

@@ -14,13 +14,13 @@ from scipy.spatial.transform import Rotation
 
 from sixplus3.control.file.file_format import COLUMNS, columns
 from sixplus3.control.file.trajectory_file import samples_array
-from sixplus3.control.gate import motion_input, validation
+from sixplus3.control.gate import validation
 from sixplus3.errors import InputError
 from sixplus3.kinematics import checks
 from sixplus3.kinematics.robot import home
 from sixplus3.kinematics.robot_fk import robot_fk_batch
 from sixplus3.kinematics.rotations import rotvec_from_quat
-from sixplus3.motion import Motion
+from sixplus3.motion import Motion, check_rate
 from sixplus3.robot_description.robot import Robot
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -143,8 +143,8 @@ def test_one_rotation_vector_function() -> None:
 @pytest.mark.parametrize("rate", [999.9, 10000.1, float("nan"), True, "1000"])
 def test_one_rate_check_names_its_range(rate) -> None:
     with pytest.raises(InputError, match=r"must be in \[1000, 10000\] Hz"):
-        motion_input.check_rate(rate)
-    assert motion_input.check_rate(1000) == 1000.0
+        check_rate(rate)
+    assert check_rate(1000) == 1000.0
 
 
 def _default_robot_calls() -> list[str]:

@@ -15,14 +15,14 @@ import pytest
 from click.testing import CliRunner
 
 from sixplus3.cli import main as cli
-from sixplus3.control.drive.drive_log import (
+from sixplus3.control.drive.plant import run_jog
+from sixplus3.control.file.drive_log import (
     DriveLog,
     counts_per_rad,
     read_log,
     to_drive_units,
     write_log,
 )
-from sixplus3.control.drive.plant import run_jog
 from sixplus3.errors import InputError
 from sixplus3.identification.commission import (
     check_directions,

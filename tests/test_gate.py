@@ -31,12 +31,11 @@ from sixplus3.control.file.file_format import COLUMNS, JOINTS, columns, motion_o
 from sixplus3.control.file.trajectory_file import encode
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.gate import interval
-from sixplus3.control.gate.motion_input import RATE_RANGE
 from sixplus3.control.gate.validation import validate_bytes, validate_file, validate_motion
 from sixplus3.control.pipeline import run_plan
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InputError, TrajectoryFileError, ValidationFailed
-from sixplus3.motion import Motion
+from sixplus3.motion import RATE_RANGE, Motion
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 

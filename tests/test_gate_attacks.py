@@ -35,12 +35,11 @@ from sixplus3.control.file.file_format import COLUMNS, JOINTS
 from sixplus3.control.file.trajectory_file import encode
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.gate import interval
-from sixplus3.control.gate.motion_input import RATE_RANGE
 from sixplus3.control.gate.validation import validate_bytes, validate_motion
 from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import InputError, Sixplus3Error, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics.robot_fk import robot_fk_batch
-from sixplus3.motion import MAX_SAMPLES, Motion
+from sixplus3.motion import MAX_SAMPLES, RATE_RANGE, Motion
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 

@@ -58,7 +58,7 @@ def test_a_name_holding_a_raw_escape_byte(tmp_path) -> None:
 
 
 def test_the_filter_cut_off_has_a_floor() -> None:
-    from sixplus3.control.drive.drive_log import DriveLog
+    from sixplus3.control.file.drive_log import DriveLog
     from sixplus3.identification.signals import LOWEST_CUTOFF, choose_cutoff
 
     n = 4000

@@ -12,7 +12,7 @@ import yaml
 from click.testing import CliRunner
 
 from sixplus3.cli import main as cli
-from sixplus3.control.drive.drive_log import (
+from sixplus3.control.file.drive_log import (
     DriveLog,
     kinematic_hash,
     parse_log,
@@ -250,9 +250,9 @@ def fast_tour():
     """Tour 7 of the default settings (seed 0): a fast tour (cranks at ~24 rad/s) whose
     200 Hz scoring samples a forward kinematics search from a log could not follow, which
     once ended `sixplus3 identify excite` with its defaults (issue 53)."""
-    from sixplus3.control.drive.smoothing import smooth
     from sixplus3.identification.excite import ExcitationSettings, _tour_task
     from sixplus3.planner.ocp import plan
+    from sixplus3.planner.smoothing import smooth
     from sixplus3.planner.task import task_from_dict
 
     st = ExcitationSettings()

@@ -8,7 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from sixplus3.cli import main as cli
-from sixplus3.control.drive.drive_log import DriveLog
+from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.errors import InputError
 from sixplus3.interaction.stream import WrenchStream
 from sixplus3.interaction.wrench import SingleState, StateModel, estimate
@@ -183,8 +183,8 @@ def test_the_parameters_confidence_widens_the_uncertainty(hold_file, tmp_path) -
     parameters' confidence at that state (never less than without it), and the CLI
     takes the report's parameters.npz."""
     pytest.importorskip("mujoco")
-    from sixplus3.control.drive.drive_log import write_log
     from sixplus3.control.drive.plant import run_on_plant
+    from sixplus3.control.file.drive_log import write_log
     from sixplus3.identification.base import base_parameters
 
     run = run_on_plant(hold_file, ROBOT, ROBOT, seed=4, hold=0.5)

@@ -205,7 +205,7 @@ def test_bad_hand_files_are_refused_by_name(doc, what) -> None:
 def test_teach_finds_the_pauses_of_a_guided_motion() -> None:
     """A synthetic log (exact angles by inverse kinematics): rest, a move, a pause of
     0.5 s, a turn, a rest.  The waypoints are the start, the pause's pose and the end."""
-    from sixplus3.control.drive.drive_log import DriveLog
+    from sixplus3.control.file.drive_log import DriveLog
     from sixplus3.interaction.teach import teach
     from sixplus3.kinematics import rotations as rot
     from sixplus3.kinematics.robot import robot_ik

@@ -184,8 +184,8 @@ def test_smoothing_keeps_the_tightened_speed_and_acceleration(tmp_path) -> None:
     """Between its nodes the plan's interpolation can exceed the node bounds a little;
     the uniform stretch covers speed and acceleration, not only jerk (a 0.35 rad/s,
     1.5 rad/s^2 combined task once failed the gate by 0.06 %)."""
-    from sixplus3.control.drive.smoothing import smooth
     from sixplus3.examples import load
+    from sixplus3.planner.smoothing import smooth
 
     src = load("combined").source
     assert src is not None

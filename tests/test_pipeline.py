@@ -14,7 +14,6 @@ import pytest
 from click.testing import CliRunner
 
 from sixplus3.cli import main
-from sixplus3.control.drive.smoothing import smooth
 from sixplus3.control.file.file_format import COLUMNS, columns
 from sixplus3.control.file.trajectory_file import write_trajectory
 from sixplus3.control.file.trajectory_read import read_trajectory
@@ -23,6 +22,7 @@ from sixplus3.control.pipeline import run_plan
 from sixplus3.errors import TrajectoryFileError
 from sixplus3.motion import Motion
 from sixplus3.planner.ocp import plan
+from sixplus3.planner.smoothing import smooth
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 

@@ -24,7 +24,6 @@ from pathlib import Path
 import numpy as np
 
 from sixplus3.control.file.file_format import JOINTS, columns, motion_of
-from sixplus3.control.file.trajectory_file import check_samples
 from sixplus3.control.file.trajectory_read import read_bytes
 from sixplus3.control.gate.interval import check_torque_hold, held_torque, resample
 from sixplus3.control.gate.validation import validate_bytes, validate_motion
@@ -33,7 +32,7 @@ from sixplus3.errors import InputError, ValidationFailed
 from sixplus3.kinematics.robot import home
 from sixplus3.kinematics.robot_fk import robot_fk_batch
 from sixplus3.kinematics.rotations import rotvec_from_quat
-from sixplus3.motion import Motion
+from sixplus3.motion import Motion, check_samples
 from sixplus3.robot_description.robot import Robot
 
 #: Replay speeds accepted (1 = as planned).

@@ -13,7 +13,7 @@ drive's torque resolution, and holds it over the tick.  An optional external wre
 the platform (a person's push: :class:`WrenchProfile`) acts through MuJoCo's
 ``xfrc_applied``.
 
-The log (:mod:`sixplus3.control.drive.drive_log`) holds what the drive saw: the encoder angle
+The log (:mod:`sixplus3.control.file.drive_log`) holds what the drive saw: the encoder angle
 quantised to one count of the motor's encoder (20 bit per motor turn through the belt:
 2.8 microrad at the joint), and the torque it applied, quantised to 0.1 % of the motor's
 rated torque (0.0106 N m at the joint) plus a seeded Gaussian noise of the torque
@@ -29,9 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.drive.drive_log import DriveLog
 from sixplus3.control.drive.loop import TORQUE_NOISE, DriveLoop
 from sixplus3.control.drive.simulation import KD, KP, MujocoRobot, first_configuration
+from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.control.file.file_format import columns
 from sixplus3.control.file.trajectory_parse import NUMBER
 from sixplus3.control.gate.interval import held_torque

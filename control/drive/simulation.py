@@ -31,13 +31,13 @@ import numpy as np
 from sixplus3.control.file.file_format import columns
 from sixplus3.control.gate.findings import FEEDFORWARD_TOL
 from sixplus3.control.gate.interval import check_torque_hold, held_torque
-from sixplus3.control.gate.motion_input import check_rate
 from sixplus3.control.gate.validation import validate_file
 from sixplus3.control.report import ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError
 from sixplus3.kinematics.robot import home, robot_ik
 from sixplus3.kinematics.rotations import matrix_from_quat
+from sixplus3.motion import check_rate
 from sixplus3.robot_description.mjcf import TIMESTEP, build_mjcf, qpos_from_q
 from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import Robot, require_robot

@@ -39,7 +39,6 @@ import contextlib
 import errno
 import fcntl
 import io
-import math
 import os
 import re
 import stat
@@ -63,7 +62,7 @@ from sixplus3.control.file.file_format import (
 )
 from sixplus3.errors import InputError, TrajectoryFileError
 from sixplus3.fileio import atomic_write
-from sixplus3.motion import MAX_SAMPLES, Motion
+from sixplus3.motion import Motion
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
@@ -175,18 +174,6 @@ def write_atomically(path: Path, data: bytes) -> None:
                                   "is unchanged",
                                   value=str(path),
                                   valid="a writable directory with free space") from None
-
-
-def check_samples(duration: float, rate: float, what: str) -> int:
-    """The number of samples of ``duration`` [s] at ``rate`` [Hz], refused (InputError
-    naming ``what``) past :data:`MAX_SAMPLES`, before anything is allocated."""
-    n = duration * rate + 1 if math.isfinite(duration * rate) else math.inf
-    if not n <= MAX_SAMPLES:
-        raise InputError(f"{what}: {duration:.6g} s at {rate:g} Hz would make {n:.6g} "
-                         f"samples, over the cap of {MAX_SAMPLES} ({MAX_SAMPLES / rate:g} s "
-                         "at this rate): shorten it, or plan it in parts", value=n,
-                         valid=f"<= {MAX_SAMPLES} samples")
-    return int(n)
 
 
 #: Limits of the header the gate reports but does not enforce at the samples.

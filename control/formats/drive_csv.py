@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control.drive.drive_log import to_drive_units
+from sixplus3.control.file.drive_log import to_drive_units
 from sixplus3.control.formats.export_format import Export, ExportFormat
 from sixplus3.motion import Motion
 from sixplus3.robot_description.robot import Robot
@@ -45,7 +45,7 @@ def drive_units(robot: Robot) -> dict[str, Any]:
 def drive_table(robot: Robot, motion: Motion,
                 tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(position counts, velocity counts/s, torque in 0.1 % of rated), each (n, 9) int64,
-    of ``motion`` and its torques ``tau`` (:func:`sixplus3.control.drive.drive_log.to_drive_units`:
+    of ``motion`` and its torques ``tau`` (:func:`sixplus3.control.file.drive_log.to_drive_units`:
     the one conversion, also the logs')."""
     counts, vel, torque = to_drive_units(robot, motion.theta, motion.theta_dot, tau)
     assert vel is not None

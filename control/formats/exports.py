@@ -22,11 +22,10 @@ from sixplus3.control.file.file_format import columns, motion_of
 from sixplus3.control.formats.export_format import Export
 from sixplus3.control.formats.registry import FORMATS
 from sixplus3.control.gate.interval import check_torque_hold, held_torque, hermite, resample
-from sixplus3.control.gate.motion_input import INTERPOLATED_RATE_RANGE, RATE_RANGE, check_rate
 from sixplus3.control.gate.validation import validate_file, validate_motion
 from sixplus3.control.report import ValidationReport
 from sixplus3.errors import InputError, ValidationFailed
-from sixplus3.motion import Motion
+from sixplus3.motion import INTERPOLATED_RATE_RANGE, RATE_RANGE, Motion, check_rate
 from sixplus3.robot_description.robot import Robot
 
 

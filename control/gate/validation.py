@@ -33,9 +33,6 @@ from sixplus3.control.file.file_format import columns, motion_of
 from sixplus3.control.file.trajectory_file import write_trajectory
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.file.trajectory_read import check_robot, read_bytes
-from sixplus3.control.gate.motion_input import (  # noqa: E402
-    RATE_RANGE,
-)
 from sixplus3.control.gate.pfl import judged_regions, pfl_check
 from sixplus3.control.gate.stop import HEADER_KEY as STOP_KEY
 from sixplus3.control.gate.stop import header_entry, stop_check, stop_table
@@ -43,7 +40,7 @@ from sixplus3.control.gate.window import merge_windows, validate_window
 from sixplus3.control.report import ValidationReport
 from sixplus3.errors import InputError, LimitError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
-from sixplus3.motion import Motion
+from sixplus3.motion import RATE_RANGE, Motion
 from sixplus3.robot_description.body_regions import names_of
 from sixplus3.robot_description.hardware import judged_limits
 from sixplus3.robot_description.limits import Limits

@@ -37,7 +37,6 @@ from sixplus3.control.gate.findings import (
     tcp_findings,
 )
 from sixplus3.control.gate.interval import hermite_midpoints
-from sixplus3.control.gate.motion_input import RATE_RANGE
 from sixplus3.control.gate.offload import OFFLOAD_SHARE, Offload
 from sixplus3.control.report import Finding, ValidationReport
 from sixplus3.kinematics import rotations as rot
@@ -46,6 +45,7 @@ from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import RobotConfig
 from sixplus3.kinematics.robot_fk import BatchFK, robot_fk_batch
 from sixplus3.kinematics.spherical import spherical_tilts
+from sixplus3.motion import RATE_RANGE
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 

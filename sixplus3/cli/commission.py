@@ -49,7 +49,7 @@ def zero(log_file: str | None, counts: tuple[float, ...] | None,
     """Zero offsets from the encoder counts read in a known pose, into a robot file."""
     import numpy as np
 
-    from sixplus3.control.drive.drive_log import JOINTS, read_log
+    from sixplus3.control.file.drive_log import JOINTS, read_log
     from sixplus3.identification.commission import known_pose, zero_offsets
     from sixplus3.identification.report import robot_yaml
 
@@ -91,7 +91,7 @@ def directions(log_file: str, out_file: str | None, as_json: bool) -> None:
 
     Exit codes: 0 every judged motor turns the right way (or -o wrote the corrected
     robot); 1 a motor is reversed and no -o was given; 2 bad input."""
-    from sixplus3.control.drive.drive_log import JOINTS, read_log
+    from sixplus3.control.file.drive_log import JOINTS, read_log
     from sixplus3.identification.commission import GAIN, check_directions
     from sixplus3.identification.report import robot_yaml
 
@@ -141,8 +141,8 @@ def directions(log_file: str, out_file: str | None, as_json: bool) -> None:
 def jog(plant_file: str, out_file: str, amplitude: float, each: float, seed: int) -> None:
     """Simulate the commissioning jogs on a plant (MuJoCo): each motor in turn from the
     home jig, the others holding; the log in the drive's units, as its drives count."""
-    from sixplus3.control.drive.drive_log import write_log
     from sixplus3.control.drive.plant import run_jog
+    from sixplus3.control.file.drive_log import write_log
     from sixplus3.robot_description.robot import load_robot
 
     plant = load_robot(plant_file)

@@ -120,7 +120,7 @@ def _logged(run: Any, log_file: str, robot: Any, plant: Any, seed: int, noise: f
             source: str, as_json: bool) -> dict[str, Any]:
     """Write the run's drive log atomically (with its plant, seed and source), print the
     summary as one JSON object when asked, and return the summary."""
-    from sixplus3.control.drive.drive_log import write_log
+    from sixplus3.control.file.drive_log import write_log
 
     assert run.log is not None
     write_log(log_file, run.log, robot, {"plant": plant.name, "plant_hash": plant.hash,

@@ -72,12 +72,12 @@ def _examples_condition(robot: Any) -> float:
     import numpy as np
 
     from sixplus3 import examples
-    from sixplus3.control.drive.smoothing import smooth
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.identification.base import base_parameters
     from sixplus3.identification.estimate import condition_number
     from sixplus3.identification.excite import base_regressor
     from sixplus3.planner.ocp import plan
+    from sixplus3.planner.smoothing import smooth
 
     base = base_parameters(robot)
     dyn = ClosedLoopDynamics(robot)
@@ -115,7 +115,7 @@ def estimate(logs: tuple[str, ...], out_file: str, report_dir: str | None,
     (physically consistent; every command takes it with --robot)."""
     import os
 
-    from sixplus3.control.drive.drive_log import read_log
+    from sixplus3.control.file.drive_log import read_log
     from sixplus3.identification.estimate import PRIOR_WEIGHT
     from sixplus3.identification.identify import identify as run_identify
     from sixplus3.identification.report import write_report, write_robot
@@ -186,7 +186,7 @@ def _say_not_measured(values: Any) -> None:
 def check_cmd(log: str, cutoff: float | None, as_json: bool) -> None:
     """Per-joint RMS of the measured minus the predicted torque of the robot (--robot)
     on a log: compare the nominal and an identified robot on a new log."""
-    from sixplus3.control.drive.drive_log import read_log
+    from sixplus3.control.file.drive_log import read_log
     from sixplus3.identification.identify import check as run_check
     from sixplus3.identification.identify import not_measured
 

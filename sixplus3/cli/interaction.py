@@ -35,7 +35,7 @@ def wrench(log: str, out_file: str | None, at: str, gain: float, noise: float,
            as_json: bool) -> None:
     """The wrench a person applies to the platform, from a drive log alone (a momentum
     observer on the closed-loop dynamics; the direct residual for comparison)."""
-    from sixplus3.control.drive.drive_log import read_log
+    from sixplus3.control.file.drive_log import read_log
     from sixplus3.interaction.wrench import estimate
 
     check_output(out_file, (log,))
@@ -192,7 +192,7 @@ def teach(log: str, out_file: str, pfl: str | None, people: str | None, stop: bo
 
     import yaml
 
-    from sixplus3.control.drive.drive_log import read_log
+    from sixplus3.control.file.drive_log import read_log
     from sixplus3.interaction.teach import teach as teach_log
     from sixplus3.robot_description.body_regions import regions
 

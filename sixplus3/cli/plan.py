@@ -11,7 +11,7 @@ from sixplus3.cli.app import FLOAT, NUMERIC_ARGS, bars, current_robot, fail, mai
 
 
 def _check_rate(rate: float) -> None:
-    from sixplus3.control.gate.motion_input import check_rate
+    from sixplus3.motion import check_rate
 
     check_rate(rate, name="--rate")
 

@@ -133,8 +133,8 @@ def _simulate_plant(csv_file: str, robot: Any, plant_file: str | None,
                     log_file: str | None,
                     seed: int, noise: float, hold: float, force: bool, kp: float,
                     kd: float, as_json: bool, wrench_file: str | None = None) -> None:
-    from sixplus3.control.drive.drive_log import write_log
     from sixplus3.control.drive.plant import run_on_plant
+    from sixplus3.control.file.drive_log import write_log
     from sixplus3.robot_description.robot import load_robot
 
     if plant_file is None or log_file is None:

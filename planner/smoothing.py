@@ -37,11 +37,9 @@ from typing import Any
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
-from sixplus3.control.file.trajectory_file import check_samples
-from sixplus3.control.gate.motion_input import check_rate
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InputError, SmoothingError
-from sixplus3.motion import Motion
+from sixplus3.motion import Motion, check_rate, check_samples
 from sixplus3.planner.solution import Solution, actuated_profile
 
 
