@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from sixplus3.design import _atlas_kernel as _kernel
-from sixplus3.errors import InputError
+from sixplus3.errors import InputError, check_number
 from sixplus3.fileio import atomic_write_with, save_figure
 from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
 from sixplus3.robot_description.robot import Robot
@@ -60,9 +60,7 @@ class AtlasSettings:
                 "psi_step_deg": (self.psi_step_deg, 1.0, 45.0),
                 "accel_g": (self.accel_g, 0.0, 5.0)}
         for name, (v, lo, hi) in vals.items():
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
-                raise InputError(f"atlas {name} must be in [{lo:g}, {hi:g}], got {v!r}",
-                                 value=v, valid=f"[{lo:g}, {hi:g}]")
+            check_number(f"atlas {name}", v, lo, hi)
         tors = tuple(self.torsions_deg)
         if not tors or len(tors) > 36 or not all(
                 isinstance(t, (int, float)) and math.isfinite(t) and -180 <= t <= 180

@@ -14,7 +14,7 @@ from sixplus3.design.readings import READINGS
 from sixplus3.design.search import Reading
 from sixplus3.design.workspace import usable_area
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.errors import InputError
+from sixplus3.errors import check_number
 from sixplus3.kinematics import collision
 from sixplus3.kinematics.leg import leg_ik
 from sixplus3.kinematics.robot import home
@@ -28,9 +28,7 @@ from sixplus3.robot_description.robot import Robot, require_robot
 def leg_report(robot: Robot, ws_step: float = 0.005) -> str:
     """Sample configurations and the usable half-plane area of the robot's leg design."""
     robot = require_robot(robot)
-    if not (math.isfinite(ws_step) and 0.0005 <= ws_step <= 0.05):
-        raise InputError(f"ws_step must be in [0.0005, 0.05] m, got {ws_step!r}",
-                         value=ws_step, valid="[0.0005, 0.05] m")
+    check_number("ws_step [m]", ws_step, 0.0005, 0.05)
     geometry, mode = robot.leg, robot.mode
     load = LegLoad(torque_limit=robot.limits.torque)
     lines = [

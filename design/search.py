@@ -24,7 +24,7 @@ from tqdm import tqdm
 
 from sixplus3.design import _kernel
 from sixplus3.design.workspace import halfplane_grid
-from sixplus3.errors import InputError
+from sixplus3.errors import InputError, check_number
 from sixplus3.robot_description.assembly import AssemblyMode
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
 
@@ -198,9 +198,7 @@ def check_steps(coarse_step: float, fine_step: float, *ws_steps: float) -> None:
               ("fine_step", fine_step, 1e-4, coarse_step)]
     checks += [("ws_step", v, 1e-4, 0.05) for v in ws_steps]
     for name, v, lo, hi in checks:
-        if not (math.isfinite(v) and lo <= v <= hi):
-            raise InputError(f"{name} must be in [{lo:g}, {hi:g}] m, got {v}", value=v,
-                             valid=f"[{lo:g}, {hi:g}] m")
+        check_number(f"{name} [m]", v, lo, hi)
 
 
 def optimize(coarse_step: float = 0.01, fine_step: float = 0.001, ws_step: float = 0.005,

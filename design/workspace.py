@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.errors import InputError
+from sixplus3.errors import check_number
 from sixplus3.kinematics.leg import LegEval, LegState, leg_eval_packed
 from sixplus3.robot_description.assembly import DEFAULT_MODE, AssemblyMode
 from sixplus3.robot_description.geometry import LegGeometry, LegLoad
@@ -29,9 +29,7 @@ def halfplane_grid(geometry: LegGeometry, step: float) -> np.ndarray:
 
     Returns (n, 3) points (x, y, 0) of the leg frame; each stands for an area step^2.
     """
-    if not (math.isfinite(step) and 1e-4 <= step <= 0.1):
-        raise InputError(f"workspace step must be in [0.0001, 0.1] m, got {step}",
-                         value=step, valid="[0.0001, 0.1] m")
+    check_number("workspace step [m]", step, 1e-4, 0.1)
     r = geometry.dp
     xs = np.arange(-r + step / 2, r, step)
     ys = np.arange(step / 2, geometry.l1 + r, step)

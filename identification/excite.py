@@ -28,7 +28,7 @@ import numpy as np
 
 from sixplus3.control.gate.validation import validate_and_write
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.errors import InfeasibleTaskError, InputError, Sixplus3Error
+from sixplus3.errors import InfeasibleTaskError, InputError, Sixplus3Error, check_number
 from sixplus3.identification.base import BaseParameters, base_parameters, stacked_regressor
 from sixplus3.identification.estimate import condition_number
 from sixplus3.motion import Motion
@@ -62,11 +62,7 @@ class ExcitationSettings:
                              ("tilt", 0.0, 60.0), ("crank", 0.0, 80.0),
                              ("torque_fraction", 0.5, 1.0), ("jerk", 200.0, 2e5),
                              ("torque_rate", 10.0, 2000.0)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
-                    math.isfinite(v) and lo <= v <= hi):
-                raise InputError(f"excitation {name} must be in [{lo:g}, {hi:g}], got {v!r}",
-                                 value=v, valid=f"[{lo:g}, {hi:g}]")
+            check_number(f"excitation {name}", getattr(self, name), lo, hi)
         for name, lo, hi in (("candidates", 1, 200), ("waypoints", 1, 12),
                              ("seed", 0, 2 ** 31)):
             v = getattr(self, name)

@@ -42,7 +42,7 @@ from scipy.linalg import lapack
 
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.errors import InputError
+from sixplus3.errors import InputError, check_number
 from sixplus3.identification.base import (
     base_parameters,
     configurations,
@@ -259,10 +259,7 @@ def estimate(log: DriveLog, robot: Robot, gain: float = GAIN, at: str = "centre"
                                                           10.0),
                             ("monitor_noise", monitor_noise, 0.0, 10.0),
                             ("v_band", v_band, 0.0, 10.0), ("n_sigma", n_sigma, 0.0, 100.0)):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
-                math.isfinite(v) and lo <= v <= hi):
-            raise InputError(f"{name} must be in [{lo:g}, {hi:g}], got {v!r}", value=v,
-                             valid=f"[{lo:g}, {hi:g}]")
+        check_number(name, v, lo, hi)
     if at not in ("centre", "tcp"):
         raise InputError(f"--at must be centre or tcp, got {at!r}", value=at,
                          valid="centre or tcp")

@@ -33,7 +33,6 @@ The geometry is light capsules along the links for MuJoCo's viewer, with no mass
 
 from __future__ import annotations
 
-import math
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from typing import Any
@@ -42,7 +41,7 @@ import numpy as np
 import pinocchio as pin
 
 from sixplus3.cache import cached
-from sixplus3.errors import InputError
+from sixplus3.errors import InputError, check_number
 from sixplus3.robot_description.model import closed_loop_model
 from sixplus3.robot_description.robot import Robot, require_robot
 from sixplus3.robot_description.urdf import _f, _vec, actuated_joint_names, closure_pairs
@@ -90,9 +89,7 @@ def build_mjcf(robot: Robot, timestep: float = TIMESTEP,
     actuator and actuated-joint ranges from the robot's limits; ``contacts``: contact
     between the links of different legs (module doc)."""
     robot = require_robot(robot)
-    if not (math.isfinite(timestep) and 1e-6 <= timestep <= 1e-2):
-        raise InputError(f"timestep {timestep!r} s out of range", value=timestep,
-                         valid="[1e-6, 1e-2] s")
+    check_number("timestep [s]", timestep, 1e-6, 1e-2)
     m = closed_loop_model(robot).model
     root = ET.Element("mujoco", model=robot.name)
     world = _options(root, robot, timestep, contacts)

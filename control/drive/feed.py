@@ -28,7 +28,7 @@ from sixplus3.control.file.trajectory_read import read_bytes
 from sixplus3.control.gate.interval import check_torque_hold, held_torque, resample
 from sixplus3.control.gate.validation import validate_bytes, validate_motion
 from sixplus3.control.report import ValidationReport
-from sixplus3.errors import InputError, ValidationFailed
+from sixplus3.errors import InputError, ValidationFailed, check_number
 from sixplus3.kinematics.robot import home
 from sixplus3.kinematics.robot_fk import robot_fk_batch
 from sixplus3.kinematics.rotations import rotvec_from_quat
@@ -82,12 +82,9 @@ class FeedPlan:
 
 
 def check_speed(speed: float) -> float:
-    lo, hi = SPEED_RANGE
-    if not (isinstance(speed, (int, float)) and math.isfinite(speed) and lo <= speed <= hi):
-        raise InputError(f"speed must be in [{lo:g}, {hi:g}] (1 = as planned; a faster "
-                         f"replay needs a new plan), got {speed!r}", value=speed,
-                         valid=f"[{lo:g}, {hi:g}]")
-    return float(speed)
+    """The replay speed (1 = as planned; a faster replay needs a new plan)."""
+    return check_number("speed (1 = as planned; a faster replay needs a new plan)", speed,
+                        *SPEED_RANGE)
 
 
 def parse_address(text: str) -> tuple[str, int]:

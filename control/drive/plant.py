@@ -22,7 +22,6 @@ monitor (``torque_noise``, default 0.005 N m).
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -179,10 +178,7 @@ def run_jog(plant: Robot, amplitude: float = 0.1, each: float = 1.2,
     plant = require_robot(plant)
     for name, v, lo, hi in (("amplitude", amplitude, 0.0, 0.5), ("each", each, 0.2, 30.0),
                             ("rest", rest, 0.0, 30.0), ("rate", rate, 100.0, 10000.0)):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
-                math.isfinite(v) and lo <= v <= hi):
-            raise InputError(f"{name} must be in [{lo:g}, {hi:g}], got {v!r}", value=v,
-                             valid=f"[{lo:g}, {hi:g}]")
+        check_number(name, v, lo, hi)
     h = home(plant)
     q0, th0 = np.asarray(h.q[0]), np.asarray(h.theta[0])
     ff = ClosedLoopDynamics(plant).gravity_torques(q0)

@@ -21,7 +21,6 @@ are done with it:
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -34,7 +33,7 @@ from sixplus3.control.gate.interval import check_torque_hold, held_torque
 from sixplus3.control.gate.validation import validate_file
 from sixplus3.control.report import ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.errors import InputError
+from sixplus3.errors import InputError, check_number
 from sixplus3.kinematics.robot import home, robot_ik
 from sixplus3.kinematics.rotations import matrix_from_quat
 from sixplus3.motion import check_rate
@@ -228,10 +227,7 @@ def export_mjcf(robot: Robot, contacts: bool = False) -> str:
 
 
 def _check(name: str, v: float, lo: float, hi: float) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
-            math.isfinite(v) and lo <= v <= hi):
-        raise InputError(f"{name} = {v!r} is out of range", value=v, valid=f"[{lo}, {hi}]")
-    return float(v)
+    return check_number(name, v, lo, hi)
 
 
 def simulate(robot: Robot, q0: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
