@@ -39,12 +39,12 @@ from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from sixplus3.dynamics.symbolic import symbolic_robot
 from sixplus3.errors import InputError, SmoothingError
-from sixplus3.motion import Motion, check_rate, check_samples
+from sixplus3.motion import HasMotion, Motion, check_rate, check_samples
 from sixplus3.planner.solution import Solution, actuated_profile
 
 
 @dataclass(frozen=True)
-class Smoothed:
+class Smoothed(HasMotion):
     #: the samples at t = k / rate (read-only; :class:`~sixplus3.motion.Motion`)
     motion: Motion
     x_guess: np.ndarray  # (M, 9) the plan's minimal coordinates near each sample
@@ -57,31 +57,6 @@ class Smoothed:
     max_deviation: float  # [rad] largest |theta_out - theta_plan| at the output samples
     #: largest uniform time stretch of a piece (>= 1; whole-period rounding included)
     time_stretch: float = 1.0
-
-    @property
-    def rate(self) -> float:
-        """[Hz]"""
-        return self.motion.rate
-
-    @property
-    def t(self) -> np.ndarray:
-        """(M,) [s], exactly k / rate"""
-        return self.motion.t
-
-    @property
-    def theta(self) -> np.ndarray:
-        """(M, 9) [rad]"""
-        return self.motion.theta
-
-    @property
-    def theta_dot(self) -> np.ndarray:
-        """(M, 9) [rad/s]"""
-        return self.motion.theta_dot
-
-    @property
-    def theta_ddot(self) -> np.ndarray:
-        """(M, 9) [rad/s^2]"""
-        return self.motion.theta_ddot
 
     @property
     def added_fraction(self) -> float:

@@ -160,6 +160,38 @@ class Motion:
         return Motion(self.t, theta, self.theta_dot, self.theta_ddot, self.rate)
 
 
+class HasMotion:
+    """A value holding a ``motion`` (the smoothing's result, the feed's plan) reads its
+    samples through it: ``t``, ``theta``, ``theta_dot``, ``theta_ddot``, ``rate``."""
+
+    motion: Motion
+
+    @property
+    def t(self) -> np.ndarray:
+        """(n,) [s]"""
+        return self.motion.t
+
+    @property
+    def theta(self) -> np.ndarray:
+        """(n, 9) [rad]"""
+        return self.motion.theta
+
+    @property
+    def theta_dot(self) -> np.ndarray:
+        """(n, 9) [rad/s]"""
+        return self.motion.theta_dot
+
+    @property
+    def theta_ddot(self) -> np.ndarray:
+        """(n, 9) [rad/s^2]"""
+        return self.motion.theta_ddot
+
+    @property
+    def rate(self) -> float:
+        """[Hz]"""
+        return self.motion.rate
+
+
 def samples_fingerprint(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
                         theta_ddot: np.ndarray, rate: float) -> str:
     """SHA-256 of a motion's samples (as float64) and its rate (:attr:`Motion.fingerprint`)."""
@@ -171,5 +203,6 @@ def samples_fingerprint(t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
     return sha.hexdigest()
 
 
-__all__ = ["INTERPOLATED_RATE_RANGE", "MAX_SAMPLES", "RATE_RANGE", "Motion", "check_rate",
+__all__ = ["INTERPOLATED_RATE_RANGE", "MAX_SAMPLES", "RATE_RANGE", "HasMotion", "Motion",
+           "check_rate",
            "check_samples", "samples_fingerprint"]

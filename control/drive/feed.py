@@ -32,7 +32,7 @@ from sixplus3.errors import InputError, ValidationFailed, check_number
 from sixplus3.kinematics.robot import home
 from sixplus3.kinematics.robot_fk import robot_fk_batch
 from sixplus3.kinematics.rotations import rotvec_from_quat
-from sixplus3.motion import Motion, check_samples
+from sixplus3.motion import HasMotion, Motion, check_samples
 from sixplus3.robot_description.robot import Robot
 
 #: Replay speeds accepted (1 = as planned).
@@ -40,7 +40,7 @@ SPEED_RANGE = (0.01, 1.0)
 
 
 @dataclass(frozen=True)
-class FeedPlan:
+class FeedPlan(HasMotion):
     """What the feed sends: the validated ``motion`` and its feed-forward torques."""
 
     motion: Motion  # the samples at their rate
@@ -49,26 +49,6 @@ class FeedPlan:
     speed: float
     report: ValidationReport  # the validation of exactly these samples
     torque_hold: str = "mean"
-
-    @property
-    def t(self) -> np.ndarray:
-        return self.motion.t
-
-    @property
-    def theta(self) -> np.ndarray:
-        return self.motion.theta
-
-    @property
-    def theta_dot(self) -> np.ndarray:
-        return self.motion.theta_dot
-
-    @property
-    def theta_ddot(self) -> np.ndarray:
-        return self.motion.theta_ddot
-
-    @property
-    def rate(self) -> float:
-        return self.motion.rate
 
     def messages(self) -> Iterator[bytes]:
         """One JSON datagram per sample, made as it is sent (memory does not grow with
