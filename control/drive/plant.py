@@ -31,7 +31,7 @@ import numpy as np
 from sixplus3.control.drive.loop import TORQUE_NOISE, DriveLoop
 from sixplus3.control.drive.simulation import KD, KP, MujocoRobot, first_configuration
 from sixplus3.control.file.drive_log import DriveLog
-from sixplus3.control.file.file_format import columns
+from sixplus3.control.file.file_format import columns, motion_of
 from sixplus3.control.file.trajectory_parse import NUMBER
 from sixplus3.control.gate.interval import held_torque
 from sixplus3.control.gate.validation import validate_file
@@ -120,10 +120,10 @@ def run_on_plant(path: str | Path, model: Robot, plant: Robot, seed: int = 0,
     if not rep.ok or rep.data is None or rep.header is None:
         raise ValidationFailed("not run on the plant: " + "; ".join(rep.messages()),
                                rep.exit_code, rep)
-    rate = float(rep.header["rate_hz"])
     data = rep.data
-    theta_ref = columns(data, "pos")
-    vel_ref = columns(data, "vel")
+    motion = motion_of(data, float(rep.header["rate_hz"]))
+    assert motion.fingerprint == rep.fingerprint  # the plant runs what the gate judged
+    rate, theta_ref, vel_ref = motion.rate, motion.theta, motion.theta_dot
     ff = held_torque(columns(data, "tau"), "mean")
     n_hold = int(round(hold * rate))
     if n_hold:
