@@ -114,8 +114,7 @@ class Motion:
     def __post_init__(self) -> None:
         _check_kinds({k: getattr(self, k) for k in _ARRAYS}, self.rate)
         try:
-            t = _frozen(self.t).reshape(-1)
-            t.setflags(write=False)
+            t = _frozen(self.t).reshape(-1)  # a view of a read-only copy: read-only
             arrays = [_frozen(getattr(self, k)) for k in _ARRAYS[1:]]
         except (TypeError, ValueError) as exc:
             raise InputError(f"the motion must be numeric arrays: {exc}"[:200], value=None,
