@@ -37,7 +37,7 @@ from sixplus3.planner.nlp import (
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import NO_WORK, Solution
 from sixplus3.planner.statics import check_crank_sides, choose_static_psi, clearance_needed
-from sixplus3.planner.timing import retime, stretched, tcp_limited
+from sixplus3.planner.timing import platform_limited, retime, stretched, tcp_limited
 
 #: [m] of clearance a re-solve asks beyond the overlap the dense check found.  Plans
 #: that slide along contact dip between their points by some hundredths of a mm
@@ -288,7 +288,7 @@ def finish(problem: Problem, sol: Solution, base: Solution | None, t_wall: float
                                      ("acceleration", sol.check.max_acceleration_ratio))
                  if ratio > 0.99 and not any(a.startswith(name) for a in sol.active_limits)]
         sol = sol.replace(active_limits=(*sol.active_limits, *extra))
-    sol = tcp_limited(problem, sol)
+    sol = platform_limited(problem, sol)
     return sol.replace(baseline_time=base.final_time if base is not None else None,
                        wall_time=time.perf_counter() - t_wall)
 

@@ -5,7 +5,8 @@ theta_ddot and the inertial torques by 1/a^2 exactly (:func:`stretched`).  The s
 uses it to compress a checked plan up to its binding limit (:func:`retime`), to fix a
 small overshoot between the NLP's points, and to meet what the dense check still finds
 of the platform-space limits and of power and force limiting (:func:`tcp_limited`,
-:func:`pfl_stretch`).
+:func:`pfl_stretch`).  For those the planner also tries a re-timing along the path
+(:func:`platform_limited`, :mod:`sixplus3.planner.retiming`) and keeps the shorter.
 """
 
 from __future__ import annotations
@@ -17,7 +18,9 @@ import numpy as np
 from sixplus3.planner.nlp import Bounds, active_limits, tcp_stretch, uniform_safety
 from sixplus3.planner.pfl import pfl_ratio_max
 from sixplus3.planner.problem import Problem
+from sixplus3.planner.retiming import retimed
 from sixplus3.planner.solution import Solution, actuated_profile
+from sixplus3.planner.tcp_rows import tcp_rates_at
 
 
 def tcp_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solution:
@@ -36,8 +39,12 @@ def tcp_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solut
     if sol.check is None:
         sol = sol.checked()
     assert sol.check is not None
-    # the dense check measured the tool centre point on the same samples
-    speed, acc = sol.check.max_tcp_speed, sol.check.max_tcp_acceleration
+    # the dense check measured the tool centre point on the same samples (the
+    # acceleration by finite differences, as the gate does); its exact rates there
+    # can be higher between the samples of a sharp peak
+    speed, acc = exact_tcp_peaks(problem, sol)
+    speed = max(speed, sol.check.max_tcp_speed)
+    acc = max(acc, sol.check.max_tcp_acceleration)
     a_pfl = pfl_stretch(problem, sol, target)
     if not lim.has_tcp:
         if a_pfl > 1.0:
@@ -54,6 +61,37 @@ def tcp_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solut
         sol = stretched(problem, sol, a).replace(active_limits=(
             f"tcp {'speed' if by_speed else 'acceleration'} (uniform stretch {a:.3f})",))
     return sol.replace(limits=lim).checked()
+
+
+def exact_tcp_peaks(problem: Problem, sol: Solution, samples: int = 10) -> tuple[float, float]:
+    """The tool centre point's largest speed [m/s] and acceleration [m/s^2] of ``sol``,
+    exact (:func:`tcp_rates_at`), at ``samples`` points per interval and every node."""
+    t = np.unique(np.concatenate([np.linspace(a, b, samples + 1)
+                                  for a, b in zip(sol.t[:-1], sol.t[1:], strict=True)]))
+    speed, acc = tcp_rates_at(problem.robot.tool.xyz, *sol.sample(t))
+    return float(speed.max()), float(acc.max())
+
+
+def platform_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solution:
+    """``sol`` within the platform-space limits and power and force limiting: the shorter
+    of the uniform stretch (:func:`tcp_limited`) and the re-timing along the path
+    (:func:`sixplus3.planner.retiming.retimed`, then :func:`tcp_limited` for what its
+    dense check still finds) that passes its dense check.  The uniform stretch runs a
+    whole cruise below the limit for the worst point of its ripple; the re-timing runs
+    it at the limit (BENCHMARKS.md)."""
+    uniform = tcp_limited(problem, sol, target)
+    if not problem.motion_limits.has_tcp and not problem.pfl:
+        return uniform
+    problem.stage("re-timing the plan along its path for the platform's limits")
+    local = retimed(problem, sol, target)
+    if local is None:
+        return uniform
+    local = tcp_limited(problem, local, target)
+    if not local.is_feasible() or local.final_time >= uniform.final_time:
+        return uniform
+    return local.replace(active_limits=(*sol.active_limits, (
+        f"re-timed along the path ({local.final_time:.4f} s; the uniform stretch: "
+        f"{uniform.final_time:.4f} s)")))
 
 
 def pfl_stretch(problem: Problem, sol: Solution, target: float = 0.995,
@@ -110,4 +148,5 @@ def retime(problem: Problem, sol: Solution, platform_proxy: float, target: float
                                                    new.t, full))
 
 
-__all__ = ["pfl_stretch", "retime", "stretched", "tcp_limited"]
+__all__ = ["exact_tcp_peaks", "pfl_stretch", "platform_limited", "retime", "stretched",
+           "tcp_limited"]

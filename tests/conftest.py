@@ -44,6 +44,8 @@ SLOW_TESTS = {
     "test_cli.py::test_robot_check_reports_the_model",
     "test_dynamics.py::test_unactuated_drop_conserves_energy_and_closures",
     "test_motion_value.py::test_one_plan_checks_each_input_once",
+    "test_retiming.py::test_gentle_translate_cruises_at_its_limit",
+    "test_retiming.py::test_the_exact_platform_acceleration_is_within_its_limit",
 }
 
 
