@@ -213,7 +213,7 @@ def time_law(problem: Problem, prof: PathProfile, target: float) -> np.ndarray |
     try:
         with warnings.catch_warnings():  # an inaccurate optimum is taken: it is checked
             warnings.filterwarnings("ignore", message="Solution may be inaccurate")
-            prob.solve(solver=cp.CLARABEL)
+            prob.solve(solver=cp.CLARABEL, tol_gap_abs=1e-6, tol_gap_rel=1e-6, tol_feas=1e-7)
     except cp.SolverError:
         return None
     if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or w.value is None:

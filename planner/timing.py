@@ -27,7 +27,7 @@ def tcp_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solut
     """``sol`` within the platform-space limits (the tool centre point's speed and
     acceleration): stretched uniformly in time by the smallest factor that brings both
     within ``target`` of their limits (the speed scales 1/a, the acceleration 1/a^2,
-    every joint rate and inertial torque with them), then checked against every limit.
+    every joint rate and inertial torque with them), checked (once) against every limit.
     Power and force limiting (``problem.pfl``) likewise: its ratio at the dense samples
     within ``target`` of the rows' share (:func:`pfl_stretch`).  Without such limits:
     ``sol`` as it is.  The NLP bounds them at its points
@@ -49,8 +49,8 @@ def tcp_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solut
     if not lim.has_tcp:
         if a_pfl > 1.0:
             problem.stage(f"stretching time by {a_pfl:.3f} for power and force limiting")
-            sol = stretched(problem, sol, a_pfl).replace(active_limits=(
-                f"pfl (uniform stretch {a_pfl:.3f})",))
+            return stretched(problem, sol.replace(limits=lim), a_pfl).replace(
+                active_limits=(f"pfl (uniform stretch {a_pfl:.3f})",))
         return sol.replace(limits=lim).checked()
     a = max(1.0, speed / (target * lim.tcp_speed),
             math.sqrt(acc / (target * lim.tcp_acceleration)), a_pfl)
@@ -58,7 +58,7 @@ def tcp_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solut
         problem.stage(f"stretching time by {a:.3f} for the tool centre point's limits "
                       f"({lim.tcp_speed:g} m/s, {lim.tcp_acceleration:g} m/s^2)")
         by_speed = speed / lim.tcp_speed >= math.sqrt(acc / lim.tcp_acceleration)
-        sol = stretched(problem, sol, a).replace(active_limits=(
+        return stretched(problem, sol.replace(limits=lim), a).replace(active_limits=(
             f"tcp {'speed' if by_speed else 'acceleration'} (uniform stretch {a:.3f})",))
     return sol.replace(limits=lim).checked()
 
