@@ -73,14 +73,18 @@ def exact_tcp_peaks(problem: Problem, sol: Solution, samples: int = 10) -> tuple
 
 
 def platform_limited(problem: Problem, sol: Solution, target: float = 0.995) -> Solution:
-    """``sol`` within the platform-space limits and power and force limiting: the shorter
-    of the uniform stretch (:func:`tcp_limited`) and the re-timing along the path
+    """``sol`` within the platform-space limits (and power and force limiting with
+    them): the shorter of the uniform stretch (:func:`tcp_limited`) and the re-timing
+    along the path
     (:func:`sixplus3.planner.retiming.retimed`, then :func:`tcp_limited` for what its
     dense check still finds) that passes its dense check.  The uniform stretch runs a
     whole cruise below the limit for the worst point of its ripple; the re-timing runs
     it at the limit (BENCHMARKS.md)."""
     uniform = tcp_limited(problem, sol, target)
-    if not problem.motion_limits.has_tcp and not problem.pfl:
+    if not problem.motion_limits.has_tcp:
+        # power and force limiting alone keeps the uniform stretch: its re-timed plans
+        # meet their contacts faster (a free hand at 1.5 m/s instead of 1.2), and the
+        # guard then reads the impact as a clamp (BENCHMARKS.md, session 32)
         return uniform
     problem.stage("re-timing the plan along its path for the platform's limits")
     local = retimed(problem, sol, target)

@@ -55,6 +55,9 @@ FORM = "joint-speed/1"
 #: Relative slack of the gate's comparison (the file's samples are text; the writer's
 #: table was computed from the same motion before it was written).
 SLACK = 1e-6
+#: The table's range [1/s]: a stop within a second of plan time at the slowest; where
+#: the plan barely moves the joints, the acceleration limit decides below the top.
+BETA_RANGE = (1.0, 1e6)
 #: Samples of the reduced inertia computed at a time (81 floats each).
 CHUNK = 4096
 
@@ -105,13 +108,36 @@ def path_deceleration(a: np.ndarray, b: np.ndarray, g: np.ndarray, theta_dot: np
     for c in (b + g, g):  # at full path speed, at rest
         lo_c, hi_c = beta_interval(a, c, cap)
         lo, hi = np.maximum(lo, lo_c), np.minimum(hi, hi_c)
-    beta = np.where(hi >= lo, hi, lo)
+    beta = hi.copy()
+    none = hi < lo  # no deceleration within the share: the least torque one
+    if none.any():
+        beta[none] = least_torque_beta(a[none], (b[none] + g[none], g[none]))
     vmax = np.abs(theta_dot).max(axis=1)
     with np.errstate(divide="ignore"):
         beta = np.minimum(beta, acceleration / np.maximum(vmax, 1e-9))
     # at least 1/s (a stop within a second of plan time); at most 1e6/s (where the plan
     # barely moves the joints, the acceleration limit above decides)
-    return np.clip(beta, 1.0, 1e6)
+    return np.clip(beta, *BETA_RANGE)
+
+
+def least_torque_beta(a: np.ndarray, cs: tuple[np.ndarray, ...],
+                      lo: float = BETA_RANGE[0], hi: float = BETA_RANGE[1],
+                      steps: int = 200) -> np.ndarray:
+    """beta (n,) in [lo, hi] minimising max over the joints and over ``cs`` of
+    |c - beta a| (rows (n, 9) each): a maximum of absolute values of affine functions,
+    convex in beta, so unimodal in log beta too; found by a ternary search in log beta
+    (``steps`` rounds: the bracket shrinks by (2/3)^steps)."""
+    def worst(beta: np.ndarray) -> np.ndarray:
+        return np.max([np.abs(c - beta[:, None] * a).max(axis=1) for c in cs], axis=0)
+
+    x0 = np.full(len(a), np.log(lo))
+    x1 = np.full(len(a), np.log(hi))
+    for _ in range(steps):
+        m0, m1 = x0 + (x1 - x0) / 3.0, x1 - (x1 - x0) / 3.0
+        left = worst(np.exp(m0)) <= worst(np.exp(m1))
+        x1 = np.where(left, m1, x1)
+        x0 = np.where(left, x0, m0)
+    return np.exp(0.5 * (x0 + x1))  # type: ignore[no-any-return]
 
 
 def across_path(a: np.ndarray, b: np.ndarray, theta_dot: np.ndarray,
@@ -176,5 +202,6 @@ def stop_check(rep: ValidationReport, robot: Robot, motion: Motion, limits: Limi
     return claimed, []
 
 
-__all__ = ["HEADER_KEY", "TORQUE_SHARE", "across_path", "beta_interval", "header_entry",
-           "path_deceleration", "path_tables", "stop_check", "stop_table"]
+__all__ = ["BETA_RANGE", "HEADER_KEY", "TORQUE_SHARE", "across_path", "beta_interval",
+           "header_entry", "least_torque_beta", "path_deceleration", "path_tables",
+           "stop_check", "stop_table"]
