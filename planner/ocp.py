@@ -14,6 +14,8 @@ The planner's public face.  The method lives in modules that each show one part:
 - :mod:`~sixplus3.planner.nlp`: one NLP solve with given bounds;
 - :mod:`~sixplus3.planner.strategy`: the baseline, the NLP starts (homotopy), the
   re-solves after the dense check, the re-timing, the fallbacks;
+- :mod:`~sixplus3.planner.timing` and :mod:`~sixplus3.planner.retiming`: uniform
+  re-timings, and the re-timing along the path under platform limits;
 - :mod:`~sixplus3.planner.solution`: the frozen :class:`Solution` and its dense re-check
   with the numeric model;
 - :mod:`~sixplus3.planner.baseline`: the stop-at-waypoints plan (TOPP-RA per segment).
