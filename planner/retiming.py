@@ -10,8 +10,9 @@ few percent below it everywhere.
 This module keeps the path and chooses a new time law for it, the convex formulation of
 Verscheure et al., "Time-optimal path tracking for robots: a convex optimization
 approach", IEEE TAC 54(10), 2009.  The path parameter is the plan's own time tau; the
-unknown is b(tau) = (d tau / dt)^2, piecewise linear on a grid (:data:`SUB` cells per
-interval of the plan).  For the new motion x(tau(t)):
+unknown is b(tau) = (d tau / dt)^2, quadratic over each cell of a grid (:data:`SUB` cells
+per interval of the plan), b and b' continuous (:func:`law_matrices`), so the new
+accelerations are continuous too.  For the new motion x(tau(t)):
 
     xd_new = x' sqrt(b),   xdd_new = x'' b + x' b' / 2
 
@@ -20,9 +21,11 @@ plan's; every acceleration, the tool centre point's, the actuated joints' and th
 inertial torques, is linear in (b, b').  So the rows are linear in b: joint velocity,
 acceleration and torque (friction bounded at the largest speed allowed), the tool centre
 point's speed and power and force limiting's ratio (both times b), the tool centre
-point's acceleration (a second-order cone), jerk and torque rate between the cells'
-midpoints (linear with the time step bounded by its smallest).  The total time,
-sum of d tau / sqrt(b), is convex in b.  cvxpy with Clarabel solves it.
+point's acceleration (a second-order cone), jerk and torque rate between consecutive
+points (linear with the time step bounded by its smallest), all at the grid points and
+the cells' midpoints.  Over the first and last interval of each rest-to-rest piece the
+law is constant (the NLP's jerk-shaped start and stop, uniformly re-timed).  The total
+time, sum of d tau / sqrt(b), is convex in b.  cvxpy with Clarabel solves it.
 
 The result is written back as a plan of the usual form (:class:`Solution`: cubics with
 a linear acceleration, :func:`solution.sample_cubic`): the C2 spline through the path's
