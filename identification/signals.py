@@ -2,7 +2,8 @@
 central differences (docs/identification.md, "The filter").
 
 - The positions are filtered by a Butterworth low-pass of order 4 run forward and
-  backward (``scipy.signal.sosfiltfilt``: zero phase, order 8 in effect), then
+  backward (``sosfiltfilt``: zero phase, order 8 in effect; identification/filters.py
+  gives scipy.signal's numbers without its import time), then
   differentiated twice by central differences (``numpy.gradient``).
 - The drive holds each torque over its tick (from t_k to t_k+1), while the encoder is
   read at t_k: the torque at t_k is the mean of the two held values around it,
@@ -31,10 +32,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
-
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.errors import InputError, check_number
+from sixplus3.identification.filters import butter_sos, sosfiltfilt, welch
 
 ORDER = 4
 CUTOFF_FACTOR = 2.5
@@ -70,7 +70,7 @@ def bandwidth(log: DriveLog) -> float:
     vel = np.diff(log.theta, n=2, axis=0) * rate ** 2
     vel = vel - vel.mean(axis=0)
     nper = int(min(len(vel), max(256, 2 ** int(math.log2(max(rate, 2.0))))))
-    f, p = signal.welch(vel, fs=rate, nperseg=nper, axis=0)
+    f, p = welch(vel, rate, nper)
     total = p.sum(axis=1)
     # the encoder's quantisation noise is white: its floor (the median level of the upper
     # half of the band) is taken out before the 99 % point is found, so a log with long
@@ -104,13 +104,13 @@ def filter_log(log: DriveLog, cutoff: float | None = None, decimate: bool = True
     fc = choose_cutoff(log, cutoff)
     rate = log.rate
     dt = 1.0 / rate
-    sos = signal.butter(ORDER, fc, fs=rate, output="sos")
+    sos = butter_sos(ORDER, fc, rate)
     pad = min(len(log.t) - 1, int(3 * rate / fc))
-    th = signal.sosfiltfilt(sos, log.theta, axis=0, padlen=pad)
+    th = sosfiltfilt(sos, log.theta, pad)
     tau_k = log.tau
     if held:
         tau_k = np.vstack([tau_k[:1], 0.5 * (tau_k[1:] + tau_k[:-1])])
-    tau = signal.sosfiltfilt(sos, tau_k, axis=0, padlen=pad)
+    tau = sosfiltfilt(sos, tau_k, pad)
     thd = np.gradient(th, dt, axis=0)
     thdd = np.gradient(thd, dt, axis=0)
     coul = None
@@ -119,11 +119,10 @@ def filter_log(log: DriveLog, cutoff: float | None = None, decimate: bool = True
         # cut-off: its law is evaluated on a velocity filtered only at rate / 8 and
         # then put through the same filter as the torques (parallel filtering of a
         # column that is linear in its parameter), so both see the same smeared switch
-        light = signal.butter(ORDER, rate / RATE_PER_CUTOFF, fs=rate, output="sos")
-        v_fast = np.gradient(signal.sosfiltfilt(light, log.theta, axis=0, padlen=pad), dt,
+        light = butter_sos(ORDER, rate / RATE_PER_CUTOFF, rate)
+        v_fast = np.gradient(sosfiltfilt(light, log.theta, pad), dt,
                              axis=0)
-        coul = signal.sosfiltfilt(sos, np.tanh(v_fast / coulomb_velocity), axis=0,
-                                  padlen=pad)
+        coul = sosfiltfilt(sos, np.tanh(v_fast / coulomb_velocity), pad)
     step = max(1, int(rate / (SAMPLES_PER_CUTOFF * fc))) if decimate else 1
     edge = int(math.ceil(EDGE * rate / fc))
     keep = np.arange(edge, len(log.t) - edge, step)

@@ -10,9 +10,9 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy import signal
 
 from sixplus3.errors import InputError
+from sixplus3.identification.filters import butter_ba
 from sixplus3.interaction._tick_kernel import momentum, stream_tick, velocity
 from sixplus3.interaction.wrench import (
     GAIN,
@@ -78,7 +78,7 @@ class WrenchStream:
         else:
             self.model = SingleState(self.robot)
             self._compiled, self._native = None, None
-        b, a = signal.butter(2, rate / 8.0, fs=rate)
+        b, a = butter_ba(2, rate / 8.0, rate)
         self._b, self._a = np.asarray(b, dtype=float), np.asarray(a, dtype=float)
         self.rate = float(rate)
         self._z = np.zeros((2, 9))  # the biquad's state (transposed direct form II)

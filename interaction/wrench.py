@@ -37,7 +37,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import signal
 from scipy.linalg import lapack
 
 from sixplus3.control.file.drive_log import DriveLog
@@ -49,6 +48,7 @@ from sixplus3.identification.base import (
     poses_of,
     stacked_regressor,
 )
+from sixplus3.identification.filters import butter_sos, sosfiltfilt
 from sixplus3.identification.signals import filter_log
 from sixplus3.kinematics.robot_fk import ik_jacobian, robot_fk
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -271,9 +271,9 @@ def estimate(log: DriveLog, robot: Robot, gain: float = GAIN, at: str = "centre"
     dt = 1.0 / rate
     # velocity: the encoder's differences, zero-phase filtered at rate / 8 (no lag; the
     # streaming form uses a causal filter instead)
-    sos = signal.butter(4, rate / 8.0, fs=rate, output="sos")
+    sos = butter_sos(4, rate / 8.0, rate)
     pad = min(len(log.t) - 1, 24)
-    th_f = signal.sosfiltfilt(sos, log.theta, axis=0, padlen=pad)
+    th_f = sosfiltfilt(sos, log.theta, pad)
     thd = np.gradient(th_f, dt, axis=0)
     tau = np.vstack([log.tau[:1], 0.5 * (log.tau[1:] + log.tau[:-1])])  # held over a tick
     sm = StateModel(robot)

@@ -37,7 +37,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from sixplus3.errors import GeometryError
 from sixplus3.robot_description.hardware import check_motors
@@ -245,6 +244,9 @@ class Tool:
     @property
     def rotation(self) -> np.ndarray:
         """R_platform_tcp (3, 3)."""
+        # deferred: scipy.spatial's import (about 0.2 s) is not paid by the commands
+        # that never read the tool's rotation (identify check, wrench)
+        from scipy.spatial.transform import Rotation
 
         return Rotation.from_euler("xyz", self.rpy).as_matrix()  # Rz(y) Ry(p) Rx(r)
 

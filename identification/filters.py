@@ -1,0 +1,149 @@
+"""The few digital filters the log commands use, in numpy and numba: a Butterworth
+low-pass in second-order sections, run forward and backward (zero phase), and Welch's
+power spectral density.
+
+Why not ``scipy.signal``: importing it takes 0.8-1.8 s with scipy 1.17 (its
+``xp_capabilities`` decorator parses some 650 docstrings at import, scipy PR 24024),
+longer than the short logs ``identify check`` and ``wrench`` read (issue 53, item 2).
+The functions here follow scipy's definitions step by step, so that they give its
+numbers: tests/test_filters.py compares each with ``scipy.signal`` (``butter``,
+``sosfilt_zi``, ``sosfiltfilt``, ``welch``) to round-off on random signals.
+
+- :func:`butter_sos`: the analog Butterworth prototype, its poles pre-warped to the
+  cut-off and mapped by the bilinear transform; the zeros are all at z = -1.  Each
+  second-order section holds one pair of conjugate poles (a first-order section the
+  real pole of an odd order) with unit gain at DC, which is the whole filter's gain.
+- :func:`sosfiltfilt`: scipy's default padding: an odd extension of ``padlen`` samples
+  at both ends, each pass started in the steady state of its first sample
+  (``sosfilt_zi``), the sections in transposed direct form II.
+- :func:`welch`: a periodic Hann window, half-overlapping segments, each segment's mean
+  removed, one-sided density scaling, the mean over the segments.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+def butter_sos(order: int, cutoff: float, fs: float) -> np.ndarray:
+    """A digital Butterworth low-pass of ``order`` with its -3 dB point at ``cutoff`` [Hz]
+    for the sampling rate ``fs`` [Hz], as second-order sections (n, 6):
+    ``[b0, b1, b2, 1, a1, a2]`` per row, like ``scipy.signal.butter(..., output="sos")``."""
+    if not (order >= 1 and 0.0 < cutoff < fs / 2.0):
+        raise ValueError(f"a Butterworth low-pass needs order >= 1 and 0 < cut-off < fs/2 "
+                         f"= {fs / 2.0:g} Hz, got order {order}, cut-off {cutoff:g} Hz")
+    fs2 = 2.0 * fs
+    warped = fs2 * math.tan(math.pi * cutoff / fs)  # the analog cut-off [rad/s]
+    rows = []
+    for k in range(order // 2):  # the conjugate pairs, from the one nearest the axis
+        p = warped * np.exp(1j * math.pi * (2 * k + order + 1) / (2 * order))
+        z = (fs2 + p) / (fs2 - p)
+        a1, a2 = -2.0 * z.real, abs(z) ** 2
+        g = (1.0 + a1 + a2) / 4.0  # unit gain at DC: b(1) = a(1)
+        rows.append([g, 2.0 * g, g, 1.0, a1, a2])
+    if order % 2:  # the real pole
+        z = (fs2 - warped) / (fs2 + warped)
+        g = (1.0 - z) / 2.0
+        rows.append([g, g, 0.0, 1.0, -z, 0.0])
+    return np.array(rows)
+
+
+def butter_ba(order: int, cutoff: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """The same filter as one transfer function (b, a), for order <= 2 (one section)."""
+    if order > 2:
+        raise ValueError(f"butter_ba gives one section: order 1 or 2, got {order}")
+    sos = butter_sos(order, cutoff, fs)[0]
+    n = order + 1
+    return sos[:n].copy(), sos[3:3 + n].copy()
+
+
+def sosfilt_zi(sos: np.ndarray) -> np.ndarray:
+    """The sections' initial states (n, 2) for a unit step's steady state
+    (``scipy.signal.sosfilt_zi``): each section's state for a constant input of the DC
+    gain of the sections before it."""
+    zi = np.zeros((len(sos), 2))
+    scale = 1.0
+    for s, (b0, b1, b2, _a0, a1, a2) in enumerate(sos):
+        # transposed direct form II at rest under input u = 1 and output y = dc:
+        # z1 = b1 + b2 - (a1 + a2) y ... solved as scipy's lfilter_zi does
+        dc = (b0 + b1 + b2) / (1.0 + a1 + a2)
+        z2 = b2 - a2 * dc
+        z1 = b1 - a1 * dc + z2
+        zi[s] = scale * np.array([z1, z2])
+        scale *= dc
+    return zi
+
+
+@njit(cache=True, error_model="numpy")
+def _sosfilt(sos, x, zi):  # pragma: no cover - compiled
+    """The sections in transposed direct form II along axis 0 of x (n, m), each
+    column's state starting at zi (sections, 2, m); returns the output (n, m)."""
+    n, m = x.shape
+    y = x.copy()
+    z = zi.copy()
+    for s in range(sos.shape[0]):
+        b0, b1, b2 = sos[s, 0], sos[s, 1], sos[s, 2]
+        a1, a2 = sos[s, 4], sos[s, 5]
+        for j in range(m):
+            z1, z2 = z[s, 0, j], z[s, 1, j]
+            for i in range(n):
+                u = y[i, j]
+                out = b0 * u + z1
+                z1 = b1 * u - a1 * out + z2
+                z2 = b2 * u - a2 * out
+                y[i, j] = out
+    return y
+
+
+def sosfiltfilt(sos: np.ndarray, x: np.ndarray, padlen: int) -> np.ndarray:
+    """Zero-phase filtering of x along axis 0 (``scipy.signal.sosfiltfilt`` with
+    ``axis=0`` and its default odd padding of ``padlen`` samples)."""
+    x = np.asarray(x, dtype=float)
+    flat = x.ndim == 1
+    x2 = x.reshape(len(x), -1)
+    n = len(x2)
+    if not 0 <= padlen < n:
+        raise ValueError(f"padlen must be in [0, {n - 1}] for {n} samples, got {padlen}")
+    if padlen:
+        head = 2.0 * x2[0] - x2[padlen:0:-1]
+        tail = 2.0 * x2[-1] - x2[-2:-padlen - 2:-1]
+        ext = np.concatenate([head, x2, tail])
+    else:
+        ext = x2
+    sos = np.ascontiguousarray(sos, dtype=float)
+    zi = sosfilt_zi(sos)[:, :, None]
+    y = _sosfilt(sos, np.ascontiguousarray(ext), zi * ext[0][None, None, :])
+    y = _sosfilt(sos, np.ascontiguousarray(y[::-1]), zi * y[-1][None, None, :])[::-1]
+    if padlen:
+        y = y[padlen:-padlen]
+    y = np.ascontiguousarray(y)
+    return y.reshape(n) if flat else y.reshape(x.shape)
+
+
+def welch(x: np.ndarray, fs: float, nperseg: int) -> tuple[np.ndarray, np.ndarray]:
+    """Welch's power spectral density of x along axis 0 (``scipy.signal.welch`` with
+    ``axis=0`` and its defaults): the frequencies (k,) and the density (k, m)."""
+    x = np.asarray(x, dtype=float)
+    x2 = x.reshape(len(x), -1)
+    n = len(x2)
+    nperseg = int(min(nperseg, n))
+    step = nperseg - nperseg // 2
+    win = 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(nperseg) / nperseg)  # periodic Hann
+    scale = 1.0 / (fs * float(np.sum(win ** 2)))
+    starts = np.arange(0, n - nperseg + 1, step)
+    seg = x2[starts[:, None] + np.arange(nperseg)[None, :]]  # (segments, nperseg, m)
+    seg = seg - seg.mean(axis=1, keepdims=True)
+    spec = np.fft.rfft(seg * win[None, :, None], axis=1)
+    p = (spec.real ** 2 + spec.imag ** 2) * scale
+    p[:, 1:] *= 2.0
+    if nperseg % 2 == 0:
+        p[:, -1] /= 2.0
+    f = np.fft.rfftfreq(nperseg, 1.0 / fs)
+    dens = p.mean(axis=0)
+    return f, dens.reshape((len(f),) + x.shape[1:])
+
+
+__all__ = ["butter_ba", "butter_sos", "sosfilt_zi", "sosfiltfilt", "welch"]
