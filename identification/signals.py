@@ -32,6 +32,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.errors import InputError, check_number
 from sixplus3.identification.filters import butter_sos, sosfiltfilt, welch
