@@ -27,6 +27,13 @@ def test_every_documented_command_runs(tmp_path) -> None:
                                                 "validate", "identify excite"]
     assert len(rows) == 19
     # what the lab gets: the identified robot file, the wrench, the zeroed robot
-    for name in ("identified.yaml", "wrench.csv", "zeroed.yaml", "ident/report/summary.json",
-                 "taught.yaml", "taught/taught.csv"):
+    # (check, wrench and commission directions end with os._exit: their output and files
+    # must be whole)
+    for name in ("identified.yaml", "wrench.csv", "wrench.png", "zeroed.yaml",
+                 "ident/report/summary.json", "taught.yaml", "taught/taught.csv"):
         assert (tmp_path / "walk" / name).exists(), name
+    lines = [ln for ln in (tmp_path / "walk" / "wrench.csv").read_text().splitlines()
+             if ln and not ln.startswith("#")]
+    assert len(lines) > 1000 and lines[-1].count(",") == lines[0].count(","), lines[-1]
+    check = next(r for r in rows if r["command"] == "identify check")
+    assert "n/a" in check["last_line"] or "per joint" in check["last_line"], check

@@ -163,6 +163,8 @@ def test_cli_wrench_and_resolution(hold_file, tmp_path) -> None:
     assert r.exit_code == 0, r.output
     rows = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")]
     assert rows[0].startswith("t,fx,fy,fz,mx,my,mz")
+    head = out.read_text().splitlines()[0]  # each note once, "; " between them
+    assert head.count("observer gain") == 1 and "per joint; below" in head, head
     data = np.array([[float(x) for x in ln.split(",")] for ln in rows[1:]])
     during = (data[:, 0] > 0.6) & (data[:, 0] < 0.95)
     # fz = -10 N, within 4 standard deviations and the dry friction band of a hold

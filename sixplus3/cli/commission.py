@@ -17,6 +17,7 @@ from sixplus3.cli.app import (
     fail,
     json_default,
     main,
+    request_fast_exit,
 )
 
 
@@ -91,6 +92,7 @@ def directions(log_file: str, out_file: str | None, as_json: bool) -> None:
 
     Exit codes: 0 every judged motor turns the right way (or -o wrote the corrected
     robot); 1 a motor is reversed and no -o was given; 2 bad input."""
+    request_fast_exit()
     from sixplus3.control.file.drive_log import JOINTS, read_log
     from sixplus3.identification.commission import GAIN, check_directions
     from sixplus3.identification.report import robot_yaml

@@ -9,7 +9,16 @@ from typing import Any
 
 import click
 
-from sixplus3.cli.app import FLOAT, INT, check_output, current_robot, emit, json_default, main
+from sixplus3.cli.app import (
+    FLOAT,
+    INT,
+    check_output,
+    current_robot,
+    emit,
+    json_default,
+    main,
+    request_fast_exit,
+)
 
 
 @main.group()
@@ -186,6 +195,7 @@ def _say_not_measured(values: Any) -> None:
 def check_cmd(log: str, cutoff: float | None, as_json: bool) -> None:
     """Per-joint RMS of the measured minus the predicted torque of the robot (--robot)
     on a log: compare the nominal and an identified robot on a new log."""
+    request_fast_exit()
     from sixplus3.control.file.drive_log import read_log
     from sixplus3.identification.identify import check as run_check
     from sixplus3.identification.identify import not_measured

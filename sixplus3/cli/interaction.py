@@ -7,7 +7,15 @@ from typing import Any
 
 import click
 
-from sixplus3.cli.app import FLOAT, check_output, current_robot, emit, json_default, main
+from sixplus3.cli.app import (
+    FLOAT,
+    check_output,
+    current_robot,
+    emit,
+    json_default,
+    main,
+    request_fast_exit,
+)
 
 
 @main.command()
@@ -35,6 +43,7 @@ def wrench(log: str, out_file: str | None, at: str, gain: float, noise: float,
            as_json: bool) -> None:
     """The wrench a person applies to the platform, from a drive log alone (a momentum
     observer on the closed-loop dynamics; the direct residual for comparison)."""
+    request_fast_exit()
     from sixplus3.control.file.drive_log import read_log
     from sixplus3.interaction.wrench import estimate
 
@@ -90,8 +99,8 @@ def _csv(est: Any) -> str:
     cols = ["t", "fx", "fy", "fz", "mx", "my", "mz"]
     head = cols + [f"std_{c}" for c in cols[1:]] + [f"band_{c}" for c in cols[1:]] + \
         ["crank0", "crank1", "crank2", "contact"]
-    lines = [f"# sixplus3 wrench: {est.at}, base frame, N and N m; observer gain "
-             f"{est.gain:g}/s; " + " ".join(est.notes), ",".join(head)]
+    lines = [f"# sixplus3 wrench: {est.at}, base frame, N and N m; " + "; ".join(est.notes),
+             ",".join(head)]
     for k in range(len(est.t)):
         row = [est.t[k], *est.wrench[k], *est.std[k], *est.band[k], *est.crank[k]]
         lines.append(",".join(repr(float(x)) for x in row) + f",{int(est.contact[k])}")
