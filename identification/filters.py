@@ -27,6 +27,9 @@ import math
 import numpy as np
 from numba import njit
 
+#: Welch's segments transformed at once (memory: this many x nperseg x columns).
+WELCH_BATCH = 64
+
 
 def butter_sos(order: int, cutoff: float, fs: float) -> np.ndarray:
     """A digital Butterworth low-pass of ``order`` with its -3 dB point at ``cutoff`` [Hz]
@@ -67,8 +70,8 @@ def sosfilt_zi(sos: np.ndarray) -> np.ndarray:
     zi = np.zeros((len(sos), 2))
     scale = 1.0
     for s, (b0, b1, b2, _a0, a1, a2) in enumerate(sos):
-        # transposed direct form II at rest under input u = 1 and output y = dc:
-        # z1 = b1 + b2 - (a1 + a2) y ... solved as scipy's lfilter_zi does
+        # transposed direct form II at rest, input 1 and output dc: z2 = b2 - a2 dc and
+        # z1 = b1 - a1 dc + z2 (scipy's lfilter_zi solves the same two equations)
         dc = (b0 + b1 + b2) / (1.0 + a1 + a2)
         z2 = b2 - a2 * dc
         z1 = b1 - a1 * dc + z2
@@ -78,17 +81,16 @@ def sosfilt_zi(sos: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy")
-def _sosfilt(sos: np.ndarray, x: np.ndarray, zi: np.ndarray) -> np.ndarray:  # compiled
+def _sosfilt(sos: np.ndarray, x: np.ndarray, zi: np.ndarray) -> np.ndarray:
     """The sections in transposed direct form II along axis 0 of x (n, m), each
     column's state starting at zi (sections, 2, m); returns the output (n, m)."""
     n, m = x.shape
     y = x.copy()
-    z = zi.copy()
     for s in range(sos.shape[0]):
         b0, b1, b2 = sos[s, 0], sos[s, 1], sos[s, 2]
         a1, a2 = sos[s, 4], sos[s, 5]
         for j in range(m):
-            z1, z2 = z[s, 0, j], z[s, 1, j]
+            z1, z2 = zi[s, 0, j], zi[s, 1, j]
             for i in range(n):
                 u = y[i, j]
                 out = b0 * u + z1
@@ -134,15 +136,19 @@ def welch(x: np.ndarray, fs: float, nperseg: int) -> tuple[np.ndarray, np.ndarra
     win = 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(nperseg) / nperseg)  # periodic Hann
     scale = 1.0 / (fs * float(np.sum(win ** 2)))
     starts = np.arange(0, n - nperseg + 1, step)
-    seg = x2[starts[:, None] + np.arange(nperseg)[None, :]]  # (segments, nperseg, m)
-    seg = seg - seg.mean(axis=1, keepdims=True)
-    spec = np.fft.rfft(seg * win[None, :, None], axis=1)
-    p = (spec.real ** 2 + spec.imag ** 2) * scale
-    p[:, 1:] *= 2.0
+    total = np.zeros((nperseg // 2 + 1, x2.shape[1]))
+    for i in range(0, len(starts), WELCH_BATCH):  # the segments a batch at a time: the
+        # memory stays at WELCH_BATCH segments however long the log
+        idx = starts[i:i + WELCH_BATCH, None] + np.arange(nperseg)[None, :]
+        seg = x2[idx]  # (segments, nperseg, m)
+        seg = seg - seg.mean(axis=1, keepdims=True)
+        spec = np.fft.rfft(seg * win[None, :, None], axis=1)
+        total += (spec.real ** 2 + spec.imag ** 2).sum(axis=0)
+    dens = total * (scale / len(starts))
+    dens[1:] *= 2.0
     if nperseg % 2 == 0:
-        p[:, -1] /= 2.0
+        dens[-1] /= 2.0
     f = np.fft.rfftfreq(nperseg, 1.0 / fs)
-    dens = p.mean(axis=0)
     return f, dens.reshape((len(f),) + x.shape[1:])
 
 

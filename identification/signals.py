@@ -121,8 +121,7 @@ def filter_log(log: DriveLog, cutoff: float | None = None, decimate: bool = True
         # then put through the same filter as the torques (parallel filtering of a
         # column that is linear in its parameter), so both see the same smeared switch
         light = butter_sos(ORDER, rate / RATE_PER_CUTOFF, rate)
-        v_fast = np.gradient(sosfiltfilt(light, log.theta, pad), dt,
-                             axis=0)
+        v_fast = np.gradient(sosfiltfilt(light, log.theta, pad), dt, axis=0)
         coul = sosfiltfilt(sos, np.tanh(v_fast / coulomb_velocity), pad)
     step = max(1, int(rate / (SAMPLES_PER_CUTOFF * fc))) if decimate else 1
     edge = int(math.ceil(EDGE * rate / fc))

@@ -48,7 +48,8 @@ def test_single_section_as_a_transfer_function():
 
 
 @pytest.mark.parametrize(("n", "nperseg"), [(3000, 256), (100, 100), (5000, 1024),
-                                            (257, 256), (1111, 300)])
+                                            (257, 256), (1111, 300),
+                                            (20000, 256)])
 def test_welch_gives_scipys_density(n, nperseg):
     rng = np.random.default_rng(n)
     x = rng.normal(size=(n, 4)) + np.sin(np.arange(n) * 0.3)[:, None]
