@@ -181,6 +181,11 @@ def test_a_log_reads_and_its_bad_forms_are_refused() -> None:
         "unknown": good.replace("leg2_C_tau", "leg2_D_tau", 1),
         "short": _log_text(50),
         "robot": _log_text(extra='# sixplus3-log/1 {"robot_kinematics": "0123456789abcdef"}\n'),
+        # the header read one way only, as a trajectory file's
+        "duplicate key": _log_text(extra='# sixplus3-log/1 {"rate_hz": 1000.0, '
+                                         '"rate_hz": 500.0}\n'),
+        "NaN in the header": _log_text(extra='# sixplus3-log/1 {"rate_hz": NaN}\n'),
+        "deep header": _log_text(extra="# sixplus3-log/1 " + "[" * 5000 + "]" * 5000 + "\n"),
     }
     for what, text in cases.items():
         with pytest.raises(InputError):

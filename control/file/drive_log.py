@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control.file.trajectory_parse import NUMBER
+from sixplus3.control.file.trajectory_parse import NUMBER, json_one_meaning
 from sixplus3.errors import InputError
 from sixplus3.fileio import atomic_write, read_bytes, short_repr
 from sixplus3.robot_description.robot import Robot
@@ -137,10 +137,11 @@ def _lines(text: str, name: str) -> tuple[dict[str, Any], list[str], list[str]]:
             body = s[1:].strip()
             if body.startswith(FORMAT):
                 try:
-                    meta = json.loads(body[len(FORMAT):].strip() or "{}")
-                except json.JSONDecodeError:
-                    raise _bad(name, f"line {ln}: the {FORMAT} comment is not JSON",
-                               "JSON after the format name") from None
+                    meta = json_one_meaning(body[len(FORMAT):].strip() or "{}")
+                except (ValueError, RecursionError) as exc:
+                    raise _bad(name, f"line {ln}: the {FORMAT} comment is not JSON of one "
+                               f"meaning ({str(exc)[:80]})",
+                               "JSON without duplicate keys, NaN or Infinity") from None
                 if not isinstance(meta, dict):
                     raise _bad(name, f"line {ln}: the {FORMAT} comment is not a mapping",
                                "a JSON object")

@@ -50,6 +50,14 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return out
 
 
+def json_one_meaning(text: str) -> Any:
+    """``text`` as JSON read one way only: a ValueError for a duplicate key, NaN,
+    Infinity or a number that overflows (the trajectory header's and the drive log's
+    header's rule)."""
+    return json.loads(text, parse_constant=_no_constants, parse_float=_finite_float,
+                      object_pairs_hook=_unique_keys)
+
+
 def parse_header(line: bytes, name: str = "trajectory") -> dict[str, Any]:
     """The header of a trajectory file's first line (without ``# FORMAT ``), parsed one
     way only: JSON without duplicate keys, NaN, Infinity or overflowing numbers, at most
@@ -58,8 +66,7 @@ def parse_header(line: bytes, name: str = "trajectory") -> dict[str, Any]:
     header, and the digest, computed over the canonical form, covers line 1's exact
     bytes."""
     try:
-        header = json.loads(line.decode("utf-8"), parse_constant=_no_constants,
-                            parse_float=_finite_float, object_pairs_hook=_unique_keys)
+        header = json_one_meaning(line.decode("utf-8"))
     except (UnicodeDecodeError, ValueError, RecursionError) as exc:
         what = "nests too deep" if isinstance(exc, RecursionError) else str(exc)[:120]
         raise TrajectoryFileError(f"{name}: the header is not valid JSON of one meaning "
