@@ -82,14 +82,12 @@ def path_tables(robot: Robot, rep: ValidationReport, rate: float, lim: Limits,
     # without the friction: evaluated at the measured rate each tick (its sign follows
     # the motion, a retract's too)
     c = tau_v - g - robot.motors.friction(theta_d)
-    # the stop table: the file's own (the gate checked it against these limits) at the
-    # default share, else computed here (control/gate/stop.py)
+    # the stop table: always the guard's own recomputation (control/gate/stop.py) at its
+    # share and the envelope's limits, whatever the file's header says: the gate refuses
+    # a header table that is not this one within rounding, and the guard trusts nothing
+    # it reads either (a forged table that never stops, or pushes, never reaches a stop)
     b_cross = across_path(a, b, theta_d, acc)
-    if rep.stop_deceleration is not None and share == TORQUE_SHARE:
-        beta = np.asarray(rep.stop_deceleration, dtype=float)
-    else:
-        beta = path_deceleration(a, b_cross, g, theta_d, lim.torque, lim.acceleration,
-                                 share)
+    beta = path_deceleration(a, b_cross, g, theta_d, lim.torque, lim.acceleration, share)
     # the threshold: the observer's noise, the model's share, the dry friction band
     s_obs = torque_noise * math.sqrt(gain * (1.0 / rate) / 2.0)
     fc = robot.motors.coulomb_per_joint

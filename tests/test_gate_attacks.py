@@ -751,9 +751,9 @@ def test_held_torque_and_the_exports_and_feed_that_use_it(planned, tmp_path) -> 
 def test_the_stop_table_travels_in_the_header_and_a_forged_one_is_refused(planned) -> None:
     """Every written file carries the deceleration its stop may use at each sample
     (control/gate/stop.py); the gate recomputes it from the samples: a table that claims
-    a faster stop anywhere, or of the wrong length or form, is a defect (exit 2); a
-    slower one is the file's own choice; one of another definition (torque share, form)
-    is not used; none is accepted."""
+    a faster stop anywhere, a slower one below its floor (session 34's forgeries: all 0,
+    all -10, all 1e-300, all -1e6, NaN, half the table, one entry a tenth), one of the
+    wrong length, form or torque share, is a defect (exit 2); none is accepted."""
     from sixplus3.control.file.file_format import motion_of
     from sixplus3.control.gate.stop import stop_table
 
@@ -768,18 +768,25 @@ def test_the_stop_table_travels_in_the_header_and_a_forged_one_is_refused(planne
     k = int(np.argmin(beta))  # the sample whose stop is slowest
     faster = list(table)
     faster[k] = 1.5 * faster[k]
+    one_slow = list(table)
+    one_slow[len(table) // 2] = 0.1 * one_slow[len(table) // 2]
+    n = len(table)
     for bad in ({**header["stop"], "deceleration": faster},
                 {**header["stop"], "deceleration": table[:-1]},
                 {**header["stop"], "deceleration": [*table[:-1], "fast"]},
+                {**header["stop"], "deceleration": [0.0] * n},
+                {**header["stop"], "deceleration": [-10.0] * n},
+                {**header["stop"], "deceleration": [1e-300] * n},
+                {**header["stop"], "deceleration": [-1e6] * n},
+                {**header["stop"], "deceleration": [0.5 * x for x in table]},
+                {**header["stop"], "deceleration": one_slow},
+                {**header["stop"], "torque_share": 1.0}, {**header["stop"], "form": "x"},
                 "fast", [1.0, 2.0]):
         rep = validate_bytes(encode({**header, "stop": bad}, data), ROBOT)
         assert rep.exit_code == 2 and any("stop table" in m for m in rep.messages()), bad
-    for other in ({**header["stop"], "torque_share": 1.0}, {**header["stop"], "form": "x"}):
-        rep = validate_bytes(encode({**header, "stop": other}, data), ROBOT)
-        assert rep.ok and rep.stop_deceleration is None
-    slower = {**header["stop"], "deceleration": [0.5 * x for x in table]}
-    rep = validate_bytes(encode({**header, "stop": slower}, data), ROBOT)
-    assert rep.ok and np.allclose(rep.stop_deceleration, 0.5 * np.asarray(table))
+        assert rep.stop_deceleration is None
+    # the honest table, rounded down to 6 digits by the writer, is within its floor
+    assert np.all(np.asarray(table) >= mine * (1 - 5e-5))
     rep = validate_bytes(encode({k: v for k, v in header.items() if k != "stop"}, data),
                          ROBOT)
     assert rep.ok and rep.stop_deceleration is None

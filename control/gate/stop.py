@@ -24,9 +24,22 @@ sd^2, so the two ends of sd hold every path speed between).
 
 The writer (:func:`sixplus3.control.gate.validation.validate_and_write`) computes it from
 the gate's own configurations and torques and puts it in the header (``stop``); the gate
-recomputes it from the file's samples and refuses a file whose table claims a faster
-stop than the limits it is judged by allow anywhere, or that is not a table of the
-file's length (a defect: exit 2); a table of another form or torque share is not used.
+recomputes it from the file's samples and refuses (a defect: exit 2) a table that is
+not the one the limits it is judged by give, within the writer's rounding:
+
+- above it anywhere (a stop faster than the torque limits allow);
+- below its floor anywhere: ``(1 - FLOOR_SLACK)`` times the recomputed entry.  A table
+  that stops more slowly is not the file's choice: a zero entry never stops, a negative
+  one turns a stop into a push, and a tiny one is a stop that takes the whole path
+  (session 34's forged tables).  Every entry the writer puts there is the recomputed one
+  rounded down to 6 significant digits (at most 1e-5 below it), so an honest file always
+  passes;
+- any entry that is not a finite number > 0, a table not of the file's length, or of
+  another form or torque share (nothing reads one: a header entry nobody checks is not
+  let through either).
+
+The guard (interaction/guard_tables.py) never stops more slowly than its own
+recomputation, whatever the file says.
 """
 
 from __future__ import annotations
@@ -50,11 +63,14 @@ TORQUE_SHARE = 0.95
 #: The header's key.
 HEADER_KEY = "stop"
 #: The table's definition (the module doc's): the joint speed's deceleration along the
-#: path.  A table of another form or torque share is not used (nor reinterpreted).
+#: path.  A table of another form or torque share is refused (nothing reads one).
 FORM = "joint-speed/1"
 #: Relative slack of the gate's comparison (the file's samples are text; the writer's
 #: table was computed from the same motion before it was written).
 SLACK = 1e-6
+#: The floor's relative slack below the recomputed table: the writer's rounding down to
+#: 6 significant digits (1e-5 at most) and the samples' text, with margin.
+FLOOR_SLACK = 5e-5
 #: The table's range [1/s]: a stop within a second of plan time at the slowest; where
 #: the plan barely moves the joints, the acceleration limit decides below the top.
 BETA_RANGE = (1.0, 1e6)
@@ -175,33 +191,51 @@ def header_entry(beta: np.ndarray) -> dict[str, Any]:
 def stop_check(rep: ValidationReport, robot: Robot, motion: Motion, limits: Limits,
                entry: object) -> tuple[np.ndarray | None, list[Finding]]:
     """(the file's table if it holds, findings): the header's ``stop`` against the table
-    recomputed from the samples.  No entry: (None, [])."""
+    recomputed from the samples (module doc: neither above it nor below its floor).  No
+    entry: (None, [])."""
     t = motion.t
     if entry is None:
         return None, []
-    bad = [finding("stop table (the header's form)", "defect", "", 0.0,
-                   np.ones(1), np.ones(1), t[:1], ["header"])]
+
+    def defect(what: str) -> list[Finding]:
+        f = finding(f"stop table ({what})", "defect", "", 0.0, np.ones(1), np.ones(1),
+                    t[:1], ["header"])
+        return [f] if f else []
+
     if not isinstance(entry, dict):
-        return None, [f for f in bad if f]
+        return None, defect("the header's form: a mapping")
     if entry.get("torque_share") != TORQUE_SHARE or entry.get("form") != FORM:
-        return None, []  # a table of another definition: not used (the guard makes its own)
+        return None, defect(f"its definition: form {FORM!r} at torque share "
+                            f"{TORQUE_SHARE:g} only")
     table = entry.get("deceleration")
     if (not isinstance(table, list) or len(table) != len(t)
             or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
                        for x in table)):
-        return None, [f for f in bad if f]
+        return None, defect(f"the header's form: {len(t)} numbers")
     claimed = np.asarray(table, dtype=float)
+    good = np.isfinite(claimed) & (claimed > 0.0)
+    f = finding("stop table (a deceleration that is not a finite number > 0: a stop that "
+                "never stops, or pushes)", "defect", "1/s", 0.0, np.where(good, -1.0, 1.0),
+                np.nan_to_num(claimed, nan=0.0), t, ["path"])
+    if f:
+        return None, [f]
     if rep.tau is None or rep.position is None:
         return None, []
     mine = stop_table(robot, rep, motion, limits)
-    over = np.where(np.isfinite(claimed), claimed, np.inf) - mine * (1.0 + SLACK)
+    over = claimed - mine * (1.0 + SLACK)
     f = finding("stop table (a deceleration the torque limits do not allow)", "defect",
                 "1/s", 0.0, over, claimed, t, ["path"])
+    if f:
+        return None, [f]
+    floor = mine * (1.0 - FLOOR_SLACK)
+    f = finding(f"stop table (a stop slower than the limits give: below {1 - FLOOR_SLACK:g} "
+                "of the recomputed deceleration)", "defect", "1/s", 0.0, floor - claimed,
+                claimed, t, ["path"])
     if f:
         return None, [f]
     return claimed, []
 
 
-__all__ = ["BETA_RANGE", "HEADER_KEY", "TORQUE_SHARE", "across_path", "beta_interval",
+__all__ = ["BETA_RANGE", "FLOOR_SLACK", "HEADER_KEY", "TORQUE_SHARE", "across_path", "beta_interval",
            "header_entry", "least_torque_beta", "path_deceleration", "path_tables",
            "stop_check", "stop_table"]
