@@ -15,8 +15,8 @@ it) and Pinocchio, for every sample k of the path theta(s) (s the file's time):
   rest, within ``torque_share`` of the limit and within the acceleration limit), made
   the smallest over the distance a stop from there covers: a stop is a table look-up.
   The file carries this table in its header and the gate checks it against the limits
-  it judges by (control/gate/stop.py); the guard uses the file's (or computes its own
-  for a file without one, or another ``torque_share``);
+  it judges by (control/gate/stop.py); the guard never uses it: it computes its own
+  from the gate's reading of the file, so no header makes it stop more slowly;
 - the slope D_k of the velocity torque in the rates, so that the observer's model
   follows the measured rates, not only the planned ones (a lagging or saturated drive,
   a stop);
@@ -50,6 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sixplus3.control.drive.feed import START_TOL
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.file.trajectory_read import read_bytes
 from sixplus3.control.gate.stop import TORQUE_SHARE
@@ -59,11 +60,14 @@ from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
     GuardCommand,
     contact_site,
+    jump_bound,
     parse_gains,
+    reading,
     within_envelope,
 )
 from sixplus3.interaction.guard_tables import deceleration_at, path_tables
-from sixplus3.robot_description.hardware import effective_limits
+from sixplus3.robot_description.hardware import effective_limits, tightest
+from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Observer gain [1/s] (a step reaches 95 % in 3 / K = 6 ms).
@@ -76,8 +80,6 @@ N_SIGMA = 5.0
 DEBOUNCE = 2
 #: The largest path speed a stop may take where the plan slows down faster than it.
 STOP_SD_MAX = 4.0
-#: A largest jump between two measured samples [rad] (beyond it: a faulty reading).
-MAX_JUMP = 0.05
 #: For this long after a contact [s] the residual's crank torques may still place it on
 #: a leg (they grow with the force), while the force is at least half its peak so far and
 #: the guard is still stopping (a retract's start moves the reference at once).
@@ -165,7 +167,10 @@ class ContactGuard:
                              f"{self.rate:g} Hz", value=self.rate, valid=f"{file_rate:g} Hz")
         self.lim = effective_limits(self.robot)
         self.dt = 1.0 / self.rate
-        tables = path_tables(self.robot, rep, self.rate, self.lim, share, self.gain,
+        # the stop table is recomputed under the limits the gate judged the file by (the
+        # envelope tightened by the file's own): the gate's own table, never the header's
+        judged = tightest(self.lim, Limits(**rep.limits)) if rep.limits else self.lim
+        tables = path_tables(self.robot, rep, self.rate, judged, share, self.gain,
                              self.model_error, self.n_sigma, torque_noise, parameter_cov)
         self.n = len(tables.theta)
         self.theta, self.theta_d, self.M, self.g = (tables.theta, tables.theta_d, tables.M,
@@ -223,6 +228,7 @@ class ContactGuard:
         self.sd = 1.0  # path speed [file seconds per second]
         self.mode = "follow"
         self._prev: np.ndarray | None = None
+        self._since_good = 0  # ticks since the last good reading
         self._vel = np.zeros(9)
         self._p0: np.ndarray | None = None
         self._integral = np.zeros(9)
@@ -297,21 +303,31 @@ class ContactGuard:
             return cmd
 
     def _step(self, theta: object, tau: object) -> GuardCommand:
-        th = np.asarray(theta, dtype=float).reshape(-1)
-        tq = np.asarray(tau, dtype=float).reshape(-1)
-        if th.shape != (9,) or tq.shape != (9,) or not (np.all(np.isfinite(th))
-                                                        and np.all(np.isfinite(tq))):
-            return self._safe_hold("a measured angle or torque is not 9 finite numbers")
+        got = reading(theta, tau, self.lim)
+        self._since_good += 1
+        if isinstance(got, str):
+            return self._safe_hold(got)
+        th, tq = got
         dt = self.dt
-        if self._prev is not None and np.abs(th - self._prev).max() > MAX_JUMP:
+        if (self._prev is not None and np.abs(th - self._prev).max()
+                > jump_bound(self.lim, dt, self._since_good)):
             return self._safe_hold(f"the measured angles jumped by "
-                                   f"{np.abs(th - self._prev).max():.3f} rad in one tick")
+                                   f"{np.abs(th - self._prev).max():.3f} rad in "
+                                   f"{self._since_good} tick(s)")
+        span, self._since_good = max(1, self._since_good), 0
         if self._prev is None:  # the first tick: no torque has acted yet
+            gap = float(np.abs(th - self.theta[0]).max())
+            if gap > START_TOL:  # the file runs only from its start (the feed's check)
+                return self._safe_hold(f"the first reading is {gap:.4f} rad from the "
+                                       f"file's start (tolerance {START_TOL:g} rad): not "
+                                       "starting")
             self._prev = th.copy()
             self._p0 = self.M[0] @ self._vel
             self.t += dt
             return self._advance(False, np.zeros(6))
-        self._vel = (th - self._prev) / dt  # the encoder's difference: the rate at t - dt/2
+        # the encoder's difference: the rate at t - dt/2 (over the ticks since the last
+        # good reading, when readings were lost between)
+        self._vel = (th - self._prev) / (dt * span)
         self._prev = th.copy()
         k = int(round(min(max(self.s, 0.0), self.n - 1.0)))
         M = self.M[k]

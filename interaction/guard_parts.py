@@ -12,11 +12,21 @@ from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import regressor_batch
 from sixplus3.errors import InputError
 from sixplus3.interaction._tick_kernel import envelope
+from sixplus3.robot_description.limits import Limits
 
 #: The share of the envelope a command (tau_ff plus the drive's PD) may ask for when the
 #: drive's gains are known (the rest: the drive's own rate estimate, which the guard's
 #: encoder difference only approximates).
 COMMAND_SHARE = 0.97
+#: [rad] a measured angle this far outside the joints' range is not a reading: no joint
+#: gets there (a broken encoder, a wrong unit, 1e300).
+ANGLE_SLACK = 1.0
+#: A measured torque beyond this multiple of the hardware's torque limit is not a
+#: reading: no drive applies it (the monitor's noise is a few thousandths of it).
+TORQUE_SLACK = 2.0
+#: [rad] the largest change of a measured angle in one tick beyond the joint rate limit's
+#: own (a faulty reading otherwise: the guard's and lead-through's jump check).
+MAX_JUMP = 0.05
 #: [m] the residual's crank torques per newton of its force beyond which a contact is on
 #: a leg (a platform force has none; a leg link's, its lever under the cranks: cm).
 LEG_LEVER = 0.002
@@ -111,6 +121,39 @@ def within_envelope(cmd: GuardCommand, kp: np.ndarray, kd: np.ndarray, theta: np
     return GuardCommand(ref, vref, ff, cmd.mode, cmd.contact, cmd.wrench), wanted
 
 
+def reading(theta: object, tau: object, lim: Limits) -> tuple[np.ndarray, np.ndarray] | str:
+    """(theta, tau) as 9 floats each, or the reason they are not a reading (never
+    raises, for any Python object): not 9 numbers each, not finite, an angle more than
+    ANGLE_SLACK outside ``lim``'s range, or a torque beyond TORQUE_SLACK times its torque
+    limit (1e300 is finite, and would poison an observer's integral for good)."""
+    try:
+        for x in (theta, tau):
+            if hasattr(x, "__len__") and len(x) != 9:  # type: ignore[arg-type]
+                return "a measured angle or torque is not 9 finite numbers"
+        th = np.array(theta, dtype=float).reshape(-1)
+        tq = np.array(tau, dtype=float).reshape(-1)
+    except Exception:  # noqa: BLE001 - any object a caller may pass
+        return "a measured angle or torque is not 9 finite numbers"
+    if th.shape != (9,) or tq.shape != (9,) or not (np.all(np.isfinite(th))
+                                                    and np.all(np.isfinite(tq))):
+        return "a measured angle or torque is not 9 finite numbers"
+    lo, hi = lim.theta_min - ANGLE_SLACK, lim.theta_max + ANGLE_SLACK
+    if np.any(th < lo) or np.any(th > hi):
+        return (f"a measured angle is outside [{lo:.3f}, {hi:.3f}] rad (the joints' range "
+                f"with {ANGLE_SLACK:g} rad of slack): not a reading")
+    tmax = TORQUE_SLACK * lim.torque
+    if np.any(np.abs(tq) > tmax):
+        return f"a measured torque is beyond {tmax:g} N m: not a reading"
+    return th, tq
+
+
+def jump_bound(lim: Limits, dt: float, ticks: int) -> float:
+    """[rad] the largest change of a measured angle over ``ticks`` ticks of ``dt`` [s]
+    that is not a faulty reading: MAX_JUMP, plus the joint rate limit's travel over the
+    ticks after the first (readings lost between: the robot moved meanwhile)."""
+    return MAX_JUMP + lim.velocity * dt * max(0, ticks - 1)
+
+
 def parse_gains(gains: tuple[object, object]) -> tuple[np.ndarray, np.ndarray]:
     """(Kp, Kd) (9 each) of a drive's PD from scalars or 9 each; InputError otherwise."""
     try:
@@ -125,6 +168,6 @@ def parse_gains(gains: tuple[object, object]) -> tuple[np.ndarray, np.ndarray]:
     return kp, kd
 
 
-__all__ = ["COMMAND_SHARE", "GuardCommand", "LEG_LEVER", "contact_site", "parameter_std2",
-           "parse_gains",
-           "velocity_slope", "within_envelope"]
+__all__ = ["ANGLE_SLACK", "COMMAND_SHARE", "GuardCommand", "LEG_LEVER", "MAX_JUMP",
+           "TORQUE_SLACK", "contact_site", "jump_bound", "parameter_std2", "parse_gains",
+           "reading", "velocity_slope", "within_envelope"]

@@ -316,7 +316,9 @@ def run_lead(model: Robot, plant: Robot, hand: Hand, lead: LeadThrough | None = 
             g.push()
             de += g.e
 
-        tick = loop.tick(cmd.theta_ref, cmd.theta_dot_ref, cmd.tau_ff,
+        # a fault (no good reading yet): the drive holds its own position (step's doc)
+        ref = th if cmd.mode == "fault" else cmd.theta_ref
+        tick = loop.tick(ref, cmd.theta_dot_ref, cmd.tau_ff,
                          hook if touches else None, theta=th)
         applied = tick.applied
         peak_cmd = max(peak_cmd, float(np.abs(tick.command).max()))

@@ -59,12 +59,16 @@ from sixplus3.interaction import walls
 from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
     GuardCommand,
+    jump_bound,
     parse_gains,
+    reading,
     within_envelope,
 )
 from sixplus3.interaction.lead_walls import Found, WallUpdate
 from sixplus3.interaction.stream import WrenchStream
 from sixplus3.interaction.wrench import GAIN, MODEL_SIGMA, N_SIGMA
+from sixplus3.kinematics.robot import robot_ik
+from sixplus3.robot_description.hardware import Hardware, effective_limits
 from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Platform speeds below which the guided platform is at rest [m/s], [rad/s].
@@ -73,6 +77,9 @@ REST_SPEED = (0.002, 0.02)
 CRANK_ACCELERATION = 5.0
 #: The guided joint rates stay within this share of the rate limit.
 RATE_SHARE = 0.5
+#: Good readings in a row that agree with each other before a reference starts there
+#: (at the first readings, and after a jump).
+CONFIRM = 3
 #: The walls near at once, at most (the four slacks' and a cliff ahead).
 MAX_WALLS = 8
 
@@ -93,6 +100,15 @@ def _six(name: str, value: object, lo: float, hi: float) -> np.ndarray:
     return np.array([check_number(name, v, lo, hi) for v in vals])
 
 
+def _pair(name: str, value: object, lo: float, hi: float) -> tuple[float, float]:
+    """A (translation, rotation) pair of numbers, each within [lo, hi]."""
+    if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 2:
+        raise InputError(f"{name} must be a (translation, rotation) pair of numbers, got "
+                         f"{repr(value)[:80]}", value=repr(value)[:80],
+                         valid=f"2 numbers in [{lo:g}, {hi:g}]")
+    return (check_number(name, value[0], lo, hi), check_number(name, value[1], lo, hi))
+
+
 class LeadThrough:
     """The platform follows a person's hand (module doc).  ``mass`` [kg, kg m^2] and
     ``damping`` [N s/m, N m s/rad]: per axis of the tool point, (translation, rotation)
@@ -111,18 +127,15 @@ class LeadThrough:
                  n_sigma: float = N_SIGMA, start_time: float = 0.005,
                  rest_time: float = 0.1, slow_every: int = 10, energy: float = 0.5,
                  gain: float = GAIN, model_sigma: float = MODEL_SIGMA,
-                 monitor_noise: float = 0.005, compiled: bool = True) -> None:
+                 monitor_noise: float = 0.005, compiled: bool = True,
+                 hardware: Hardware | None = None) -> None:
         self.robot = require_robot(robot)
         self.rate = check_number("rate_hz", rate_hz, 200.0, 20000.0)
         self.dt = 1.0 / self.rate
         self.mass = _six("mass", mass, 1e-3, 1e3)
         self.damping = _six("damping", damping, 0.0, 1e4)
-        sp = [check_number("speed", v, 1e-3, 10.0) for v in speed]
-        ac = [check_number("acceleration", v, 1e-2, 1e3) for v in acceleration]
-        if len(sp) != 2 or len(ac) != 2:
-            raise InputError("speed and acceleration are (translation, rotation) pairs",
-                             value=(len(sp), len(ac)), valid="2 numbers each")
-        self.speed, self.accel = tuple(sp), tuple(ac)
+        self.speed = _pair("speed [m/s, rad/s]", speed, 1e-3, 10.0)
+        self.accel = _pair("acceleration [m/s^2, rad/s^2]", acceleration, 1e-2, 1e3)
         self.crank_gain = check_number("crank_gain", crank_gain, 0.0, 100.0)
         self.crank_rate = check_number("crank_rate", crank_rate, 0.0, 10.0)
         self.n_sigma = check_number("n_sigma", n_sigma, 0.0, 100.0)
@@ -136,8 +149,12 @@ class LeadThrough:
         self.stream = WrenchStream(self.robot, self.rate, gain=gain,
                                    monitor_noise=monitor_noise, model_sigma=model_sigma,
                                    n_sigma=n_sigma, compiled=compiled)
-        self.cap = self.robot.limits.torque
-        self.rate_cap = RATE_SHARE * self.robot.limits.velocity
+        #: the envelope every command stays within: the robot's limits tightened by the
+        #: site's (``hardware``, else ``$SIXPLUS3_HARDWARE`` or the catalogue's: the
+        #: gate's one authority, robot_description/hardware.py)
+        self.lim = effective_limits(self.robot, hardware)
+        self.cap = self.lim.torque
+        self.rate_cap = RATE_SHARE * self.lim.velocity
         self.tool = np.asarray(self.robot.tool.xyz, dtype=float)
         mot = self.robot.motors
         self._viscous = np.asarray(mot.viscous_per_joint, dtype=float)
@@ -151,6 +168,12 @@ class LeadThrough:
         self._G = np.zeros((MAX_WALLS, 9))
         self._b = np.zeros(MAX_WALLS)
         self._no_anchor = np.zeros(9)
+        # a fault's placeholder reference before any good reading (step's doc): the
+        # home pose's angles, never a target
+        self._home = np.asarray(robot_ik(np.asarray(self.robot.home_position),
+                                         np.eye(3), np.asarray(self.robot.home_psi),
+                                         self.robot, platform_margins=False).theta,
+                                dtype=float).reshape(-1)[:9]
         # the walls near and the cranks' climb, every slow_every ticks (lead_walls.py)
         self._wu = WallUpdate(self.robot, self.tool, self.crank_gain, self.crank_rate)
         self.reset()
@@ -179,8 +202,15 @@ class LeadThrough:
             self._wu.reset()
         self._last_ff = np.zeros(9)
         self._prev_theta = np.zeros(9)
+        self._vel = np.zeros(9)
         self._have_prev = False
         self._anchor_theta: np.ndarray | None = None
+        self._last_good: np.ndarray | None = None  # the last reading accepted
+        self._since_good = 0  # ticks since it
+        self._resync = False  # the observer restarts at the next good reading
+        self._cand: np.ndarray | None = None  # readings that do not follow, agreeing ...
+        self._cand_n = 0  # ... this many in a row
+        self._reading: np.ndarray | None = None  # this tick's reading, until its rate is
 
     def _start(self, theta: np.ndarray) -> None:
         st = self.stream.model
@@ -192,29 +222,110 @@ class LeadThrough:
 
     # ------------------------------------------------------------------ the tick
     def step(self, theta: object, tau: object) -> GuardCommand:
-        """One tick (module doc); never raises: anything wrong holds where the robot
-        is, said in :attr:`events`."""
-        th = np.asarray(theta, dtype=float).reshape(-1)
+        """One tick (module doc); never raises, for any Python object as ``theta`` or
+        ``tau`` (docs/leadthrough.md, "What it guarantees"):
+
+        - a reading that is not one (guard_parts.reading: not 9 finite numbers, an angle
+          far outside the range, a torque no drive applies) never reaches the observer:
+          the guided motion stops, the reference holds (mode ``hold``), and the observer
+          starts afresh at the next good reading;
+        - a reading that jumped further than the joints can move since the last good one
+          (guard_parts.jump_bound) is refused the same way; only CONFIRM readings in a
+          row that agree with each other re-anchor the controller there (a hold where
+          the robot reads itself to be: no motion);
+        - before CONFIRM good readings in a row there is no reference: mode ``fault``,
+          zero feed-forward and rates, and the drive must hold its own position (its
+          ``theta_ref`` is the robot's home pose, a placeholder, not a target);
+        - every command is finite, its feed-forward within the envelope, and with the
+          drive's gains its whole PD within it too (on the encoder's difference)."""
         try:
-            return self._step(th, np.asarray(tau, dtype=float).reshape(-1))
-        except Exception as exc:  # a per-tick loop must answer: hold, and say why
-            if len(self.events) < 100:
-                self.events.append(f"tick {self._tick}: holding the reference ({exc})")
-            self.mode, self._above = "hold", 0
-            self.v[:] = 0.0
-            self.psi_dot[:] = 0.0
-            self._psi_dot_target[:] = 0.0
-            self._wu.staged = self._wu.pending = None
-            self._theta_dot_ref = np.zeros(9)
-            self._tick += 1
-            ok = th.shape == (9,) and bool(np.all(np.isfinite(th)))
-            if self._started:  # the drive keeps holding the last reference
-                ref = self.theta_ref.copy()
-            else:
-                ref = th if ok else np.zeros(9)
-            cmd = GuardCommand(ref, np.zeros(9), self._last_ff.copy(), "hold", False,
-                               np.zeros(6))
-            return self._bounded(cmd, th) if ok else cmd  # within the envelope all the same
+            self._since_good += 1 if self._last_good is not None else 0
+            got = reading(theta, tau, self.lim)
+            if isinstance(got, str):
+                self._cand = None
+                self._have_prev = False  # no rate from the encoder's difference next tick
+                return self._fault(got)
+            th, tq = got
+            self._reading = th
+            if self._last_good is None or (float(np.abs(th - self._last_good).max())
+                                           > jump_bound(self.lim, self.dt,
+                                                        self._since_good)):
+                why = self._candidate(th)
+                if why is not None:
+                    return self._fault(why)
+            if self._resync:  # the observer's past is void: start it at this reading
+                self.stream.reset()
+                self._resync = False
+            self._last_good, self._since_good = th, 0
+            cmd = self._step(th, tq)
+            if not (np.all(np.isfinite(cmd.theta_ref)) and np.all(np.isfinite(cmd.tau_ff))
+                    and np.all(np.isfinite(cmd.theta_dot_ref))):
+                return self._fault("the command was not finite")
+            return cmd
+        except Exception as exc:  # noqa: BLE001 - a per-tick loop must answer
+            return self._fault(f"{type(exc).__name__}: {str(exc)[:120]}")
+
+    def _candidate(self, th: np.ndarray) -> str | None:
+        """A reading that does not follow from the last good one (or the first ones):
+        None once CONFIRM of them in a row agree (the controller re-anchored there: a new
+        start where the robot reads itself to be), else why it is refused ('' for the
+        first readings: no event)."""
+        if self._cand is not None and (float(np.abs(th - self._cand).max())
+                                       <= jump_bound(self.lim, self.dt, 1)):
+            self._cand_n += 1
+        else:
+            self._cand_n = 1
+            self._reading, self._have_prev = None, False  # no rate across a jump
+        self._cand = th
+        if self._cand_n < CONFIRM:
+            if self._last_good is None:
+                return ""  # the first readings: a fault command, not an event
+            return (f"the measured angles jumped by "
+                    f"{float(np.abs(th - self._last_good).max()):.3f} rad in "
+                    f"{self._since_good} tick(s)")
+        if self._last_good is not None and len(self.events) < 100:
+            self.events.append(f"tick {self._tick}: {CONFIRM} readings agree after a jump: "
+                               "holding where the robot reads itself to be")
+        self._cand, self._started, self._resync = None, False, True
+        return None
+
+    def _fault(self, why: str) -> GuardCommand:
+        """Hold the reference (or, before any good reading, ask the drive to hold its own
+        position), stop the guided motion, and restart the observer at the next good
+        reading; said in :attr:`events`."""
+        if why and len(self.events) < 100 and (not self.events
+                                               or why not in self.events[-1]):
+            self.events.append(f"tick {self._tick}: holding: {why}")
+        self.mode, self._above, self._still = "hold", 0, 0
+        self.v[:] = 0.0
+        self.psi_dot[:] = 0.0
+        self._psi_dot_target[:] = 0.0
+        self._wu.staged = self._wu.pending = None
+        self._walls = []
+        self._theta_dot_ref = np.zeros(9)
+        self._resync = True
+        self._tick += 1
+        if self._reading is not None:  # a plausible reading refused: the rate from it
+            self._rate_from(self._reading)
+            self._reading = None
+        if not self._started or self._last_good is None:
+            return GuardCommand(self._home.copy(), np.zeros(9), np.zeros(9), "fault", False,
+                                np.zeros(6))
+        if not np.all(np.isfinite(self._last_ff)):
+            self._last_ff = np.zeros(9)
+        ff = np.clip(self._last_ff, -COMMAND_SHARE * self.cap, COMMAND_SHARE * self.cap)
+        cmd = GuardCommand(self.theta_ref.copy(), np.zeros(9), ff, "hold", False, np.zeros(6))
+        return self._bounded(cmd, self._last_good, fresh=False)
+
+    def _rate_from(self, theta: np.ndarray) -> None:
+        """The encoder's difference (the drive's rate feedback) at this reading."""
+        # within what a joint can do (twice the rate limit): the envelope's move of the
+        # reference never answers a rate that is not one
+        vmax = 2.0 * self.lim.velocity
+        self._vel = (np.clip((theta - self._prev_theta) * self.rate, -vmax, vmax)
+                     if self._have_prev else np.zeros(9))
+        self._prev_theta[:] = theta
+        self._have_prev = True
 
     # the tank's scalars (kept in the kernels' array)
     @property
@@ -377,15 +488,17 @@ class LeadThrough:
         return self._bounded(GuardCommand(self.theta_ref.copy(), self._theta_dot_ref.copy(),
                                           ff, self.mode, contact, w), theta)
 
-    def _bounded(self, cmd: GuardCommand, theta: np.ndarray) -> GuardCommand:
+    def _bounded(self, cmd: GuardCommand, theta: np.ndarray, fresh: bool = True
+                 ) -> GuardCommand:
         """``cmd`` with the drive's whole command (tau_ff + PD) within the envelope, given
-        its gains (the drive's rate feedback: the encoder's difference)."""
+        its gains (the drive's rate feedback: the encoder's difference; ``fresh``: this
+        tick's reading, else the last good one and its rate)."""
+        if fresh:
+            self._rate_from(theta)
+            self._reading = None
         if self.gains is None:
             return cmd
-        vel = ((theta - self._prev_theta) * self.rate if self._have_prev else np.zeros(9))
-        self._prev_theta[:] = theta
-        self._have_prev = True
-        return within_envelope(cmd, self.gains[0], self.gains[1], theta, vel,
+        return within_envelope(cmd, self.gains[0], self.gains[1], theta, self._vel,
                                COMMAND_SHARE * self.cap)[0]
 
-__all__ = ["LeadThrough", "RATE_SHARE", "REST_SPEED"]
+__all__ = ["CONFIRM", "LeadThrough", "RATE_SHARE", "REST_SPEED"]

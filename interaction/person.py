@@ -72,11 +72,12 @@ def contact_from_dict(doc: object, name: str = "contact") -> Contact:
         raise InputError(f"{name}: unknown key {extra[0]!r}", value=extra[0],
                          valid="region, kind, at, normal, point")
     region = doc.get("region")
-    if region not in REGIONS:
+    if not isinstance(region, str) or region not in REGIONS:  # a list or a mapping too
         raise InputError(f"{name}: region must be one of {', '.join(REGIONS)}, got "
-                         f"{region!r}", value=region, valid=", ".join(REGIONS))
+                         f"{str(region)[:80]!r}", value=str(region)[:80],
+                         valid=", ".join(REGIONS))
     kind = doc.get("kind", "free")
-    if kind not in ("free", "clamp"):
+    if not isinstance(kind, str) or kind not in ("free", "clamp"):
         raise InputError(f"{name}: kind must be free or clamp, got {kind!r}", value=kind,
                          valid="free or clamp")
     at = check_number(f"{name}: at [s]", doc.get("at"), 0.0, 600.0)
@@ -93,7 +94,7 @@ def contact_from_dict(doc: object, name: str = "contact") -> Contact:
                              valid="a non-zero vector")
         nv = (vals[0] / norm, vals[1] / norm, vals[2] / norm)
     point = doc.get("point", "tcp")
-    if point not in POINTS:
+    if not isinstance(point, str) or point not in POINTS:
         raise InputError(f"{name}: point must be one of {', '.join(POINTS)}, got "
                          f"{point!r}", value=point, valid=", ".join(POINTS))
     return Contact(REGIONS[str(region)], str(kind), at, nv, str(point))

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sixplus3.errors import InputError
+from sixplus3.errors import InputError, check_number
 from sixplus3.identification.filters import butter_ba
 from sixplus3.interaction._tick_kernel import momentum, stream_tick, velocity
 from sixplus3.interaction.wrench import (
@@ -65,6 +65,12 @@ class WrenchStream:
             raise InputError(f"gain must be in [1, {min(2000.0, 2 * math.pi * rate / 4):g}]"
                              f"/s, got {gain!r}", value=gain, valid="a positive gain")
         self.dt, self.gain = 1.0 / rate, float(gain)
+        # the observer's settings, by name with their range (a NaN or a negative noise
+        # would make every threshold meaningless, silently)
+        monitor_noise = check_number("monitor_noise [N m]", monitor_noise, 0.0, 1.0)
+        model_sigma = check_number("model_sigma [N m]", model_sigma, 0.0, 10.0)
+        v_band = check_number("v_band [rad/s]", v_band, 0.0, 100.0)
+        n_sigma = check_number("n_sigma", n_sigma, 0.0, 100.0)
         if compiled:  # the CasADi model compiled to C (interaction/compiled_state.py)
             from sixplus3.interaction.compiled_state import (
                 CompiledState,  # deferred: its first build compiles C (seconds, once)

@@ -23,6 +23,7 @@ import numpy as np
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.errors import InputError, check_number
 from sixplus3.identification.base import poses_of
+from sixplus3.interaction.wrench import MIN_RATE
 from sixplus3.kinematics import rotations as rot
 from sixplus3.robot_description.body_regions import REGIONS
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -90,7 +91,13 @@ def teach(log: DriveLog, robot: Robot, speed: float = 0.005, turn_rate: float = 
     R = rot.matrix_from_rotvec(x[:, 3:6])
     tool = np.asarray(robot.tool.xyz, dtype=float)
     tcp = pos + np.einsum("nij,j->ni", R, tool)
-    rate = 1.0 / float(np.median(np.diff(t)))
+    step = float(np.median(np.diff(t)))
+    if not (math.isfinite(step) and 1.0 / 20000.0 <= step <= 1.0 / MIN_RATE):
+        raise InputError(f"{log.name}: the log's time step is {step:.3g} s, a drive log "
+                         f"steps {1.0 / 20000.0:g} to {1.0 / MIN_RATE:g} s (20 kHz to "
+                         f"{MIN_RATE:g} Hz)", value=step,
+                         valid=f"[{1.0 / 20000.0:g}, {1.0 / MIN_RATE:g}] s")
+    rate = 1.0 / step
     w = max(1, int(round(window * rate)))
     idx = np.arange(len(t))
     lo, hi = np.maximum(idx - w, 0), np.minimum(idx + w, len(t) - 1)

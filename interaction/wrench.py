@@ -325,8 +325,14 @@ def checked_covariance(robot: Robot, parameter_cov: tuple[np.ndarray, np.ndarray
                        ) -> tuple[Any, np.ndarray]:
     """(the robot's base parameters, the covariance) of an identification's
     (base columns, covariance), refused with an InputError when it is of another base
-    or shape."""
-    index, cov = (np.asarray(x, dtype=float) for x in parameter_cov)
+    or shape, or not a covariance (symmetric, positive semi-definite, finite)."""
+    try:
+        index, cov = (np.asarray(x, dtype=float) for x in parameter_cov)
+    except (TypeError, ValueError):
+        raise InputError("parameter_cov must be (the base columns, the covariance): two "
+                         "arrays of numbers (identify estimate --report's parameters.npz)",
+                         value=repr(parameter_cov)[:80],
+                         valid="(index (rank,), covariance (rank, rank))") from None
     base = base_parameters(robot)
     if index.shape != base.index.shape or np.any(index != base.index):
         raise InputError("the parameters' covariance is of another base (another robot "
@@ -334,6 +340,12 @@ def checked_covariance(robot: Robot, parameter_cov: tuple[np.ndarray, np.ndarray
     if cov.shape != (base.rank, base.rank) or not np.all(np.isfinite(cov)):
         raise InputError("the parameters' covariance has the wrong shape", value=cov.shape,
                          valid=f"({base.rank}, {base.rank}) finite")
+    scale = max(float(np.abs(cov).max()), 1e-300)
+    if (float(np.abs(cov - cov.T).max()) > 1e-9 * scale
+            or float(np.linalg.eigvalsh(0.5 * (cov + cov.T)).min()) < -1e-9 * scale):
+        raise InputError("the parameters' covariance is not symmetric positive "
+                         "semi-definite", value="asymmetric or a negative eigenvalue",
+                         valid="a covariance matrix")
     return base, cov
 
 

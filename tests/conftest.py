@@ -49,10 +49,11 @@ SLOW_TESTS = {
 }
 
 
-@pytest.fixture
+@pytest.fixture(autouse=True)
 def catalogue_hardware():
-    """The built-in catalogue's envelope in force before and after the test (a test that
-    sets a site's hardware cannot leak it into the next)."""
+    """The built-in catalogue's envelope in force before and after every test (a test
+    that sets a site's hardware, or runs the CLI with --hardware, cannot leak it into the
+    next: the drive loop's own limit and every controller's envelope read it)."""
     from sixplus3.robot_description import hardware
 
     hardware.use(None)

@@ -141,6 +141,48 @@ def test_step_never_raises_and_stays_in_the_envelope(hand_plan) -> None:
     assert any("not 9 finite numbers" in e or "jumped" in e for e in g.events)
 
 
+@pytest.mark.parametrize("forged", ["zero", "negative", "tiny", "huge_negative"])
+def test_a_stop_table_that_does_not_stop_is_refused_by_every_consumer(hand_plan, forged,
+                                                                      tmp_path) -> None:
+    """Session 34's forgeries (digest recomputed): a table of all 0, -10, 1e-300 or -1e6
+    /s passed the gate, and the guard then used it (44.7 N left on a clamped hand; a
+    retract that pushed; the reference at the path's end in one tick).  validate, export,
+    feed, simulate and the guard refuse each, with one line and no traceback."""
+    from click.testing import CliRunner
+
+    from sixplus3.cli import main as cli
+    from sixplus3.control.file.trajectory_file import encode
+    from sixplus3.control.file.trajectory_parse import parse
+    from sixplus3.errors import ValidationFailed
+    from sixplus3.interaction.guard import ContactGuard
+
+    header, data = parse(hand_plan.read_bytes())
+    value = {"zero": 0.0, "negative": -10.0, "tiny": 1e-300, "huge_negative": -1e6}[forged]
+    header["stop"] = {**header["stop"], "deceleration": [value] * len(data)}
+    path = tmp_path / "forged.csv"
+    path.write_bytes(encode(header, data))
+    for args in (["validate", str(path)], ["export", str(path), "--format", "ros2-json"],
+                 ["feed", str(path), "--dry-run"], ["simulate", str(path)]):
+        r = CliRunner().invoke(cli, args)
+        assert r.exit_code == 2, (args, r.output)
+        assert "stop table" in r.output and "Traceback" not in r.output, (args, r.output)
+    with pytest.raises(ValidationFailed, match="stop table"):
+        ContactGuard(None, path)
+
+
+def test_the_guard_stops_by_its_own_table_not_the_files(hand_plan) -> None:
+    """The guard recomputes its stop table (interaction/guard_tables.py): it equals the
+    gate's recomputation and is never below the file's honest table's floor."""
+    from sixplus3.control.file.trajectory_parse import parse
+    from sixplus3.interaction.guard import ContactGuard
+
+    header, _ = parse(hand_plan.read_bytes())
+    g = ContactGuard(None, hand_plan)
+    filed = np.asarray(header["stop"]["deceleration"])
+    assert np.all(g.beta >= filed * (1 - 1e-9))
+    np.testing.assert_allclose(g.beta, filed, rtol=1e-4)
+
+
 def test_a_file_of_another_robot_is_refused(hand_plan) -> None:
     from sixplus3.errors import Sixplus3Error
     from sixplus3.interaction.guard import ContactGuard
@@ -402,3 +444,112 @@ def test_an_early_contact_on_a_stiff_drive_stops_within_25_ms_and_stays(
     # sprung back from an abrupt end of the retract)
     assert after.max() <= 0.02, (after.max(), res.events)
     assert res.peak_transient <= res.limit_transient
+
+
+def test_the_guard_survives_any_sequence_of_readings(hand_plan) -> None:
+    """No reading can raise, poison or move the guard (issue 69, item 3): random
+    sequences of good and hostile readings (tests/test_hostile_readings.py's, hypothesis),
+    the invariants on every tick: finite commands, the feed-forward within the envelope,
+    the reference within the joints' range (and on the path while following), a garbage
+    first reading a hold at the file's start with no rate, the observer's state finite
+    after anything; with the drive's gains, after two good readings in a row, the whole
+    command within 97 %."""
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+    from test_hostile_readings import GARBAGE, TICK
+
+    from sixplus3.interaction.guard import ContactGuard
+    from sixplus3.interaction.guard_parts import ANGLE_SLACK, COMMAND_SHARE
+
+    kp, kd = 3000.0, 30.0
+    g = ContactGuard(None, hand_plan, drive_gains=(kp, kd))
+    cap = g.lim.torque
+    lo, hi = g.lim.theta_min - ANGLE_SLACK, g.lim.theta_max + ANGLE_SLACK
+    path_lo, path_hi = g.theta.min(axis=0) - 0.03, g.theta.max(axis=0) + 0.03
+
+    @settings(max_examples=1000, deadline=None, derandomize=True,
+              suppress_health_check=[HealthCheck.too_slow])
+    @given(st.lists(TICK, min_size=1, max_size=25), st.integers(0, 2 ** 31 - 1))
+    def run(ticks, seed) -> None:
+        g.reset()
+        rng = np.random.default_rng(seed)
+        prev_good = None
+        for k, (kind, arg) in enumerate(ticks):
+            th = g._at(g.theta)  # the robot on its reference
+            good = kind == "good"
+            theta: object = th + rng.normal(0.0, arg, 9) if good else th
+            tau: object = g._at(g.b) * g.sd ** 2 + g._at(g.g) + rng.normal(0, 0.005, 9)
+            if kind == "garbage-theta":
+                theta = GARBAGE[arg]
+            elif kind == "garbage-tau":
+                tau = GARBAGE[arg]
+            elif kind == "jump":
+                theta = th + arg * np.sign(rng.normal(size=9))
+            elif kind == "torque":
+                tau = np.full(9, arg)
+            elif kind == "angle":
+                theta = th + arg
+            cmd = g.step(theta, tau)
+            for a in (cmd.theta_ref, cmd.theta_dot_ref, cmd.tau_ff, cmd.wrench):
+                assert np.all(np.isfinite(a))
+            assert np.abs(cmd.tau_ff).max() <= cap + 1e-12
+            assert np.all(cmd.theta_ref >= lo) and np.all(cmd.theta_ref <= hi)
+            if cmd.mode == "follow" and all(kd_ == "good" for kd_, _ in ticks[:k + 1]):
+                assert np.all(cmd.theta_ref >= path_lo) and np.all(cmd.theta_ref <= path_hi)
+            if k == 0 and not good:
+                assert cmd.mode == "hold" and not cmd.theta_dot_ref.any()
+                np.testing.assert_allclose(cmd.theta_ref, g.theta[0])
+            if good and prev_good is not None:
+                vel = (np.asarray(theta) - prev_good) * g.rate
+                total = (cmd.tau_ff + kp * (cmd.theta_ref - theta)
+                         + kd * (cmd.theta_dot_ref - vel))
+                assert np.abs(total).max() <= COMMAND_SHARE * cap + 1e-9
+            prev_good = np.asarray(theta, dtype=float) if good else None
+        for a in (g._integral, g._r, g._vel, g._offset):
+            assert np.all(np.isfinite(a))
+        assert g._p0 is None or np.all(np.isfinite(g._p0))
+
+    run()
+
+
+def test_a_1e300_first_reading_gives_the_guard_no_reference_there(hand_plan) -> None:
+    """Session 34: a 1e300 first reading gave the guard a reference of about 1e300 rad
+    on the next good tick.  Now it is not a reading: a hold at the file's start."""
+    from sixplus3.interaction.guard import ContactGuard
+
+    g = ContactGuard(None, hand_plan)
+    cmd = g.step([1e300] * 9, np.zeros(9))
+    assert cmd.mode == "hold" and any("not a reading" in e for e in g.events)
+    cmd = g.step(g.theta[0], g.b[0] + g.g[0])
+    assert np.abs(cmd.theta_ref - g.theta[0]).max() < 1e-6
+
+
+def test_under_a_site_torque_limit_the_guard_refuses_or_stays_within_it(hand_plan,
+                                                                        tmp_path) -> None:
+    """A site file of ``limits: {torque: 4}``: the hand plan asks more than 4 N m, so the
+    guard refuses to start (the gate's verdict under the site's envelope); the CLI says
+    so in one line.  Under 9.5 N m (the plan fits), every command stays within 97 % of
+    it on a stiff drive."""
+    from click.testing import CliRunner
+
+    from sixplus3.cli import main as cli
+    from sixplus3.errors import ValidationFailed
+    from sixplus3.interaction.guard import ContactGuard
+    from sixplus3.robot_description import hardware
+
+    site = tmp_path / "site.yaml"
+    site.write_text("limits: {torque: 4}\n")
+    hardware.use(hardware.load_hardware(str(site)))
+    try:
+        with pytest.raises(ValidationFailed):
+            ContactGuard(None, hand_plan)
+    finally:
+        hardware.use(None)
+    plant = tmp_path / "plant.yaml"
+    from sixplus3.identification.report import robot_yaml
+
+    plant.write_text(robot_yaml(ROBOT))
+    r = CliRunner().invoke(cli, ["--hardware", str(site), "simulate", str(hand_plan),
+                                 "--plant", str(plant), "--guard", "--log",
+                                 str(tmp_path / "l.csv")])
+    assert r.exit_code == 1 and "Traceback" not in r.output, r.output

@@ -186,3 +186,113 @@ def test_a_hostile_identified_robot_file(tmp_path, case) -> None:
     res = _run(["--robot", str(path), "robot", "show"])
     _one_line_exit_2(res)
     assert "invalid robot parameter" in res.output
+
+
+# ----------------------------------------------------------- issue 69, item 6
+@pytest.mark.parametrize("doc", [{"region": ["hand"], "at": 0.1},
+                                 {"region": {"hand": 1}, "at": 0.1},
+                                 {"region": "hand", "kind": ["clamp"], "at": 0.1},
+                                 {"region": "hand", "point": {"a": 1}, "at": 0.1}])
+def test_a_contact_file_with_a_list_or_mapping_for_a_name(tmp_path, doc) -> None:
+    """Session 34: ``region: [hand]`` or ``region: {hand: 1}`` exited 3 (a list is not a
+    key).  Now one line, exit 2, naming the valid regions."""
+    import yaml
+
+    from sixplus3.interaction.person import contact_from_dict, read_contact
+
+    with pytest.raises(InputError, match="must be one of|must be free or clamp"):
+        contact_from_dict(doc)
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(InputError):
+        read_contact(path)
+
+
+def _log(tmp_path, step: float):
+    from sixplus3.control.file.drive_log import DriveLog, write_log
+    from sixplus3.kinematics.robot import home
+
+    n = 300
+    th = np.repeat(home(ROBOT).theta, n, axis=0)
+    log = DriveLog(t=np.arange(n) * step, theta=th, tau=np.zeros((n, 9)))
+    path = tmp_path / "log.csv"
+    write_log(path, log, ROBOT)
+    return path
+
+
+def test_teach_on_a_log_of_an_absurd_time_step(tmp_path) -> None:
+    """Session 34: a log whose time step is 1e-25 s made ``teach`` exit 3 (an overflow).
+    Now one line, exit 2, with the drive log's range of steps."""
+    try:
+        path = _log(tmp_path, 1e-25)
+    except InputError:
+        return  # the log's own reader or writer refuses it: as good
+    res = _run(["teach", str(path), "-o", str(tmp_path / "t.yaml")])
+    _one_line_exit_2(res)
+    assert "time step" in res.output or "rate" in res.output, res.output
+
+
+def test_teach_with_an_empty_pfl_is_refused_as_plan_refuses_it(tmp_path) -> None:
+    """Session 34: ``teach --pfl ''`` silently wrote a task without PFL, where
+    ``plan --pfl ''`` refuses.  Now both refuse, and nothing is written."""
+    path = _log(tmp_path, 1e-3)
+    out = tmp_path / "t.yaml"
+    res = _run(["teach", str(path), "-o", str(out), "--pfl", ""])
+    _one_line_exit_2(res)
+    assert "--pfl names no body region" in res.output and not out.exists()
+    res = _run(["plan", "gentle_translate", "-o", str(tmp_path / "p"), "--pfl", ""])
+    assert res.exit_code == 2 and "--pfl names no body region" in res.output
+
+
+@pytest.mark.parametrize("kwargs,name", [({"speed": None}, "speed"),
+                                         ({"acceleration": 2.0}, "acceleration"),
+                                         ({"speed": "ab"}, "speed"),
+                                         ({"model_sigma": math.nan}, "model_sigma"),
+                                         ({"monitor_noise": -1.0}, "monitor_noise")])
+def test_lead_through_settings_are_refused_by_name(kwargs, name) -> None:
+    """Session 34: ``speed=None`` and ``acceleration=2.0`` raised raw TypeErrors;
+    ``model_sigma=nan`` and ``monitor_noise=-1`` were accepted."""
+    from sixplus3.interaction.leadthrough import LeadThrough
+
+    with pytest.raises(InputError, match=name):
+        LeadThrough(ROBOT, 1000.0, **kwargs)
+
+
+@pytest.mark.parametrize("cov", ["abc", (1, 2, 3), None, ("x", "y"), "asym", "negative"])
+def test_a_bad_parameter_covariance_is_an_input_error(cov) -> None:
+    """Session 34: a bad ``parameter_cov`` gave a raw ValueError.  Now an InputError
+    naming what is expected: two arrays, of the robot's base, symmetric PSD."""
+    from sixplus3.identification.base import base_parameters
+    from sixplus3.interaction.wrench import checked_covariance
+
+    base = base_parameters(ROBOT)
+    if cov in ("asym", "negative"):
+        m = np.eye(base.rank)
+        if cov == "asym":
+            m[0, 1] = 1.0
+        else:
+            m[0, 0] = -1.0
+        cov = (base.index, m)
+    with pytest.raises(InputError, match="parameter"):
+        checked_covariance(ROBOT, cov)
+
+
+def test_a_hand_file_with_a_long_path_is_no_alias_bomb(tmp_path) -> None:
+    """Session 34: a hand file whose path was long (written out, no alias) was refused
+    as an "alias bomb".  Within the file size cap it is read; a real alias bomb is still
+    refused."""
+    from sixplus3.interaction.hand import read_hand
+
+    n = 12_000  # 12 s of a 1 kHz hand path: ~110 000 values
+    lines = ["stiffness: 400", "damping: 10", "duration: 12.0", "path:"]
+    lines += [f"  - {{t: {k / 1000:.3f}, offset: [{1e-5 * k:.5f}, 0, 0]}}" for k in range(n)]
+    path = tmp_path / "hand.yaml"
+    path.write_text("\n".join(lines) + "\n")
+    hand = read_hand(path)
+    assert hand.duration == 12.0
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text("a: &a [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]\n"
+                    + "".join(f"{c}: &{c} [*{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}]\n"
+                              for p, c in zip("abcdef", "bcdefg", strict=True)))
+    with pytest.raises(InputError, match="alias"):
+        read_hand(bomb)

@@ -29,6 +29,7 @@ import numpy as np
 
 from sixplus3.control.drive.simulation import MujocoRobot
 from sixplus3.errors import InputError, check_number
+from sixplus3.robot_description.hardware import effective_limits
 from sixplus3.robot_description.mjcf import TIMESTEP
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -71,7 +72,9 @@ class DriveLoop:
         #: encoder counts per joint radian, and the drive's torque unit [N m at the joint]
         self.counts = mot.gear_ratio * 2 ** mot.encoder_bits / (2 * math.pi)
         self.t_unit = mot.gear_ratio * mot.rated_torque / 1000.0
-        self.cap = self.plant.limits.torque
+        #: the drive's own torque limit: the plant's, tightened by the site's (a site
+        #: sets its drives' limit too: the drive clamps whatever it is asked)
+        self.cap = effective_limits(self.plant).torque
         self.rng = np.random.default_rng(seed)
         self._prev: np.ndarray | None = None
 

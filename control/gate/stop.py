@@ -236,6 +236,6 @@ def stop_check(rep: ValidationReport, robot: Robot, motion: Motion, limits: Limi
     return claimed, []
 
 
-__all__ = ["BETA_RANGE", "FLOOR_SLACK", "HEADER_KEY", "TORQUE_SHARE", "across_path", "beta_interval",
-           "header_entry", "least_torque_beta", "path_deceleration", "path_tables",
+__all__ = ["BETA_RANGE", "FLOOR_SLACK", "HEADER_KEY", "TORQUE_SHARE", "across_path",
+           "beta_interval", "header_entry", "least_torque_beta", "path_deceleration", "path_tables",
            "stop_check", "stop_table"]

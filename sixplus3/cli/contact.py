@@ -20,6 +20,7 @@ def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
                      as_json: bool, reaction: str = "hold",
                      parameters_file: str | None = None) -> None:
     from sixplus3.interaction.person import read_contact, run_contact
+    from sixplus3.robot_description.hardware import effective_limits
     from sixplus3.robot_description.robot import load_robot
 
     if plant_file is None or log_file is None:
@@ -65,7 +66,7 @@ def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
                        + f"; point stopped after {ms(run.stop_time)}; modes "
                        f"{' -> '.join(run.modes) or '-'}")
         click.echo(f"  peak |tau| asked of the drives {run.peak_command:.2f} N m (applied "
-                   f"within {robot.limits.torque:g})")
+                   f"within {effective_limits(robot).torque:g})")
         for e in run.events:
             click.echo(f"  guard: {e}")
     sys.exit(0 if run.within_limits and not run.false_alarm else 1)
@@ -92,6 +93,11 @@ def simulate_lead(csv_file: str | None, lead_file: str | None, robot: Any,
         fail(f"{log_file} exists: add --force to replace it")
     plant = load_robot(plant_file)
     hand = read_hand(lead_file)
+    from sixplus3.robot_description.hardware import effective_limits
+
+    # the envelope: the robot's limits tightened by the site's (--hardware,
+    # $SIXPLUS3_HARDWARE), the gate's one authority; lead-through commands within it
+    limit = effective_limits(robot).torque
     run = run_lead(robot, plant, hand, kp=kp, kd=kd, seed=seed, torque_noise=noise)
     out = _logged(run, log_file, robot, plant, seed, noise, lead_file, as_json)
     if not as_json:
@@ -110,10 +116,10 @@ def simulate_lead(csv_file: str | None, lead_file: str | None, robot: Any,
                    f"{out['walls_met']} updates; least energy the hand put in "
                    f"{out['port_energy_min_j']:.3f} J")
         click.echo(f"  peak |tau| asked of the drives {out['peak_command_n_m']:.2f} N m "
-                   f"(applied {out['peak_applied_n_m']:.2f}, limit {robot.limits.torque:g})")
+                   f"(applied {out['peak_applied_n_m']:.2f}, limit {limit:g})")
         for e in out["events"][:10]:
             click.echo(f"  lead-through: {e}")
-    sys.exit(0 if out["peak_command_n_m"] <= robot.limits.torque else 1)
+    sys.exit(0 if out["peak_command_n_m"] <= limit else 1)
 
 
 def _logged(run: Any, log_file: str, robot: Any, plant: Any, seed: int, noise: float,

@@ -212,6 +212,10 @@ def teach(log: str, out_file: str, pfl: str | None, people: str | None, stop: bo
         fail(f"{out_file} exists: add --force to replace it")
     robot = current_robot()
     names = tuple(r.name for r in regions(pfl)) if pfl is not None else ()
+    if pfl is not None and not names:  # as plan --pfl '' refuses: never a silent no-PFL
+        from sixplus3.cli.app import fail
+
+        fail("--pfl names no body region")
     taught = teach_log(read_log(log, robot), robot, speed=speed, pause=pause)
     name = os.path.splitext(os.path.basename(out_file))[0] or "taught"
     doc = taught.task(name=name, stop=stop, pfl=names, people=people,
