@@ -111,6 +111,10 @@ def main() -> None:
     ap.add_argument("--unguarded", action="store_true",
                     help="also run each max-speed contact without the guard")
     ap.add_argument("--reaction", default="hold", choices=["hold", "yield"])
+    ap.add_argument("--rate-feedback", nargs="+", default=["encoder"],
+                    choices=["encoder", "plant", "filtered"],
+                    help="the drives' rate feedback: the encoder's difference, the plant's "
+                         "true rate, a filtered rate (control/drive/loop.py)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--quiet", nargs="*", default=[],
                     help="trajectory files run with nobody in the way (false alarms) on "
@@ -143,7 +147,8 @@ def main() -> None:
                     c = contact_from_dict({"region": region, "kind": kind, "at": at,
                                            "normal": normal, "point": args.point})
                     for pname, plant in plants:
-                        for dname in args.drives:
+                        for dname, fb in [(d, f) for d in args.drives
+                                          for f in args.rate_feedback]:
                             kp, kd = DRIVES[dname]
                             guards = [True] + ([False] if args.unguarded and label == "max"
                                                and nname == "along" else [])
@@ -151,11 +156,11 @@ def main() -> None:
                                 r = run_contact(path, model, plant, c,
                                                 guard=built if guard else False, kp=kp,
                                                 kd=kd, seed=args.seed, after=0.3,
-                                                reaction=args.reaction)
+                                                reaction=args.reaction, rate_feedback=fb)
                                 row = {"region": region, "kind": kind, "target": label,
                                        "at": round(at, 4), "normal": nname,
                                        "point": args.point, "plant": pname,
-                                       "drive": dname, "guard": guard,
+                                       "drive": dname, "rate_feedback": fb, "guard": guard,
                                        **{q: w for q, w in r.summary().items()
                                           if q not in ("region", "kind", "guard")},
                                        "final_mode": r.modes[-1] if r.modes else "-"}
@@ -165,7 +170,7 @@ def main() -> None:
                                     out.write(line + "\n")
                                     out.flush()
                                 print(f"{region:10s} {kind:5s} {label:>4s} {nname:6s} "
-                                      f"{pname:10s} {dname:5s} guard={guard!s:5s} "
+                                      f"{pname:10s} {dname:5s} {fb:8s} guard={guard!s:5s} "
                                       f"v={r.speed:5.2f} F={r.peak_transient:6.1f}/"
                                       f"{r.limit_transient:.0f} Fqs={r.quasi_static:6.1f}/"
                                       f"{r.limit_quasi_static:.0f} det={r.detection_delay} "
@@ -194,11 +199,11 @@ def quiet(args: argparse.Namespace, out: object, t_start: float) -> None:
         plants = plants_for(args, model)
         built = ContactGuard(model, path)
         for pname, plant in plants:
-            for dname in args.drives:
+            for dname, fb in [(d, f) for d in args.drives for f in args.rate_feedback]:
                 kp, kd = DRIVES[dname]
                 r = run_contact(path, model, plant, None, guard=built, kp=kp, kd=kd,
-                                seed=args.seed, after=0.2)
-                row = {"file": path.name, "plant": pname, "drive": dname,
+                                seed=args.seed, after=0.2, rate_feedback=fb)
+                row = {"file": path.name, "plant": pname, "drive": dname, "rate_feedback": fb,
                        "false_alarm": r.false_alarm, "peak_command": r.peak_command,
                        "saturation_stop": any("saturated" in e for e in r.events),
                        "final_mode": r.modes[-1] if r.modes else "-", "events": r.events}
@@ -206,7 +211,7 @@ def quiet(args: argparse.Namespace, out: object, t_start: float) -> None:
                 if out:
                     out.write(json.dumps(row) + "\n")  # type: ignore[attr-defined]
                     out.flush()  # type: ignore[attr-defined]
-                print(f"{path.name:24s} {pname:12s} {dname:5s} false_alarm="
+                print(f"{path.name:24s} {pname:12s} {dname:5s} {fb:8s} false_alarm="
                       f"{r.false_alarm!s:5s} cmd={r.peak_command:.2f} {row['final_mode']} "
                       f"{r.events[:1]}", flush=True)
     print(json.dumps({"runs": len(rows),

@@ -299,24 +299,29 @@ def momentum(tau, thd, J, M, h, prev_tau, prev_M, p0, integral, r, flags, gain, 
 
 
 @njit(cache=True, error_model="numpy")
-def envelope(tau_ff, ref, vref, kp, kd, theta, vel, cap):
-    """The drive's whole command tau_ff + Kp (ref - theta) + Kd (vref - vel) kept within
-    +-cap (:func:`~sixplus3.interaction.guard_parts.within_envelope`): tau_ff clipped to
-    the cap, then the reference moved toward the measured angles (or, with Kp = 0, the
-    rate reference toward the measured rate) where the PD would leave it.  In place;
-    returns (the largest |total| asked before, whether anything moved)."""
+def envelope(tau_ff, ref, vref, kp, kd, theta, vel, spread, cap):
+    """The drive's whole command tau_ff + Kp (ref - theta) + Kd (vref - v) kept within
+    +-cap for every rate v the drive may use in [vel - spread, vel + spread]
+    (:func:`~sixplus3.interaction.guard_parts.within_envelope`): tau_ff clipped to the
+    cap, then the reference moved toward the measured angles (or, with Kp = 0, the rate
+    reference toward the measured rate) where the PD, widened by Kd spread either way,
+    would leave it.  Where Kd spread alone exceeds the cap, the PD cancels tau_ff (the
+    least worst case: Kd spread).  In place; returns (the largest |total| asked before at
+    the rate ``vel``, whether anything moved)."""
     wanted = 0.0
     moved = False
     for i in range(9):
         damp = kd[i] * (vref[i] - vel[i])
         pd = kp[i] * (ref[i] - theta[i]) + damp
+        m = kd[i] * spread[i]  # what the drive's own rate may add, either way
         wanted = max(wanted, abs(tau_ff[i] + pd))
         if abs(tau_ff[i]) > cap:
             tau_ff[i] = min(max(tau_ff[i], -cap), cap)
             moved = True
-        lo, hi = -cap - tau_ff[i], cap - tau_ff[i]
+        room = max(cap - m, 0.0)
+        lo, hi = -room - tau_ff[i], room - tau_ff[i]
         if pd < lo or pd > hi:
-            pd_c = min(max(pd, min(lo, 0.0)), max(hi, 0.0))
+            pd_c = min(max(pd, lo), hi)
             if kp[i] > 0.0:
                 ref[i] = theta[i] + (pd_c - damp) / kp[i]
             elif kd[i] > 0.0:

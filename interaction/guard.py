@@ -58,10 +58,11 @@ from sixplus3.control.gate.validation import validate_file
 from sixplus3.errors import InputError, ValidationFailed, check_number
 from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
+    DriveRate,
     GuardCommand,
     contact_site,
     jump_bound,
-    parse_gains,
+    parse_drive,
     reading,
     within_envelope,
 )
@@ -126,7 +127,7 @@ class ContactGuard:
                  model_error: float = MODEL_ERROR, n_sigma: float = N_SIGMA,
                  torque_noise: float = 0.01, torque_share: float = TORQUE_SHARE,
                  reaction: str = "hold",
-                 drive_gains: tuple[object, object] | None = None,
+                 drive_gains: tuple[object, ...] | None = None,
                  parameter_cov: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         if reaction not in ("hold", "yield"):
             raise InputError(f"reaction must be hold or yield, got {reaction!r}",
@@ -153,8 +154,10 @@ class ContactGuard:
         #: stays within the envelope (:func:`guard_parts.within_envelope`)
         self.kp: np.ndarray | None = None
         self.kd: np.ndarray | None = None
+        self._drive_rate = ("encoder", 1e-3)
         if drive_gains is not None:
-            self.kp, self.kd = parse_gains(drive_gains)
+            self.kp, self.kd, *rest = parse_drive(drive_gains)
+            self._drive_rate = (str(rest[0]), float(rest[1]))
         rep = validate_file(trajectory_file, self.robot)
         if not rep.ok or rep.data is None or rep.header is None:
             raise ValidationFailed("the guard runs only a valid file: "
@@ -215,12 +218,16 @@ class ContactGuard:
         return float(lo + int(np.argmin(d)))
 
     # ------------------------------------------------------------------ online
-    def reset(self, drive_gains: tuple[object, object] | None = None) -> None:
+    def reset(self, drive_gains: tuple[object, ...] | None = None) -> None:
         """Back to the file's t = 0, with no contact and no events (the tables kept):
         the same guard runs the file again; ``drive_gains``: new (Kp, Kd), or keep."""
         if drive_gains is not None:
-            self.kp, self.kd = parse_gains(drive_gains)
+            self.kp, self.kd, *rest = parse_drive(drive_gains)
+            self._drive_rate = (str(rest[0]), float(rest[1]))
         self.events = []
+        #: the drive's rate as the guard models it, and how far the drive's may be from
+        #: it (guard_parts.DriveRate: the bound on the whole command covers it)
+        self._rates = DriveRate(self.rate, self.robot, *self._drive_rate)
         self._reset()
 
     def _reset(self) -> None:
@@ -229,6 +236,7 @@ class ContactGuard:
         self.mode = "follow"
         self._prev: np.ndarray | None = None
         self._since_good = 0  # ticks since the last good reading
+  # the drive's rate: the encoder's difference
         self._vel = np.zeros(9)
         self._p0: np.ndarray | None = None
         self._integral = np.zeros(9)
@@ -286,24 +294,28 @@ class ContactGuard:
 
     def step(self, theta: object, tau: object) -> GuardCommand:
         """One tick (class doc); never raises."""
+        got = reading(theta, tau, self.lim)  # never raises
         try:
-            cmd = self._step(theta, tau)
+            cmd = self._step(got)
         except Exception as exc:  # noqa: BLE001 - the loop must never see an exception
             cmd = self._safe_hold(f"internal failure, holding: {type(exc).__name__}: "
                                   f"{str(exc)[:120]}")
         try:
             if self.kp is None or self.kd is None or self._prev is None:
                 return cmd
-            out, wanted = within_envelope(cmd, self.kp, self.kd, self._prev, self._vel,
-                                          COMMAND_SHARE * self.lim.torque)
+            # at the last good reading, the drive's rate the encoder's difference of two
+            # good readings in a row (kept across a refused one), and how far the drive's
+            # own rate may be from it (guard_parts.RateSpread)
+            out, wanted = within_envelope(cmd, self.kp, self.kd, self._prev,
+                                          self._rates.rate, COMMAND_SHARE * self.lim.torque,
+                                          self._rates.spread)
             # the drive would have been at its limit without the move: saturated
             self._clipped = wanted >= self.lim.torque
             return out
         except Exception:  # noqa: BLE001
             return cmd
 
-    def _step(self, theta: object, tau: object) -> GuardCommand:
-        got = reading(theta, tau, self.lim)
+    def _step(self, got: tuple[np.ndarray, np.ndarray] | str) -> GuardCommand:
         self._since_good += 1
         if isinstance(got, str):
             return self._safe_hold(got)
@@ -328,6 +340,8 @@ class ContactGuard:
         # the encoder's difference: the rate at t - dt/2 (over the ticks since the last
         # good reading, when readings were lost between)
         self._vel = (th - self._prev) / (dt * span)
+        if span == 1:  # two good readings in a row: the drive's encoder difference
+            self._rates.update(self._vel)
         self._prev = th.copy()
         k = int(round(min(max(self.s, 0.0), self.n - 1.0)))
         M = self.M[k]

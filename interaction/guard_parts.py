@@ -4,13 +4,14 @@ the whole command kept within the envelope given the drive's gains."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import regressor_batch
-from sixplus3.errors import InputError
+from sixplus3.errors import InputError, check_number
 from sixplus3.interaction._tick_kernel import envelope
 from sixplus3.robot_description.limits import Limits
 
@@ -103,19 +104,22 @@ def contact_site(full: np.ndarray, bound: np.ndarray) -> str:
 
 
 def within_envelope(cmd: GuardCommand, kp: np.ndarray, kd: np.ndarray, theta: np.ndarray,
-                    vel: np.ndarray, cap: float) -> tuple[GuardCommand, float]:
-    """(the command, the largest |total| the drive would have been asked for without
-    the move): the reference moved toward the measured
-    angles ``theta`` (or, with Kp = 0, the rate reference toward the measured rate
-    ``vel``, the encoder's difference over the last tick: the drive's rate feedback)
-    wherever the drive's total tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref -
-    vel) would leave +-``cap``.  A blocked platform then never gets more than the
-    envelope from a reference that runs ahead."""
+                    vel: np.ndarray, cap: float, spread: np.ndarray | None = None
+                    ) -> tuple[GuardCommand, float]:
+    """(the command, the largest |total| the drive would have been asked for at the rate
+    ``vel`` without the move): the reference moved toward the measured angles ``theta`` (or, with
+    Kp = 0, the rate reference toward the measured rate ``vel``, the encoder's
+    difference over the last tick) wherever the drive's total tau_ff + Kp (theta_ref -
+    theta) + Kd (theta_dot_ref - v) would leave +-``cap`` for a rate feedback v anywhere
+    in ``vel`` +- ``spread`` (:class:`DriveRate`: the drive's rate as modelled).  A
+    blocked platform then never gets more than the envelope from a reference that runs
+    ahead, whatever rate estimate the drive uses within the spread."""
     ref, vref = cmd.theta_ref.copy(), cmd.theta_dot_ref.copy()
     ff = np.array(cmd.tau_ff, dtype=float)
+    sp = np.zeros(9) if spread is None else np.asarray(spread, dtype=float)
     wanted, moved = envelope(ff, ref, vref, np.asarray(kp, dtype=float),
                              np.asarray(kd, dtype=float), np.asarray(theta, dtype=float),
-                             np.asarray(vel, dtype=float), float(cap))
+                             np.asarray(vel, dtype=float), sp, float(cap))
     if not moved:
         return cmd, wanted
     return GuardCommand(ref, vref, ff, cmd.mode, cmd.contact, cmd.wrench), wanted
@@ -154,6 +158,94 @@ def jump_bound(lim: Limits, dt: float, ticks: int) -> float:
     return MAX_JUMP + lim.velocity * dt * max(0, ticks - 1)
 
 
+#: The drive rate feedbacks a controller models (:class:`DriveRate`).
+DRIVE_RATES = ("encoder", "true", "filtered")
+
+
+class DriveRate:
+    """The rate the drive's PD uses, as the controller models it from the encoders, and
+    how far the drive's may be from that model (per joint, [rad/s]): the whole command's
+    bound holds for every rate in model +- spread (docs/safety.md, "The command on any
+    drive").  ``kind``, what the drive is set to:
+
+    - ``"encoder"``: the encoder's difference over the last tick, as the controller
+      reads it: the model is exact (the spread: the encoder's count over a tick);
+    - ``"filtered"``: that difference through a first-order low-pass of time constant
+      ``tau`` [s] (a drive's speed filter, set to ``tau``): the controller runs the same
+      filter, exact too;
+    - ``"true"``: the joint's true rate (a drive's speed observer at its best): it leads
+      the difference by about half a tick of acceleration; the model is the difference
+      plus half its last change, the spread SAFETY times half the larger of the last two
+      changes of that change (what the acceleration did since: a contact's onset shows
+      a tick late).
+
+    A drive set otherwise is outside the bound: the drive's own torque limit (the drive
+    table exports it) is then the only bound."""
+
+    #: margin on the true rate's spread (the acceleration changes within the tick)
+    SAFETY = 1.5
+    LEAD = 0.25
+
+    def __init__(self, rate: float, robot: object, kind: str = "encoder",
+                 tau: float = 1e-3) -> None:
+        if kind not in DRIVE_RATES:
+            raise InputError(f"drive_rate must be one of {', '.join(DRIVE_RATES)}, got "
+                             f"{str(kind)[:40]!r}", value=str(kind)[:40],
+                             valid=", ".join(DRIVE_RATES))
+        mot = robot.motors  # type: ignore[attr-defined]
+        #: [rad] one encoder count at the joint
+        count = 2.0 * math.pi / (float(mot.gear_ratio) * 2.0 ** int(mot.encoder_bits))
+        self.kind = kind
+        self.tau = check_number("drive_rate_tau [s]", tau, 0.0, 0.1)
+        self.dt = 1.0 / rate
+        self._floor = count / self.dt
+        self.reset()
+
+    def reset(self) -> None:
+        self._v: np.ndarray | None = None  # the last encoder difference
+        self._dv = np.zeros(9)  # its last change
+        self._jerk = np.zeros(9)  # the last change of that change
+        #: the modelled rate (9,) and its spread (9,) [rad/s] at the last update
+        self.rate = np.zeros(9)
+        self.spread = np.full(9, self._floor)
+
+    def update(self, vel: np.ndarray) -> None:
+        """This tick's encoder difference ``vel`` (two good readings in a row)."""
+        if self._v is None:
+            self._v, self.rate = vel.copy(), vel.copy()
+            return
+        dv = vel - self._v
+        if self.kind == "filtered":
+            self.rate = self.rate + self.dt / (self.tau + self.dt) * (vel - self.rate)
+        elif self.kind == "true":
+            self.rate = vel + 0.5 * dv
+            jerk = np.abs(dv - self._dv)
+            self.spread = (self.SAFETY * 0.5 * np.maximum(jerk, self._jerk)
+                           + self.LEAD * np.abs(dv) + self._floor)
+            self._jerk = jerk
+        else:
+            self.rate = vel.copy()
+        self._dv, self._v = dv, vel.copy()
+
+
+def parse_drive(gains: object) -> tuple[np.ndarray, np.ndarray, str, float]:
+    """(Kp, Kd, the drive's rate feedback, its filter's time constant [s]) from
+    ``drive_gains``: (Kp, Kd), (Kp, Kd, RATE) or (Kp, Kd, "filtered", TAU), RATE one of
+    :data:`DRIVE_RATES` ("encoder" when not given: :class:`DriveRate`)."""
+    if not isinstance(gains, (tuple, list)) or not 2 <= len(gains) <= 4:
+        raise InputError("drive_gains must be (Kp, Kd[, rate feedback[, filter tau]])",
+                         value=repr(gains)[:80], valid="(Kp, Kd), (Kp, Kd, 'encoder'|'true'|"
+                         "'filtered'[, tau])")
+    kp, kd = parse_gains((gains[0], gains[1]))
+    kind = gains[2] if len(gains) > 2 else "encoder"
+    if not isinstance(kind, str) or kind not in DRIVE_RATES:
+        raise InputError(f"the drive's rate feedback must be one of {', '.join(DRIVE_RATES)}",
+                         value=repr(kind)[:40], valid=", ".join(DRIVE_RATES))
+    tau = check_number("the drive's rate filter [s]", gains[3], 0.0, 0.1) if len(gains) > 3 \
+        else 1e-3
+    return kp, kd, kind, tau
+
+
 def parse_gains(gains: tuple[object, object]) -> tuple[np.ndarray, np.ndarray]:
     """(Kp, Kd) (9 each) of a drive's PD from scalars or 9 each; InputError otherwise."""
     try:
@@ -168,6 +260,8 @@ def parse_gains(gains: tuple[object, object]) -> tuple[np.ndarray, np.ndarray]:
     return kp, kd
 
 
-__all__ = ["ANGLE_SLACK", "COMMAND_SHARE", "GuardCommand", "LEG_LEVER", "MAX_JUMP",
-           "TORQUE_SLACK", "contact_site", "jump_bound", "parameter_std2", "parse_gains",
+__all__ = ["ANGLE_SLACK", "COMMAND_SHARE", "DRIVE_RATES", "DriveRate", "GuardCommand",
+           "LEG_LEVER", "MAX_JUMP",
+           "TORQUE_SLACK", "contact_site", "jump_bound", "parameter_std2", "parse_drive",
+           "parse_gains",
            "reading", "velocity_slope", "within_envelope"]

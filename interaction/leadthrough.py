@@ -58,9 +58,10 @@ from sixplus3.interaction import _lead_kernel as kern
 from sixplus3.interaction import walls
 from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
+    DriveRate,
     GuardCommand,
     jump_bound,
-    parse_gains,
+    parse_drive,
     reading,
     within_envelope,
 )
@@ -123,7 +124,7 @@ class LeadThrough:
                  speed: Sequence[float] = (0.25, 1.0),
                  acceleration: Sequence[float] = (2.0, 10.0),
                  crank_gain: float = 2.0, crank_rate: float = 0.5,
-                 drive_gains: tuple[object, object] | None = None,
+                 drive_gains: tuple[object, ...] | None = None,
                  n_sigma: float = N_SIGMA, start_time: float = 0.005,
                  rest_time: float = 0.1, slow_every: int = 10, energy: float = 0.5,
                  gain: float = GAIN, model_sigma: float = MODEL_SIGMA,
@@ -145,7 +146,8 @@ class LeadThrough:
                                        * self.rate))
         self.slow_every = int(check_number("slow_every", slow_every, 1, 1000, integer=True))
         self.energy0 = check_number("energy", energy, 0.0, 100.0)
-        self.gains = None if drive_gains is None else parse_gains(drive_gains)
+        drive = None if drive_gains is None else parse_drive(drive_gains)
+        self.gains = None if drive is None else (drive[0], drive[1])
         self.stream = WrenchStream(self.robot, self.rate, gain=gain,
                                    monitor_noise=monitor_noise, model_sigma=model_sigma,
                                    n_sigma=n_sigma, compiled=compiled)
@@ -176,6 +178,9 @@ class LeadThrough:
                                 dtype=float).reshape(-1)[:9]
         # the walls near and the cranks' climb, every slow_every ticks (lead_walls.py)
         self._wu = WallUpdate(self.robot, self.tool, self.crank_gain, self.crank_rate)
+        #: the drive's rate as modelled, and how far the drive's may be from it
+        self._rates = DriveRate(self.rate, self.robot, *(("encoder", 1e-3) if drive is None
+                                                         else (drive[2], drive[3])))
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -200,6 +205,8 @@ class LeadThrough:
         self._sc = np.array([self.energy0, 0.0, self.energy0, self.energy0])
         if hasattr(self, "_wu"):
             self._wu.reset()
+        if hasattr(self, "_rates"):
+            self._rates.reset()
         self._last_ff = np.zeros(9)
         self._prev_theta = np.zeros(9)
         self._vel = np.zeros(9)
@@ -324,6 +331,8 @@ class LeadThrough:
         vmax = 2.0 * self.lim.velocity
         self._vel = (np.clip((theta - self._prev_theta) * self.rate, -vmax, vmax)
                      if self._have_prev else np.zeros(9))
+        if self._have_prev:
+            self._rates.update(self._vel)
         self._prev_theta[:] = theta
         self._have_prev = True
 
@@ -498,7 +507,7 @@ class LeadThrough:
             self._reading = None
         if self.gains is None:
             return cmd
-        return within_envelope(cmd, self.gains[0], self.gains[1], theta, self._vel,
-                               COMMAND_SHARE * self.cap)[0]
+        return within_envelope(cmd, self.gains[0], self.gains[1], theta, self._rates.rate,
+                               COMMAND_SHARE * self.cap, self._rates.spread)[0]
 
 __all__ = ["CONFIRM", "LeadThrough", "RATE_SHARE", "REST_SPEED"]

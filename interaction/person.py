@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from sixplus3.control.drive.loop import TORQUE_NOISE, DriveLoop
+from sixplus3.control.drive.loop import FILTER_TAU, TORQUE_NOISE, DriveLoop
 from sixplus3.control.drive.simulation import KD, KP, MujocoRobot, first_configuration
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.control.file.file_format import columns
@@ -146,11 +146,14 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
                 guard: bool | ContactGuard = True, kp: float = KP, kd: float = KD, seed: int = 0,
                 after: float = 0.5, torque_noise: float = TORQUE_NOISE,
                 timestep: float = TIMESTEP, reaction: str = "hold",
-                parameter_cov: tuple[np.ndarray, np.ndarray] | None = None) -> ContactRun:
+                parameter_cov: tuple[np.ndarray, np.ndarray] | None = None,
+                rate_feedback: str = "encoder") -> ContactRun:
     """Run the file on ``plant`` with the person ``contact`` (None: nobody, for false
     alarms) in the way (module doc), the guard in the loop (``guard``) or the plan
     followed as it is, for ``after`` seconds past the contact (or the file's end);
-    ``reaction``: the guard's, hold or yield; ``parameter_cov``: an identification's
+    ``reaction``: the guard's, hold or yield; ``rate_feedback``: the drives' (the
+    encoder's difference, the plant's true rate or a filtered rate: control/drive/
+    loop.py); ``parameter_cov``: an identification's
     (base columns, covariance) for the guard's thresholds.  ``guard`` may be a
     :class:`ContactGuard` of this file and model: it is reset and run again (its tables
     are not rebuilt: a battery of contacts on one file)."""
@@ -187,11 +190,17 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     if contact is not None:
         n = min(n, int(round((contact.at + after) * rate)) + 1)
         p_s, normal, k_on = _where(contact, model, rep, cfg, rate, tool, leg, timestep)
-    g = _guard(guard, path, model, rate, reaction, kp, kd, parameter_cov)
+    # the guard models the drives' rate feedback as they are set (guard_parts.DriveRate)
+    kind = {"plant": "true", "encoder": "encoder", "filtered": "filtered"}.get(rate_feedback)
+    if kind is None:
+        raise InputError(f"rate_feedback must be plant, encoder or filtered, got "
+                         f"{str(rate_feedback)[:40]!r}", value=str(rate_feedback)[:40],
+                         valid="plant, encoder, filtered")
+    g = _guard(guard, path, model, rate, reaction, (kp, kd, kind, FILTER_TAU), parameter_cov)
     # the drives: the one drive loop, with the rate feedback a drive without an
     # observer has (the encoder's difference, which the guard's bound assumes too)
     loop = DriveLoop(plant, rate, kp, kd, timestep, torque_noise, seed,
-                     rate_feedback="encoder")
+                     rate_feedback=rate_feedback)
     loop.start(first_configuration(model, rep))
     mj, m, d = loop.sim.mj, loop.sim.model, loop.sim.data
     body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY,
@@ -281,7 +290,7 @@ def _where(contact: Contact, model: Robot, rep: Any, cfg: Any, rate: float,
 
 
 def _guard(guard: bool | ContactGuard, path: str | Path, model: Robot, rate: float,
-           reaction: str, kp: float, kd: float,
+           reaction: str, drive: tuple[float, float, str, float],
            parameter_cov: tuple[np.ndarray, np.ndarray] | None) -> ContactGuard | None:
     """The guard in the loop: the one given (of this file and model, reset), a new
     one, or none."""
@@ -292,9 +301,10 @@ def _guard(guard: bool | ContactGuard, path: str | Path, model: Robot, rate: flo
         if guard.reaction != reaction:
             raise InputError("the guard given has another reaction", value=guard.reaction,
                              valid=reaction)
-        guard.reset(drive_gains=(kp, kd))
+        guard.reset(drive_gains=drive)
         return guard
-    return (ContactGuard(model, path, rate, reaction=reaction, drive_gains=(kp, kd),
+    return (ContactGuard(model, path, rate, reaction=reaction,
+                         drive_gains=drive,
                          parameter_cov=parameter_cov) if guard else None)
 
 

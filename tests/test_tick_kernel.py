@@ -62,7 +62,7 @@ def test_the_envelope_is_the_closed_form() -> None:
         kp = np.where(rng.random(9) < 0.3, 0.0, rng.uniform(100, 3000, 9))
         kd = rng.uniform(1, 30, 9)
         f2, r2, v2 = ff.copy(), ref.copy(), vref.copy()
-        wanted, moved = envelope(f2, r2, v2, kp, kd, theta, vel, cap)
+        wanted, moved = envelope(f2, r2, v2, kp, kd, theta, vel, np.zeros(9), cap)
         pd0 = kp * (ref - theta) + kd * (vref - vel)
         assert wanted == pytest.approx(np.abs(ff + pd0).max())
         np.testing.assert_array_equal(f2, np.clip(ff, -cap, cap))
@@ -168,3 +168,28 @@ def test_the_slow_updates_scalars_are_the_walls_functions() -> None:
         near = np.minimum(sl[0], ahead) < walls.WALL_BAND
         np.testing.assert_array_equal(active, near)
         assert n == near.sum()
+
+
+def test_the_envelope_holds_for_every_rate_within_the_spread() -> None:
+    """With a spread s of the drive's rate about the controller's, the total stays within
+    +-cap at both ends v = vel -+ s (the PD is affine in v, so every rate between holds);
+    where Kd s alone exceeds the cap, the PD cancels the feed-forward (worst Kd s)."""
+    rng = np.random.default_rng(5)
+    cap = 9.7
+    for _ in range(300):
+        ff = rng.uniform(-12, 12, 9)
+        ref, vref = rng.normal(0, 0.02, 9), rng.normal(0, 1.0, 9)
+        theta, vel = rng.normal(0, 0.02, 9), rng.normal(0, 1.0, 9)
+        kp = np.where(rng.random(9) < 0.3, 0.0, rng.uniform(100, 3000, 9))
+        kd = rng.uniform(1, 30, 9)
+        spread = rng.uniform(0.0, 0.5, 9)
+        f2, r2, v2 = ff.copy(), ref.copy(), vref.copy()
+        wanted, _ = envelope(f2, r2, v2, kp, kd, theta, vel, spread, cap)
+        pd0 = kp * (ref - theta) + kd * (vref - vel)
+        assert wanted == pytest.approx(np.abs(ff + pd0).max())
+        for v in (vel - spread, vel + spread):
+            total = f2 + kp * (r2 - theta) + kd * (v2 - v)
+            assert np.all(np.abs(total) <= np.maximum(cap, kd * spread) + 1e-9)
+        over = kd * spread > cap
+        centre = f2 + kp * (r2 - theta) + kd * (v2 - vel)
+        np.testing.assert_allclose(centre[over], 0.0, atol=1e-9)

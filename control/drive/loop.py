@@ -9,8 +9,10 @@ Each tick, as the prototype's drives run:
 - the encoder is read: the plant's angle quantised to one count of the motor's encoder
   (``encoder_bits`` per motor turn through the belt);
 - the rate feedback: the plant's own rate (``rate_feedback="plant"``: a drive's speed
-  observer at its best) or the encoder's difference over the last tick (``"encoder"``:
-  what a drive without an observer has);
+  observer at its best), the encoder's difference over the last tick (``"encoder"``:
+  what a drive without an observer has), or that difference through a first-order
+  low-pass of time constant FILTER_TAU (``"filtered"``: a drive's speed filter, which
+  lags the true rate by about FILTER_TAU in an acceleration);
 - the command u = tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref - theta_dot),
   quantised to the drive's torque unit (0.1 % of the motor's rated torque at the joint)
   and applied within the drive's limit (what the drive can give: MuJoCo's actuator
@@ -35,6 +37,10 @@ from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Default standard deviation of the torque monitor's noise [N m at the joint].
 TORQUE_NOISE = 0.005
+#: [s] the time constant of the ``"filtered"`` rate feedback's low-pass.
+FILTER_TAU = 1e-3
+#: The drive's rate feedbacks (module doc).
+RATE_FEEDBACKS = ("plant", "encoder", "filtered")
 
 
 @dataclass(frozen=True)
@@ -61,9 +67,10 @@ class DriveLoop:
         self.kd = check_number("kd", kd, 0.0, 1e4)
         check_number("torque_noise", torque_noise, 0.0, 1.0)
         check_number("seed", seed, 0, 2 ** 32 - 1, integer=True)
-        if rate_feedback not in ("plant", "encoder"):
-            raise InputError(f"rate_feedback must be plant or encoder, got {rate_feedback!r}",
-                             value=rate_feedback, valid="plant or encoder")
+        if rate_feedback not in RATE_FEEDBACKS:
+            raise InputError(f"rate_feedback must be one of {', '.join(RATE_FEEDBACKS)}, "
+                             f"got {rate_feedback!r}", value=rate_feedback,
+                             valid=", ".join(RATE_FEEDBACKS))
         self.rate_feedback = rate_feedback
         self.torque_noise = float(torque_noise)
         self.sim = MujocoRobot(self.plant, timestep)
@@ -77,6 +84,7 @@ class DriveLoop:
         self.cap = effective_limits(self.plant).torque
         self.rng = np.random.default_rng(seed)
         self._prev: np.ndarray | None = None
+        self._filtered = np.zeros(9)  # the "filtered" feedback's state
 
     def start(self, q: np.ndarray, theta_dot: np.ndarray | None = None) -> None:
         """The plant at the configuration q (Pinocchio's coordinates), at rest or with
@@ -84,6 +92,7 @@ class DriveLoop:
         self.sim.set_state(np.asarray(q, dtype=float),
                            np.zeros(9) if theta_dot is None else np.asarray(theta_dot))
         self._prev = None
+        self._filtered = np.zeros(9)
 
     def encoder(self) -> np.ndarray:
         """The actuated angles as the encoders read them (quantised to a count)."""
@@ -108,8 +117,12 @@ class DriveLoop:
         (``advance``) the plant moved one tick, ``hook(sub_step)`` before each
         sub-step."""
         th = self.encoder() if theta is None else theta
-        if self.rate_feedback == "encoder":
+        if self.rate_feedback in ("encoder", "filtered"):
             thd = np.zeros(9) if self._prev is None else (th - self._prev) * self.rate
+            if self.rate_feedback == "filtered":
+                dt = 1.0 / self.rate
+                self._filtered += dt / (FILTER_TAU + dt) * (thd - self._filtered)
+                thd = self._filtered.copy()
         else:
             thd = np.array(self.sim.data.qvel[self.sim.act_dof])
         self._prev = th
@@ -129,4 +142,4 @@ class DriveLoop:
             mj.mj_step(m, d)
 
 
-__all__ = ["TORQUE_NOISE", "DriveLoop", "Tick"]
+__all__ = ["FILTER_TAU", "RATE_FEEDBACKS", "TORQUE_NOISE", "DriveLoop", "Tick"]
