@@ -156,8 +156,8 @@ class ContactGuard:
         self.kd: np.ndarray | None = None
         self._drive_rate = ("encoder", 1e-3)
         if drive_gains is not None:
-            self.kp, self.kd, *rest = parse_drive(drive_gains)
-            self._drive_rate = (str(rest[0]), float(rest[1]))
+            self.kp, self.kd, kind, tau = parse_drive(drive_gains)
+            self._drive_rate = (kind, tau)
         rep = validate_file(trajectory_file, self.robot)
         if not rep.ok or rep.data is None or rep.header is None:
             raise ValidationFailed("the guard runs only a valid file: "
@@ -222,8 +222,8 @@ class ContactGuard:
         """Back to the file's t = 0, with no contact and no events (the tables kept):
         the same guard runs the file again; ``drive_gains``: new (Kp, Kd), or keep."""
         if drive_gains is not None:
-            self.kp, self.kd, *rest = parse_drive(drive_gains)
-            self._drive_rate = (str(rest[0]), float(rest[1]))
+            self.kp, self.kd, kind, tau = parse_drive(drive_gains)
+            self._drive_rate = (kind, tau)
         self.events = []
         #: the drive's rate as the guard models it, and how far the drive's may be from
         #: it (guard_parts.DriveRate: the bound on the whole command covers it)
