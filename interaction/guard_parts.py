@@ -169,7 +169,7 @@ class DriveRate:
     drive").  ``kind``, what the drive is set to:
 
     - ``"encoder"``: the encoder's difference over the last tick, as the controller
-      reads it: the model is exact (the spread: the encoder's count over a tick);
+      reads it: the model is exact (no spread);
     - ``"filtered"``: that difference through a first-order low-pass of time constant
       ``tau`` [s] (a drive's speed filter, set to ``tau``): the controller runs the same
       filter, exact too;
@@ -195,6 +195,7 @@ class DriveRate:
         mot = robot.motors  # type: ignore[attr-defined]
         #: [rad] one encoder count at the joint
         count = 2.0 * math.pi / (float(mot.gear_ratio) * 2.0 ** int(mot.encoder_bits))
+        #: the true rate's spread's floor: a count over a tick
         self.kind = kind
         self.tau = check_number("drive_rate_tau [s]", tau, 0.0, 0.1)
         self.dt = 1.0 / rate
@@ -207,14 +208,13 @@ class DriveRate:
         self._jerk = np.zeros(9)  # the last change of that change
         #: the modelled rate (9,) and its spread (9,) [rad/s] at the last update
         self.rate = np.zeros(9)
-        self.spread = np.full(9, self._floor)
+        self.spread = np.full(9, self._floor if self.kind == "true" else 0.0)
 
     def update(self, vel: np.ndarray) -> None:
         """This tick's encoder difference ``vel`` (two good readings in a row)."""
-        if self._v is None:
-            self._v, self.rate = vel.copy(), vel.copy()
-            return
-        dv = vel - self._v
+        # before the first difference the drive held the robot at rest (a filter's state
+        # at 0): the first difference's change is not known
+        dv = np.zeros(9) if self._v is None else vel - self._v
         if self.kind == "filtered":
             self.rate = self.rate + self.dt / (self.tau + self.dt) * (vel - self.rate)
         elif self.kind == "true":

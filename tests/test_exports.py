@@ -87,6 +87,12 @@ def test_only_valid_files_are_exported(planned, tmp_path) -> None:
     assert res.exit_code == 0, res.output
     head = json.loads(out.read_text().splitlines()[0].split(" ", 4)[4])
     assert head["encoder_bits"] == 20 and head["gear_ratio"] == pytest.approx(72 / 34)
+    # the drive's own torque limit: the envelope's, rounded down in the drive's units
+    lim = head["drive_torque_limit"]
+    assert lim["joint_n_m"] == ROBOT.limits.torque
+    per_rated = ROBOT.limits.torque / (ROBOT.motors.gear_ratio * ROBOT.motors.rated_torque)
+    assert lim["max_torque_0p1pct"] <= 1000 * per_rated < lim["max_torque_0p1pct"] + 1
+    assert lim["torque_limit_pct"] <= 100 * per_rated < lim["torque_limit_pct"] + 1
     weak = ROBOT.replace(limits=ROBOT.limits.tightened(torque=1.0))
     with pytest.raises(TrajectoryFileError, match="robot mismatch"):  # not exported
         export_file(path, weak, "ros2-yaml")

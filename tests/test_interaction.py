@@ -161,6 +161,13 @@ def test_cli_wrench_and_resolution(hold_file, tmp_path) -> None:
     r = run.invoke(cli, ["wrench", str(log), "-o", str(out), "--plot", str(tmp_path / "w.png"),
                          "--at", "tcp"])
     assert r.exit_code == 0, r.output
+    # a picture under another name (session 34: a PNG written as x.txt) is refused
+    for args in (["wrench", str(log), "--plot", str(tmp_path / "x.txt")],
+                 ["wrench-resolution", "-o", str(tmp_path / "map.pdf")]):
+        r = run.invoke(cli, args)
+        assert r.exit_code == 2 and "writes a PNG" in r.output, r.output
+        assert len(r.output.strip().splitlines()) == 1, r.output
+    assert not (tmp_path / "x.txt").exists() and not (tmp_path / "map.pdf").exists()
     rows = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")]
     assert rows[0].startswith("t,fx,fy,fz,mx,my,mz")
     head = out.read_text().splitlines()[0]  # each note once, "; " between them

@@ -193,3 +193,34 @@ def test_the_envelope_holds_for_every_rate_within_the_spread() -> None:
         over = kd * spread > cap
         centre = f2 + kp * (r2 - theta) + kd * (v2 - vel)
         np.testing.assert_allclose(centre[over], 0.0, atol=1e-9)
+
+
+def test_the_drive_rate_model_is_the_drives_filter() -> None:
+    """guard_parts.DriveRate against the simulated drive's own rate feedbacks
+    (control/drive/loop.py's arithmetic), on encoder differences of a random motion: the
+    encoder's difference and a 1 ms filter from rest are modelled exactly; the true rate
+    (the motion's derivative at the tick) stays within the model's spread."""
+    from sixplus3.control.drive.loop import FILTER_TAU
+    from sixplus3.interaction.guard_parts import DriveRate
+
+    robot = Robot.default()
+    rate = 1000.0
+    dt = 1.0 / rate
+    t = np.arange(400) * dt
+    f = np.array([2.0, 3.0, 5.0, 7.0, 1.5, 2.5, 4.0, 6.0, 9.0])
+    theta = 0.3 * np.sin(np.outer(t, f))  # smooth: accelerations up to 24 rad/s^2
+    true = 0.3 * f * np.cos(np.outer(t, f))
+    vel = np.diff(theta, axis=0) * rate
+    for kind in ("encoder", "filtered", "true"):
+        m = DriveRate(rate, robot, kind, FILTER_TAU)
+        filt = np.zeros(9)
+        for k in range(len(vel)):
+            m.update(vel[k])
+            filt += dt / (FILTER_TAU + dt) * (vel[k] - filt)
+            drive = {"encoder": vel[k], "filtered": filt, "true": true[k + 1]}[kind]
+            if kind == "true":
+                if k > 2:
+                    assert np.all(np.abs(drive - m.rate) <= m.spread), k
+            else:
+                np.testing.assert_allclose(m.rate, drive, rtol=1e-12, atol=1e-12)
+                assert not m.spread.any()

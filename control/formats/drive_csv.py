@@ -11,6 +11,13 @@ motor turn, d the axis direction and theta_0 the zero offset (``Robot.motors``):
 
 The header carries every parameter used.  Rounding the position to a count changes
 the angle by at most half a count: 2 pi / (2 N 2^b) = 1.4 microrad at the joint.
+
+The header also carries the drive's own torque limit (``drive_torque_limit``): the
+envelope's torque (the site's, else the catalogue's: robot_description/hardware.py) in
+the drive's units, rounded down, so that the drive clamps whatever its PD adds to the
+file's torques (docs/safety.md, "The command on any drive"): CiA 402's max torque
+(6072h, 0.1 % of the motor's rated torque) and a percentage of rated torque (e.g. the
+SGD7S's forward and reverse torque limits, Pn402 and Pn403, in 1 %).
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ import numpy as np
 from sixplus3.control.file.drive_log import to_drive_units
 from sixplus3.control.formats.export_format import Export, ExportFormat
 from sixplus3.motion import Motion
+from sixplus3.robot_description.hardware import effective_limits
 from sixplus3.robot_description.robot import Robot
 from sixplus3.robot_description.urdf import actuated_joint_names
 
@@ -40,6 +48,18 @@ def drive_units(robot: Robot) -> dict[str, Any]:
             "torque_unit": "0.1 % of the motor's rated torque",
             "zero_offsets_rad": list(m.zero_offsets), "directions": list(m.directions),
             "axes": actuated_joint_names()}
+
+
+def drive_torque_limit(robot: Robot) -> dict[str, Any]:
+    """The drive's own torque limit (module doc) for ``robot`` under the envelope in
+    force: at the joint [N m], and in the drive's units, each rounded down."""
+    lim = effective_limits(robot).torque
+    per_rated = lim / (robot.motors.gear_ratio * robot.motors.rated_torque)
+    return {"joint_n_m": lim,
+            "max_torque_0p1pct": int(math.floor(1000.0 * per_rated + 1e-9)),
+            "torque_limit_pct": int(math.floor(100.0 * per_rated + 1e-9)),
+            "note": "set the drives' own torque limit to this (CiA 402 6072h; e.g. "
+                    "SGD7S Pn402 and Pn403): the drive clamps what its PD adds"}
 
 
 def drive_table(robot: Robot, motion: Motion,
@@ -62,7 +82,8 @@ def render(ex: Export) -> str:
     out = io.StringIO()
     out.write("# sixplus3 drive table " + json.dumps({
         "source": ex.source, "robot_hash": robot.hash, "rate_hz": ex.motion.rate,
-        "torque_hold": ex.torque_hold, **drive_units(robot)}) + "\n")
+        "torque_hold": ex.torque_hold, **drive_units(robot),
+        "drive_torque_limit": drive_torque_limit(robot)}) + "\n")
     w = csv.writer(out, lineterminator="\n")
     names = actuated_joint_names()
     w.writerow(["t_s"] + [f"{n}_{q}" for n in names for q in ("counts", "counts_per_s",

@@ -139,6 +139,14 @@ def verbosity(f: Any) -> Any:
                              "and errors.")(f)
 
 
+def check_png(out_path: str | None, option: str) -> None:
+    """Refuse (exit 2) a picture's path that does not end in .png: the command writes a
+    PNG, and a PNG under another name (``--plot x.txt``) is a file its user cannot
+    open."""
+    if out_path is not None and not out_path.lower().endswith(".png"):
+        fail(f"{option} writes a PNG: give a file name ending in .png, got {out_path!r}")
+
+
 def check_output(out_path: str | None, inputs: tuple[str | None, ...] = (),
                  force: bool = False) -> None:
     """Refuse (exit 2) an output that is one of the command's inputs (the same path or

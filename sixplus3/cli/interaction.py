@@ -10,6 +10,7 @@ import click
 from sixplus3.cli.app import (
     FLOAT,
     check_output,
+    check_png,
     current_robot,
     emit,
     json_default,
@@ -48,6 +49,7 @@ def wrench(log: str, out_file: str | None, at: str, gain: float, noise: float,
     from sixplus3.interaction.wrench import estimate
 
     check_output(out_file, (log,))
+    check_png(plot_file, "--plot")
     check_output(plot_file, (log,))
     robot = current_robot()
     cov = None
@@ -155,6 +157,7 @@ def wrench_resolution(out_file: str, step: float, as_json: bool) -> None:
     if not 0.002 <= step <= 0.05:
         raise InputError(f"--step must be in [0.002, 0.05] m, got {step:g}", value=step,
                          valid="[0.002, 0.05] m")
+    check_png(out_file, "-o")
     robot = current_robot()
     home = resolution(robot, robot.home_position)
     stats = plot_resolution_map(robot, out_file, step=step)
