@@ -1,15 +1,20 @@
 """sixplus3: software for the kinematically redundant (6+3)-DoF RU/2-RUS parallel robot.
 
-One explicit, frozen :class:`Robot` is the input of every part::
+One explicit, frozen :class:`Robot` is the input of every part (this example runs as
+a test: tests/test_packaging.py)::
+
+    import tempfile
 
     import sixplus3 as s3
+    from sixplus3 import examples
 
-    robot = s3.Robot.default()                       # the paper's robot
-    task = s3.load_task("tilt60_x.yaml")             # platform waypoints (+ limits)
+    robot = s3.Robot.default()                       # the built robot
+    task = examples.load("tilt60_x")                 # or s3.load_task("my_task.yaml")
     sol = s3.plan(task, robot)                       # time-optimal, checked with Pinocchio
     sm = s3.smooth(sol, rate=1000.0)                 # controller-rate samples (Ruckig)
-    rep = s3.validate_joint_trajectory(sm.theta, sm.theta_dot, sm.theta_ddot, robot)
-    s3.validate_file("out/tilt60_x.csv", robot)      # the gate: -> ValidationReport
+    out = s3.run_plan(task, tempfile.mkdtemp(), robot, html=False, plots=False)
+    rep = s3.validate_file(out.csv, robot)           # the gate: -> ValidationReport
+    assert rep.ok and sm.motion.rate == 1000.0
 
 Subpackages (lower never imports higher): ``robot_description`` (Robot, URDF, closures,
 Pinocchio model), ``kinematics``, ``dynamics``, ``design``, ``planner``, ``control``

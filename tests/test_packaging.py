@@ -158,3 +158,23 @@ def test_the_curated_api_is_written_once_and_typed() -> None:
                 assert isinstance(imp, ast.ImportFrom)
                 typed.update({a.name: imp.module for a in imp.names})
     assert typed == api
+
+
+def test_the_package_docstring_example_runs(tmp_path, monkeypatch) -> None:
+    """The example in ``sixplus3.__doc__`` (what ``help(sixplus3)`` shows a new user)
+    runs as written (session 34: it named a task file a user does not have and an old
+    signature)."""
+    import textwrap
+
+    import sixplus3
+
+    doc = sixplus3.__doc__
+    assert doc is not None and "::\n" in doc
+    code = []  # the indented block after "::" (blank lines inside it kept)
+    for ln in doc.split("::\n", 1)[1].splitlines():
+        if ln and not ln.startswith("    "):
+            break
+        code.append(ln)
+    assert len(code) > 5
+    monkeypatch.chdir(tmp_path)
+    exec(compile(textwrap.dedent("\n".join(code)), "sixplus3.__doc__", "exec"), {})

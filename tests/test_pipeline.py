@@ -249,3 +249,34 @@ def test_play_renders_a_video_of_the_motion(planned, tmp_path) -> None:
     assert len(iio.imread(mp4)) == len(frames)
     bad = run("play", res.csv, "--video", tmp_path / "m.avi")
     assert bad.exit_code == 2 and ".mp4 or .gif" in bad.output
+
+
+def test_a_plan_over_its_torque_by_a_hair_after_smoothing_is_planned_again(tmp_path,
+                                                                          monkeypatch
+                                                                          ) -> None:
+    """Session 34: a re-plan for an identified robot stopped with "torque (between
+    samples, bound) ... 9.00302 N m (bound 9 N m)".  A plan the gate finds over its torque
+    limit after smoothing is planned again with the NLP's node bound lowered by what the
+    gate found (as a PFL plan's rows are), and the file written is valid.  Forced here:
+    the first gate call judges by a torque limit just below the plan's own peak."""
+    from sixplus3.control import pipeline
+
+    real = pipeline.validate_and_write
+    calls: list[float] = []
+
+    def gate(path, motion, robot, x_guess, limits, meta):  # type: ignore[no-untyped-def]
+        calls.append(limits.torque)
+        if len(calls) == 1:  # the first plan: a torque limit 0.1 % below its peak
+            rep = validate_joint_trajectory(motion, robot, x_guess, limits)
+            peak = rep.max_torque_ratio * limits.torque
+            limits = limits.tightened(torque=0.999 * peak)
+        return real(path, motion, robot, x_guess, limits, meta)
+
+    monkeypatch.setattr(pipeline, "validate_and_write", gate)
+    said: list[str] = []
+    doc = {"name": "move", "nodes_per_segment": 6, "waypoints": [
+        {"position": [-0.05, 0.0, 0.58]}, {"position": [0.05, 0.0, 0.58]}]}
+    out = run_plan(task_from_dict(doc), tmp_path, Robot.default(), html=False, plots=False,
+                   progress=said.append)
+    assert len(calls) == 2 and out.report.ok
+    assert any("planning again with the node bound" in s for s in said), said
