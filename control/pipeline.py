@@ -124,6 +124,38 @@ def _beside(task: Task, sol: Solution, sm: Smoothed, rep: ValidationReport, robo
     return files, html_path
 
 
+def _replan_options(exc: ValidationFailed, options: PlannerOptions | None, tries: int,
+                    say: Callable[[str], None]) -> PlannerOptions | None:
+    """The options to plan again with after the gate refused the smoothed file, or None
+    (the refusal stands): a file over its PFL limits, or over its torque limit by what
+    the NLP's nodes did not see (between them, or after the smoothing), is planned
+    again with the rows' share, or the node bound, lowered by what the gate found, at
+    most PFL_TRIES times."""
+    failed = exc.report if isinstance(exc.report, ValidationReport) else None
+    found = failed.findings if failed is not None else []
+    if not found or tries >= PFL_TRIES:
+        return None
+    opts = options or PlannerOptions()
+    ratio = failed.max_pfl_ratio if failed is not None else None
+    if all(f.check.startswith("pfl ") for f in found) and ratio:
+        # between the NLP's points, or after the smoothing, the energy was higher than
+        # the rows allowed: lower their share by what the gate found
+        share = max(0.01, opts.pfl_share * PFL_SAFETY**2 / float(ratio))
+        say(f"  the gate's PFL check found {ratio:.3f} of the limit: planning again "
+            f"with the rows at {share:.3f} of it")
+        return replace(opts, pfl_share=share)
+    if all(f.check in ("torque", "torque (between samples, bound)") for f in found):
+        # the smoothing (or the interpolant between samples) asks a hair more torque
+        # than the NLP's nodes allowed (session 34: 9.00302 N m of 9 on a robot
+        # identified on a perturbed prototype): the node bound lowered the same way
+        worst = max(abs(f.worst_value) / f.bound for f in found if f.bound > 0)
+        safety = max(0.5, opts.torque_safety / (worst * TORQUE_MARGIN))
+        say(f"  the gate found {worst:.5f} of the torque limit after smoothing: "
+            f"planning again with the node bound at {safety:.4f} of it")
+        return replace(opts, torque_safety=safety)
+    return None
+
+
 def run_plan(task: Task, out_dir: str | Path, robot: Robot,
              rate: float = 1000.0, html: bool = True, plots: bool = True,
              options: PlannerOptions | None = None,
@@ -187,33 +219,9 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
     try:
         _, rep = validate_and_write(csv_path, sm.motion, robot, sm.x_guess, sol.limits, meta)
     except ValidationFailed as exc:
-        failed = exc.report if isinstance(exc.report, ValidationReport) else None
-        found = failed.findings if failed is not None else []
-        ratio = failed.max_pfl_ratio if failed is not None else None
-        if (found and all(f.check.startswith("pfl ") for f in found) and ratio
-                and _pfl_try < PFL_TRIES):
-            # between the NLP's points, or after the smoothing, the energy was higher
-            # than the rows allowed: lower their share by what the gate found
-            opts = options or PlannerOptions()
-            share = max(0.01, opts.pfl_share * PFL_SAFETY**2 / float(ratio))
-            say(f"  the gate's PFL check found {ratio:.3f} of the limit: planning again "
-                f"with the rows at {share:.3f} of it")
-            return run_plan(task, out_dir, robot, rate, html, plots,
-                            replace(opts, pfl_share=share), progress,
-                            _pfl_try=_pfl_try + 1)
-        if (found and all(f.check in ("torque", "torque (between samples, bound)")
-                          for f in found) and _pfl_try < PFL_TRIES):
-            # the smoothing (or the interpolant between samples) asks a hair more torque
-            # than the NLP's nodes allowed (session 34: 9.00302 N m of 9 on a robot
-            # identified on a perturbed prototype): plan again with the node bound lowered
-            # by what the gate found, as a PFL plan's rows are
-            opts = options or PlannerOptions()
-            worst = max(abs(f.worst_value) / f.bound for f in found if f.bound > 0)
-            safety = max(0.5, opts.torque_safety / (worst * TORQUE_MARGIN))
-            say(f"  the gate found {worst:.5f} of the torque limit after smoothing: "
-                f"planning again with the node bound at {safety:.4f} of it")
-            return run_plan(task, out_dir, robot, rate, html, plots,
-                            replace(opts, torque_safety=safety), progress,
+        again = _replan_options(exc, options, _pfl_try, say)
+        if again is not None:
+            return run_plan(task, out_dir, robot, rate, html, plots, again, progress,
                             _pfl_try=_pfl_try + 1)
         raise TrajectoryFileError("the smoothed trajectory fails validation, nothing "
                                   "written: " + str(exc).split(": ", 1)[-1],

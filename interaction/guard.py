@@ -67,7 +67,7 @@ from sixplus3.interaction.guard_parts import (
     within_envelope,
 )
 from sixplus3.interaction.guard_tables import deceleration_at, path_tables
-from sixplus3.robot_description.hardware import effective_limits, tightest
+from sixplus3.robot_description.hardware import effective_limits, judged_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -172,7 +172,7 @@ class ContactGuard:
         self.dt = 1.0 / self.rate
         # the stop table is recomputed under the limits the gate judged the file by (the
         # envelope tightened by the file's own): the gate's own table, never the header's
-        judged = tightest(self.lim, Limits(**rep.limits)) if rep.limits else self.lim
+        judged = judged_limits(self.robot, Limits(**rep.limits)) if rep.limits else self.lim
         tables = path_tables(self.robot, rep, self.rate, judged, share, self.gain,
                              self.model_error, self.n_sigma, torque_noise, parameter_cov)
         self.n = len(tables.theta)

@@ -65,6 +65,7 @@ from sixplus3.interaction.guard_parts import (
     reading,
     within_envelope,
 )
+from sixplus3.interaction.lead_settings import pair, six
 from sixplus3.interaction.lead_walls import Found, WallUpdate
 from sixplus3.interaction.stream import WrenchStream
 from sixplus3.interaction.wrench import GAIN, MODEL_SIGMA, N_SIGMA
@@ -87,27 +88,6 @@ MAX_WALLS = 8
 
 def _norm(a: np.ndarray) -> float:
     return math.sqrt(float(a @ a))
-
-
-def _six(name: str, value: object, lo: float, hi: float) -> np.ndarray:
-    """Six values (translation x3, rotation x3) from a (translation, rotation) pair or
-    six numbers, each within [lo, hi]."""
-    vals = list(value) if isinstance(value, (list, tuple, np.ndarray)) else [value]
-    if len(vals) == 2:
-        vals = [vals[0]] * 3 + [vals[1]] * 3
-    if len(vals) != 6:
-        raise InputError(f"{name} must be (translation, rotation) or 6 numbers",
-                         value=repr(value)[:80], valid="2 or 6 numbers")
-    return np.array([check_number(name, v, lo, hi) for v in vals])
-
-
-def _pair(name: str, value: object, lo: float, hi: float) -> tuple[float, float]:
-    """A (translation, rotation) pair of numbers, each within [lo, hi]."""
-    if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 2:
-        raise InputError(f"{name} must be a (translation, rotation) pair of numbers, got "
-                         f"{repr(value)[:80]}", value=repr(value)[:80],
-                         valid=f"2 numbers in [{lo:g}, {hi:g}]")
-    return (check_number(name, value[0], lo, hi), check_number(name, value[1], lo, hi))
 
 
 class LeadThrough:
@@ -133,10 +113,10 @@ class LeadThrough:
         self.robot = require_robot(robot)
         self.rate = check_number("rate_hz", rate_hz, 200.0, 20000.0)
         self.dt = 1.0 / self.rate
-        self.mass = _six("mass", mass, 1e-3, 1e3)
-        self.damping = _six("damping", damping, 0.0, 1e4)
-        self.speed = _pair("speed [m/s, rad/s]", speed, 1e-3, 10.0)
-        self.accel = _pair("acceleration [m/s^2, rad/s^2]", acceleration, 1e-2, 1e3)
+        self.mass = six("mass", mass, 1e-3, 1e3)
+        self.damping = six("damping", damping, 0.0, 1e4)
+        self.speed = pair("speed [m/s, rad/s]", speed, 1e-3, 10.0)
+        self.accel = pair("acceleration [m/s^2, rad/s^2]", acceleration, 1e-2, 1e3)
         self.crank_gain = check_number("crank_gain", crank_gain, 0.0, 100.0)
         self.crank_rate = check_number("crank_rate", crank_rate, 0.0, 10.0)
         self.n_sigma = check_number("n_sigma", n_sigma, 0.0, 100.0)

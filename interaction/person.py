@@ -151,23 +151,16 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     """Run the file on ``plant`` with the person ``contact`` (None: nobody, for false
     alarms) in the way (module doc), the guard in the loop (``guard``) or the plan
     followed as it is, for ``after`` seconds past the contact (or the file's end);
-    ``reaction``: the guard's, hold or yield; ``rate_feedback``: the drives' (the
-    encoder's difference, the plant's true rate or a filtered rate: control/drive/
-    loop.py); ``parameter_cov``: an identification's
-    (base columns, covariance) for the guard's thresholds.  ``guard`` may be a
-    :class:`ContactGuard` of this file and model: it is reset and run again (its tables
-    are not rebuilt: a battery of contacts on one file)."""
+    ``reaction``: the guard's, hold or yield; ``rate_feedback``: the drives' (loop.py);
+    ``parameter_cov``: an identification's (base columns, covariance) for the guard's
+    thresholds.  ``guard`` may be a :class:`ContactGuard` of this file and model: it is
+    reset and run again (its tables are not rebuilt: a battery of contacts on a file)."""
     model, plant = require_robot(model), require_robot(plant)
-    check_number("after", after, 0.0, 30.0)
-    check_number("kp", kp, 0.0, 1e5)
-    check_number("kd", kd, 0.0, 1e4)
-    check_number("seed", seed, 0, 2 ** 32 - 1, integer=True)
-    if isinstance(guard, ContactGuard) and guard.path.resolve() == Path(path).resolve():
-        rep = guard.report  # the gate's report its guard was built on
-    else:
-        rep = validate_file(path, model)
-    if not rep.ok or rep.data is None or rep.header is None:
-        raise ValidationFailed("not run: " + "; ".join(rep.messages()), rep.exit_code, rep)
+    for name, v, lo, hi in (("after", after, 0.0, 30.0), ("kp", kp, 0.0, 1e5),
+                            ("kd", kd, 0.0, 1e4), ("seed", seed, 0, 2 ** 32 - 1)):
+        check_number(name, v, lo, hi, integer=name == "seed")
+    rep = _report(path, model, guard)
+    assert rep.header is not None and rep.data is not None
     rate = float(rep.header["rate_hz"])
     data = rep.data
     t_file = data[:, 0]
@@ -190,13 +183,8 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     if contact is not None:
         n = min(n, int(round((contact.at + after) * rate)) + 1)
         p_s, normal, k_on = _where(contact, model, rep, cfg, rate, tool, leg, timestep)
-    # the guard models the drives' rate feedback as they are set (guard_parts.DriveRate)
-    kind = {"plant": "true", "encoder": "encoder", "filtered": "filtered"}.get(rate_feedback)
-    if kind is None:
-        raise InputError(f"rate_feedback must be plant, encoder or filtered, got "
-                         f"{str(rate_feedback)[:40]!r}", value=str(rate_feedback)[:40],
-                         valid="plant, encoder, filtered")
-    g = _guard(guard, path, model, rate, reaction, (kp, kd, kind, FILTER_TAU), parameter_cov)
+    g = _guard(guard, path, model, rate, reaction, _drive(kp, kd, rate_feedback),
+               parameter_cov)
     # the drives: the one drive loop, with the rate feedback a drive without an
     # observer has (the encoder's difference, which the guard's bound assumes too)
     loop = DriveLoop(plant, rate, kp, kd, timestep, torque_noise, seed,
@@ -287,6 +275,31 @@ def _where(contact: Contact, model: Robot, rep: Any, cfg: Any, rate: float,
     while k_on > 0 and ahead[k_on - 1]:
         k_on -= 1
     return p_s, normal, k_on
+
+
+def _report(path: str | Path, model: Robot, guard: bool | ContactGuard) -> Any:
+    """The gate's report of the file: the one its guard was built on, or a new one;
+    ValidationFailed for a file the gate refuses."""
+    if isinstance(guard, ContactGuard) and guard.path.resolve() == Path(path).resolve():
+        rep = guard.report
+    else:
+        rep = validate_file(path, model)
+    if not rep.ok or rep.data is None or rep.header is None:
+        raise ValidationFailed("not run: " + "; ".join(rep.messages()), rep.exit_code, rep)
+    return rep
+
+
+def _drive(kp: float, kd: float, rate_feedback: str) -> tuple[float, float, str, float]:
+    """The guard's ``drive_gains`` for the simulated drives: their PD and their rate
+    feedback as the guard models it (guard_parts.DriveRate: the plant's rate is the true
+    rate, the filter the drive loop's)."""
+    kind = {"plant": "true", "encoder": "encoder", "filtered": "filtered"}.get(
+        rate_feedback if isinstance(rate_feedback, str) else "")
+    if kind is None:
+        raise InputError(f"rate_feedback must be plant, encoder or filtered, got "
+                         f"{str(rate_feedback)[:40]!r}", value=str(rate_feedback)[:40],
+                         valid="plant, encoder, filtered")
+    return kp, kd, kind, FILTER_TAU
 
 
 def _guard(guard: bool | ContactGuard, path: str | Path, model: Robot, rate: float,
