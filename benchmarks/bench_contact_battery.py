@@ -111,6 +111,11 @@ def main() -> None:
     ap.add_argument("--unguarded", action="store_true",
                     help="also run each max-speed contact without the guard")
     ap.add_argument("--reaction", default="hold", choices=["hold", "yield"])
+    ap.add_argument("--parameters", default=None,
+                    help="an identification's parameters.npz (with --robot): the guard "
+                         "knows its robot identified (its thresholds; else the prior)")
+    ap.add_argument("--model-error", type=float, default=None,
+                    help="the guard's model share (default: its prior for the robot)")
     ap.add_argument("--rate-feedback", nargs="+", default=["encoder"],
                     choices=["encoder", "plant", "filtered"],
                     help="the drives' rate feedback: the encoder's difference, the plant's "
@@ -138,7 +143,8 @@ def main() -> None:
             model = load_robot(args.robot) if args.robot else file_robot(path)
             plants = plants_for(args, model)
             t, v = planned_velocity(path, model)
-            built = ContactGuard(model, path, 1.0 / (t[1] - t[0]), reaction=args.reaction)
+            built = ContactGuard(model, path, 1.0 / (t[1] - t[0]), reaction=args.reaction,
+                                 **guard_settings(args))
             for label, at in instants(t, v, args.speeds):
                 k = int(round(at / (t[1] - t[0])))
                 u = v[k] / np.linalg.norm(v[k])
@@ -180,6 +186,15 @@ def main() -> None:
     print(f"{len(rows)} runs in {time.perf_counter() - t_start:.0f} s")
 
 
+def guard_settings(args: argparse.Namespace) -> dict:
+    """The guard's model_error and parameter_cov from the options."""
+    out: dict = {"model_error": args.model_error}
+    if args.parameters:
+        with np.load(args.parameters, allow_pickle=False) as z:
+            out["parameter_cov"] = (np.array(z["index"]), np.array(z["cov"]))
+    return out
+
+
 def plants_for(args: argparse.Namespace, model: Robot) -> list[tuple[str, Robot]]:
     """The nominal plant (the model itself), the --plant files, and the --plant-seeds
     plants perturbed from the model (a file's robot, with its task's setup)."""
@@ -197,7 +212,7 @@ def quiet(args: argparse.Namespace, out: object, t_start: float) -> None:
         path = Path(f)
         model = load_robot(args.robot) if args.robot else file_robot(path)
         plants = plants_for(args, model)
-        built = ContactGuard(model, path)
+        built = ContactGuard(model, path, **guard_settings(args))
         for pname, plant in plants:
             for dname, fb in [(d, f) for d in args.drives for f in args.rate_feedback]:
                 kp, kd = DRIVES[dname]

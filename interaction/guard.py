@@ -46,6 +46,7 @@ clipped to the hardware envelope.
 
 from __future__ import annotations
 
+from collections import deque
 from pathlib import Path
 
 import numpy as np
@@ -66,15 +67,20 @@ from sixplus3.interaction.guard_parts import (
     reading,
     within_envelope,
 )
-from sixplus3.interaction.guard_tables import deceleration_at, path_tables
+from sixplus3.interaction.guard_tables import (
+    IDENTIFIED,
+    LAG,
+    UNIDENTIFIED,
+    ModelPrior,
+    deceleration_at,
+    path_tables,
+)
 from sixplus3.robot_description.hardware import effective_limits, judged_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Observer gain [1/s] (a step reaches 95 % in 3 / K = 6 ms).
 GAIN = 500.0
-#: Relative model error the threshold allows on the torques the model predicts.
-MODEL_ERROR = 0.15
 #: Standard deviations of the observer's noise in the threshold.
 N_SIGMA = 5.0
 #: Ticks a joint must stay beyond its threshold to be a contact.
@@ -124,7 +130,7 @@ class ContactGuard:
 
     def __init__(self, robot: Robot | None, trajectory_file: str | Path,
                  rate_hz: float = 1000.0, gain: float = GAIN,
-                 model_error: float = MODEL_ERROR, n_sigma: float = N_SIGMA,
+                 model_error: float | None = None, n_sigma: float = N_SIGMA,
                  torque_noise: float = 0.01, torque_share: float = TORQUE_SHARE,
                  reaction: str = "hold",
                  drive_gains: tuple[object, ...] | None = None,
@@ -146,7 +152,16 @@ class ContactGuard:
         self.robot = require_robot(robot)
         self.rate = check_number("rate_hz", rate_hz, 100.0, 20000.0)
         self.gain = check_number("gain", gain, 10.0, 5000.0)
-        self.model_error = check_number("model_error", model_error, 0.0, 1.0)
+        #: how well the robot is known: identified (its parameters' covariance given:
+        #: ``parameter_cov``) or the stated prior of a build's spread (guard_tables:
+        #: IDENTIFIED, UNIDENTIFIED); ``model_error`` given overrides the model share
+        self.identified = parameter_cov is not None
+        prior = IDENTIFIED if self.identified else UNIDENTIFIED
+        if model_error is not None:
+            prior = ModelPrior(check_number("model_error", model_error, 0.0, 1.0),
+                               prior.friction)
+        self.prior = prior
+        self.model_error = prior.model_error
         self.n_sigma = check_number("n_sigma", n_sigma, 0.0, 100.0)
         share = check_number("torque_share", torque_share, 0.1, 1.0)
         #: the drive's (Kp [N m/rad], Kd [N m s/rad]), scalars or 9 each; given, every
@@ -174,7 +189,7 @@ class ContactGuard:
         # envelope tightened by the file's own): the gate's own table, never the header's
         judged = judged_limits(self.robot, Limits(**rep.limits)) if rep.limits else self.lim
         tables = path_tables(self.robot, rep, self.rate, judged, share, self.gain,
-                             self.model_error, self.n_sigma, torque_noise, parameter_cov)
+                             self.prior, self.n_sigma, torque_noise, parameter_cov)
         self.n = len(tables.theta)
         self.theta, self.theta_d, self.M, self.g = (tables.theta, tables.theta_d, tables.M,
                                                     tables.g)
@@ -183,7 +198,7 @@ class ContactGuard:
         self.b_cross = tables.b_cross
         self.vnorm, self.beta = tables.vnorm, tables.beta
         self.thr_base, self.thr_g, self.thr_k = tables.thr_base, tables.thr_g, tables.thr_k
-        self.thr_p = tables.thr_p
+        self.thr_p, self.thr_a = tables.thr_p, tables.thr_a
         self.events: list[str] = []
         self.path = Path(trajectory_file)
         self.reset()
@@ -242,6 +257,7 @@ class ContactGuard:
         self._integral = np.zeros(9)
         self._r = np.zeros(9)
         self._over = 0
+        self._motion: deque[tuple[float, float]] = deque(maxlen=max(1, round(LAG * self.rate)))
         self._saturated = 0.0
         self._sm = 0.0  # the measured path speed (the rate along the path's tangent)
         self._clipped = False  # the last command would have saturated the drive
@@ -365,8 +381,14 @@ class ContactGuard:
         # the momentum of the measured rate is the one half a tick ago: compare it with
         # the integral up to then (no lag of half a tick: K dt/2 M thetaddot otherwise)
         self._r = self.gain * (p - self._p0 - (self._integral - 0.5 * step))
-        thr = self.thr_base + self.thr_g[k] + self.thr_k[k] * max(
-            self.sd ** 2, abs(self._sdd) / max(float(self.beta[k]), 1.0))
+        # the motion's share of the threshold: the reference's path speed and
+        # acceleration, the largest over the last LAG (the robot follows a stop's
+        # reference a few ticks late: its motion outlasts the reference's)
+        self._motion.append((max(self.sd ** 2, abs(self._sdd) / max(float(self.beta[k]),
+                                                                     1.0)), abs(self._sdd)))
+        f_k = max(m[0] for m in self._motion)
+        f_a = max(m[1] for m in self._motion)
+        thr = self.thr_base + self.thr_g[k] + self.thr_k[k] * f_k + self.thr_a[k] * f_a
         over = bool(np.any(np.abs(self._r) > thr))
         self._over = self._over + 1 if over else 0
         full = self.J[k].T @ self._r  # (wrench at the platform centre, crank torques)

@@ -36,6 +36,29 @@ LAG = 0.02
 
 
 @dataclass(frozen=True)
+class ModelPrior:
+    """How well the guard's robot is known (the threshold's model share, docs/safety.md,
+    "An unidentified robot"): ``model_error``, the relative error of the inertial,
+    velocity and gravity torques; ``friction``, the factor the plant's friction may be
+    off by (the dry friction's band is (1 + friction) times the model's Coulomb torque,
+    at least FRICTION_BAND; the viscous torque's error (friction - 1) times the model's
+    at the plan's rates)."""
+
+    model_error: float
+    friction: float
+
+
+#: An identified robot (``parameter_cov`` given): its parameters known to a few tens of
+#: percent where they matter (the identification's own confidence enters through thr_p).
+IDENTIFIED = ModelPrior(model_error=0.15, friction=1.0)
+#: A robot that was not identified (the catalogue's, or a hand-written file): the stated
+#: prior of a build's spread, ``identify plant``'s defaults: every link's mass and
+#: inertia within +-30 %, rotors within +-40 %, friction up to 3 times the model's.  The
+#: model error is the largest of these with a margin for the centres of mass.
+UNIDENTIFIED = ModelPrior(model_error=0.5, friction=3.0)
+
+
+@dataclass(frozen=True)
 class PathTables:
     theta: np.ndarray  # (n, 9) the path's angles [rad]
     theta_d: np.ndarray  # (n, 9) its rates: theta'(s) [rad/s]
@@ -53,10 +76,11 @@ class PathTables:
     thr_g: np.ndarray  # (n, 9) its share of gravity, and thr_p
     thr_p: np.ndarray  # (n, 9) the identified parameters' spread (0 without them)
     thr_k: np.ndarray  # (n, 9) its share of the motion (times sd^2)
+    thr_a: np.ndarray  # (n, 9) its share of the path's acceleration (times |sdd|: a stop)
 
 
 def path_tables(robot: Robot, rep: ValidationReport, rate: float, lim: Limits,
-                share: float, gain: float, model_error: float, n_sigma: float,
+                share: float, gain: float, prior: ModelPrior, n_sigma: float,
                 torque_noise: float, parameter_cov: tuple[np.ndarray, np.ndarray] | None
                 ) -> PathTables:
     """The tables of the file the gate read into ``rep``, ticked at ``rate`` [Hz]
@@ -91,7 +115,8 @@ def path_tables(robot: Robot, rep: ValidationReport, rate: float, lim: Limits,
     # the threshold: the observer's noise, the model's share, the dry friction band
     s_obs = torque_noise * math.sqrt(gain * (1.0 / rate) / 2.0)
     fc = robot.motors.coulomb_per_joint
-    thr_base = n_sigma * max(s_obs, 1e-4) + FRICTION_BAND * fc + 0.02
+    model_error = prior.model_error
+    thr_base = n_sigma * max(s_obs, 1e-4) + max(FRICTION_BAND, 1.0 + prior.friction) * fc + 0.02
     # |M| |thetaddot|, not |M thetaddot|: an error in the inertia does not cancel
     # between joints the way the nominal terms may
     thr_k = model_error * (np.abs(c) + np.einsum("nij,nj->ni", np.abs(M), np.abs(acc)))
@@ -99,6 +124,11 @@ def path_tables(robot: Robot, rep: ValidationReport, rate: float, lim: Limits,
     # threshold as the largest over the samples it may still be at
     lag = max(1, int(round(LAG * rate)))
     thr_k = np.stack([thr_k[max(0, k - lag):k + 1].max(axis=0) for k in range(n)])
+    # a stop's (or a retract's) own acceleration along the path, a_k sdd: its error
+    # model_error |M| |theta'| |sdd|, which the plan's acceleration does not bound (a
+    # plant heavier than the model, stopped hard: session 34's claims during a stop)
+    thr_a = model_error * np.einsum("nij,nj->ni", np.abs(M), np.abs(theta_d))
+    thr_a = np.stack([thr_a[max(0, k - lag):k + 1].max(axis=0) for k in range(n)])
     # an identification's confidence in its parameters (``parameter_cov``: the base
     # columns and the covariance of the base parameters, identify estimate --report's
     # parameters.npz): n_sigma standard deviations of the model torque at each planned
@@ -108,12 +138,15 @@ def path_tables(robot: Robot, rep: ValidationReport, rate: float, lim: Limits,
         sd = np.sqrt(parameter_std2(dyn, cfg.q, theta_d, acc, parameter_cov))
         thr_p = n_sigma * np.stack([sd[max(0, k - lag):k + 1].max(axis=0)
                                     for k in range(n)])
-    thr_g = model_error * np.abs(g) + thr_p
+    # a friction known only within a factor: the viscous torque's error at the plan's
+    # rates (the Coulomb share is in thr_base)
+    visc = (prior.friction - 1.0) * np.abs(robot.motors.viscous_per_joint * theta_d)
+    thr_g = model_error * np.abs(g) + thr_p + visc
     return PathTables(theta=theta, theta_d=theta_d, M=M, g=g, a=a, b=b, b_cross=b_cross, c=c,
                       D=velocity_slope(dyn, cfg.q, theta_d), J=ik_jacobian(cfg),
                       vnorm=np.linalg.norm(theta_d, axis=1), beta=beta,
                       thr_base=np.asarray(thr_base, dtype=float), thr_g=thr_g, thr_p=thr_p,
-                      thr_k=thr_k)
+                      thr_k=thr_k, thr_a=thr_a)
 
 
 def deceleration_at(a: np.ndarray, b_cross: np.ndarray, g: np.ndarray,
@@ -135,4 +168,5 @@ def deceleration_at(a: np.ndarray, b_cross: np.ndarray, g: np.ndarray,
     return min(float(hi[0]), acceleration / max(vmax, 1e-9), 1e6)
 
 
-__all__ = ["FRICTION_BAND", "LAG", "PathTables", "deceleration_at", "path_tables"]
+__all__ = ["FRICTION_BAND", "IDENTIFIED", "LAG", "UNIDENTIFIED", "ModelPrior", "PathTables",
+           "deceleration_at", "path_tables"]

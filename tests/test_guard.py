@@ -396,7 +396,8 @@ def test_the_parameters_confidence_enters_the_threshold(hand_plan) -> None:
     four = ContactGuard(ROBOT, hand_plan, parameter_cov=(cov[0], 4.0 * cov[1]))
     assert np.all(plain.thr_p == 0.0) and one.thr_p.max() > 0.0
     np.testing.assert_allclose(four.thr_p, 2.0 * one.thr_p, rtol=1e-9)
-    np.testing.assert_allclose(one.thr_g - one.thr_p, plain.thr_g, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(one.thr_g - one.thr_p, 0.15 * np.abs(one.g), rtol=0,
+                               atol=1e-12)
     rep = validate_file(hand_plan, ROBOT)
     _, _, cfg = path_tables(ROBOT, rep)
     th, thd = columns(rep.data, "pos")[:150], columns(rep.data, "vel")[:150]
@@ -556,3 +557,49 @@ def test_under_a_site_torque_limit_the_guard_refuses_or_stays_within_it(hand_pla
                                  "--plant", str(plant), "--guard", "--log",
                                  str(tmp_path / "l.csv")])
     assert r.exit_code == 1 and "Traceback" not in r.output, r.output
+
+
+def test_the_guard_knows_whether_its_robot_was_identified(hand_plan) -> None:
+    """Without an identification's covariance the guard's robot is unidentified: its
+    thresholds come from the stated prior of a build's spread (guard_tables.UNIDENTIFIED:
+    model error 0.5, friction up to 3 times), every share of them at least the
+    identified one's; with it, the identified thresholds (0.15) and the parameters'
+    confidence."""
+    from sixplus3.identification.base import base_parameters
+    from sixplus3.interaction.guard import ContactGuard
+    from sixplus3.interaction.guard_tables import IDENTIFIED, UNIDENTIFIED
+
+    base = base_parameters(ROBOT)
+    cov = (base.index, 1e-8 * np.eye(base.rank))
+    plain = ContactGuard(ROBOT, hand_plan)
+    known = ContactGuard(ROBOT, hand_plan, parameter_cov=cov)
+    assert not plain.identified and plain.prior == UNIDENTIFIED
+    assert known.identified and known.prior == IDENTIFIED
+    assert np.all(plain.thr_base > known.thr_base)
+    assert np.all(plain.thr_k >= known.thr_k) and np.all(plain.thr_a >= known.thr_a)
+    assert np.all(plain.thr_g >= known.thr_g - known.thr_p)
+    # an explicit model error overrides the prior's model share (not its friction)
+    assert ContactGuard(ROBOT, hand_plan, model_error=0.2).prior.model_error == 0.2
+
+
+@pytest.mark.parametrize("seed", [77, 78])
+def test_an_unidentified_robot_raises_no_false_claim_and_still_catches_a_hand(
+        hand_plan, seed) -> None:
+    """Session 34: the nominal robot on a prototype whose masses, inertias, rotors and
+    friction differ (identify plant's defaults: +-30 %, +-40 %, up to 3 times) claimed
+    contacts without a touch.  With the prior's thresholds: nobody there, no claim on
+    either drive; a free hand met at the plan's fastest still caught within 10 ms, below
+    its limits."""
+    from sixplus3.interaction.person import contact_from_dict, run_contact
+
+    plant = perturbed_plant(ROBOT, seed)  # identify plant's defaults
+    for kp, kd in ((300.0, 6.0), (3000.0, 30.0)):
+        quiet = run_contact(hand_plan, ROBOT, plant, None, guard=True, kp=kp, kd=kd,
+                            after=0.3)
+        assert not quiet.false_alarm, quiet.events
+        assert not any("contact" in e for e in quiet.events), quiet.events
+    c = contact_from_dict({"region": "hand", "at": 0.12})
+    hit = run_contact(hand_plan, ROBOT, plant, c, guard=True, kp=3000.0, kd=30.0, after=0.3)
+    assert hit.onset is not None and hit.detection_delay is not None, hit.events
+    assert hit.detection_delay <= 0.010 and hit.within_limits, hit.summary()
+    assert not hit.false_alarm
