@@ -388,7 +388,10 @@ class ContactGuard:
                                                                      1.0)), abs(self._sdd)))
         f_k = max(m[0] for m in self._motion)
         f_a = max(m[1] for m in self._motion)
-        thr = self.thr_base + self.thr_g[k] + self.thr_k[k] * f_k + self.thr_a[k] * f_a
+        # (where a contact is: the thresholds without the stop's own acceleration, which
+        # the guard's stop after a contact adds to every joint alike)
+        thr_site = self.thr_base + self.thr_g[k] + self.thr_k[k] * f_k
+        thr = thr_site + self.thr_a[k] * f_a
         over = bool(np.any(np.abs(self._r) > thr))
         self._over = self._over + 1 if over else 0
         full = self.J[k].T @ self._r  # (wrench at the platform centre, crank torques)
@@ -397,7 +400,7 @@ class ContactGuard:
                 and self.mode in ("follow", "stop")):
             self._contact = True
             self._contact_t = self.t
-            self.contact_site = contact_site(full, np.abs(self.J[k]).T @ thr)
+            self.contact_site = contact_site(full, np.abs(self.J[k]).T @ thr_site)
             self._stop_from_measured()
             self.events.append(f"t={self.t:.4f} s: contact at {self.contact_site}, joint "
                                f"residual {np.abs(self._r).max():.3f} N m; stopping")
@@ -406,7 +409,7 @@ class ContactGuard:
         if (self._contact and self.contact_site == "the platform" and self.mode == "stop"
               and self.t - self._contact_t <= SITE_WINDOW
               and float(np.linalg.norm(full[0:3])) >= 0.5 * self._fmax
-              and contact_site(full, np.abs(self.J[k]).T @ thr) == "a leg"):
+              and contact_site(full, np.abs(self.J[k]).T @ thr_site) == "a leg"):
             # the crank torques grow with the force: a leg's shows within a few ticks
             self.contact_site = "a leg"
             self.events.append(f"t={self.t:.4f} s: the contact is on a leg (the residual's "

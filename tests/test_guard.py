@@ -77,11 +77,17 @@ def test_a_contact_on_a_leg_is_caught_and_placed_on_the_leg(hand_plan, link) -> 
     this instant: 1 mm of lever), or the force on a crank near the base leaves crank
     torques within what the thresholds allow (leg1_A here), the residual cannot tell,
     and the guard says the platform (docs/safety.md).  The PFL rows do not cover the
-    legs."""
+    legs.  The model is the plant here, so the guard is told it is identified (a
+    covariance of nearly nothing): the prior's wider thresholds of an unidentified robot
+    place these contacts on the platform (the residual cannot tell them apart)."""
+    from sixplus3.identification.base import base_parameters
     from sixplus3.interaction.person import contact_from_dict, run_contact
 
+    base = base_parameters(ROBOT)
+    known = (base.index, 1e-10 * np.eye(base.rank))
     c = contact_from_dict({"region": "hand", "kind": "free", "at": 0.12, "point": link})
-    res = run_contact(hand_plan, ROBOT, ROBOT, c, guard=True, kp=300.0, kd=6.0, after=0.2)
+    res = run_contact(hand_plan, ROBOT, ROBOT, c, guard=True, kp=300.0, kd=6.0, after=0.2,
+                      parameter_cov=known)
     assert res.onset is not None and res.speed > 0.2
     assert res.detection_delay is not None and res.detection_delay <= 0.010
     assert res.site == "a leg", res.events
