@@ -450,3 +450,21 @@ def test_a_site_torque_limit_bounds_lead_through_from_the_cli_and_the_api(tmp_pa
     assert "limit 4)" in res.output, res.output
     peak = float(res.output.split("peak |tau| asked of the drives ")[1].split(" N m")[0])
     assert peak <= 0.97 * 4.0 + 0.005, res.output
+
+
+def test_warmup_runs_every_first_use_path(tmp_path) -> None:
+    """``sixplus3 warmup`` (and the end of ``sixplus3 demo``) runs once each path whose
+    kernels compile on first use, on a small log it makes: each returns, and a second
+    run is fast (its figures: BENCHMARKS.md, "First runs")."""
+    from click.testing import CliRunner
+
+    from sixplus3.cli import main as cli
+    from sixplus3.cli.warmup import warm
+
+    secs = warm(ROBOT, None, say=lambda _s: None)
+    assert set(secs) == {"the wrench estimator (sixplus3 wrench)",
+                         "the identification's check (identify check)",
+                         "the motors' directions (commission directions)",
+                         "lead-through and the streaming observer"}
+    res = CliRunner().invoke(cli, ["warmup"])
+    assert res.exit_code == 0 and "compiled in" in res.output, res.output

@@ -28,7 +28,7 @@ def _load_task_or_example(task_file: str) -> Any:
     return load_task(task_file)
 
 
-def _run_plan(task: Any, out_dir: str, rate: float, html: bool, locked: bool) -> None:
+def _run_plan(task: Any, out_dir: str, rate: float, html: bool, locked: bool) -> Any:
     from sixplus3.control.pipeline import run_plan
     from sixplus3.planner.options import PlannerOptions
     from sixplus3.progress import ConsoleProgress
@@ -42,6 +42,7 @@ def _run_plan(task: Any, out_dir: str, rate: float, html: bool, locked: bool) ->
         if reporter is not None:
             reporter.close()
     click.echo(f"done in {res.seconds['total']:.1f} s: {res.csv}")
+    return res
 
 
 @main.command()
@@ -102,8 +103,35 @@ def move_to_start_cmd(task_file: str, theta: tuple[float, ...], out_dir: str,
               type=click.Path(file_okay=False), help="Output directory.")
 @verbosity
 def demo(out_dir: str) -> None:
-    """Main job on built-in defaults: plan, smooth, validate and show a 30 deg tilt."""
+    """Main job on built-in defaults: plan, smooth, validate and show a 30 deg tilt;
+    then compile what a first wrench, identify check, commission directions,
+    lead-through and contact guard run (once per install: 'sixplus3 warmup')."""
     from sixplus3.control.pipeline import demo_task
     from sixplus3.planner.task import task_from_dict
 
-    _run_plan(task_from_dict(demo_task(current_robot())), out_dir, 1000.0, True, False)
+    res = _run_plan(task_from_dict(demo_task(current_robot())), out_dir, 1000.0, True, False)
+    _warm(res.csv)
+
+
+def _warm(trajectory: Any) -> None:
+    import time
+
+    from sixplus3.cli.warmup import warm
+
+    t0 = time.perf_counter()
+    click.echo("compiling the kernels the interaction commands use, once per install "
+               "(sixplus3 warmup) ...")
+    warm(current_robot(), trajectory, say=click.echo if bars() else (lambda _s: None))
+    click.echo(f"compiled in {time.perf_counter() - t0:.1f} s")
+
+
+@main.command()
+@click.option("--trajectory", default=None, type=click.Path(dir_okay=False),
+              help="A trajectory file to build a contact guard on too (default: none).")
+@verbosity
+def warmup(trajectory: str | None) -> None:
+    """Compile ahead of first use what the interaction commands run: the wrench
+    estimator, identify check, commission directions, lead-through, the contact guard
+    (numba's kernels into their cache, the observer's model to C).  'sixplus3 demo'
+    ends with it."""
+    _warm(trajectory)
