@@ -34,6 +34,5 @@ for k in (1, 2):
     ContactGuard(r, "pl/gentle_translate.csv", drive_gains=(3000.0, 30.0)); t2 = time.perf_counter()
     print(f"build {k}: LeadThrough {t1 - t0:.2f} s, ContactGuard {t2 - t1:.2f} s")
 PY
-HOME_KEEP=$HOME
 /usr/bin/time -f "make demo again: wall %e s" make demo > /dev/null 2> again.err; tail -1 again.err
 echo "end $(date)"
