@@ -104,6 +104,9 @@ def main() -> None:
                     help="plants perturbed from each file's own robot (its setup too): "
                          "masses and rotors +-5 %%, friction x[1, 1.2], centres of mass "
                          "by up to 1 cm (identify plant's generator)")
+    ap.add_argument("--full-spread", action="store_true",
+                    help="--plant-seeds perturb the file's robot as `identify plant` does "
+                         "(masses +-30 %%, rotors +-40 %%, friction up to x3), not by +-5 %%")
     ap.add_argument("--no-nominal", action="store_true",
                     help="skip the nominal plant (the file's own robot)")
     ap.add_argument("--robot", default=None,
@@ -201,7 +204,9 @@ def plants_for(args: argparse.Namespace, model: Robot) -> list[tuple[str, Robot]
     return (([] if args.no_nominal else [("nominal", model)])
             + [(Path(p).stem, load_robot(p)) for p in args.plant]
             + [(f"near-{s}", perturbed_plant(model, s, mass=0.05, rotor=0.05, friction=1.2))
-               for s in args.plant_seeds])
+               for s in args.plant_seeds if not args.full_spread]
+            + [(f"seed-{s}", perturbed_plant(model, s)) for s in args.plant_seeds
+               if args.full_spread])
 
 
 def quiet(args: argparse.Namespace, out: object, t_start: float) -> None:
