@@ -224,7 +224,8 @@ class LeadThrough:
           zero feed-forward and rates, and the drive must hold its own position (its
           ``theta_ref`` is the robot's home pose, a placeholder, not a target);
         - every command is finite, its feed-forward within the envelope, and with the
-          drive's gains its whole PD within it too (on the encoder's difference)."""
+          drive's gains its whole PD within it too, for every rate the drive may use
+          (guard_parts.DriveRate)."""
         try:
             self._since_good += 1 if self._last_good is not None else 0
             got = reading(theta, tau, self.lim)
