@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+from sixplus3.errors import InputError
 from sixplus3.kinematics.robot import RobotConfig
 from sixplus3.kinematics.robot_fk import ik_jacobian
 from sixplus3.robot_description.body_regions import BodyRegion
@@ -74,6 +75,39 @@ def point_inverse_mass(dyn: ClosedLoopDynamics, cfg: RobotConfig,
     return inverse_mass(ik_jacobian(cfg), M, r)
 
 
+def link_inverse_mass(dyn: ClosedLoopDynamics, q: np.ndarray, joint: str,
+                      point: np.ndarray) -> np.ndarray:
+    """(3, 3) the inverse mass matrix, with the motors' torques held, of a point fixed
+    to the link that ``joint`` (a joint of the tree, e.g. ``leg0_Ds2``) moves, at the
+    tree configuration ``q``; ``point`` (3,) in the base frame [m].  With G = dv/dtheta_dot
+    (the closures, :meth:`ClosedLoopDynamics.G`), the point's Jacobian J_p in the tree's
+    velocities (Pinocchio's joint Jacobian, shifted to the point) and M the reduced
+    inertia (rotors included): A = J_p G M^-1 G^T J_p^T, the leg's counterpart of
+    :func:`point_inverse_mass` (issue 70: the legs a person can touch)."""
+    import pinocchio as pin  # deferred: only where a leg's mass is asked for
+
+    m, d = dyn.model, dyn.data
+    q = np.asarray(q, dtype=float)
+    jid = m.getJointId(joint)
+    if jid >= m.njoints:
+        raise InputError(f"no joint {joint!r} in the robot's tree", value=joint,
+                         valid="a joint name, e.g. leg0_Ds2")
+    pin.computeJointJacobians(m, d, q)
+    J6 = pin.getJointJacobian(m, d, jid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+    r = np.asarray(point, dtype=float) - d.oMi[jid].translation
+    Jp = J6[0:3] - _skew(r) @ J6[3:6]  # v_p = v_o + omega x r
+    M = np.empty((1, 9, 9))
+    dyn.actuated_inverse_dynamics_batch(q[None], np.zeros((1, 9)), np.zeros((1, 9)),
+                                        inertia=M)
+    JG = Jp @ dyn.G(q)  # (3, 9)
+    A = JG @ np.linalg.solve(M[0], JG.T)
+    return np.asarray(0.5 * (A + A.T))
+
+
+def _skew(r: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+
+
 def effective_mass(A: np.ndarray, u: np.ndarray) -> np.ndarray:
     """(n,) the effective mass [kg] along the unit direction(s) u ((3,) or (n, 3))."""
     u = np.asarray(u, dtype=float)
@@ -106,5 +140,5 @@ def worst_speed(A: np.ndarray, region: BodyRegion) -> np.ndarray:
     return region.transient_force * np.sqrt(lam / region.stiffness)
 
 
-__all__ = ["contact_energy", "effective_mass", "inverse_mass", "pfl_ratio",
+__all__ = ["contact_energy", "effective_mass", "inverse_mass", "link_inverse_mass", "pfl_ratio",
            "point_inverse_mass", "point_map", "worst_speed"]
