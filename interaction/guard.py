@@ -1,47 +1,30 @@
 """The contact guard: one object a controller steps each tick (docs/safety.md, "The
-guard").  It follows a validated trajectory file, estimates the external torque from
-the drives alone with a momentum observer, and on a contact stops along the path as fast
-as the torque limits allow; a clamp (the force stays after the stop) is released by
-retracting along the path until the force is gone; then it holds.
+guard", where every rule below is stated with its measurements).  It follows a
+validated trajectory file, estimates the external torque from the drives alone with a
+momentum observer, and on a contact stops along the path as fast as the torque limits
+allow; a clamp (the force stays after the stop) is released by retracting along the
+path until the force is gone; then it holds.
 
-Nothing is solved online.  At construction, from the file (the gate's own reading of
-it) and Pinocchio, for every sample k of the path theta(s) (s the file's time):
+Nothing is solved online.  At construction, from the gate's own reading of the file and
+Pinocchio, for every sample k of the path theta(s) (interaction/guard_tables.py): the
+reduced inertia M_k, gravity g_k, the time-scaling terms a_k = M_k theta'_k and
+b_k = tau_k - g_k (moving along the path at path speed sd and acceleration sdd needs
+a_k sdd + b_k sd^2 + g_k), the velocity torque's slope D_k in the rates, the IK
+Jacobian J_k, the thresholds (from the robot's prior: identified or not) and the stop
+table beta_k, always recomputed here: the header's is never used.
 
-- the reduced inertia M_k, the gravity torque g_k, a_k = M_k theta'_k and
-  b_k = tau_k - g_k, so that moving along the path with path speed sd = ds/dt and
-  sdd needs tau = a_k sdd + b_k sd^2 + g_k (time scaling of the path: exact for the
-  inertial and centripetal terms, the friction taken with them);
-- the deceleration the torque limits allow there, beta_k (both at full speed and at
-  rest, within ``torque_share`` of the limit and within the acceleration limit), made
-  the smallest over the distance a stop from there covers: a stop is a table look-up.
-  The file carries this table in its header and the gate checks it against the limits
-  it judges by (control/gate/stop.py); the guard never uses it: it computes its own
-  from the gate's reading of the file, so no header makes it stop more slowly;
-- the slope D_k of the velocity torque in the rates, so that the observer's model
-  follows the measured rates, not only the planned ones (a lagging or saturated drive,
-  a stop);
-- the IK Jacobian J_k, for the wrench at the platform centre w = (J_k^T r)[0:6].
+Each tick: the reading checked (guard_parts.reading, jump_bound), the observer
+r = K (p - p_0 - sum (tau - h + Mdot thetadot + r) dt) with p = M_k thetadot, and a
+contact when a joint's |r| stays beyond its threshold for DEBOUNCE ticks.  A drive held
+at its limit for SATURATED_FOR while the robot is off its reference by more than
+BLOCKED is a stop along the path, not a contact.  With the drive's gains and rate
+feedback (``drive_gains``), every command's total tau_ff + PD stays within the envelope
+for every rate the drive may use (guard_parts.DriveRate, within_envelope).
 
-Each tick: the measured rate (the encoder's difference), the observer
-r = K (p - p_0 - sum (tau - h + Mdot thetadot + r) dt) with p = M_k thetadot and
-h = b_k sd^2 + g_k - a_k sdd (the model's torque without the inertial share of the
-measured rate), and a contact when a joint's |r| leaves its threshold: ``n_sigma`` times
-the torque noise through the observer, plus ``model_error`` times what the model has to
-know at that instant (the inertial and bias torques: the threshold grows with the
-motion), plus the dry friction band.
-
-A drive held at its torque limit for SATURATED_FOR (measured, or, with the drive's gains,
-a command that would have reached the limit had the guard not bounded it) while the
-robot is off its reference by more than BLOCKED (the robot cannot follow this plan: it
-needs more than the model says) is a stop along the path, not a contact.  Given the
-drive's gains (``drive_gains``), every command's total tau_ff + Kp (theta_ref - theta) +
-Kd (theta_dot_ref - theta_dot) stays within the envelope: the reference is moved toward
-the measured angles where it would not.
-
-``step`` never raises: a non-finite or wrong-sized input, a jump, or any failure
-inside is a safe stop (mode ``hold`` at the last good reference, gravity feed-forward),
-said in ``cmd.mode`` and kept in :attr:`ContactGuard.events`.  Every feed-forward is
-clipped to the hardware envelope.
+``step`` never raises: a reading that is not one, a jump, or any failure inside is a
+safe stop (mode ``hold`` at the last good reference, gravity feed-forward), said in
+``cmd.mode`` and kept in :attr:`ContactGuard.events`.  Every feed-forward is clipped to
+the hardware envelope.
 """
 
 from __future__ import annotations
@@ -74,6 +57,7 @@ from sixplus3.interaction.guard_tables import (
     ModelPrior,
     deceleration_at,
     path_tables,
+    thresholds,
 )
 from sixplus3.robot_description.hardware import effective_limits, judged_limits
 from sixplus3.robot_description.limits import Limits
@@ -381,17 +365,7 @@ class ContactGuard:
         # the momentum of the measured rate is the one half a tick ago: compare it with
         # the integral up to then (no lag of half a tick: K dt/2 M thetaddot otherwise)
         self._r = self.gain * (p - self._p0 - (self._integral - 0.5 * step))
-        # the motion's share of the threshold: the reference's path speed and
-        # acceleration, the largest over the last LAG (the robot follows a stop's
-        # reference a few ticks late: its motion outlasts the reference's)
-        self._motion.append((max(self.sd ** 2, abs(self._sdd) / max(float(self.beta[k]),
-                                                                     1.0)), abs(self._sdd)))
-        f_k = max(m[0] for m in self._motion)
-        f_a = max(m[1] for m in self._motion)
-        # (where a contact is: the thresholds without the stop's own acceleration, which
-        # the guard's stop after a contact adds to every joint alike)
-        thr_site = self.thr_base + self.thr_g[k] + self.thr_k[k] * f_k
-        thr = thr_site + self.thr_a[k] * f_a
+        thr_site, thr = thresholds(self, k, self._motion)
         over = bool(np.any(np.abs(self._r) > thr))
         self._over = self._over + 1 if over else 0
         full = self.J[k].T @ self._r  # (wrench at the platform centre, crank torques)

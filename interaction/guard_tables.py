@@ -6,7 +6,9 @@ observer's thresholds.  Nothing here runs per tick."""
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -149,6 +151,21 @@ def path_tables(robot: Robot, rep: ValidationReport, rate: float, lim: Limits,
                       thr_k=thr_k, thr_a=thr_a)
 
 
+def thresholds(g: Any, k: int, motion: deque[tuple[float, float]]
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """(where a contact is judged, whether there is one): the guard ``g``'s thresholds at
+    sample k.  The motion's share is the reference's path speed and acceleration, the
+    largest over the last LAG (``motion``, a deque of LAG ticks this appends to: the
+    robot follows a stop's reference a few ticks late, its motion outlasts the
+    reference's); the first leaves out the stop's own acceleration, which the guard's
+    stop after a contact adds to every joint alike."""
+    motion.append((max(g.sd ** 2, abs(g._sdd) / max(float(g.beta[k]), 1.0)), abs(g._sdd)))
+    f_k = max(m[0] for m in motion)
+    f_a = max(m[1] for m in motion)
+    thr_site = g.thr_base + g.thr_g[k] + g.thr_k[k] * f_k
+    return thr_site, thr_site + g.thr_a[k] * f_a
+
+
 def deceleration_at(a: np.ndarray, b_cross: np.ndarray, g: np.ndarray,
                     theta_d: np.ndarray, sd: float, torque: float, acceleration: float,
                     share: float = TORQUE_SHARE) -> float:
@@ -169,4 +186,4 @@ def deceleration_at(a: np.ndarray, b_cross: np.ndarray, g: np.ndarray,
 
 
 __all__ = ["FRICTION_BAND", "IDENTIFIED", "LAG", "UNIDENTIFIED", "ModelPrior", "PathTables",
-           "deceleration_at", "path_tables"]
+           "deceleration_at", "path_tables", "thresholds"]
