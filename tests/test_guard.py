@@ -466,7 +466,7 @@ def test_the_guard_survives_any_sequence_of_readings(hand_plan) -> None:
     command within 97 %."""
     from hypothesis import HealthCheck, given, settings
     from hypothesis import strategies as st
-    from test_hostile_readings import GARBAGE, TICK
+    from test_hostile_readings import TICK, reading_for
 
     from sixplus3.interaction.guard import ContactGuard
     from sixplus3.interaction.guard_parts import ANGLE_SLACK, COMMAND_SHARE
@@ -487,18 +487,7 @@ def test_the_guard_survives_any_sequence_of_readings(hand_plan) -> None:
         for k, (kind, arg) in enumerate(ticks):
             th = g._at(g.theta)  # the robot on its reference
             good = kind == "good"
-            theta: object = th + rng.normal(0.0, arg, 9) if good else th
-            tau: object = g._at(g.b) * g.sd ** 2 + g._at(g.g) + rng.normal(0, 0.005, 9)
-            if kind == "garbage-theta":
-                theta = GARBAGE[arg]
-            elif kind == "garbage-tau":
-                tau = GARBAGE[arg]
-            elif kind == "jump":
-                theta = th + arg * np.sign(rng.normal(size=9))
-            elif kind == "torque":
-                tau = np.full(9, arg)
-            elif kind == "angle":
-                theta = th + arg
+            theta, tau = reading_for(kind, arg, th, g._at(g.b) * g.sd ** 2 + g._at(g.g), rng)
             cmd = g.step(theta, tau)
             for a in (cmd.theta_ref, cmd.theta_dot_ref, cmd.tau_ff, cmd.wrench):
                 assert np.all(np.isfinite(a))

@@ -54,6 +54,24 @@ TICK = st.one_of(
 )
 
 
+def reading_for(kind: str, arg, th: np.ndarray, tau: np.ndarray,
+                rng: np.random.Generator) -> tuple[object, object]:
+    """(theta, tau) a tick of ``kind`` gives, the robot at ``th`` holding ``tau``."""
+    theta: object = th + rng.normal(0.0, arg, 9) if kind == "good" else th
+    torque: object = tau + rng.normal(0.0, 0.005, 9)
+    if kind == "garbage-theta":
+        theta = GARBAGE[arg]
+    elif kind == "garbage-tau":
+        torque = GARBAGE[arg]
+    elif kind == "jump":
+        theta = th + arg * np.sign(rng.normal(size=9))
+    elif kind == "torque":
+        torque = np.full(9, arg)
+    elif kind == "angle":
+        theta = th + arg
+    return theta, torque
+
+
 def _check(cmd, cap: float, lim) -> None:
     for a in (cmd.theta_ref, cmd.theta_dot_ref, cmd.tau_ff, cmd.wrench):
         assert np.all(np.isfinite(a))
@@ -77,18 +95,7 @@ def test_lead_through_survives_any_sequence_of_readings(lead, ticks, seed) -> No
     first = True
     for kind, arg in ticks:
         good = kind == "good"
-        theta: object = th + rng.normal(0.0, arg, 9) if good else th
-        tau: object = hold + rng.normal(0.0, 0.005, 9)
-        if kind == "garbage-theta":
-            theta = GARBAGE[arg]
-        elif kind == "garbage-tau":
-            tau = GARBAGE[arg]
-        elif kind == "jump":
-            theta = th + arg * np.sign(rng.normal(size=9))
-        elif kind == "torque":
-            tau = np.full(9, arg)
-        elif kind == "angle":
-            theta = th + arg
+        theta, tau = reading_for(kind, arg, th, hold, rng)
         cmd = lt.step(theta, tau)
         _check(cmd, cap, lt.lim)
         if first and not good:  # a garbage first reading moves nothing

@@ -49,6 +49,16 @@ def test_a_singular_matrix_is_reported() -> None:
     assert lu_factor(A, lu, piv) != 0
 
 
+def _random_command(rng: np.random.Generator) -> tuple[np.ndarray, ...]:
+    """(tau_ff, ref, vref, theta, vel, Kp, Kd): a drive's command and state at random,
+    Kp = 0 on about a third of the joints."""
+    ff = rng.uniform(-12, 12, 9)
+    ref, vref = rng.normal(0, 0.02, 9), rng.normal(0, 1.0, 9)
+    theta, vel = rng.normal(0, 0.02, 9), rng.normal(0, 1.0, 9)
+    kp = np.where(rng.random(9) < 0.3, 0.0, rng.uniform(100, 3000, 9))
+    return ff, ref, vref, theta, vel, kp, rng.uniform(1, 30, 9)
+
+
 def test_the_envelope_is_the_closed_form() -> None:
     """Each joint's total tau_ff + PD within +-cap after the move, unchanged where it
     was, and the reference moved exactly to the cap's edge where it was not (Kp > 0:
@@ -56,11 +66,7 @@ def test_the_envelope_is_the_closed_form() -> None:
     rng = np.random.default_rng(3)
     cap = 9.7
     for _ in range(200):
-        ff = rng.uniform(-12, 12, 9)
-        ref, vref = rng.normal(0, 0.02, 9), rng.normal(0, 1.0, 9)
-        theta, vel = rng.normal(0, 0.02, 9), rng.normal(0, 1.0, 9)
-        kp = np.where(rng.random(9) < 0.3, 0.0, rng.uniform(100, 3000, 9))
-        kd = rng.uniform(1, 30, 9)
+        ff, ref, vref, theta, vel, kp, kd = _random_command(rng)
         f2, r2, v2 = ff.copy(), ref.copy(), vref.copy()
         wanted, moved = envelope(f2, r2, v2, kp, kd, theta, vel, np.zeros(9), cap)
         pd0 = kp * (ref - theta) + kd * (vref - vel)
@@ -177,11 +183,7 @@ def test_the_envelope_holds_for_every_rate_within_the_spread() -> None:
     rng = np.random.default_rng(5)
     cap = 9.7
     for _ in range(300):
-        ff = rng.uniform(-12, 12, 9)
-        ref, vref = rng.normal(0, 0.02, 9), rng.normal(0, 1.0, 9)
-        theta, vel = rng.normal(0, 0.02, 9), rng.normal(0, 1.0, 9)
-        kp = np.where(rng.random(9) < 0.3, 0.0, rng.uniform(100, 3000, 9))
-        kd = rng.uniform(1, 30, 9)
+        ff, ref, vref, theta, vel, kp, kd = _random_command(rng)
         spread = rng.uniform(0.0, 0.5, 9)
         f2, r2, v2 = ff.copy(), ref.copy(), vref.copy()
         wanted, _ = envelope(f2, r2, v2, kp, kd, theta, vel, spread, cap)
