@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 from typing import Any
 
 import click
@@ -134,4 +135,9 @@ def warmup(trajectory: str | None) -> None:
     estimator, identify check, commission directions, lead-through, the contact guard
     (numba's kernels into their cache, the observer's model to C).  'sixplus3 demo'
     ends with it."""
+    if trajectory is not None:  # an unreadable or foreign file: one line, before any work
+        from sixplus3.control.file.trajectory_parse import parse
+        from sixplus3.control.file.trajectory_read import read_bytes
+
+        parse(read_bytes(trajectory), os.path.basename(trajectory))
     _warm(trajectory)
