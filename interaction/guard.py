@@ -42,6 +42,7 @@ from sixplus3.control.gate.validation import validate_file
 from sixplus3.errors import InputError, ValidationFailed, check_number
 from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
+    DEFAULT_RATE,
     DriveRate,
     GuardCommand,
     contact_site,
@@ -153,10 +154,7 @@ class ContactGuard:
         #: stays within the envelope (:func:`guard_parts.within_envelope`)
         self.kp: np.ndarray | None = None
         self.kd: np.ndarray | None = None
-        self._drive_rate = ("encoder", 1e-3)
-        if drive_gains is not None:
-            self.kp, self.kd, kind, tau = parse_drive(drive_gains)
-            self._drive_rate = (kind, tau)
+        self._drive_rate = DEFAULT_RATE
         rep = validate_file(trajectory_file, self.robot)
         if not rep.ok or rep.data is None or rep.header is None:
             raise ValidationFailed("the guard runs only a valid file: "
@@ -185,7 +183,7 @@ class ContactGuard:
         self.thr_p, self.thr_a = tables.thr_p, tables.thr_a
         self.events: list[str] = []
         self.path = Path(trajectory_file)
-        self.reset()
+        self.reset(drive_gains)  # the drive's gains and rate feedback (parse_drive)
 
     # ------------------------------------------------------------------ offline
     def _stop_from_measured(self) -> None:

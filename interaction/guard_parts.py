@@ -158,8 +158,11 @@ def jump_bound(lim: Limits, dt: float, ticks: int) -> float:
     return MAX_JUMP + lim.velocity * dt * max(0, ticks - 1)
 
 
-#: The drive rate feedbacks a controller models (:class:`DriveRate`).
+#: The drive rate feedbacks a controller models (:class:`DriveRate`), and the one a
+#: drive is taken to use when ``drive_gains`` does not say (with its filter's default
+#: time constant [s]).
 DRIVE_RATES = ("encoder", "true", "filtered")
+DEFAULT_RATE = ("encoder", 1e-3)
 
 
 class DriveRate:
@@ -177,25 +180,26 @@ class DriveRate:
       the difference by about half a tick of acceleration; the model is the difference
       plus half its last change, the spread SAFETY times half the larger of the last two
       changes of that change (what the acceleration did since: a contact's onset shows
-      a tick late).
+      a tick late), plus LEAD times the last change, plus a count over a tick.
 
     A drive set otherwise is outside the bound: the drive's own torque limit (the drive
     table exports it) is then the only bound."""
 
-    #: margin on the true rate's spread (the acceleration changes within the tick)
+    #: margins of the true rate's spread: on the change of the acceleration, and a share
+    #: of the acceleration itself (a clamp's stiffness changes it within a tick:
+    #: BENCHMARKS.md, "Safety that holds like the gate")
     SAFETY = 1.5
     LEAD = 0.25
 
-    def __init__(self, rate: float, robot: object, kind: str = "encoder",
-                 tau: float = 1e-3) -> None:
+    def __init__(self, rate: float, robot: object, kind: str = DEFAULT_RATE[0],
+                 tau: float = DEFAULT_RATE[1]) -> None:
         if kind not in DRIVE_RATES:
             raise InputError(f"drive_rate must be one of {', '.join(DRIVE_RATES)}, got "
                              f"{str(kind)[:40]!r}", value=str(kind)[:40],
                              valid=", ".join(DRIVE_RATES))
         mot = robot.motors  # type: ignore[attr-defined]
-        #: [rad] one encoder count at the joint
+        # [rad] one encoder count at the joint; over a tick, the true rate's spread's floor
         count = 2.0 * math.pi / (float(mot.gear_ratio) * 2.0 ** int(mot.encoder_bits))
-        #: the true rate's spread's floor: a count over a tick
         self.kind = kind
         self.tau = check_number("drive_rate_tau [s]", tau, 0.0, 0.1)
         self.dt = 1.0 / rate
@@ -237,12 +241,12 @@ def parse_drive(gains: object) -> tuple[np.ndarray, np.ndarray, str, float]:
                          value=repr(gains)[:80], valid="(Kp, Kd), (Kp, Kd, 'encoder'|'true'|"
                          "'filtered'[, tau])")
     kp, kd = parse_gains((gains[0], gains[1]))
-    kind = gains[2] if len(gains) > 2 else "encoder"
+    kind = gains[2] if len(gains) > 2 else DEFAULT_RATE[0]
     if not isinstance(kind, str) or kind not in DRIVE_RATES:
         raise InputError(f"the drive's rate feedback must be one of {', '.join(DRIVE_RATES)}",
                          value=repr(kind)[:40], valid=", ".join(DRIVE_RATES))
-    tau = check_number("the drive's rate filter [s]", gains[3], 0.0, 0.1) if len(gains) > 3 \
-        else 1e-3
+    tau = (check_number("the drive's rate filter [s]", gains[3], 0.0, 0.1) if len(gains) > 3
+           else DEFAULT_RATE[1])
     return kp, kd, kind, tau
 
 
@@ -260,8 +264,8 @@ def parse_gains(gains: tuple[object, object]) -> tuple[np.ndarray, np.ndarray]:
     return kp, kd
 
 
-__all__ = ["ANGLE_SLACK", "COMMAND_SHARE", "DRIVE_RATES", "DriveRate", "GuardCommand",
-           "LEG_LEVER", "MAX_JUMP",
+__all__ = ["ANGLE_SLACK", "COMMAND_SHARE", "DEFAULT_RATE", "DRIVE_RATES", "DriveRate",
+           "GuardCommand", "LEG_LEVER", "MAX_JUMP",
            "TORQUE_SLACK", "contact_site", "jump_bound", "parameter_std2", "parse_drive",
            "parse_gains",
            "reading", "velocity_slope", "within_envelope"]

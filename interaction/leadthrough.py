@@ -58,6 +58,7 @@ from sixplus3.interaction import _lead_kernel as kern
 from sixplus3.interaction import walls
 from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
+    DEFAULT_RATE,
     DriveRate,
     GuardCommand,
     jump_bound,
@@ -159,7 +160,7 @@ class LeadThrough:
         # the walls near and the cranks' climb, every slow_every ticks (lead_walls.py)
         self._wu = WallUpdate(self.robot, self.tool, self.crank_gain, self.crank_rate)
         #: the drive's rate as modelled, and how far the drive's may be from it
-        self._rates = DriveRate(self.rate, self.robot, *(("encoder", 1e-3) if drive is None
+        self._rates = DriveRate(self.rate, self.robot, *(DEFAULT_RATE if drive is None
                                                          else (drive[2], drive[3])))
         self.reset()
 
