@@ -218,6 +218,7 @@ def run_plan(task: Task, out_dir: str | Path, robot: Robot,
             "smoothing": sm.header()}
     if regions:
         meta["pfl"] = [r.name for r in regions]
+        meta["pfl_links"] = list(problem.pfl_links)
     out.mkdir(parents=True, exist_ok=True)
     try:
         _, rep = validate_and_write(csv_path, sm.motion, robot, sm.x_guess, sol.limits, meta)

@@ -80,6 +80,10 @@ class ValidationReport:
     #: largest contact energy over them against its limit (<= 1 holds; docs/safety.md)
     pfl: tuple[str, ...] = ()
     max_pfl_ratio: float | None = None
+    #: the leg links judged with them (``leg{i}_{link}``, dynamics/leg_points.py), and
+    #: the point where the largest ratio is (``tcp``, ``centre``, ``leg0_G``, ...)
+    pfl_links: tuple[str, ...] = ()
+    max_pfl_where: str | None = None
     #: (n,) [1/s] the stop table the file carries, checked by the gate
     #: (control/gate/stop.py); None: the file carries none
     stop_deceleration: np.ndarray | None = field(default=None, repr=False)
@@ -110,7 +114,8 @@ class ValidationReport:
                 "min_margin_leg_type2", "min_margin_platform", "min_clearance",
                 "max_spherical_tilt_deg", "theta_range_ok", "checked_points", "tolerances",
                 "max_torque_rate", "max_interpolant_jerk_ratio", "rate_hz", "limits",
-                "max_tcp_speed", "max_tcp_acceleration", "pfl", "max_pfl_ratio")
+                "max_tcp_speed", "max_tcp_acceleration", "pfl", "max_pfl_ratio",
+                "pfl_links", "max_pfl_where")
         out = {k: getattr(self, k) for k in keys}
         out["exit_code"] = self.exit_code
         out["findings"] = self.messages()

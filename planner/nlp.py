@@ -126,7 +126,7 @@ def start_point(problem: Problem, psi_wp: np.ndarray, bounds: Bounds,
             profile = actuated_profile(problem.robot, *pts)
     if problem.pfl and duration is None and (warm is None or warm.nlp_point is None):
         # likewise inside the power and force limiting rows (v^T C v goes as 1/a^2)
-        worst = pfl_ratio_max(problem.robot, pts[0], pts[1], problem.pfl)
+        worst = pfl_ratio_max(problem.robot, pts[0], pts[1], problem.pfl, problem.pfl_links)
         a = math.sqrt(worst / (0.99 * problem.options.pfl_share))
         if a > 1.0:
             T0, xd0, xdd0 = T0 * a, xd0 / a, xdd0 / a**2
@@ -248,7 +248,7 @@ def _row_bounds(problem: Problem, bounds: Bounds, lb: np.ndarray, ub: np.ndarray
     if problem.pfl:  # the power and force limiting rows, after the tcp rows: each
         # point's C at the start's pose (the poses move little between solves; the gate
         # judges the smoothed file exactly, and the pipeline re-plans with a lower share)
-        for point in pfl_points(problem.robot):  # the tool centre point, the centre
+        for point in pfl_points(problem.robot, problem.pfl_links):  # tcp, centre, legs
             C = pfl_matrices(problem.robot, pose0, problem.pfl, point)
             lbg = np.r_[lbg, np.full(2 * N + 1, -np.inf)]
             ubg = np.r_[ubg, np.full(2 * N + 1, problem.options.pfl_share)]

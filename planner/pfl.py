@@ -10,26 +10,41 @@ waypoints' or home's) and lowered by :data:`PFL_SAFETY` for the poses in between
 gate then recomputes the exact, direction-aware condition on every sample of the
 smoothed file (control/gate/pfl.py); a plan that breaks it is re-planned with the bound
 lowered by the ratio found (control/pipeline.py), so a file that is written holds it.
+
+The legs (issue 70): every reachable leg link's vertices
+(:mod:`sixplus3.dynamics.leg_points`) get rows of the same form, v^T C v with the
+vertex's velocity from the closed-form IK in CasADi
+(:func:`sixplus3.planner.tcp_rows.vertex_pfl_function`) and C from the vertex's inverse
+mass (Pinocchio's, the gate's).  A crank's tip moves along one line only, so its inverse
+mass has rank 1: C takes 0 along the directions it cannot move in.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import casadi as ca
 import numpy as np
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.effective_mass import point_inverse_mass, worst_speed
+from sixplus3.dynamics.leg_points import vertex_rates
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.planner.task import Task
-from sixplus3.planner.tcp_rows import pfl_ratios_at
+from sixplus3.planner.tcp_rows import pfl_function, pfl_ratios_at, vertex_pfl_function
 from sixplus3.robot_description import hardware
 from sixplus3.robot_description.body_regions import BodyRegion, regions
+from sixplus3.robot_description.leg_links import vertex_label, vertices_of
 from sixplus3.robot_description.robot import Robot
 
 #: The bound at the task's poses, lowered for the poses the plan passes in between.
 PFL_SAFETY = 0.95
 #: Points per segment between waypoints at which the bound is evaluated.
 POINTS = 8
+#: An inverse mass's eigenvalues below this share of its largest: directions the point
+#: cannot move in (C takes 0 there).
+RCOND = 1e-9
 
 
 def task_regions(task: Task) -> tuple[BodyRegion, ...]:
@@ -37,29 +52,60 @@ def task_regions(task: Task) -> tuple[BodyRegion, ...]:
     return regions(list(task.pfl) + list(hardware.active().pfl))
 
 
-def pfl_points(robot: Robot) -> tuple[tuple[float, float, float], ...]:
-    """The platform points power and force limiting holds at (platform frame [m]): the
-    tool centre point, and the platform centre too when a tool moves it off the centre
-    (a person can meet the platform's body as well as the tool)."""
+def task_links(task: Task) -> tuple[str, ...]:
+    """The leg links judged with the task's regions (:func:`hardware.judged_links`):
+    none without a region."""
+    return hardware.judged_links(task.pfl_links) if task_regions(task) else ()
+
+
+@dataclass(frozen=True)
+class PflPoint:
+    """A point power and force limiting holds at: a platform point (platform frame [m])
+    or a leg vertex (leg, D/E/F/G/H/P)."""
+
+    label: str
+    platform: tuple[float, float, float] | None = None
+    vertex: tuple[int, str] | None = None
+
+    def function(self, robot: Robot) -> ca.Function:
+        """The rows' function (x, xd, c) -> v^T C v at this point."""
+        if self.vertex is not None:
+            return vertex_pfl_function(robot.geometry, robot.mode, *self.vertex)
+        return pfl_function(self.platform)
+
+
+def pfl_points(robot: Robot, links: tuple[str, ...] = ()) -> tuple[PflPoint, ...]:
+    """The points power and force limiting holds at: the tool centre point, the platform
+    centre too when a tool moves it off the centre (a person can meet the platform's
+    body as well as the tool), and the vertices of the leg links ``links``."""
     tool = tuple(float(c) for c in robot.tool.xyz)
     centre = (0.0, 0.0, 0.0)
-    return (tool,) if tool == centre else (tool, centre)  # type: ignore[return-value]
+    plat = [PflPoint("tcp", tool)] + ([] if tool == centre else  # type: ignore[arg-type]
+                                      [PflPoint("centre", centre)])
+    return tuple(plat) + tuple(PflPoint(vertex_label(v), vertex=v)
+                               for v in vertices_of(links))
 
 
 def pfl_ratio_max(robot: Robot, x: np.ndarray, xd: np.ndarray,
-                  regs: tuple[BodyRegion, ...]) -> float:
+                  regs: tuple[BodyRegion, ...], links: tuple[str, ...] = ()) -> float:
     """The largest v^T C v over the states (n, 9 each) and every point of
     :func:`pfl_points` (the NLP rows' form, evaluated)."""
-    return max(float(pfl_ratios_at(p, x, xd, pfl_matrices(robot, x, regs, p)).max())
-               for p in pfl_points(robot))
+    return float(pfl_ratios(robot, x, xd, regs, links).max())
+
+
+def pfl_ratios(robot: Robot, x: np.ndarray, xd: np.ndarray,
+               regs: tuple[BodyRegion, ...], links: tuple[str, ...] = ()) -> np.ndarray:
+    """(n,) the largest v^T C v at each state over every point of :func:`pfl_points`."""
+    return np.max([pfl_ratios_at(p.function(robot), x, xd, pfl_matrices(robot, x, regs, p))
+                   for p in pfl_points(robot, links)], axis=0)
 
 
 def pfl_matrices(robot: Robot, x: np.ndarray, regs: tuple[BodyRegion, ...],
-                 point: tuple[float, float, float] | None = None) -> np.ndarray:
+                 point: PflPoint | None = None) -> np.ndarray:
     """(n, 3, 3) C_k of the NLP's power and force limiting rows at the states x (n, 9:
     position, rotation vector, crank angles): v^T C_k v is the worst contact energy of
-    the platform point ``point`` (platform frame; default the tool centre point) over
-    every direction and every region of ``regs``, as a share of that region's limit.
+    ``point`` (:class:`PflPoint`; default the tool centre point) over every direction
+    and every region of ``regs``, as a share of that region's limit.
 
     With A = U diag(lambda) U^T (:func:`point_inverse_mass`), a region's condition is
     v^T (A + I/m_H)^-1 v / (2 E) <= 1 (E = F^2 / 2k), whose matrix has A's eigenvectors
@@ -75,9 +121,15 @@ def pfl_matrices(robot: Robot, x: np.ndarray, regs: tuple[BodyRegion, ...],
     C = np.zeros((len(x), 3, 3))
     if not ok.any():
         raise ValueError("no state of the power and force limiting rows has a pose")
-    A = point_inverse_mass(ClosedLoopDynamics(robot), cfg.take(ok),
-                           point=robot.tool.xyz if point is None else point)
+    dyn = ClosedLoopDynamics(robot)
+    if point is not None and point.vertex is not None:
+        sub = cfg.take(ok)
+        A = vertex_rates(dyn, sub.q, np.zeros((len(sub.q), 9)), (point.vertex,))[2][:, 0]
+    else:
+        A = point_inverse_mass(dyn, cfg.take(ok), point=robot.tool.xyz if point is None
+                               else point.platform)
     lam, U = np.linalg.eigh(A)
+    lam[lam <= RCOND * lam[:, -1:]] = np.inf  # a direction the point cannot move in
     inv_m = np.array([0.0 if not np.isfinite(r.mass) else 1.0 / r.mass for r in regs])
     two_e = np.array([2.0 * r.energy for r in regs])
     c = (1.0 / ((lam[:, None, :] + inv_m[None, :, None]) * two_e[None, :, None])).max(axis=1)
@@ -114,5 +166,5 @@ def pfl_speed(task: Task, robot: Robot) -> float | None:
     return PFL_SAFETY * float(min(worst_speed(A, r).min() for r in regs))
 
 
-__all__ = ["PFL_SAFETY", "pfl_matrices", "pfl_points", "pfl_ratio_max", "pfl_speed",
-           "task_regions"]
+__all__ = ["PFL_SAFETY", "PflPoint", "pfl_matrices", "pfl_points", "pfl_ratio_max",
+           "pfl_ratios", "pfl_speed", "task_links", "task_regions"]

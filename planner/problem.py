@@ -21,7 +21,7 @@ from sixplus3.kinematics.checks import PSI_MAX, PSI_MIN
 from sixplus3.kinematics.rotations import rotvec_from_matrix
 from sixplus3.planner import options as planner_options
 from sixplus3.planner.options import PlannerOptions
-from sixplus3.planner.pfl import task_regions
+from sixplus3.planner.pfl import task_links, task_regions
 from sixplus3.planner.solution import Solution, actuated_profile, stretch_factors
 from sixplus3.planner.task import Task
 from sixplus3.robot_description.body_regions import BodyRegion
@@ -51,6 +51,8 @@ class Problem:
     #: the body regions of power and force limiting (the task's and the site's): the
     #: NLP's PFL rows (:func:`sixplus3.planner.pfl.pfl_matrices`); empty: none
     pfl: tuple[BodyRegion, ...]
+    #: the leg links whose vertices get rows too (:func:`sixplus3.planner.pfl.task_links`)
+    pfl_links: tuple[str, ...]
     sr: SymbolicRobot
     #: a :class:`sixplus3.progress.PlanProgress` (stages and IPOPT iterations) or None
     progress: PlanProgress | None
@@ -65,7 +67,7 @@ class Problem:
         for name, value in (("robot", setup), ("task", task.resolved(setup)),
                             ("motion_limits", motion), ("limits", motion.without_tcp()),
                             ("options", options or PlannerOptions()),
-                            ("pfl", task_regions(task)),
+                            ("pfl", task_regions(task)), ("pfl_links", task_links(task)),
                             ("sr", symbolic_robot(setup)), ("progress", progress)):
             object.__setattr__(self, name, value)
 

@@ -50,11 +50,10 @@ from scipy.linalg import lu_factor, lu_solve
 from sixplus3.dynamics.symbolic_ik import rotvec_matrix
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
-from sixplus3.planner.pfl import pfl_matrices, pfl_points
+from sixplus3.planner.pfl import pfl_ratios
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.smoothing import rest_pieces
 from sixplus3.planner.solution import Solution, actuated_profile
-from sixplus3.planner.tcp_rows import pfl_ratios_at
 
 #: cells of the time law per interval of the plan
 SUB = 6
@@ -112,8 +111,7 @@ def path_profile(problem: Problem, sol: Solution, tau: np.ndarray) -> PathProfil
     tcp_v, tcp_a = tcp_vectors_at(robot.tool.xyz, x, xd, xdd)
     pfl = np.zeros(len(tau))
     if problem.pfl:
-        pfl = np.max([pfl_ratios_at(p, x, xd, pfl_matrices(robot, x, problem.pfl, p))
-                      for p in pfl_points(robot)], axis=0)
+        pfl = pfl_ratios(robot, x, xd, problem.pfl, problem.pfl_links)
     return PathProfile(tau=tau, thd=thd, thdd=thdd, inertial=torque - grav - friction,
                        tangent=tangent, gravity=grav, tcp_v=tcp_v, tcp_a=tcp_a, pfl=pfl)
 

@@ -24,7 +24,7 @@ from sixplus3.dynamics.codegen import compiled_functions, single_threaded_solver
 from sixplus3.errors import InputError
 from sixplus3.planner.options import PlannerOptions
 from sixplus3.planner.pfl import pfl_points
-from sixplus3.planner.tcp_rows import pfl_function, tcp_function
+from sixplus3.planner.tcp_rows import tcp_function
 from sixplus3.planner.transcription import build_nlp
 
 if TYPE_CHECKING:
@@ -171,7 +171,8 @@ def ipopt_solver(problem: Problem, warm_start: bool = False) -> SolverEntry:
     compiled = compiled_functions(problem.robot)
     key = (problem.robot.hash, tuple(problem.segment_intervals()), opt.max_iter, opt.tol,
            opt.constr_viol_tol, opt.regularisation, opt.verbose, opt.ipopt_options,
-           bool(compiled), warm_start, problem.motion_limits.has_tcp, bool(problem.pfl))
+           bool(compiled), warm_start, problem.motion_limits.has_tcp, bool(problem.pfl),
+           problem.pfl_links if problem.pfl else ())
     return SOLVERS.get(key, lambda: _build(problem, compiled, warm_start))
 
 
@@ -182,8 +183,9 @@ def _build(problem: Problem, compiled: dict[str, ca.Function],
     node = compiled.get("node", problem.sr.node)
     tcp = (tcp_function(problem.robot.tool.xyz) if problem.motion_limits.has_tcp
            else None)
-    pfl = (tuple(pfl_function(p) for p in pfl_points(problem.robot)) if problem.pfl
-           else ())
+    pfl = (tuple(p.function(problem.robot) for p in pfl_points(problem.robot,
+                                                                problem.pfl_links))
+           if problem.pfl else ())
     tr = build_nlp(node, 2 if compiled else 1,
                    tuple(int(n) for n in problem.segment_intervals()), opt.regularisation,
                    tcp, pfl)

@@ -12,6 +12,7 @@ Example (units: m and degrees in the file, SI inside)::
         stop: true                  # optional: come to rest here (v = 0, a = 0)
         dwell: 0.5                  # optional: then hold the pose [s] (implies stop)
     pfl: [hand, lower_arm]          # optional: power and force limiting (docs/safety.md)
+    pfl_links: [legs]               # optional: the leg links with them (default: all)
     people: collaborative           # optional: named platform limits (PEOPLE_LIMITS)
     limits:                         # optional: only tightens the robot's hardware limits
       torque: 9                     # |tau| [N m]            (robot: 10)
@@ -59,6 +60,7 @@ from sixplus3.kinematics.robot_fk import robot_fk
 from sixplus3.planner.waypoint import Waypoint
 from sixplus3.robot_description.body_regions import all_names, regions
 from sixplus3.robot_description.hardware import PEOPLE_LIMITS, effective_limits, people_limits
+from sixplus3.robot_description.leg_links import link_names
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.physical import Payload, Tool
 from sixplus3.robot_description.robot import MOUNTINGS, Robot
@@ -112,6 +114,7 @@ SCHEMA = {
         },
         "people": {"enum": sorted(PEOPLE_LIMITS)},
         "pfl": {"type": "array", "items": {"enum": all_names()}, "maxItems": 24},
+        "pfl_links": {"type": "array", "items": {"type": "string"}, "maxItems": 24},
         "nodes_per_segment": {"type": "integer", "minimum": 4, "maximum": 60},
         "frame": {"enum": ["platform", "tcp"]},
         "start": {
@@ -184,6 +187,9 @@ class Task:
     duration: float | None = None
     speed: float | None = None
     pfl: tuple[str, ...] = ()  #: body regions for power and force limiting (docs/safety.md)
+    #: the leg links judged with them (robot_description.leg_links; None: every
+    #: reachable link, the default; the site's are judged whatever a task says)
+    pfl_links: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         wps = self.waypoints
@@ -361,7 +367,8 @@ def task_from_dict(doc: object, name: str = "task") -> Task:
                 end_psi=str(doc.get("end_psi", "start")),
                 duration=float(doc["duration"]) if "duration" in doc else None,
                 speed=float(doc["speed"]) if "speed" in doc else None, pfl=tuple(
-                    r.name for r in regions(doc.get("pfl", []))))
+                    r.name for r in regions(doc.get("pfl", []))),
+                pfl_links=link_names(doc["pfl_links"]) if "pfl_links" in doc else None)
 
 
 def load_task(path: str | Path) -> Task:

@@ -23,7 +23,9 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from sixplus3.dynamics.symbolic_ik import rotvec_matrix
+from sixplus3.dynamics.symbolic_ik import ik_expressions, rotvec_matrix
+from sixplus3.robot_description.assembly import AssemblyMode
+from sixplus3.robot_description.robot_geometry import RobotGeometry
 
 
 @functools.lru_cache(maxsize=8)
@@ -76,6 +78,29 @@ def pfl_function(tool: Any) -> ca.Function:
     return _pfl_function(t)  # type: ignore[arg-type]
 
 
+#: Each leg vertex's place among the links of ``ik_expressions`` (per leg: AD, DP, BG,
+#: GE, CH, HF): (link, end).
+_VERTEX_IN_LINKS = {"D": (0, 1), "P": (1, 1), "G": (2, 1), "E": (3, 1), "H": (4, 1),
+                    "F": (5, 1)}
+
+
+@functools.lru_cache(maxsize=64)
+def vertex_pfl_function(geom: RobotGeometry, mode: AssemblyMode, leg: int,
+                        vertex: str) -> ca.Function:
+    """CasADi function (x, xd, c) -> v^T C v for the leg vertex ``vertex`` (D, E, F, G,
+    H or P of :mod:`sixplus3.dynamics.leg_points`) of leg ``leg``: its position from
+    the closed-form IK (:func:`sixplus3.dynamics.symbolic_ik.ik_expressions`), its
+    velocity that position's derivative along xd, independently of the gate's
+    Pinocchio frame Jacobians through the closures."""
+    x, xd, c = ca.SX.sym("x", 9), ca.SX.sym("xd", 9), ca.SX.sym("c", 9)
+    link, end = _VERTEX_IN_LINKS[vertex]
+    p = ik_expressions(geom, mode, x)["links"][6 * leg + link][end]
+    v = ca.jacobian(p, x) @ xd
+    C = ca.reshape(c, 3, 3)
+    return ca.Function(f"pfl_leg{leg}_{vertex}", [x, xd, c], [ca.dot(v, C @ v)],
+                       ["x", "xd", "c"], ["ratio"])
+
+
 def pfl_rows(fn: ca.Function, points: tuple[Any, Any], C: Any) -> Any:
     """The rows v^T C_k v at every point of ``points`` (x, xd; 9 x n each), C (9 x n)
     each point's matrix (a parameter of the NLP), as one column n."""
@@ -83,11 +108,12 @@ def pfl_rows(fn: ca.Function, points: tuple[Any, Any], C: Any) -> Any:
     return ca.vec(fn.map(n)(points[0], points[1], C))
 
 
-def pfl_ratios_at(tool: Any, x: np.ndarray, xd: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """(n,) v^T C v at the states (n, 9) with C (n, 3, 3)."""
+def pfl_ratios_at(fn: ca.Function, x: np.ndarray, xd: np.ndarray, C: np.ndarray
+                  ) -> np.ndarray:
+    """(n,) v^T C v of ``fn`` (:func:`pfl_function`, :func:`vertex_pfl_function`) at the
+    states (n, 9) with C (n, 3, 3)."""
     c = np.asarray(C, dtype=float).transpose(0, 2, 1).reshape(len(C), 9)  # column-major
-    return np.array(pfl_function(tool).map(len(x))(np.asarray(x).T, np.asarray(xd).T,
-                                                   c.T)).ravel()
+    return np.array(fn.map(len(x))(np.asarray(x).T, np.asarray(xd).T, c.T)).ravel()
 
 
 def tcp_rates_at(tool: Any, x: np.ndarray, xd: np.ndarray, u: np.ndarray
@@ -100,4 +126,4 @@ def tcp_rates_at(tool: Any, x: np.ndarray, xd: np.ndarray, u: np.ndarray
 
 
 __all__ = ["pfl_function", "pfl_ratios_at", "pfl_rows", "tcp_function", "tcp_rates_at",
-           "tcp_rows"]
+           "tcp_rows", "vertex_pfl_function"]

@@ -107,7 +107,7 @@ def pfl_stretch(problem: Problem, sol: Solution, target: float = 0.995,
         return 0.0
     times = np.linspace(0.0, sol.t[-1], (len(sol.t) - 1) * samples + 1)
     x, xd, _ = sol.sample(times)
-    worst = pfl_ratio_max(problem.robot, x, xd, problem.pfl)
+    worst = pfl_ratio_max(problem.robot, x, xd, problem.pfl, problem.pfl_links)
     return math.sqrt(max(worst, 0.0) / (target * problem.options.pfl_share))
 
 

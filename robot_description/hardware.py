@@ -33,6 +33,7 @@ from typing import Any
 from sixplus3.errors import GeometryError, InputError, LimitError
 from sixplus3.fileio import parse_yaml, read_bytes
 from sixplus3.robot_description.body_regions import regions
+from sixplus3.robot_description.leg_links import ALL, link_names
 from sixplus3.robot_description.limits import Limits
 
 
@@ -125,10 +126,14 @@ class Hardware:
     #: the body regions every motion must be safe for (ISO/TS 15066 power and force
     #: limiting, docs/safety.md): no task or file can drop them
     pfl: tuple[str, ...] = ()
+    #: the leg links every PFL motion must be safe at (``leg{i}_{link}``,
+    #: dynamics/leg_points.py): no task or file can drop them
+    pfl_links: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         drive_train(self.drive_train)
         object.__setattr__(self, "pfl", tuple(r.name for r in regions(list(self.pfl))))
+        object.__setattr__(self, "pfl_links", link_names(list(self.pfl_links)))
 
     def describe(self) -> str:
         return f"{self.drive_train} ({self.origin})"
@@ -219,7 +224,7 @@ def hardware_from_dict(doc: object, origin: str) -> Hardware:
     tightening of the catalogue's envelope)."""
     if not isinstance(doc, dict):
         raise GeometryError("hardware", type(doc).__name__, "a mapping")
-    known = {"drive_train", "people", "limits", "pfl"}
+    known = {"drive_train", "people", "limits", "pfl", "pfl_links"}
     extra = sorted(str(k) for k in doc if k not in known)
     if extra:
         raise GeometryError(f"hardware.{extra[0]}", "?", f"one of {sorted(known)}",
@@ -250,7 +255,13 @@ def hardware_from_dict(doc: object, origin: str) -> Hardware:
         names = tuple(r.name for r in regions(pfl))
     except InputError as exc:
         raise GeometryError("hardware.pfl", exc.value, str(exc.valid)) from None
-    return Hardware(drive_train=key, limits=limits, origin=origin, pfl=names)
+    links = doc.get("pfl_links", [])
+    try:
+        legs = link_names(links)
+    except InputError as exc:
+        raise GeometryError("hardware.pfl_links", exc.value, str(exc.valid)) from None
+    return Hardware(drive_train=key, limits=limits, origin=origin, pfl=names,
+                    pfl_links=legs)
 
 
 def load_hardware(path: str | Path) -> Hardware:
@@ -282,6 +293,14 @@ def active() -> Hardware:
     return Hardware()
 
 
+def judged_links(named: object) -> tuple[str, ...]:
+    """The leg links judged for power and force limiting where a task or a file names
+    ``named`` (None: every reachable link, :data:`leg_links.ALL`): those and the site's,
+    which no task or file can drop (:func:`leg_links.link_names`' form)."""
+    own = link_names([ALL] if named is None else named)
+    return link_names(list(active().pfl_links) + list(own))
+
+
 def use(hw: Hardware | None) -> None:
     """Put ``hw`` in force for this process (``None``: back to the environment's)."""
     _ACTIVE.clear()
@@ -293,4 +312,5 @@ def envelope_record(hw: Hardware | None = None) -> dict[str, Any]:
     """What a report prints of the envelope: its drive train, origin and limits."""
     hw = active() if hw is None else hw
     return {"drive_train": hw.drive_train, "origin": hw.origin,
-            "limits": json.loads(json.dumps(hw.limits.as_dict())), "pfl": list(hw.pfl)}
+            "limits": json.loads(json.dumps(hw.limits.as_dict())), "pfl": list(hw.pfl),
+            "pfl_links": list(hw.pfl_links)}

@@ -1,25 +1,31 @@
 """The gate's power and force limiting check (docs/safety.md): from the file's own
 samples, recomputed independently of the planner, the largest contact energy over every
-direction and every body region named, at the tool centre point and (under a tool) the
-platform centre, against what the region's spring holds at its ISO/TS 15066 limit.
+direction and every body region named, at the tool centre point, (under a tool) the
+platform centre, and the vertices of every leg link judged (issue 70: the legs a person
+can touch, :mod:`sixplus3.dynamics.leg_points`), against what the region's spring holds
+at its ISO/TS 15066 limit.
 
 The regions judged are the union of the file's header (``pfl``: the set it was planned
 for) and the site's hardware file (``pfl``: the set the site requires, which no file can
-drop).  The configurations come from the gate's own forward kinematics (the report's
-platform pose and crank angles), the velocity from the actuated rates through the IK
-Jacobian, the effective mass from Pinocchio's reduced inertia (rotors included).
+drop).  The leg links likewise: the header's ``pfl_links`` (every reachable link when a
+file names regions but no links) and the site's, which no file can drop.  The
+configurations come from the gate's own forward kinematics (the report's platform pose
+and crank angles), the platform's velocity from the actuated rates through the IK
+Jacobian, a leg vertex's from Pinocchio's frame Jacobians through the closures, the
+effective masses from Pinocchio's reduced inertia (rotors included).
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from sixplus3.control.gate.findings import finding
 from sixplus3.control.report import Finding, ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.dynamics.effective_mass import pfl_ratio, point_inverse_mass, point_map
+from sixplus3.dynamics.effective_mass import point_inverse_mass, point_map
+from sixplus3.dynamics.leg_points import vertex_rates
 from sixplus3.errors import InputError
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import RobotConfig, robot_ik
@@ -27,10 +33,31 @@ from sixplus3.kinematics.robot_fk import ik_jacobian
 from sixplus3.motion import Motion
 from sixplus3.robot_description import hardware
 from sixplus3.robot_description.body_regions import BodyRegion, names_of, regions
+from sixplus3.robot_description.leg_links import vertex_label, vertices_of
 from sixplus3.robot_description.robot import Robot
 
 #: Points evaluated at a time (the reduced inertia of each: one Pinocchio pass).
 CHUNK = 4096
+#: An inverse mass's eigenvalues below this share of its largest are directions the
+#: point cannot move in (a crank's tip: only along its circle).
+RCOND = 1e-9
+
+
+@dataclass(frozen=True)
+class Judged:
+    """What power and force limiting is judged for: the body regions, and the leg links
+    (``leg{i}_{link}``) whose vertices join the platform's points."""
+
+    regions: tuple[BodyRegion, ...] = ()
+    links: tuple[str, ...] = ()
+
+    def __bool__(self) -> bool:
+        return bool(self.regions)
+
+    def header(self) -> dict[str, list[str]]:
+        """The header's record of what the file was judged for."""
+        return {"pfl": names_of(self.regions), "pfl_links": list(self.links)} if self \
+            else {}
 
 
 def judged_regions(*named: object) -> tuple[BodyRegion, ...]:
@@ -47,6 +74,14 @@ def judged_regions(*named: object) -> tuple[BodyRegion, ...]:
     return regions(names)
 
 
+def judged(pfl: object, links: object = None) -> Judged:
+    """The regions (:func:`judged_regions`) and leg links judged for a file or task whose
+    ``pfl`` names regions and ``links`` leg links (None: every reachable link), with the
+    site's required ones, which no file can drop.  No region: nothing is judged."""
+    regs = judged_regions(pfl)
+    return Judged(regs, hardware.judged_links(links)) if regs else Judged()
+
+
 def platform_twist(cfg: RobotConfig, theta_dot: np.ndarray) -> np.ndarray:
     """(n, 9) (v, omega, psi_dot) of the platform from the actuated rates through the
     inverse of the IK Jacobian (inf where it is singular)."""
@@ -59,46 +94,104 @@ def platform_twist(cfg: RobotConfig, theta_dot: np.ndarray) -> np.ndarray:
     return out
 
 
-def pfl_check(rep: ValidationReport, robot: Robot, motion: Motion,
-              judged: tuple[BodyRegion, ...]) -> ValidationReport:
-    """``rep`` with the PFL check on the samples of ``motion`` (a report whose forward
-    kinematics went through: ``rep.position``, ``rep.quaternion``, ``rep.psi``): its
-    findings added, ``pfl`` and ``max_pfl_ratio`` set.  No region: ``rep`` itself."""
-    if not judged or rep.position is None or rep.quaternion is None or rep.psi is None:
-        return rep
-    t, theta_dot = motion.t, motion.theta_dot
+@dataclass(frozen=True)
+class PflProfile:
+    """Power and force limiting along a file, point by point (the gate's numbers):
+    ``points`` the labels (``tcp``, ``centre``, ``leg0_D``, ...), ``speed`` (n, P)
+    [m/s], ``mass`` (n, P, R) [kg] the effective mass along each region's worst
+    direction, ``ratio`` (n, P, R) the worst direction's contact energy over the
+    region's limit (the two-body force is ``sqrt(ratio)`` x the region's F_max)."""
+
+    points: tuple[str, ...]
+    regions: tuple[BodyRegion, ...]
+    speed: np.ndarray
+    mass: np.ndarray
+    ratio: np.ndarray
+
+    @property
+    def force(self) -> np.ndarray:
+        """(n, P, R) [N] the two-body model's contact force along the worst direction."""
+        fmax = np.array([r.transient_force for r in self.regions])
+        return np.sqrt(np.maximum(self.ratio, 0.0)) * fmax
+
+
+def _worst(A: np.ndarray, v: np.ndarray, regs: tuple[BodyRegion, ...]
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """(ratio (n, R), mass (n, R)) of points with inverse mass A (n, 3, 3) moving at v
+    (n, 3): per region, E / E_max with E = 1/2 v^T (A + I/m_H)^-1 v (the worst direction
+    n* along (A + I/m_H)^-1 v, :mod:`sixplus3.dynamics.effective_mass`) and the
+    effective mass 1 / n*^T A n* along it (inf at rest)."""
+    ratio = np.empty((len(v), len(regs)))
+    mass = np.empty((len(v), len(regs)))
+    ok = np.isfinite(A).all(axis=(1, 2)) & np.isfinite(v).all(axis=1)
+    A, v = np.where(ok[:, None, None], A, 0.0), np.where(ok[:, None], v, 0.0)
+    with np.errstate(all="ignore"):
+        for k, r in enumerate(regs):
+            # a pseudo-inverse: a crank's tip moves along one line only (A of rank 1),
+            # and a clamped region has 1/m_H = 0; v lies in A's range (v = J theta_dot,
+            # A = J M^-1 J^T), so the energy is finite
+            B = A + np.eye(3) / r.mass
+            y = np.einsum("nij,nj->ni", np.linalg.pinv(B, rcond=RCOND, hermitian=True), v)
+            ratio[:, k] = 0.5 * np.einsum("ni,ni->n", v, y) / r.energy
+            u = y / np.linalg.norm(y, axis=1, keepdims=True)
+            mass[:, k] = 1.0 / np.einsum("ni,nij,nj->n", u, A, u)
+    ratio[~ok], mass[~ok] = np.inf, np.nan
+    return np.nan_to_num(ratio, nan=np.inf), mass
+
+
+def pfl_profile(rep: ValidationReport, robot: Robot, motion: Motion, what: Judged
+                ) -> PflProfile:
+    """:class:`PflProfile` of ``motion``'s samples (a report whose forward kinematics
+    went through: ``rep.position``, ``rep.quaternion``, ``rep.psi``)."""
+    assert rep.position is not None and rep.quaternion is not None and rep.psi is not None
     dyn = ClosedLoopDynamics(robot)
     tool = tuple(float(c) for c in robot.tool.xyz)
-    points = [tool] + ([] if tool == (0.0, 0.0, 0.0) else [(0.0, 0.0, 0.0)])
-    n = len(rep.position)
-    ratio = np.empty(n)
-    worst = np.zeros(n, dtype=int)
+    plat = [("tcp", tool)] + ([] if tool == (0.0, 0.0, 0.0) else [("centre", (0.0,) * 3)])
+    verts = vertices_of(what.links)
+    labels = tuple(p for p, _ in plat) + tuple(vertex_label(v) for v in verts)
+    n, P, R = len(rep.position), len(labels), len(what.regions)
+    speed, mass, ratio = np.empty((n, P)), np.empty((n, P, R)), np.empty((n, P, R))
     for i in range(0, n, CHUNK):
         sl = slice(i, min(n, i + CHUNK))
-        R = rot.matrix_from_quat(rep.quaternion[sl])
-        cfg = robot_ik(rep.position[sl], R, rep.psi[sl], robot, platform_margins=False)
-        twist = platform_twist(cfg, theta_dot[sl])
-        best = np.full(len(twist), -np.inf)
-        for point in points:  # the tool centre point, and the centre under a tool
+        R_ = rot.matrix_from_quat(rep.quaternion[sl])
+        cfg = robot_ik(rep.position[sl], R_, rep.psi[sl], robot, platform_margins=False)
+        twist = platform_twist(cfg, motion.theta_dot[sl])
+        for j, (_, point) in enumerate(plat):
             A = point_inverse_mass(dyn, cfg, point=point)
             r = np.einsum("nij,j->ni", cfg.rotation, np.asarray(point, dtype=float))
             v = np.einsum("nij,nj->ni", point_map(r), twist)
-            rk, wk = pfl_ratio(A, v, judged)
-            rk = np.nan_to_num(rk, nan=np.inf)
-            better = rk > best
-            best = np.where(better, rk, best)
-            worst[sl] = np.where(better, wk, worst[sl])
-        ratio[sl] = best
-    ratio = np.nan_to_num(ratio, nan=np.inf)
+            speed[sl, j] = np.linalg.norm(v, axis=1)
+            ratio[sl, j], mass[sl, j] = _worst(A, v, what.regions)
+        if verts:
+            _, vel, A = vertex_rates(dyn, cfg.q, motion.theta_dot[sl], verts)
+            for k in range(len(verts)):
+                j = len(plat) + k
+                speed[sl, j] = np.linalg.norm(vel[:, k], axis=1)
+                ratio[sl, j], mass[sl, j] = _worst(A[:, k], vel[:, k], what.regions)
+    speed = np.nan_to_num(speed, nan=np.inf)
+    return PflProfile(labels, what.regions, speed, mass, np.nan_to_num(ratio, nan=np.inf))
+
+
+def pfl_check(rep: ValidationReport, robot: Robot, motion: Motion, what: Judged
+              ) -> ValidationReport:
+    """``rep`` with the PFL check on the samples of ``motion`` (a report whose forward
+    kinematics went through): its findings added, ``pfl``, ``pfl_links``,
+    ``max_pfl_ratio`` and ``max_pfl_where`` set.  Nothing judged: ``rep`` itself."""
+    if not what or rep.position is None or rep.quaternion is None or rep.psi is None:
+        return rep
+    prof = pfl_profile(rep, robot, motion, what)
     out: list[Finding] = []
-    for k, region in enumerate(judged):
-        mine = np.where(worst == k, ratio, 0.0)
+    for k, region in enumerate(what.regions):
         f = finding(f"pfl {region.name} (contact energy / ISO/TS 15066 limit)", "limit", "",
-                    1.0, mine - 1.0, mine, t, ["tcp"])
+                    1.0, prof.ratio[:, :, k] - 1.0, prof.ratio[:, :, k], motion.t,
+                    list(prof.points))
         if f:
             out.append(f)
-    return replace(rep, pfl=tuple(names_of(judged)), max_pfl_ratio=float(ratio.max()),
+    flat = int(np.argmax(prof.ratio.max(axis=2)))
+    where = prof.points[flat % len(prof.points)]
+    return replace(rep, pfl=tuple(names_of(what.regions)), pfl_links=what.links,
+                   max_pfl_ratio=float(prof.ratio.max()), max_pfl_where=where,
                    findings=list(rep.findings) + out, ok=rep.ok and not out)
 
 
-__all__ = ["judged_regions", "pfl_check"]
+__all__ = ["Judged", "PflProfile", "judged", "judged_regions", "pfl_check", "pfl_profile"]

@@ -33,7 +33,7 @@ from sixplus3.control.file.file_format import columns, motion_of
 from sixplus3.control.file.trajectory_file import write_trajectory
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.file.trajectory_read import check_robot, read_bytes
-from sixplus3.control.gate.pfl import judged_regions, pfl_check
+from sixplus3.control.gate.pfl import judged, pfl_check
 from sixplus3.control.gate.stop import HEADER_KEY as STOP_KEY
 from sixplus3.control.gate.stop import header_entry, stop_check, stop_table
 from sixplus3.control.gate.window import merge_windows, validate_window
@@ -41,7 +41,6 @@ from sixplus3.control.report import ValidationReport
 from sixplus3.errors import InputError, LimitError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
 from sixplus3.motion import RATE_RANGE, Motion
-from sixplus3.robot_description.body_regions import names_of
 from sixplus3.robot_description.hardware import judged_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -173,14 +172,14 @@ def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory",
     x_guess = np.c_[columns(data, "position"),
                     rot.rotvec_from_quat(columns(data, "quaternion")), columns(data, "psi")]
     try:  # the file's own PFL set (what it was planned for) and the site's
-        judged = judged_regions(header.get("pfl"))
+        what = judged(header.get("pfl"), header.get("pfl_links"))
     except InputError as exc:
-        raise TrajectoryFileError(f"{name}: header pfl: {exc}", value=exc.value,
+        raise TrajectoryFileError(f"{name}: header pfl or pfl_links: {exc}", value=exc.value,
                                   valid=exc.valid) from None
     motion = motion_of(data, rate)
     rep = validate_motion(motion, robot, x_guess, limits=limits,
                           platform=columns(data, "platform"), tau_file=columns(data, "tau"))
-    rep = pfl_check(rep, robot, motion, judged)
+    rep = pfl_check(rep, robot, motion, what)
     if rep.ok:  # the stop table the file carries (control/gate/stop.py), if any
         table, found = stop_check(rep, robot, motion, limits, header.get(STOP_KEY))
         rep = replace(rep, stop_deceleration=table, ok=not found,
@@ -197,12 +196,11 @@ def validate_and_write(path: str | Path, motion: Motion, robot: Robot, x_guess: 
     writes nothing otherwise."""
 
     meta = dict(meta or {})
-    judged = judged_regions(meta.get("pfl"))
+    what = judged(meta.get("pfl"), meta.get("pfl_links"))
     _check_arguments("validate_and_write", motion, robot, limits)
     lim = judged_limits(robot, limits)  # once: the gate and the header judge by them
-    rep = pfl_check(_judge(motion, robot, x_guess, lim), robot, motion, judged)
-    if judged:
-        meta["pfl"] = names_of(judged)  # the header names what the file was judged for
+    rep = pfl_check(_judge(motion, robot, x_guess, lim), robot, motion, what)
+    meta.update(what.header())  # the header names what the file was judged for
     if not rep.ok:
         raise ValidationFailed("the trajectory fails validation, nothing written: "
                                + "; ".join(rep.messages()), rep.exit_code, rep)
