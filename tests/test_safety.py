@@ -154,13 +154,54 @@ def plans(tmp_path_factory):
                     html=False, plots=False)
     face = run_plan(task_from_dict({**doc, "pfl": ["face"]}), out / "face", ROBOT,
                     html=False, plots=False)
-    return free.csv, hand.csv, face.csv
+    # along y, for the platform only: a leg's spherical joint moves too fast for a hand
+    along_y = {**doc, "name": "move_y", "pfl": ["hand"], "pfl_links": [], "waypoints": [
+        {"position": [0.0, -0.06, 0.58]}, {"position": [0.0, 0.06, 0.58]}]}
+    platform = run_plan(task_from_dict(along_y), out / "platform", ROBOT, html=False,
+                        plots=False)
+    return free.csv, hand.csv, face.csv, platform.csv
+
+
+def test_the_legs_are_judged_unless_a_task_drops_them_and_a_site_can_require_them(
+        plans, tmp_path) -> None:
+    """The hand plan holds at every reachable leg link's vertices too (the default); a
+    plan for the platform only (``pfl_links: []``) moves a leg too fast for a hand.  Its
+    file passes for what it says, but the gate refuses its motion when written for a
+    hand without naming links, and the file itself under a site that requires the
+    legs (issue 70: the gate refuses a file whose leg speed breaks a required region)."""
+    from click.testing import CliRunner
+
+    from sixplus3.cli import main as cli
+    from sixplus3.control.file.trajectory_read import read_trajectory
+    from sixplus3.control.gate.validation import validate_and_write, validate_file
+    from sixplus3.errors import ValidationFailed
+    from sixplus3.kinematics.rotations import rotvec_from_quat
+
+    hand, platform = validate_file(plans[1], ROBOT), validate_file(plans[3], ROBOT)
+    assert hand.ok and len(hand.pfl_links) == 18 and hand.header["pfl_links"][0] == \
+        "leg0_proximal"
+    assert platform.ok and platform.pfl_links == () and platform.header["pfl_links"] == []
+    assert platform.max_pfl_where in ("tcp", "centre")
+    tr = read_trajectory(plans[3], ROBOT)
+    x = np.c_[tr.platform_position, rotvec_from_quat(tr.platform_quaternion), tr.psi]
+    with pytest.raises(ValidationFailed) as err:
+        validate_and_write(tmp_path / "x.csv", tr.motion, ROBOT, x, meta={"pfl": ["hand"]})
+    rep = err.value.report
+    assert err.value.exit_code == 1 and rep.max_pfl_ratio > 1.0
+    assert rep.max_pfl_where.startswith("leg") and not (tmp_path / "x.csv").exists()
+    site = tmp_path / "site.yaml"
+    site.write_text("pfl_links: [legs]\n")
+    res = CliRunner().invoke(cli, ["--hardware", str(site), "validate", str(plans[3])])
+    assert res.exit_code == 1 and "pfl hand" in res.output and " on leg" in res.output, \
+        res.output
+    ok = CliRunner().invoke(cli, ["--hardware", str(site), "validate", str(plans[1])])
+    assert ok.exit_code == 0, ok.output
 
 
 def test_a_pfl_plan_holds_the_limit_and_says_so(plans) -> None:
     from sixplus3.control.gate.validation import validate_file
 
-    free, hand, face = (validate_file(p, ROBOT) for p in plans)
+    free, hand, face = (validate_file(p, ROBOT) for p in plans[:3])
     assert free.ok and free.pfl == () and free.max_pfl_ratio is None
     assert hand.ok and hand.pfl == ("hand",) and hand.max_pfl_ratio <= 1.0
     assert face.ok and face.pfl == ("face",) and face.max_pfl_ratio <= 1.0
