@@ -343,6 +343,21 @@ def save_figure(fig: Any, path: str | Path, dpi: int = 100, tight: bool = False)
     return str(path)
 
 
+def figure_png(fig: Any, dpi: int = 100) -> bytes:
+    """The matplotlib figure ``fig`` as PNG bytes (a page that embeds its plots), the
+    figure closed, also when drawing fails."""
+    import io
+
+    import matplotlib.pyplot as plt  # deferred, as above
+
+    buf = io.BytesIO()
+    try:
+        fig.savefig(buf, dpi=dpi, format="png", bbox_inches="tight")
+    finally:
+        plt.close(fig)
+    return buf.getvalue()
+
+
 def atomic_write_with(path: str | Path, write: Callable[[Path], object]) -> None:
     """:func:`atomic_write` for writers that need a file name (``write(tmp)`` fills the
     fresh, empty temporary file ``tmp``, e.g. matplotlib's or xarray's savers)."""

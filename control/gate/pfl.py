@@ -100,13 +100,20 @@ class PflProfile:
     ``points`` the labels (``tcp``, ``centre``, ``leg0_D``, ...), ``speed`` (n, P)
     [m/s], ``mass`` (n, P, R) [kg] the effective mass along each region's worst
     direction, ``ratio`` (n, P, R) the worst direction's contact energy over the
-    region's limit (the two-body force is ``sqrt(ratio)`` x the region's F_max)."""
+    region's limit (the two-body force is ``sqrt(ratio)`` x the region's F_max);
+    ``position`` (n, P, 3) [m] the points in the base frame."""
 
     points: tuple[str, ...]
     regions: tuple[BodyRegion, ...]
+    position: np.ndarray
     speed: np.ndarray
     mass: np.ndarray
     ratio: np.ndarray
+
+    def worst(self) -> tuple[int, str, int]:
+        """(sample, point, region index) of the largest ratio (the first of equals)."""
+        k, p, r = np.unravel_index(int(np.argmax(self.ratio)), self.ratio.shape)
+        return int(k), self.points[int(p)], int(r)
 
     @property
     def force(self) -> np.ndarray:
@@ -151,6 +158,7 @@ def pfl_profile(rep: ValidationReport, robot: Robot, motion: Motion, what: Judge
     labels = tuple(p for p, _ in plat) + tuple(vertex_label(v) for v in verts)
     n, P, R = len(rep.position), len(labels), len(what.regions)
     speed, mass, ratio = np.empty((n, P)), np.empty((n, P, R)), np.empty((n, P, R))
+    position = np.empty((n, P, 3))
     for i in range(0, n, CHUNK):
         sl = slice(i, min(n, i + CHUNK))
         R_ = rot.matrix_from_quat(rep.quaternion[sl])
@@ -160,16 +168,19 @@ def pfl_profile(rep: ValidationReport, robot: Robot, motion: Motion, what: Judge
             A = point_inverse_mass(dyn, cfg, point=point)
             r = np.einsum("nij,j->ni", cfg.rotation, np.asarray(point, dtype=float))
             v = np.einsum("nij,nj->ni", point_map(r), twist)
+            position[sl, j] = cfg.position + r
             speed[sl, j] = np.linalg.norm(v, axis=1)
             ratio[sl, j], mass[sl, j] = _worst(A, v, what.regions)
         if verts:
-            _, vel, A = vertex_rates(dyn, cfg.q, motion.theta_dot[sl], verts)
+            pos, vel, A = vertex_rates(dyn, cfg.q, motion.theta_dot[sl], verts)
+            position[sl, len(plat):] = pos
             for k in range(len(verts)):
                 j = len(plat) + k
                 speed[sl, j] = np.linalg.norm(vel[:, k], axis=1)
                 ratio[sl, j], mass[sl, j] = _worst(A[:, k], vel[:, k], what.regions)
     speed = np.nan_to_num(speed, nan=np.inf)
-    return PflProfile(labels, what.regions, speed, mass, np.nan_to_num(ratio, nan=np.inf))
+    return PflProfile(labels, what.regions, position, speed, mass,
+                      np.nan_to_num(ratio, nan=np.inf))
 
 
 def pfl_check(rep: ValidationReport, robot: Robot, motion: Motion, what: Judged
@@ -187,10 +198,8 @@ def pfl_check(rep: ValidationReport, robot: Robot, motion: Motion, what: Judged
                     list(prof.points))
         if f:
             out.append(f)
-    flat = int(np.argmax(prof.ratio.max(axis=2)))
-    where = prof.points[flat % len(prof.points)]
     return replace(rep, pfl=tuple(names_of(what.regions)), pfl_links=what.links,
-                   max_pfl_ratio=float(prof.ratio.max()), max_pfl_where=where,
+                   max_pfl_ratio=float(prof.ratio.max()), max_pfl_where=prof.worst()[1],
                    findings=list(rep.findings) + out, ok=rep.ok and not out)
 
 

@@ -178,6 +178,37 @@ def stop_table(robot: Robot, rep: ValidationReport, motion: Motion,
     return path_deceleration(a, b, g, theta_dot, limits.torque, limits.acceleration)
 
 
+def stop_runs(beta: np.ndarray, vnorm: np.ndarray, rate: float,
+              max_time: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """(stop time (n,) [s], path position at rest (n,) [samples]) of a stop begun at
+    each sample at the plan's speed, by the table ``beta`` alone, as the guard runs it
+    (interaction/guard.py): each tick the joint speed sigma = sd |theta'(s)| loses
+    beta(s) |theta'(s)| / rate, the path advances by sd, and sd follows from sigma at the
+    new place (``vnorm`` (n,) = |theta'| per sample).  The guard may stop faster (it
+    also takes what the torque allows at the stop's own speed), never slower.  A stop
+    that reaches the end of the path ends there (the motion is at rest there)."""
+    n = len(beta)
+    s = np.arange(n, dtype=float)
+    sd = np.where(vnorm > 1e-9, 1.0, 0.0)
+    time_ = np.zeros(n)
+    dt = 1.0 / rate
+    grid = np.arange(n, dtype=float)
+    for _ in range(int(max_time * rate)):
+        moving = sd > 0.0
+        if not moving.any():
+            break
+        k = np.minimum(np.floor(s).astype(int), n - 1)
+        v0 = np.interp(s, grid, vnorm)
+        sigma = np.maximum(0.0, sd * v0 - beta[k] * v0 * dt)
+        s = np.where(moving, np.minimum(n - 1.0, s + rate * dt * sd), s)
+        v1 = np.interp(s, grid, vnorm)
+        new = np.where((v1 > 1e-9) & (sigma > 0.0), sigma / np.maximum(v1, 1e-300), 0.0)
+        new[s >= n - 1.0] = 0.0
+        time_ += np.where(moving, dt, 0.0)
+        sd = np.where(moving, new, sd)
+    return time_, s
+
+
 def header_entry(beta: np.ndarray) -> dict[str, Any]:
     """The header's ``stop``: the table rounded down to 6 significant digits (a file
     never claims more than was computed)."""
@@ -238,4 +269,4 @@ def stop_check(rep: ValidationReport, robot: Robot, motion: Motion, limits: Limi
 
 __all__ = ["BETA_RANGE", "FLOOR_SLACK", "HEADER_KEY", "TORQUE_SHARE", "across_path",
            "beta_interval", "header_entry", "least_torque_beta", "path_deceleration", "path_tables",
-           "stop_check", "stop_table"]
+           "stop_check", "stop_runs", "stop_table"]

@@ -41,7 +41,7 @@ from sixplus3.control.report import ValidationReport
 from sixplus3.errors import InputError, LimitError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
 from sixplus3.motion import RATE_RANGE, Motion
-from sixplus3.robot_description.hardware import judged_limits
+from sixplus3.robot_description.hardware import envelope_record, judged_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -185,6 +185,14 @@ def validate_bytes(raw: bytes, robot: Robot, name: str = "trajectory",
         rep = replace(rep, stop_deceleration=table, ok=not found,
                       findings=list(rep.findings) + found)
     return replace(rep, header=header, data=data)
+
+
+def validation_record(file: str, rep: ValidationReport) -> dict[str, Any]:
+    """The gate's record of a file (``sixplus3 validate --json`` prints it; the safety
+    report keeps it whole): the report's summary, the duration, the feed-forward's
+    largest error and the hardware envelope in force."""
+    return {"file": file, "duration_s": rep.duration, **rep.summary(),
+            "feedforward_max_error": rep.feedforward_error, "envelope": envelope_record()}
 
 
 def validate_and_write(path: str | Path, motion: Motion, robot: Robot, x_guess: np.ndarray,

@@ -57,9 +57,14 @@ def _run_plan(task: Any, out_dir: str, rate: float, html: bool, locked: bool) ->
               help="Power and force limiting (ISO/TS 15066) for these body regions, added "
                    "to the task's: skull, face, neck, back, chest, abdomen, pelvis, "
                    "upper_arm, lower_arm, hand, thigh, lower_leg (docs/safety.md).")
+@click.option("--pfl-links", "pfl_links", default=None, metavar="LINK[,LINK...]",
+              help="The leg links power and force limiting holds at, in place of the "
+                   "task's (default: every reachable link, 'legs'; '' none; a site's "
+                   "required links hold whatever this says): legs, proximal, body, crankB, "
+                   "distalB, crankC, distalC, or leg<0-2>_<link> (docs/safety.md).")
 @verbosity
 def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool,
-         pfl: str | None) -> None:
+         pfl: str | None, pfl_links: str | None) -> None:
     """Plan TASK_FILE (YAML, or the name of an installed example such as tilt60_x):
     plan -> smooth -> validate -> the trajectory file, its MeshCat page and plots."""
 
@@ -74,6 +79,13 @@ def plan(task_file: str, out_dir: str, rate: float, no_html: bool, locked: bool,
         if not names:
             fail("--pfl names no body region")
         task = replace(task, pfl=tuple(names))
+    if pfl_links is not None:
+        from dataclasses import replace
+
+        from sixplus3.robot_description.leg_links import link_names
+
+        task = replace(task, pfl_links=link_names(
+            [n.strip() for n in pfl_links.split(",") if n.strip()]))
     _run_plan(task, out_dir, rate, not no_html, locked)  # limits checked before the solve
 
 

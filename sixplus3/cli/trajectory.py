@@ -48,8 +48,7 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
     # of spinning on the core the dynamics worker needs (0.95 -> 0.86 s, BENCHMARKS.md).
     # Read once, when numba first starts its threads: that is later, in validate_file.
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    from sixplus3.control.gate.validation import validate_file
-    from sixplus3.robot_description.hardware import envelope_record
+    from sixplus3.control.gate.validation import validate_file, validation_record
 
     robot = task_robot(task_file)
     task_limits = None
@@ -62,9 +61,8 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
     from sixplus3.robot_description.limits import Limits
 
     limits = Limits(**rep.limits) if rep.limits else robot.limits
-    envelope = envelope_record()
-    out = {"file": csv_file, "duration_s": rep.duration, **rep.summary(),
-           "feedforward_max_error": rep.feedforward_error, "envelope": envelope}
+    out = validation_record(csv_file, rep)
+    envelope = out["envelope"]
     code = rep.exit_code
     eng = None
     if with_sim and code != 2:
@@ -98,8 +96,10 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
                    f"limits tightened by the site's and the file's: {lim_txt}")
         click.echo(f"  envelope: {envelope['drive_train']} from the {envelope['origin']}")
         if rep.pfl:  # power and force limiting (docs/safety.md)
-            click.echo(f"  power and force limiting for {', '.join(rep.pfl)}: worst contact "
-                       f"energy {rep.max_pfl_ratio:.3f} of the ISO/TS 15066 limit")
+            legs = f" and {len(rep.pfl_links)} leg links" if rep.pfl_links else ""
+            click.echo(f"  power and force limiting for {', '.join(rep.pfl)} at the platform"
+                       f"{legs}: worst contact energy {rep.max_pfl_ratio:.3f} of the "
+                       f"ISO/TS 15066 limit (at {rep.max_pfl_where})")
         for msg in rep.messages():
             click.echo(f"  {'defect' if rep.exit_code == 2 else 'violation'}: {msg}")
         if eng is not None:
@@ -113,6 +113,51 @@ def validate(csv_file: str, as_json: bool, task_file: str | None, with_sim: bool
                 click.echo(f"  MuJoCo: {msg}")
     request_fast_exit()
     sys.exit(code)
+
+
+@main.command("safety-report")
+@click.argument("csv_file", type=click.Path(dir_okay=False))
+@click.option("-o", "--out", "out_dir", default=None, type=click.Path(file_okay=False),
+              help="Output directory (default: the file's own).")
+@click.option("--task", "task_file", default=None, type=click.Path(dir_okay=False),
+              help="Apply this task file's setup (payload, tool, mounting) to the robot.")
+def safety_report_cmd(csv_file: str, out_dir: str | None, task_file: str | None) -> None:
+    """Write a safety report of CSV_FILE for a risk assessment: FILE_safety.html (with
+    plots) and FILE_safety.json.
+
+    From the file's samples, recomputed by the gate (its numbers are validate --json's,
+    kept whole in the JSON): the body regions and leg links covered and those not; along
+    the path, each point's speed, effective mass and two-body contact force per region;
+    the largest ratio and where; from each sample, the stop table's stop time and
+    distance; the contact guard's settings and measured detection; the assumptions.
+    Exit codes as validate's: the report is written for a file that violates a limit
+    (exit 1), and says so."""
+    from pathlib import Path
+
+    from sixplus3.interaction.safety_page import write_report
+    from sixplus3.interaction.safety_report import safety_report
+
+    robot = task_robot(task_file)
+    rep = safety_report(csv_file, robot)
+    out = Path(out_dir) if out_dir is not None else Path(csv_file).resolve().parent
+    stem = Path(csv_file).stem
+    for name in (f"{stem}_safety.html", f"{stem}_safety.json"):
+        check_output(str(out / name), (csv_file, task_file), force=True)
+    page, js = write_report(rep, out, stem)
+    v = rep["validation"]
+    if "largest" in rep:
+        lg = rep["largest"]
+        click.echo(f"{csv_file}: largest contact {lg['force [N]']:.0f} N of {lg['limit [N]']:.0f}"
+                   f" N ({lg['region']}, ratio {lg['ratio']:.3f}) at {lg['where']}, t = "
+                   f"{lg['t [s]']:.4f} s; {len(rep['coverage']['points'])} points judged")
+    elif "refused" in rep:
+        click.echo(f"{csv_file}: {rep['refused']}")
+    else:
+        click.echo(f"{csv_file}: no body region judged (not a power and force limiting "
+                   "plan)")
+    click.echo(f"  wrote {page} and {js}")
+    request_fast_exit()
+    sys.exit(int(v["exit_code"]))
 
 
 @main.command("export")
