@@ -19,6 +19,7 @@ SLOW_MODULES = {
     "test_packaging", "test_pipeline", "test_planner", "test_planner_fallback",
     "test_planner_structure", "test_ros_replay", "test_tcp_limits", "test_true_words",
     "test_atlas", "test_safety", "test_docs_walkthrough", "test_guard", "test_leadthrough",
+    "test_safety_report",
 }
 SLOW_TESTS = {
     "test_robot.py::test_a_plan_for_a_non_default_robot_is_refused_for_the_default",

@@ -4,13 +4,11 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
-import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
+from browser import chromium
 from click.testing import CliRunner
 
 from sixplus3.cli import main
@@ -126,32 +124,9 @@ def test_playback_page_renders_the_robot(planned, tmp_path) -> None:
     # a title and a banner naming the motion, its real duration and the slow-motion factor
     assert f"<title>sixplus3: {res.csv.stem}</title>" in text
     assert "s motion, shown" in text and "x slower, looping" in text
-    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
-    assert chromium, "Debian's chromium is needed (make test installs it)"
     shot = tmp_path / "shot.png"
-    # No pipes (Chromium's helper processes would inherit them and keep run() waiting for
-    # EOF after the screenshot is written) and its own process group, killed on timeout.
-    # Headless Chromium 156 occasionally never finishes a --virtual-time-budget run (seen
-    # 3 times in ~10 full runs here, never twice in a row once restarted): each attempt
-    # gets a fresh profile and 60 s, up to 3 attempts.
-    for attempt in range(3):
-        proc = subprocess.Popen(
-            [chromium, "--headless", "--no-sandbox", "--disable-gpu",
-             "--disable-background-networking", "--disable-component-update",
-             "--no-first-run", "--disable-sync",
-             f"--user-data-dir={tmp_path / f'prof{attempt}'}", "--window-size=800,600",
-             "--virtual-time-budget=4000", f"--screenshot={shot}", page.as_uri()],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-        try:
-            proc.wait(timeout=60)
-        except subprocess.TimeoutExpired:
-            pass
-        finally:
-            if proc.poll() is None:
-                os.killpg(proc.pid, 9)
-        if shot.exists():
-            break
-    assert shot.exists(), "chromium wrote no screenshot in 3 attempts"
+    chromium(page, tmp_path, "--window-size=800,600", "--virtual-time-budget=4000",
+             f"--screenshot={shot}")
     import matplotlib.image as mpimg
 
     img = (mpimg.imread(shot)[:, :, :3] * 255).astype(int)
