@@ -42,10 +42,10 @@ def _lines(ax: Any, t: np.ndarray, series: dict[str, np.ndarray]) -> None:
 
 
 def _plots(rep: dict[str, Any]) -> list[str]:
-    import matplotlib
+    import matplotlib  # deferred: matplotlib loads in ~0.3 s, only for the plots
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: as above
 
     t = _arr(rep["path"]["t"])
     pts = rep["path"]["points"]

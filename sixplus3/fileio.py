@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import io
 import json
 import math
 import os
@@ -346,9 +347,7 @@ def save_figure(fig: Any, path: str | Path, dpi: int = 100, tight: bool = False)
 def figure_png(fig: Any, dpi: int = 100) -> bytes:
     """The matplotlib figure ``fig`` as PNG bytes (a page that embeds its plots), the
     figure closed, also when drawing fails."""
-    import io
-
-    import matplotlib.pyplot as plt  # deferred, as above
+    import matplotlib.pyplot as plt  # deferred: matplotlib loads in ~0.3 s
 
     buf = io.BytesIO()
     try:
