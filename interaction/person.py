@@ -39,6 +39,7 @@ from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.robot_fk import ik_jacobian
 from sixplus3.kinematics.tcp import tcp_velocity
 from sixplus3.robot_description.body_regions import REGIONS, BodyRegion
+from sixplus3.robot_description.leg_links import VERTICES
 from sixplus3.robot_description.mjcf import TIMESTEP
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -50,8 +51,12 @@ TRANSIENT = 0.05
 #: links (the RU chain's D links, the RUS chains' G and H rods) and its cranks (A, B, C).
 LEG_LINKS = tuple(f"leg{i}_{b}" for i in range(3)
                   for b in ("A", "B", "C", "Ds2", "Ds3", "Ga", "Gb", "Ha", "Hb"))
-#: Where the contact may be: the tool centre point, the platform centre, a leg link.
-POINTS = ("tcp", "centre", *LEG_LINKS)
+#: Leg vertices a body region may meet (robot_description/leg_links.py: the joint
+#: centres that bound the leg links, where they move fastest).
+LEG_VERTICES = tuple(f"leg{i}_{v}" for i in range(3) for v in VERTICES)
+#: Where the contact may be: the tool centre point, the platform centre, a leg link, a
+#: leg vertex.
+POINTS = ("tcp", "centre", *LEG_LINKS, *LEG_VERTICES)
 
 
 @dataclass(frozen=True)
@@ -170,19 +175,18 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     assert rep.position is not None and rep.quaternion is not None and rep.psi is not None
     cfg = robot_ik(rep.position, rot.matrix_from_quat(rep.quaternion), rep.psi, model,
                    platform_margins=False)
-    tool = np.asarray(model.tool.xyz if (contact is None or contact.point == "tcp")
-                      else (0.0, 0.0, 0.0), dtype=float)
+    body_name, tool = _site(model, contact)
     if contact is not None and contact.at > t_file[-1]:
         raise InputError(f"the contact at {contact.at:g} s is after the file's end "
                          f"({t_file[-1]:g} s)", value=contact.at,
                          valid=f"[0, {t_file[-1]:g}] s")
     n = n_file + int(round(after * rate))
-    leg = contact is not None and contact.point in LEG_LINKS
     k_on = 0  # the body region is there from when the point last approached it
     p_s = normal = None
     if contact is not None:
         n = min(n, int(round((contact.at + after) * rate)) + 1)
-        p_s, normal, k_on = _where(contact, model, rep, cfg, rate, tool, leg, timestep)
+        p_s, normal, k_on = _where(contact, model, rep, cfg, rate, (body_name, tool),
+                                   timestep)
     g = _guard(guard, path, model, rate, reaction, _drive(kp, kd, rate_feedback),
                parameter_cov)
     # the drives: the one drive loop, with the rate feedback a drive without an
@@ -191,12 +195,11 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
                      rate_feedback=rate_feedback)
     loop.start(first_configuration(model, rep))
     mj, m, d = loop.sim.mj, loop.sim.model, loop.sim.data
-    body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY,
-                         contact.point if (contact is not None and leg) else "platform_free")
+    body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, body_name)
     person = None
     if contact is not None:
         assert p_s is not None and normal is not None
-        person = _Region(contact, p_s, normal, d, body, tool, leg, timestep)
+        person = _Region(contact, p_s, normal, d, body, tool, timestep)
     force = np.zeros(n)
     speed_n = np.zeros(n)
     flags = np.zeros(n, dtype=bool)
@@ -226,7 +229,7 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
             force[k] = person.peak
             person.peak = 0.0
             jac = np.zeros((3, m.nv))
-            mj.mj_jac(m, d, jac, None, _point(d, body, tool, leg), body)
+            mj.mj_jac(m, d, jac, None, _point(d, body, tool), body)
             speed_n[k] = float((jac @ d.qvel) @ person.n)
         d.xfrc_applied[body] = 0.0
     run = _outcome(contact, g is not None, rate, force, speed_n, flags, modes, peak_cmd,
@@ -241,8 +244,26 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     return run
 
 
+def _site(model: Robot, contact: Contact | None) -> tuple[str, np.ndarray | None]:
+    """(MuJoCo's body, the point in its frame [m]; None: its centre of mass) of the
+    contact's point: the platform's at the tool centre point or the centre, a leg
+    link's centre of mass, or a leg vertex (a joint centre, robot_description/urdf.py:
+    D, G and H the universal joints' crosses, E, F and P on the RU chain's body)."""
+    if contact is None or contact.point in ("tcp", "centre"):
+        at_tool = contact is None or contact.point == "tcp"
+        return "platform_free", np.asarray(model.tool.xyz if at_tool else (0.0,) * 3,
+                                           dtype=float)
+    if contact.point in LEG_LINKS:
+        return contact.point, None
+    i, v = contact.point[:4], contact.point[5:]
+    leg = model.geometry.leg
+    body = {"D": "Ds2", "G": "Ga", "H": "Ha"}.get(v, "Ds3")
+    offset = {"E": leg.e_b, "F": leg.f_b, "P": (leg.dp, 0.0, 0.0)}.get(v, (0.0,) * 3)
+    return f"{i}_{body}", np.asarray(offset, dtype=float)
+
+
 def _where(contact: Contact, model: Robot, rep: Any, cfg: Any, rate: float,
-           tool: np.ndarray, leg: bool, timestep: float
+           site: tuple[str, np.ndarray | None], timestep: float
            ) -> tuple[np.ndarray, np.ndarray, int]:
     """Where the body region is (module doc): the contact point's planned position at
     the contact, the surface's normal (given, or the point's direction of motion) and
@@ -251,9 +272,11 @@ def _where(contact: Contact, model: Robot, rep: Any, cfg: Any, rate: float,
     n_file = len(data)
     k_c = int(round(contact.at * rate))
     rates = columns(data, "vel")
-    if leg:  # a leg link's centre of mass, from MuJoCo's kinematics of the model
-        planned, v_c = _link_path(model, cfg, rates, k_c, contact.point, timestep)
+    tool = site[1]
+    if site[0] != "platform_free":  # a leg's point, from MuJoCo's kinematics of the model
+        planned, v_c = _link_path(model, cfg, rates, k_c, site, timestep)
     else:
+        assert tool is not None
         R_all = rot.matrix_from_quat(rep.quaternion[:k_c + 1])
         planned = rep.position[:k_c + 1] + np.einsum("nij,j->ni", R_all, tool)
         one = cfg.take(np.arange(n_file) == k_c)
@@ -327,15 +350,15 @@ class _Region:
     the body and keeps the tick's largest in :attr:`peak`."""
 
     def __init__(self, contact: Contact, p_s: np.ndarray, normal: np.ndarray, d: Any,
-                 body: int, tool: np.ndarray, leg: bool, timestep: float) -> None:
+                 body: int, offset: np.ndarray | None, timestep: float) -> None:
         self.c, self.p_s, self.n, self.d = contact, p_s, normal, d
-        self.body, self.tool, self.leg, self.dt = body, tool, leg, timestep
+        self.body, self.offset, self.dt = body, offset, timestep
         self.x_h = self.v_h = self.peak = 0.0
         self.armed = False  # the point has been outside the region since it appeared
 
     def push(self, _sub: int) -> None:
         d, body = self.d, self.body
-        p = _point(d, body, self.tool, self.leg)
+        p = _point(d, body, self.offset)
         depth = float((p - self.p_s) @ self.n) - self.x_h
         self.armed = self.armed or depth <= 0.0
         f = self.c.region.stiffness * depth if (depth > 0 and self.armed) else 0.0
@@ -348,26 +371,27 @@ class _Region:
         self.peak = max(self.peak, f)
 
 
-def _point(d: Any, body: int, tool: np.ndarray, leg: bool) -> np.ndarray:
-    """The contact point in MuJoCo's data: a leg link's centre of mass, or the platform
-    point at ``tool`` (platform frame)."""
-    if leg:
+def _point(d: Any, body: int, offset: np.ndarray | None) -> np.ndarray:
+    """The contact point in MuJoCo's data: the body's centre of mass (``offset`` None),
+    or the point at ``offset`` in its frame."""
+    if offset is None:
         return np.array(d.xipos[body])
-    return np.asarray(d.xpos[body] + d.xmat[body].reshape(3, 3) @ tool)
+    return np.asarray(d.xpos[body] + d.xmat[body].reshape(3, 3) @ offset)
 
 
-def _link_path(model: Robot, cfg: Any, rates: np.ndarray, k_c: int, link: str,
-               timestep: float) -> tuple[np.ndarray, np.ndarray]:
-    """(the planned positions (k_c + 1, 3) of ``link``'s centre of mass up to sample
-    k_c, its velocity (3,) there): MuJoCo's kinematics of the model at the file's
-    configurations, with the tree velocities that realise the actuated rates."""
+def _link_path(model: Robot, cfg: Any, rates: np.ndarray, k_c: int,
+               site: tuple[str, np.ndarray | None], timestep: float
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """(the planned positions (k_c + 1, 3) of the leg's point ``site`` (:func:`_site`)
+    up to sample k_c, its velocity (3,) there): MuJoCo's kinematics of the model at the
+    file's configurations, with the tree velocities that realise the actuated rates."""
     sim = MujocoRobot(model, timestep)
     mj, m, d = sim.mj, sim.model, sim.data
-    body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, link)
+    body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, site[0])
     out = np.empty((k_c + 1, 3))
     for k in range(k_c + 1):
         sim.set_state(np.asarray(cfg.q[k]), rates[k])
-        out[k] = d.xipos[body]
+        out[k] = _point(d, body, site[1])
     jac = np.zeros((3, m.nv))
     mj.mj_jac(m, d, jac, None, out[k_c], body)
     return out, jac @ d.qvel
