@@ -6,6 +6,7 @@ subset without it).
     .venv/bin/python benchmarks/bench_contact_battery.py PLANS [--regions ...]
         [--speeds 0.1 0.3 0.6 1.0 max] [--normals along across] [--drives soft stiff]
         [--plant FILE ...] [--robot FILE] [--no-nominal] [--unguarded] [--out r.jsonl]
+        [--task translate ...] [--point tcp|centre|legs|leg0_D ...]
     .venv/bin/python benchmarks/bench_contact_battery.py - --quiet FILE ... [--plant ...]
 
 PLANS: a folder with one plan per region, ``PLANS/<region>/<task>.csv`` planned with
@@ -15,7 +16,10 @@ PLANS/hand``.  The model the guard uses is the robot of each file's header (its 
 too: the contact is at the tool centre point; ``--point centre`` for the centre).
 
 Each contact's instant is the first sample where the tool centre point's planned speed
-reaches the target (``max``: the fastest sample); its normal is the planned velocity's
+reaches the target (``max``: the fastest sample).  ``--point legs`` meets the legs
+instead (issue 70): at the fastest moment of any leg vertex (``max``: the joint centre
+and the sample where a leg link moves fastest) and at the leg vertex and sample of the
+gate's largest ratio (``worst``), the speed targets aside; its normal is the planned velocity's
 direction (``along``) or that direction turned 60 degrees toward the horizontal
 perpendicular of the motion (``across``: the point meets the body at half its speed,
 and slides along it).  Drives: soft = PD 300 / 6, stiff = 3000 / 30 (N m/rad, N m s/rad).
@@ -91,14 +95,14 @@ def across(u: np.ndarray) -> list[float]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("plans")
-    ap.add_argument("--task", default="translate")
+    ap.add_argument("--task", nargs="+", default=["translate"])
     ap.add_argument("--regions", nargs="+", default=list(REGIONS))
     ap.add_argument("--kinds", nargs="+", default=["free", "clamp"], choices=["free", "clamp"])
     ap.add_argument("--speeds", nargs="+", default=["0.1", "0.3", "0.6", "1.0", "max"])
     ap.add_argument("--normals", nargs="+", default=["along", "across"],
                     choices=["along", "across"])
     ap.add_argument("--drives", nargs="+", default=["soft", "stiff"], choices=list(DRIVES))
-    ap.add_argument("--point", default="tcp", choices=list(POINTS))
+    ap.add_argument("--point", default="tcp", choices=[*POINTS, "legs"])
     ap.add_argument("--plant", nargs="*", default=[], help="plant robot files (perturbed)")
     ap.add_argument("--plant-seeds", nargs="*", type=int, default=[],
                     help="plants perturbed from each file's own robot (its setup too): "
@@ -136,10 +140,10 @@ def main() -> None:
     if args.quiet:
         quiet(args, out, t_start)
         return
-    for region in args.regions:
-        for kind in args.kinds:
+    for region, kind, task in [(r, k, t) for r in args.regions for k in args.kinds
+                               for t in args.task]:
             folder = root / (region if kind == "free" else f"{region}-clamped")
-            path = folder / f"{args.task}.csv"
+            path = folder / f"{task}.csv"
             if not path.exists():
                 print(f"no plan {path}: skipped", file=sys.stderr)
                 continue
@@ -148,27 +152,29 @@ def main() -> None:
             t, v = planned_velocity(path, model)
             built = ContactGuard(model, path, 1.0 / (t[1] - t[0]), reaction=args.reaction,
                                  **guard_settings(args))
-            for label, at in instants(t, v, args.speeds):
-                k = int(round(at / (t[1] - t[0])))
-                u = v[k] / np.linalg.norm(v[k])
+            points = (leg_instants(path, model) if args.point == "legs" else
+                      [(label, at, args.point, v[int(round(at / (t[1] - t[0])))])
+                       for label, at in instants(t, v, args.speeds)])
+            for label, at, point, vel in points:
+                u = vel / np.linalg.norm(vel)
                 for nname in args.normals:
                     normal = [float(x) for x in u] if nname == "along" else across(u)
                     c = contact_from_dict({"region": region, "kind": kind, "at": at,
-                                           "normal": normal, "point": args.point})
+                                           "normal": normal, "point": point})
                     for pname, plant in plants:
                         for dname, fb in [(d, f) for d in args.drives
                                           for f in args.rate_feedback]:
                             kp, kd = DRIVES[dname]
-                            guards = [True] + ([False] if args.unguarded and label == "max"
-                                               and nname == "along" else [])
+                            guards = [True] + ([False] if args.unguarded and label in (
+                                "max", "worst") and nname == "along" else [])
                             for guard in guards:
                                 r = run_contact(path, model, plant, c,
                                                 guard=built if guard else False, kp=kp,
                                                 kd=kd, seed=args.seed, after=0.3,
                                                 reaction=args.reaction, rate_feedback=fb)
-                                row = {"region": region, "kind": kind, "target": label,
-                                       "at": round(at, 4), "normal": nname,
-                                       "point": args.point, "plant": pname,
+                                row = {"region": region, "kind": kind, "task": task,
+                                       "target": label, "at": round(at, 4), "normal": nname,
+                                       "point": point, "plant": pname,
                                        "drive": dname, "rate_feedback": fb, "guard": guard,
                                        **{q: w for q, w in r.summary().items()
                                           if q not in ("region", "kind", "guard")},
@@ -178,7 +184,8 @@ def main() -> None:
                                 if out:
                                     out.write(line + "\n")
                                     out.flush()
-                                print(f"{region:10s} {kind:5s} {label:>4s} {nname:6s} "
+                                print(f"{task[:12]:12s} {point:7s} "
+                                      f"{region:10s} {kind:5s} {label:>4s} {nname:6s} "
                                       f"{pname:10s} {dname:5s} {fb:8s} guard={guard!s:5s} "
                                       f"v={r.speed:5.2f} F={r.peak_transient:6.1f}/"
                                       f"{r.limit_transient:.0f} Fqs={r.quasi_static:6.1f}/"
@@ -187,6 +194,34 @@ def main() -> None:
                                       f"{row['final_mode']}", flush=True)
     print(json.dumps(summarise(rows), indent=1))
     print(f"{len(rows)} runs in {time.perf_counter() - t_start:.0f} s")
+
+
+def leg_instants(path: Path, robot: Robot) -> list[tuple[str, float, str, np.ndarray]]:
+    """The leg contacts of a plan (module doc): ("max", t, vertex, its velocity) where a
+    leg vertex moves fastest, ("worst", ...) where the gate's ratio over the leg vertices
+    is largest (the file's regions; a file without any: the hand's)."""
+    from sixplus3.control.file.file_format import motion_of
+    from sixplus3.control.gate.pfl import judged, pfl_profile
+    from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
+    from sixplus3.dynamics.leg_points import vertex_rates
+
+    rep = validate_file(path, robot)
+    assert rep.data is not None and rep.header is not None
+    motion = motion_of(rep.data, float(rep.header["rate_hz"]))
+    prof = pfl_profile(rep, robot, motion, judged(rep.header.get("pfl") or ["hand"], None))
+    legs = [j for j, p in enumerate(prof.points) if p.startswith("leg")]
+    cfg = robot_ik(rep.position, rot.matrix_from_quat(rep.quaternion), rep.psi, robot,
+                   platform_margins=False)
+    out = []
+    for label, table in (("max", prof.speed[:, legs]),
+                         ("worst", prof.ratio[:, legs].max(axis=2))):
+        k, j = np.unravel_index(int(np.argmax(table)), table.shape)
+        name = prof.points[legs[j]]
+        vertex = (int(name[3]), name[5:])
+        vel = vertex_rates(ClosedLoopDynamics(robot), cfg.q[k:k + 1],
+                           motion.theta_dot[k:k + 1], (vertex,))[1][0, 0]
+        out.append((label, float(motion.t[k]), name, vel))
+    return out
 
 
 def guard_settings(args: argparse.Namespace) -> dict:

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from sixplus3.errors import InfeasibleTaskError
-from sixplus3.planner.pfl import pfl_matrices, pfl_points, pfl_ratio_max
+from sixplus3.planner.pfl import pfl_parameters, pfl_points, pfl_ratio_max
 from sixplus3.planner.problem import Problem
 from sixplus3.planner.solution import Solution, actuated_profile, sample_cubic, stretch_factors
 from sixplus3.planner.solvers import ipopt_solver, keyboard_interrupts
@@ -249,10 +249,10 @@ def _row_bounds(problem: Problem, bounds: Bounds, lb: np.ndarray, ub: np.ndarray
         # point's C at the start's pose (the poses move little between solves; the gate
         # judges the smoothed file exactly, and the pipeline re-plans with a lower share)
         for point in pfl_points(problem.robot, problem.pfl_links):  # tcp, centre, legs
-            C = pfl_matrices(problem.robot, pose0, problem.pfl, point)
-            lbg = np.r_[lbg, np.full(2 * N + 1, -np.inf)]
-            ubg = np.r_[ubg, np.full(2 * N + 1, problem.options.pfl_share)]
-            pfl_p = np.r_[pfl_p, C.transpose(0, 2, 1).reshape(2 * N + 1, 9).ravel()]
+            c = pfl_parameters(problem.robot, pose0, problem.pfl, point)
+            lbg = np.r_[lbg, np.full((2 * N + 1) * point.size, -np.inf)]
+            ubg = np.r_[ubg, np.full((2 * N + 1) * point.size, problem.options.pfl_share)]
+            pfl_p = np.r_[pfl_p, c.ravel()]
     return lbg, ubg, tcp_p, pfl_p
 
 

@@ -14,7 +14,7 @@ lowered by the ratio found (control/pipeline.py), so a file that is written hold
 The legs (issue 70): every reachable leg link's vertices
 (:mod:`sixplus3.dynamics.leg_points`) get rows of the same form, v^T C v with the
 vertex's velocity from the closed-form IK in CasADi
-(:func:`sixplus3.planner.tcp_rows.vertex_pfl_function`) and C from the vertex's inverse
+(:func:`sixplus3.planner.tcp_rows.leg_pfl_function`) and C from the vertex's inverse
 mass (Pinocchio's, the gate's).  A crank's tip moves along one line only, so its inverse
 mass has rank 1: C takes 0 along the directions it cannot move in.
 """
@@ -32,7 +32,7 @@ from sixplus3.dynamics.leg_points import vertex_rates
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.planner.task import Task
-from sixplus3.planner.tcp_rows import pfl_function, pfl_ratios_at, vertex_pfl_function
+from sixplus3.planner.tcp_rows import leg_pfl_function, pfl_function, pfl_ratios_at
 from sixplus3.robot_description import hardware
 from sixplus3.robot_description.body_regions import BodyRegion, regions
 from sixplus3.robot_description.leg_links import vertex_label, vertices_of
@@ -60,30 +60,44 @@ def task_links(task: Task) -> tuple[str, ...]:
 
 @dataclass(frozen=True)
 class PflPoint:
-    """A point power and force limiting holds at: a platform point (platform frame [m])
-    or a leg vertex (leg, D/E/F/G/H/P)."""
+    """Where power and force limiting holds: a platform point (``platform``, platform
+    frame [m]), or the vertices of one leg (``leg`` and ``vertices``, D/E/F/G/H/P: one
+    CasADi function for the leg's vertices, its IK computed once)."""
 
     label: str
     platform: tuple[float, float, float] | None = None
-    vertex: tuple[int, str] | None = None
+    leg: int | None = None
+    vertices: tuple[str, ...] = ()
+
+    @property
+    def size(self) -> int:
+        """The points (rows per NLP point): 1 at the platform, the leg's vertices."""
+        return 1 if self.leg is None else len(self.vertices)
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        return (self.label,) if self.leg is None else tuple(
+            vertex_label((self.leg, v)) for v in self.vertices)
 
     def function(self, robot: Robot) -> ca.Function:
-        """The rows' function (x, xd, c) -> v^T C v at this point."""
-        if self.vertex is not None:
-            return vertex_pfl_function(robot.geometry, robot.mode, *self.vertex)
+        """The rows' function (x, xd, c) -> v^T C v at each of the points."""
+        if self.leg is not None:
+            return leg_pfl_function(robot.geometry, robot.mode, self.leg, self.vertices)
         return pfl_function(self.platform)
 
 
 def pfl_points(robot: Robot, links: tuple[str, ...] = ()) -> tuple[PflPoint, ...]:
-    """The points power and force limiting holds at: the tool centre point, the platform
-    centre too when a tool moves it off the centre (a person can meet the platform's
-    body as well as the tool), and the vertices of the leg links ``links``."""
+    """Where power and force limiting holds: the tool centre point, the platform centre
+    too when a tool moves it off the centre (a person can meet the platform's body as
+    well as the tool), and each leg's vertices of the leg links ``links``."""
     tool = tuple(float(c) for c in robot.tool.xyz)
     centre = (0.0, 0.0, 0.0)
     plat = [PflPoint("tcp", tool)] + ([] if tool == centre else  # type: ignore[arg-type]
                                       [PflPoint("centre", centre)])
-    return tuple(plat) + tuple(PflPoint(vertex_label(v), vertex=v)
-                               for v in vertices_of(links))
+    verts = vertices_of(links)
+    legs = [PflPoint(f"leg{i}", leg=i, vertices=tuple(v for j, v in verts if j == i))
+            for i in sorted({i for i, _ in verts})]
+    return tuple(plat) + tuple(legs)
 
 
 def pfl_ratio_max(robot: Robot, x: np.ndarray, xd: np.ndarray,
@@ -96,8 +110,18 @@ def pfl_ratio_max(robot: Robot, x: np.ndarray, xd: np.ndarray,
 def pfl_ratios(robot: Robot, x: np.ndarray, xd: np.ndarray,
                regs: tuple[BodyRegion, ...], links: tuple[str, ...] = ()) -> np.ndarray:
     """(n,) the largest v^T C v at each state over every point of :func:`pfl_points`."""
-    return np.max([pfl_ratios_at(p.function(robot), x, xd, pfl_matrices(robot, x, regs, p))
-                   for p in pfl_points(robot, links)], axis=0)
+    each = [np.reshape(pfl_ratios_at(p.function(robot), x, xd,
+                                     pfl_matrices(robot, x, regs, p)), (len(x), -1))
+            for p in pfl_points(robot, links)]
+    return np.concatenate(each, axis=1).max(axis=1)
+
+
+def pfl_parameters(robot: Robot, x: np.ndarray, regs: tuple[BodyRegion, ...],
+                   point: PflPoint) -> np.ndarray:
+    """(n, 9 k) the NLP's parameters of ``point``'s rows at the states x: each of its k
+    matrices (:func:`pfl_matrices`) column-major, one after the other."""
+    C = pfl_matrices(robot, x, regs, point)
+    return np.swapaxes(C, -1, -2).reshape(len(C), -1)
 
 
 def pfl_matrices(robot: Robot, x: np.ndarray, regs: tuple[BodyRegion, ...],
@@ -105,7 +129,8 @@ def pfl_matrices(robot: Robot, x: np.ndarray, regs: tuple[BodyRegion, ...],
     """(n, 3, 3) C_k of the NLP's power and force limiting rows at the states x (n, 9:
     position, rotation vector, crank angles): v^T C_k v is the worst contact energy of
     ``point`` (:class:`PflPoint`; default the tool centre point) over every direction
-    and every region of ``regs``, as a share of that region's limit.
+    and every region of ``regs``, as a share of that region's limit.  A leg's
+    :class:`PflPoint`: (n, k, 3, 3), one per vertex.
 
     With A = U diag(lambda) U^T (:func:`point_inverse_mass`), a region's condition is
     v^T (A + I/m_H)^-1 v / (2 E) <= 1 (E = F^2 / 2k), whose matrix has A's eigenvectors
@@ -118,24 +143,26 @@ def pfl_matrices(robot: Robot, x: np.ndarray, regs: tuple[BodyRegion, ...],
     R = rot.matrix_from_rotvec(x[:, 3:6])
     cfg = robot_ik(x[:, 0:3], R, x[:, 6:9], robot, platform_margins=False)
     ok = np.asarray(cfg.ok, dtype=bool)
-    C = np.zeros((len(x), 3, 3))
     if not ok.any():
         raise ValueError("no state of the power and force limiting rows has a pose")
     dyn = ClosedLoopDynamics(robot)
-    if point is not None and point.vertex is not None:
+    if point is not None and point.leg is not None:
         sub = cfg.take(ok)
-        A = vertex_rates(dyn, sub.q, np.zeros((len(sub.q), 9)), (point.vertex,))[2][:, 0]
+        verts = tuple((point.leg, v) for v in point.vertices)
+        A = vertex_rates(dyn, sub.q, np.zeros((len(sub.q), 9)), verts)[2]  # (m, k, 3, 3)
     else:
         A = point_inverse_mass(dyn, cfg.take(ok), point=robot.tool.xyz if point is None
                                else point.platform)
     lam, U = np.linalg.eigh(A)
-    lam[lam <= RCOND * lam[:, -1:]] = np.inf  # a direction the point cannot move in
+    lam[lam <= RCOND * lam[..., -1:]] = np.inf  # a direction the point cannot move in
     inv_m = np.array([0.0 if not np.isfinite(r.mass) else 1.0 / r.mass for r in regs])
     two_e = np.array([2.0 * r.energy for r in regs])
-    c = (1.0 / ((lam[:, None, :] + inv_m[None, :, None]) * two_e[None, :, None])).max(axis=1)
-    C[ok] = np.einsum("nij,nj,nkj->nik", U, c, U)
+    c = (1.0 / ((lam[..., None, :] + inv_m[:, None]) * two_e[:, None])).max(axis=-2)
+    C = np.zeros((len(x), *A.shape[1:]))
+    C[ok] = np.einsum("...ij,...j,...kj->...ik", U, c, U)
     if not ok.all():
-        C[~ok] = C[ok][int(np.argmax(np.trace(C[ok], axis1=1, axis2=2)))]
+        size = np.trace(C[ok], axis1=-2, axis2=-1).reshape(int(ok.sum()), -1).sum(axis=1)
+        C[~ok] = C[ok][int(np.argmax(size))]
     return C
 
 
@@ -166,5 +193,5 @@ def pfl_speed(task: Task, robot: Robot) -> float | None:
     return PFL_SAFETY * float(min(worst_speed(A, r).min() for r in regs))
 
 
-__all__ = ["PFL_SAFETY", "PflPoint", "pfl_matrices", "pfl_points", "pfl_ratio_max",
-           "pfl_ratios", "pfl_speed", "task_links", "task_regions"]
+__all__ = ["PFL_SAFETY", "PflPoint", "pfl_matrices", "pfl_parameters", "pfl_points",
+           "pfl_ratio_max", "pfl_ratios", "pfl_speed", "task_links", "task_regions"]

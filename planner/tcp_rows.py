@@ -85,35 +85,43 @@ _VERTEX_IN_LINKS = {"D": (0, 1), "P": (1, 1), "G": (2, 1), "E": (3, 1), "H": (4,
 
 
 @functools.lru_cache(maxsize=64)
-def vertex_pfl_function(geom: RobotGeometry, mode: AssemblyMode, leg: int,
-                        vertex: str) -> ca.Function:
-    """CasADi function (x, xd, c) -> v^T C v for the leg vertex ``vertex`` (D, E, F, G,
-    H or P of :mod:`sixplus3.dynamics.leg_points`) of leg ``leg``: its position from
-    the closed-form IK (:func:`sixplus3.dynamics.symbolic_ik.ik_expressions`), its
-    velocity that position's derivative along xd, independently of the gate's
-    Pinocchio frame Jacobians through the closures."""
-    x, xd, c = ca.SX.sym("x", 9), ca.SX.sym("xd", 9), ca.SX.sym("c", 9)
-    link, end = _VERTEX_IN_LINKS[vertex]
-    p = ik_expressions(geom, mode, x)["links"][6 * leg + link][end]
-    v = ca.jacobian(p, x) @ xd
-    C = ca.reshape(c, 3, 3)
-    return ca.Function(f"pfl_leg{leg}_{vertex}", [x, xd, c], [ca.dot(v, C @ v)],
-                       ["x", "xd", "c"], ["ratio"])
+def leg_pfl_function(geom: RobotGeometry, mode: AssemblyMode, leg: int,
+                     vertices: tuple[str, ...]) -> ca.Function:
+    """CasADi function (x, xd, c) -> (v_j^T C_j v_j for each of leg ``leg``'s
+    ``vertices``, D, E, F, G, H or P of :mod:`sixplus3.dynamics.leg_points`), ``c`` the
+    k matrices' 9 entries each, column-major, one after the other.  Each vertex's
+    position is the closed-form IK's (:func:`sixplus3.dynamics.symbolic_ik.ik_expressions`,
+    computed once for the leg's vertices), its velocity that position's derivative
+    along xd: independent of the gate's Pinocchio frame Jacobians through the
+    closures."""
+    k = len(vertices)
+    x, xd, c = ca.SX.sym("x", 9), ca.SX.sym("xd", 9), ca.SX.sym("c", 9 * k)
+    links = ik_expressions(geom, mode, x)["links"]
+    out = []
+    for j, vertex in enumerate(vertices):
+        link, end = _VERTEX_IN_LINKS[vertex]
+        v = ca.jtimes(links[6 * leg + link][end], x, xd)
+        out.append(ca.dot(v, ca.reshape(c[9 * j:9 * j + 9], 3, 3) @ v))
+    return ca.Function(f"pfl_leg{leg}", [x, xd, c], [ca.vertcat(*out)], ["x", "xd", "c"],
+                       ["ratio"])
 
 
 def pfl_rows(fn: ca.Function, points: tuple[Any, Any], C: Any) -> Any:
-    """The rows v^T C_k v at every point of ``points`` (x, xd; 9 x n each), C (9 x n)
-    each point's matrix (a parameter of the NLP), as one column n."""
+    """The rows v^T C_k v at every point of ``points`` (x, xd; 9 x n each), C (9 k x n)
+    each point's k matrices (a parameter of the NLP), as one column k n (the k values of
+    the first point, then the next's)."""
     n = points[0].shape[1]
     return ca.vec(fn.map(n)(points[0], points[1], C))
 
 
 def pfl_ratios_at(fn: ca.Function, x: np.ndarray, xd: np.ndarray, C: np.ndarray
                   ) -> np.ndarray:
-    """(n,) v^T C v of ``fn`` (:func:`pfl_function`, :func:`vertex_pfl_function`) at the
-    states (n, 9) with C (n, 3, 3)."""
-    c = np.asarray(C, dtype=float).transpose(0, 2, 1).reshape(len(C), 9)  # column-major
-    return np.array(fn.map(len(x))(np.asarray(x).T, np.asarray(xd).T, c.T)).ravel()
+    """v^T C v of ``fn`` (:func:`pfl_function`: C (n, 3, 3), gives (n,);
+    :func:`leg_pfl_function`: C (n, k, 3, 3), gives (n, k)) at the states (n, 9)."""
+    C = np.asarray(C, dtype=float)
+    c = np.swapaxes(C, -1, -2).reshape(len(C), -1)  # column-major, one after the other
+    out = np.array(fn.map(len(x))(np.asarray(x).T, np.asarray(xd).T, c.T))
+    return out.T if C.ndim == 4 else out.ravel()
 
 
 def tcp_rates_at(tool: Any, x: np.ndarray, xd: np.ndarray, u: np.ndarray
@@ -125,5 +133,5 @@ def tcp_rates_at(tool: Any, x: np.ndarray, xd: np.ndarray, u: np.ndarray
     return np.sqrt(np.maximum(G[0], 0.0)), np.sqrt(np.maximum(G[1], 0.0))
 
 
-__all__ = ["pfl_function", "pfl_ratios_at", "pfl_rows", "tcp_function", "tcp_rates_at",
-           "tcp_rows", "vertex_pfl_function"]
+__all__ = ["leg_pfl_function", "pfl_function", "pfl_ratios_at", "pfl_rows", "tcp_function",
+           "tcp_rates_at", "tcp_rows"]

@@ -248,15 +248,16 @@ def build_nlp(node: ca.Function, threads: int, segments: tuple[int, ...],
     last (:func:`tcp_rows.tcp_rows`: 2 (2 N + 1) rows, the speeds then the
     accelerations, at the nodes then the midpoints) and two more parameters
     (1 / v_max^2, 1 / a_max^2); with ``pfl`` (:func:`tcp_rows.pfl_function`, one per
-    platform point), the power and force limiting rows after them
-    (:func:`tcp_rows.pfl_rows`: 2 N + 1 rows per platform point, v^T C v at the nodes then
-    the midpoints) and each NLP point's C (9 entries per platform point) as
-    parameters."""
+    platform point; :func:`tcp_rows.leg_pfl_function`, one per leg for its k vertices),
+    the power and force limiting rows after them (:func:`tcp_rows.pfl_rows`: k (2 N + 1)
+    rows per function, v^T C v at the nodes then the midpoints, each NLP point's k
+    together) and each NLP point's C (9 k entries per function) as parameters."""
     S, N = len(segments), sum(segments)
     seg = [s for s, n in enumerate(segments) for _ in range(n)]
     o_taum, o_acc, o_T, nw = layout(N, S)
     n_tcp = 2 if tcp is not None else 0
-    n_pfl = 9 * (2 * N + 1) * len(pfl)
+    sizes = [int(fn.size1_out(0)) for fn in pfl]  # points per function (a leg's: its vertices)
+    n_pfl = 9 * (2 * N + 1) * sum(sizes)
     P = ca.MX.sym("p", nw + 4 + N + n_tcp + n_pfl)
     o_tcp = nw + 4 + N
     Ws, D = ca.MX.sym("w", nw), P[0:nw]
@@ -278,10 +279,11 @@ def build_nlp(node: ca.Function, threads: int, segments: tuple[int, ...],
     if tcp is not None:
         g = ca.vertcat(g, tcp_rows(tcp, (ca.horzcat(X, Xm), ca.horzcat(XD, XDm),
                                          ca.horzcat(U, Um)), P[o_tcp], P[o_tcp + 1]))
-    for i, fn in enumerate(pfl):
-        o = o_tcp + n_tcp + 9 * (2 * N + 1) * i
-        C = ca.reshape(P[o:o + 9 * (2 * N + 1)], 9, 2 * N + 1)
+    o = o_tcp + n_tcp
+    for fn, k in zip(pfl, sizes, strict=True):
+        C = ca.reshape(P[o:o + 9 * k * (2 * N + 1)], 9 * k, 2 * N + 1)
         g = ca.vertcat(g, pfl_rows(fn, (ca.horzcat(X, Xm), ca.horzcat(XD, XDm)), C))
+        o += 9 * k * (2 * N + 1)
     f = objective(T, U, TAU, TAUM, w_time, w_effort, regularisation)
     return Transcription({"x": Ws, "p": P, "f": f, "g": g}, N, S, nw, int(g.numel()))
 

@@ -86,12 +86,17 @@ def test_the_vertices_velocity_by_pinocchio_casadi_and_the_ik() -> None:
     dyn = ClosedLoopDynamics(ROBOT)
     verts = vertices_of(ALL)
     pos, vel, _ = vertex_rates(dyn, cfg.q, thd, verts)
-    eye = np.repeat(np.eye(3)[None], len(x), axis=0)
-    for k, p in enumerate(pfl_points(ROBOT, ALL)[1:]):
-        assert p.vertex == verts[k]
-        speed = np.sqrt(pfl_ratios_at(p.function(ROBOT), x, xd, eye))
-        np.testing.assert_allclose(speed, np.linalg.norm(vel[:, k], axis=1), rtol=1e-6,
-                                   atol=1e-9)
+    groups = pfl_points(ROBOT, ALL)[1:]
+    assert [g.label for g in groups] == ["leg0", "leg1", "leg2"]
+    labels = [f"leg{i}_{v}" for i, v in verts]
+    assert [lab for g in groups for lab in g.labels] == labels
+    for g in groups:
+        eye = np.broadcast_to(np.eye(3), (len(x), g.size, 3, 3))
+        speed = np.sqrt(pfl_ratios_at(g.function(ROBOT), x, xd, eye))  # (n, k)
+        for j, lab in enumerate(g.labels):
+            k = labels.index(lab)
+            np.testing.assert_allclose(speed[:, j], np.linalg.norm(vel[:, k], axis=1),
+                                       rtol=1e-6, atol=1e-9)
     h = 1e-6
     p1 = vertex_rates(dyn, _cfg(x + h * xd).q, thd, verts)[0]
     p0 = vertex_rates(dyn, _cfg(x - h * xd).q, thd, verts)[0]
@@ -181,10 +186,14 @@ def test_the_rows_matrix_at_a_vertex_is_the_gates_ratio() -> None:
 
     x, xd, cfg, thd = _states(3, 7)
     regs = regions(["hand-clamped"])
-    pts = pfl_points(ROBOT, ALL)[1:]
     _, vel, A = vertex_rates(ClosedLoopDynamics(ROBOT), cfg.q, thd, vertices_of(ALL))
-    for k, p in enumerate(pts):
-        C = pfl_matrices(ROBOT, x, regs, p)
-        got = np.einsum("ni,nij,nj->n", vel[:, k], C, vel[:, k])
-        want = _worst(A[:, k], vel[:, k], regs)[0][:, 0]
-        np.testing.assert_allclose(got, want, rtol=1e-6)
+    k = 0
+    for g in pfl_points(ROBOT, ALL)[1:]:
+        C = pfl_matrices(ROBOT, x, regs, g)  # (n, size, 3, 3)
+        assert C.shape == (len(x), g.size, 3, 3)
+        for j in range(g.size):
+            got = np.einsum("ni,nij,nj->n", vel[:, k], C[:, j], vel[:, k])
+            want = _worst(A[:, k], vel[:, k], regs)[0][:, 0]
+            np.testing.assert_allclose(got, want, rtol=1e-6)
+            k += 1
+    assert k == 18
