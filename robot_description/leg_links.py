@@ -26,7 +26,7 @@ def link_names(spec: object) -> tuple[str, ...]:
     if spec is None:
         return ()
     if not isinstance(spec, (list, tuple)):
-        raise InputError(f"pfl_links must be a list of leg links, got {spec!r}",
+        raise InputError(f"pfl_links must be a list of leg links, got {spec!r}: {valid}",
                          value=spec, valid=valid)
     out: set[str] = set()
     for name in spec:
@@ -39,7 +39,7 @@ def link_names(spec: object) -> tuple[str, ...]:
               and s[4] == "_" and s[5:] in LINKS):
             out.add(s)
         else:
-            raise InputError(f"pfl_links: unknown leg link {name!r}", value=name,
+            raise InputError(f"pfl_links: unknown leg link {name!r}: {valid}", value=name,
                              valid=valid)
     order = [f"leg{i}_{k}" for i in range(NUM_LEGS) for k in LINKS]
     return tuple(n for n in order if n in out)

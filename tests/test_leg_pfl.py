@@ -197,3 +197,15 @@ def test_the_rows_matrix_at_a_vertex_is_the_gates_ratio() -> None:
             np.testing.assert_allclose(got, want, rtol=1e-6)
             k += 1
     assert k == 18
+
+
+def test_plan_refuses_an_unknown_leg_link_before_solving(tmp_path) -> None:
+    from click.testing import CliRunner
+
+    from sixplus3.cli import main
+
+    r = CliRunner().invoke(main, ["plan", "translate", "--pfl", "hand", "--pfl-links",
+                                  "body,knee", "-o", str(tmp_path / "out")])
+    assert r.exit_code == 2 and "unknown leg link 'knee'" in r.output, r.output
+    assert "legs" in r.output and "Traceback" not in r.output
+    assert not (tmp_path / "out").exists()
