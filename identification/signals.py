@@ -2,7 +2,7 @@
 central differences (docs/identification.md, "The filter").
 
 - The positions are filtered by a Butterworth low-pass of order 4 run forward and
-  backward (``sosfiltfilt``: zero phase, order 8 in effect; identification/filters.py
+  backward (``sosfiltfilt``: zero phase, order 8 in effect; sixplus3/filters.py
   gives scipy.signal's numbers without its import time), then
   differentiated twice by central differences (``numpy.gradient``).
 - The drive holds each torque over its tick (from t_k to t_k+1), while the encoder is
@@ -35,7 +35,7 @@ import numpy as np
 
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.errors import InputError, check_number
-from sixplus3.identification.filters import butter_sos, sosfiltfilt, welch
+from sixplus3.filters import butter_sos, sosfiltfilt, welch
 
 ORDER = 4
 CUTOFF_FACTOR = 2.5

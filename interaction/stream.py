@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from sixplus3.errors import InputError, check_number
-from sixplus3.identification.filters import butter_ba
+from sixplus3.filters import butter_ba
 from sixplus3.interaction._tick_kernel import momentum, stream_tick, velocity
 from sixplus3.interaction.wrench import (
     GAIN,

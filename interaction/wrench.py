@@ -42,13 +42,13 @@ from scipy.linalg import lapack
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError, check_number
+from sixplus3.filters import butter_sos, sosfiltfilt
 from sixplus3.identification.base import (
     base_parameters,
     configurations,
     poses_of,
     stacked_regressor,
 )
-from sixplus3.identification.filters import butter_sos, sosfiltfilt
 from sixplus3.identification.signals import filter_log
 from sixplus3.kinematics.robot_fk import ik_jacobian, robot_fk
 from sixplus3.robot_description.robot import Robot, require_robot

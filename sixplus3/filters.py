@@ -1,4 +1,6 @@
-"""The few digital filters the log commands use, in numpy and numba: a Butterworth
+"""The few digital filters the log commands and the 1 kHz observer use, in numpy and
+numba (below the observer, interaction/, and the identification; a bad argument is an
+InputError naming the valid range): a Butterworth
 low-pass in second-order sections, run forward and backward (zero phase), and Welch's
 power spectral density.
 
@@ -27,6 +29,8 @@ import math
 import numpy as np
 from numba import njit
 
+from sixplus3.errors import InputError
+
 #: Welch's segments transformed at once (memory: this many x nperseg x columns).
 WELCH_BATCH = 64
 
@@ -36,8 +40,10 @@ def butter_sos(order: int, cutoff: float, fs: float) -> np.ndarray:
     for the sampling rate ``fs`` [Hz], as second-order sections (n, 6):
     ``[b0, b1, b2, 1, a1, a2]`` per row, like ``scipy.signal.butter(..., output="sos")``."""
     if not (order >= 1 and 0.0 < cutoff < fs / 2.0):
-        raise ValueError(f"a Butterworth low-pass needs order >= 1 and 0 < cut-off < fs/2 "
-                         f"= {fs / 2.0:g} Hz, got order {order}, cut-off {cutoff:g} Hz")
+        raise InputError(f"a Butterworth low-pass needs order >= 1 and 0 < cut-off < fs/2 "
+                         f"= {fs / 2.0:g} Hz, got order {order}, cut-off {cutoff:g} Hz",
+                         value=(order, cutoff), valid=f"order >= 1, cut-off in (0, "
+                         f"{fs / 2.0:g}) Hz")
     fs2 = 2.0 * fs
     warped = fs2 * math.tan(math.pi * cutoff / fs)  # the analog cut-off [rad/s]
     rows = []
@@ -57,7 +63,8 @@ def butter_sos(order: int, cutoff: float, fs: float) -> np.ndarray:
 def butter_ba(order: int, cutoff: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
     """The same filter as one transfer function (b, a), for order <= 2 (one section)."""
     if order > 2:
-        raise ValueError(f"butter_ba gives one section: order 1 or 2, got {order}")
+        raise InputError(f"butter_ba gives one section: order 1 or 2, got {order}",
+                         value=order, valid="1 or 2")
     sos = butter_sos(order, cutoff, fs)[0]
     n = order + 1
     return sos[:n].copy(), sos[3:3 + n].copy()
@@ -108,7 +115,8 @@ def sosfiltfilt(sos: np.ndarray, x: np.ndarray, padlen: int) -> np.ndarray:
     x2 = x.reshape(len(x), -1)
     n = len(x2)
     if not 0 <= padlen < n:
-        raise ValueError(f"padlen must be in [0, {n - 1}] for {n} samples, got {padlen}")
+        raise InputError(f"padlen must be in [0, {n - 1}] for {n} samples, got {padlen}",
+                         value=padlen, valid=f"[0, {n - 1}]")
     if padlen:
         head = 2.0 * x2[0] - x2[padlen:0:-1]
         tail = 2.0 * x2[-1] - x2[-2:-padlen - 2:-1]
