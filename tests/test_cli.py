@@ -144,7 +144,7 @@ def test_the_name_table_is_the_registries() -> None:
     from sixplus3.design.readings import READINGS
     from sixplus3.robot_description.robot import NAMED_ROBOTS
 
-    assert names.EXPORT_FORMATS == (*FORMATS, "rosbag2")
+    assert names.EXPORT_FORMATS == tuple(FORMATS)
     assert names.ROBOTS == tuple(NAMED_ROBOTS)
     assert names.READINGS == tuple(READINGS)
     import re

@@ -1,7 +1,7 @@
 """What an export format is (the registry :mod:`sixplus3.control.formats.registry` lists
 them): a name, a line of help, its default torque hold, whether it takes a lower
 ``--rate`` and ``--goal`` (the forms a controller interpolates), and a function that
-renders a validated motion as text.
+renders a validated motion as text (or writes a directory: the rosbag2 bag).
 
 A lab adds a format with one module that defines an :class:`ExportFormat` and one line
 in the registry; the CLI's choices and help come from the registry (its name table,
@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -35,11 +36,16 @@ class Export:
 
 @dataclass(frozen=True)
 class ExportFormat:
+    """A format renders text (``render``), or writes a directory (``directory``:
+    (the trajectory file, the robot, the output directory, its options) -> the
+    directory, validating the file itself, e.g. the rosbag2 bag)."""
+
     name: str
     summary: str  #: one line of help
     torque_hold: str  #: the default: "sample" (interpolated forms) or "mean" (held)
     interpolated: bool  #: takes --rate (decimated, validated again) and --goal
-    render: Callable[[Export], str]
+    render: Callable[[Export], str] | None = None
+    directory: Callable[..., Path] | None = None
 
 
 __all__ = ["Export", "ExportFormat"]

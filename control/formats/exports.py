@@ -157,9 +157,11 @@ def export_file(path: str | Path, robot: Robot, fmt: str,
     (:func:`~sixplus3.control.formats.ros2.follow_joint_trajectory_goal`)."""
 
     form = FORMATS.get(fmt)
-    if form is None:
-        raise InputError(f"unknown export format {fmt!r}", value=fmt,
-                         valid=", ".join(FORMATS))
+    texts = [f.name for f in FORMATS.values() if f.render is not None]
+    if form is None or form.render is None:
+        raise InputError(f"unknown text export format {fmt!r}" + (
+            f" ({fmt} writes a directory: its format's directory())" if form else ""),
+            value=fmt, valid=", ".join(texts))
     if torque_hold is None:
         torque_hold = form.torque_hold
     check_torque_hold(torque_hold)  # a bad mode is refused before the work

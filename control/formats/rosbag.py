@@ -46,6 +46,7 @@ import numpy as np
 import yaml
 
 from sixplus3.control.file.file_format import columns, motion_of
+from sixplus3.control.formats.export_format import ExportFormat
 from sixplus3.control.formats.ros2 import ros2_joint_trajectory
 from sixplus3.control.formats.ros_replay import write_replay_files
 from sixplus3.control.gate.validation import validate_file
@@ -275,5 +276,12 @@ def _trajectory(T: Any, msg: dict[str, Any], start_ns: int) -> Any:
                                                     points=points)
 
 
-__all__ = ["DISTROS", "TOPICS", "WRITER_VERSION", "check_distro", "humble_metadata",
+#: The registry's entry (control/formats/registry.py): a directory, not text.
+FORMAT = ExportFormat(
+    "rosbag2", "a ROS 2 bag (MCAP directory: /joint_states of every joint, /tf, the "
+    "trajectory) with its replay launch file", torque_hold="sample", interpolated=False,
+    directory=write_rosbag2)
+
+
+__all__ = ["DISTROS", "FORMAT", "TOPICS", "WRITER_VERSION", "check_distro", "humble_metadata",
            "revolute_joints", "write_rosbag2"]

@@ -6,7 +6,7 @@ up in the help or the test fails."""
 
 from __future__ import annotations
 
-#: ``sixplus3.control.formats.registry.FORMATS``, and the rosbag2 directory export
+#: ``sixplus3.control.formats.registry.FORMATS`` (rosbag2: a directory)
 EXPORT_FORMATS = ("ros2-yaml", "ros2-json", "drive-csv", "rosbag2")
 #: ``sixplus3.robot_description.robot.NAMED_ROBOTS``
 ROBOTS = ("default", "paper-as-stated", "paper-mirror", "compact")

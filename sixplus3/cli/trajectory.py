@@ -198,12 +198,12 @@ def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | N
     motion a controller interpolates through the exported points is validated as it
     will run (docs/validation.md, "Exports")."""
     from sixplus3.control.formats.exports import export_file
+    from sixplus3.control.formats.registry import FORMATS
 
-    if fmt == "rosbag2":
-        from sixplus3.control.formats.rosbag import write_rosbag2
-
+    form = FORMATS[fmt]
+    if form.directory is not None:
         if out_file is None:
-            fail("--format rosbag2 writes a directory: give it with -o DIR")
+            fail(f"--format {fmt} writes a directory: give it with -o DIR")
             return
         if rate is not None or goal:
             fail("--rate and --goal go with the ROS 2 message forms (ros2-yaml, "
@@ -214,7 +214,7 @@ def export_cmd(csv_file: str, fmt: str, out_file: str | None, task_file: str | N
                 fail(f"--start-time must be in [0, 4e9] s since the epoch, got {start_time:g}")
             start_ns = int(round(start_time * 1e9))
         check_output(out_file, (csv_file,), force)
-        bag = write_rosbag2(csv_file, task_robot(task_file), out_file, ros_distro, start_ns)
+        bag = form.directory(csv_file, task_robot(task_file), out_file, ros_distro, start_ns)
         click.echo(f"wrote {bag} for ROS 2 {ros_distro} (ros2 launch {bag}/replay.launch.py; "
                    f"or ros2 bag play {bag} --clock --rate 0.1)", err=True)
         return
