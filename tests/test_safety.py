@@ -420,3 +420,26 @@ def test_a_leg_links_effective_mass_is_mujocos_impulse_response() -> None:
                 m_mujoco = force * h * steps / float(u @ (vel[1] - vel[0]))
                 m_pin = 1.0 / float(u @ A @ u)
                 assert m_mujoco == pytest.approx(m_pin, rel=5e-3), (link, u, m_pin, m_mujoco)
+
+
+def test_a_forged_header_cannot_drop_the_legs_or_name_a_knee(plans, tmp_path) -> None:
+    """The platform-only plan's header, forged with its digest recomputed: without its
+    ``pfl_links`` the file is judged at every leg link (exit 1, at a leg); with a link
+    that does not exist, or not a list, it is refused as a file (exit 2)."""
+    from sixplus3.control.file.trajectory_file import encode
+    from sixplus3.control.file.trajectory_parse import parse
+    from sixplus3.control.file.trajectory_read import read_bytes
+    from sixplus3.control.gate.validation import validate_file
+    from sixplus3.errors import TrajectoryFileError
+
+    header, data = parse(read_bytes(plans[3]), "platform")
+    dropped = {k: v for k, v in header.items() if k not in ("pfl_links", "digest")}
+    path = tmp_path / "dropped.csv"
+    path.write_bytes(encode(dropped, data))
+    rep = validate_file(path, ROBOT)
+    assert rep.exit_code == 1 and rep.max_pfl_where.startswith("leg"), rep.messages()
+    for bad in (["knee"], "legs", [3]):
+        forged = tmp_path / "bad.csv"
+        forged.write_bytes(encode({**dropped, "pfl_links": bad}, data))
+        with pytest.raises(TrajectoryFileError, match="pfl_links"):
+            validate_file(forged, ROBOT)
