@@ -175,7 +175,7 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     assert rep.position is not None and rep.quaternion is not None and rep.psi is not None
     cfg = robot_ik(rep.position, rot.matrix_from_quat(rep.quaternion), rep.psi, model,
                    platform_margins=False)
-    body_name, tool = _site(model, contact)
+    body_name, tool = contact_site(model, contact)
     if contact is not None and contact.at > t_file[-1]:
         raise InputError(f"the contact at {contact.at:g} s is after the file's end "
                          f"({t_file[-1]:g} s)", value=contact.at,
@@ -229,7 +229,7 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
             force[k] = person.peak
             person.peak = 0.0
             jac = np.zeros((3, m.nv))
-            mj.mj_jac(m, d, jac, None, _point(d, body, tool), body)
+            mj.mj_jac(m, d, jac, None, site_point(d, body, tool), body)
             speed_n[k] = float((jac @ d.qvel) @ person.n)
         d.xfrc_applied[body] = 0.0
     run = _outcome(contact, g is not None, rate, force, speed_n, flags, modes, peak_cmd,
@@ -244,7 +244,7 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     return run
 
 
-def _site(model: Robot, contact: Contact | None) -> tuple[str, np.ndarray | None]:
+def contact_site(model: Robot, contact: Contact | None) -> tuple[str, np.ndarray | None]:
     """(MuJoCo's body, the point in its frame [m]; None: its centre of mass) of the
     contact's point: the platform's at the tool centre point or the centre, a leg
     link's centre of mass, or a leg vertex (a joint centre, robot_description/urdf.py:
@@ -358,7 +358,7 @@ class _Region:
 
     def push(self, _sub: int) -> None:
         d, body = self.d, self.body
-        p = _point(d, body, self.offset)
+        p = site_point(d, body, self.offset)
         depth = float((p - self.p_s) @ self.n) - self.x_h
         self.armed = self.armed or depth <= 0.0
         f = self.c.region.stiffness * depth if (depth > 0 and self.armed) else 0.0
@@ -371,7 +371,7 @@ class _Region:
         self.peak = max(self.peak, f)
 
 
-def _point(d: Any, body: int, offset: np.ndarray | None) -> np.ndarray:
+def site_point(d: Any, body: int, offset: np.ndarray | None) -> np.ndarray:
     """The contact point in MuJoCo's data: the body's centre of mass (``offset`` None),
     or the point at ``offset`` in its frame."""
     if offset is None:
@@ -382,16 +382,17 @@ def _point(d: Any, body: int, offset: np.ndarray | None) -> np.ndarray:
 def _link_path(model: Robot, cfg: Any, rates: np.ndarray, k_c: int,
                site: tuple[str, np.ndarray | None], timestep: float
                ) -> tuple[np.ndarray, np.ndarray]:
-    """(the planned positions (k_c + 1, 3) of the leg's point ``site`` (:func:`_site`)
-    up to sample k_c, its velocity (3,) there): MuJoCo's kinematics of the model at the
-    file's configurations, with the tree velocities that realise the actuated rates."""
+    """(the planned positions (k_c + 1, 3) of the leg's point ``site``
+    (:func:`contact_site`) up to sample k_c, its velocity (3,) there): MuJoCo's
+    kinematics of the model at the file's configurations, with the tree velocities
+    that realise the actuated rates."""
     sim = MujocoRobot(model, timestep)
     mj, m, d = sim.mj, sim.model, sim.data
     body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, site[0])
     out = np.empty((k_c + 1, 3))
     for k in range(k_c + 1):
         sim.set_state(np.asarray(cfg.q[k]), rates[k])
-        out[k] = _point(d, body, site[1])
+        out[k] = site_point(d, body, site[1])
     jac = np.zeros((3, m.nv))
     mj.mj_jac(m, d, jac, None, out[k_c], body)
     return out, jac @ d.qvel
@@ -426,4 +427,5 @@ def _outcome(contact: Contact | None, guard: bool, rate: float, force: np.ndarra
     return out
 
 
-__all__ = ["Contact", "ContactRun", "contact_from_dict", "read_contact", "run_contact"]
+__all__ = ["Contact", "ContactRun", "contact_from_dict", "contact_site", "read_contact",
+           "run_contact", "site_point"]

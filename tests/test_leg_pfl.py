@@ -209,3 +209,30 @@ def test_plan_refuses_an_unknown_leg_link_before_solving(tmp_path) -> None:
     assert r.exit_code == 2 and "unknown leg link 'knee'" in r.output, r.output
     assert "legs" in r.output and "Traceback" not in r.output
     assert not (tmp_path / "out").exists()
+
+
+def test_the_vertices_in_mujoco_are_pinocchios() -> None:
+    """The simulated person meets a vertex on MuJoCo's body (interaction/person.py:
+    ``contact_site``): its position and MuJoCo's velocity there (``mj_jac`` at the
+    point, the tree velocities that realise the rates) equal the gate's Pinocchio ones."""
+    pytest.importorskip("mujoco")
+    from sixplus3.control.drive.simulation import MujocoRobot
+    from sixplus3.interaction.person import contact_from_dict, contact_site, site_point
+
+    _, _, cfg, thd = _states(2, 9)
+    verts = vertices_of(ALL)
+    pos, vel, _ = vertex_rates(ClosedLoopDynamics(ROBOT), cfg.q, thd, verts)
+    sim = MujocoRobot(ROBOT, 1e-4)
+    mj, m, d = sim.mj, sim.model, sim.data
+    for t in range(len(cfg.q)):
+        sim.set_state(np.asarray(cfg.q[t]), thd[t])
+        for k, (i, v) in enumerate(verts):
+            c = contact_from_dict({"region": "hand", "kind": "free", "at": 0.1,
+                                   "point": f"leg{i}_{v}"})
+            name, offset = contact_site(ROBOT, c)
+            body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, name)
+            p = site_point(d, body, offset)
+            jac = np.zeros((3, m.nv))
+            mj.mj_jac(m, d, jac, None, p, body)
+            np.testing.assert_allclose(p, pos[t, k], atol=1e-12)
+            np.testing.assert_allclose(jac @ d.qvel, vel[t, k], atol=1e-9)
