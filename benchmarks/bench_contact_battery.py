@@ -142,56 +142,56 @@ def main() -> None:
         return
     for region, kind, task in [(r, k, t) for r in args.regions for k in args.kinds
                                for t in args.task]:
-            folder = root / (region if kind == "free" else f"{region}-clamped")
-            path = folder / f"{task}.csv"
-            if not path.exists():
-                print(f"no plan {path}: skipped", file=sys.stderr)
-                continue
-            model = load_robot(args.robot) if args.robot else file_robot(path)
-            plants = plants_for(args, model)
-            t, v = planned_velocity(path, model)
-            built = ContactGuard(model, path, 1.0 / (t[1] - t[0]), reaction=args.reaction,
-                                 **guard_settings(args))
-            points = (leg_instants(path, model) if args.point == "legs" else
-                      [(label, at, args.point, v[int(round(at / (t[1] - t[0])))])
-                       for label, at in instants(t, v, args.speeds)])
-            for label, at, point, vel in points:
-                u = vel / np.linalg.norm(vel)
-                for nname in args.normals:
-                    normal = [float(x) for x in u] if nname == "along" else across(u)
-                    c = contact_from_dict({"region": region, "kind": kind, "at": at,
-                                           "normal": normal, "point": point})
-                    for pname, plant in plants:
-                        for dname, fb in [(d, f) for d in args.drives
-                                          for f in args.rate_feedback]:
-                            kp, kd = DRIVES[dname]
-                            guards = [True] + ([False] if args.unguarded and label in (
-                                "max", "worst") and nname == "along" else [])
-                            for guard in guards:
-                                r = run_contact(path, model, plant, c,
-                                                guard=built if guard else False, kp=kp,
-                                                kd=kd, seed=args.seed, after=0.3,
-                                                reaction=args.reaction, rate_feedback=fb)
-                                row = {"region": region, "kind": kind, "task": task,
-                                       "target": label, "at": round(at, 4), "normal": nname,
-                                       "point": point, "plant": pname,
-                                       "drive": dname, "rate_feedback": fb, "guard": guard,
-                                       **{q: w for q, w in r.summary().items()
-                                          if q not in ("region", "kind", "guard")},
-                                       "final_mode": r.modes[-1] if r.modes else "-"}
-                                rows.append(row)
-                                line = json.dumps(row)
-                                if out:
-                                    out.write(line + "\n")
-                                    out.flush()
-                                print(f"{task[:12]:12s} {point:7s} "
-                                      f"{region:10s} {kind:5s} {label:>4s} {nname:6s} "
-                                      f"{pname:10s} {dname:5s} {fb:8s} guard={guard!s:5s} "
-                                      f"v={r.speed:5.2f} F={r.peak_transient:6.1f}/"
-                                      f"{r.limit_transient:.0f} Fqs={r.quasi_static:6.1f}/"
-                                      f"{r.limit_quasi_static:.0f} det={r.detection_delay} "
-                                      f"stop={r.stop_time} cmd={r.peak_command:.2f} "
-                                      f"{row['final_mode']}", flush=True)
+        folder = root / (region if kind == "free" else f"{region}-clamped")
+        path = folder / f"{task}.csv"
+        if not path.exists():
+            print(f"no plan {path}: skipped", file=sys.stderr)
+            continue
+        model = load_robot(args.robot) if args.robot else file_robot(path)
+        plants = plants_for(args, model)
+        t, v = planned_velocity(path, model)
+        built = ContactGuard(model, path, 1.0 / (t[1] - t[0]), reaction=args.reaction,
+                             **guard_settings(args))
+        points = (leg_instants(path, model) if args.point == "legs" else
+                  [(label, at, args.point, v[int(round(at / (t[1] - t[0])))])
+                   for label, at in instants(t, v, args.speeds)])
+        for label, at, point, vel in points:
+            u = vel / np.linalg.norm(vel)
+            for nname in args.normals:
+                normal = [float(x) for x in u] if nname == "along" else across(u)
+                c = contact_from_dict({"region": region, "kind": kind, "at": at,
+                                       "normal": normal, "point": point})
+                for pname, plant in plants:
+                    for dname, fb in [(d, f) for d in args.drives
+                                      for f in args.rate_feedback]:
+                        kp, kd = DRIVES[dname]
+                        guards = [True] + ([False] if args.unguarded and label in (
+                            "max", "worst") and nname == "along" else [])
+                        for guard in guards:
+                            r = run_contact(path, model, plant, c,
+                                            guard=built if guard else False, kp=kp,
+                                            kd=kd, seed=args.seed, after=0.3,
+                                            reaction=args.reaction, rate_feedback=fb)
+                            row = {"region": region, "kind": kind, "task": task,
+                                   "target": label, "at": round(at, 4), "normal": nname,
+                                   "point": point, "plant": pname,
+                                   "drive": dname, "rate_feedback": fb, "guard": guard,
+                                   **{q: w for q, w in r.summary().items()
+                                      if q not in ("region", "kind", "guard")},
+                                   "final_mode": r.modes[-1] if r.modes else "-"}
+                            rows.append(row)
+                            line = json.dumps(row)
+                            if out:
+                                out.write(line + "\n")
+                                out.flush()
+                            print(f"{task[:12]:12s} {point:7s} "
+                                  f"{region:10s} {kind:5s} {label:>4s} {nname:6s} "
+                                  f"{pname:10s} {dname:5s} {fb:8s} guard={guard!s:5s} "
+                                  f"v={r.speed:5.2f} F={r.peak_transient:6.1f}/"
+                                  f"{r.limit_transient:.0f} Fqs={r.quasi_static:6.1f}/"
+                                  f"{r.limit_quasi_static:.0f} det={r.detection_delay} "
+                                  f"stop={r.stop_time} cmd={r.peak_command:.2f} "
+                                  f"{row['final_mode']}", flush=True)
     print(json.dumps(summarise(rows), indent=1))
     print(f"{len(rows)} runs in {time.perf_counter() - t_start:.0f} s")
 

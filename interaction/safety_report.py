@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from sixplus3.control.file.file_format import motion_of
-from sixplus3.control.gate.pfl import judged, pfl_profile
+from sixplus3.control.gate.pfl import Judged, judged, pfl_profile
 from sixplus3.control.gate.stop import TORQUE_SHARE, stop_runs, stop_table
 from sixplus3.control.gate.validation import validate_file, validation_record
 from sixplus3.interaction.guard_parts import COMMAND_SHARE, DEFAULT_RATE, MAX_JUMP
@@ -125,7 +125,8 @@ def safety_report(path: str | Path, robot: Robot) -> dict[str, Any]:
         return out
     motion = motion_of(rep.data, float(rep.header["rate_hz"]))
     what = judged(rep.header.get("pfl"), rep.header.get("pfl_links"))
-    shown = what if what else judged(None)  # nothing judged: the speeds still shown
+    # nothing judged: the speeds at every point are still shown
+    shown = what if what else Judged((), link_names(["legs"]))
     prof = pfl_profile(rep, robot, motion, shown)
     all_links = link_names(["legs"])
     out["coverage"] = {

@@ -108,5 +108,8 @@ def test_a_report_says_what_a_file_without_regions_does_not_cover(tmp_path) -> N
     assert rep["coverage"]["regions"] == [] and "largest" not in rep
     assert rep["coverage"]["regions not covered"] == list(REGIONS)
     assert len(rep["coverage"]["leg links not covered"]) == 18
+    # the speeds are shown at every point all the same: the tool and the 18 vertices
+    assert len(rep["path"]["points"]) == 19 and "leg2_P" in rep["path"]["points"]
+    assert max(v for v in rep["path"]["points"]["leg0_D"]["speed [m/s]"]) > 0.1
     bad = CliRunner().invoke(main, ["safety-report", str(tmp_path / "missing.csv")])
     assert bad.exit_code == 2 and "Traceback" not in bad.output
