@@ -73,6 +73,9 @@ def _plots(rep: dict[str, Any]) -> list[str]:
     a1.set_ylabel("stop time [ms]")
     a2.plot(t, 1e3 * _arr(stop["tcp distance [m]"]), label="tool centre point")
     a2.plot(t, 1e3 * _arr(stop["largest distance [m]"]), label="the farthest point")
+    a2.plot(t, 1e3 * _arr(stop["tcp distance with detection [m]"]), ls="--",
+            label=f"tool centre point, after {1e3 * stop['detection assumed [s]']:.0f} ms "
+                  "of detection")
     a2.set_ylabel("stop distance [mm]")
     a2.set_xlabel("stop begun at t [s]")
     a2.legend(fontsize=7)
@@ -137,7 +140,13 @@ def page(rep: dict[str, Any]) -> str:
          ("torque share of a stop", st["torque share"]),
          ("longest stop [s]", st["max stop time [s]"]),
          ("longest tool centre point distance [m]", st["max tcp distance [m]"]),
-         ("longest distance of any point judged [m]", st["max distance [m]"])]))
+         ("longest distance of any point judged [m]", st["max distance [m]"]),
+         ("detection before the stop (the guard's worst measured) [s]",
+          st["detection assumed [s]"]),
+         ("longest tool centre point distance with it [m]",
+          st["max tcp distance with detection [m]"]),
+         ("longest distance of any point judged with it [m]",
+          st["max distance with detection [m]"])]))
     g = rep["guard"]
     parts.append("<h2>The contact guard</h2>" + _table(list(g["settings"].items())))
     head = list(g["measured"][0])

@@ -11,7 +11,8 @@ the path, from the file's samples:
   worst direction and the two-body model's contact force;
 - the stop table (:func:`stop_table`, what the guard recomputes; the header's only
   checked against it) and, from each sample, the stop's time and the distance the tool
-  centre point and the fastest point judged travel before rest (:func:`stop_runs`).
+  centre point and the fastest point judged travel before rest (:func:`stop_runs`),
+  and with the guard's worst measured detection before it (at the plan's speed).
 
 and states what it does not cover, the guard's settings and its measured detection
 figures with their source, and the assumptions.  :mod:`sixplus3.interaction.safety_page`
@@ -173,7 +174,15 @@ def _stop(rep: Any, robot: Robot, motion: Any, prof: Any) -> dict[str, Any]:
     arcs = [_arc(prof.position[:, j]) for j in range(len(prof.points))]
     dist = np.stack([np.interp(s_end, grid, a) - a for a in arcs], axis=1)  # (n, P)
     fastest = np.argmax(dist, axis=1)
+    # before the stop: the guard's worst measured detection at the plan's speed
+    detect = max(float(m["detection worst [ms]"]) for m in GUARD_MEASURED) / 1e3
+    before = prof.speed * detect  # (n, P)
     return {"torque share": TORQUE_SHARE,
+            "detection assumed [s]": detect,
+            "tcp distance with detection [m]": _round(before[:, tcp] + dist[:, tcp]),
+            "max tcp distance with detection [m]": float((before[:, tcp]
+                                                          + dist[:, tcp]).max()),
+            "max distance with detection [m]": float((before + dist).max()),
             "file's table": "checked: the recomputed table" if rep.stop_deceleration
             is not None else "none in the file (the guard computes its own)",
             "deceleration [1/s]": _round(beta), "stop time [s]": _round(times),

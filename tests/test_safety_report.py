@@ -69,6 +69,13 @@ def test_every_examples_report_is_written_and_its_numbers_are_the_gates(reports)
         assert len(st["stop time [s]"]) == record["samples"] and st["max stop time [s]"] > 0
         assert st["file's table"].startswith("checked")
         assert 0 < st["max tcp distance [m]"] <= st["max distance [m]"] < 0.5, name
+        # the detection's distance at the tool's speed comes on top of the stop's
+        tcp_speed = rep["path"]["points"]["tcp"]["speed [m/s]"]
+        k = int(np.argmax([x or 0.0 for x in tcp_speed]))
+        assert st["tcp distance with detection [m]"][k] == pytest.approx(
+            st["tcp distance [m]"][k] + st["detection assumed [s]"] * tcp_speed[k],
+            rel=1e-3, abs=1e-6)
+        assert st["detection assumed [s]"] == 0.010
         assert rep["guard"]["measured"][0]["source"].startswith("BENCHMARKS.md")
 
 
