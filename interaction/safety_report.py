@@ -44,7 +44,7 @@ FORMAT = "sixplus3-safety-report/1"
 DIGITS = 5
 #: The contact guard's detection as measured (not computed from this file), with the
 #: command that measured it (BENCHMARKS.md).
-GUARD_MEASURED = (
+GUARD_MEASURED: tuple[dict[str, Any], ...] = (
     {"robot model": "identified (a parameter covariance given)",
      "contacts": 276, "within both limits": 276, "detection median [ms]": 4,
      "detection worst [ms]": 7,
