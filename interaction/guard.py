@@ -43,8 +43,9 @@ from sixplus3.errors import InputError, ValidationFailed, check_number
 from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
     DEFAULT_RATE,
+    DriveCommand,
     DriveRate,
-    GuardCommand,
+    Mode,
     contact_site,
     jump_bound,
     parse_drive,
@@ -110,7 +111,7 @@ class ContactGuard:
 
     s: float  #: path position [samples of the file]
     sd: float  #: path speed [file seconds per second]
-    mode: str
+    mode: Mode
     _vel: np.ndarray
 
     def __init__(self, robot: Robot | None, trajectory_file: str | Path,
@@ -191,14 +192,14 @@ class ContactGuard:
         angles, and the measured path speed (the rate projected on the path's tangent),
         never faster than the reference's.  An impact that has already slowed the
         platform is not undone by a reference that runs on ahead of it."""
-        if self.mode == "follow" and self._prev is not None:
+        if self.mode == Mode.FOLLOW and self._prev is not None:
             self.s = self._nearest(self.s)
             k = int(round(self.s))
             tan = self.theta_d[k]
             t2 = float(tan @ tan)
             if t2 > 1e-12:
                 self.sd = min(self.sd, max(0.0, float(self._vel @ tan) / t2))
-        self.mode = "stop"
+        self.mode = Mode.STOP
 
     def _blocked(self) -> bool:
         """The measured angles lag the reference by more than BLOCKED while the
@@ -230,7 +231,7 @@ class ContactGuard:
     def _reset(self) -> None:
         self.s = 0.0  # path position [samples]
         self.sd = 1.0  # path speed [file seconds per second]
-        self.mode = "follow"
+        self.mode = Mode.FOLLOW
         self._prev: np.ndarray | None = None
         self._since_good = 0  # ticks since the last good reading
   # the drive's rate: the encoder's difference
@@ -265,7 +266,7 @@ class ContactGuard:
         f = k - i
         return (1.0 - f) * arr[i] + f * arr[j]
 
-    def _command(self, sdd: float, mode: str, wrench: np.ndarray) -> GuardCommand:
+    def _command(self, sdd: float, mode: Mode, wrench: np.ndarray) -> DriveCommand:
         """The reference at the path position s with path speed sd and acceleration
         sdd (the time-scaling feed-forward, clipped to the envelope)."""
         k = min(max(self.s, 0.0), self.n - 1.0)
@@ -280,17 +281,17 @@ class ContactGuard:
         cap = self.lim.torque
         ff = np.clip(np.nan_to_num(ff, nan=0.0), -cap, cap)
         self._last_ref = th
-        return GuardCommand(th, at(self.theta_d) * self.sd, ff, mode, self._contact, wrench)
+        return DriveCommand(th, at(self.theta_d) * self.sd, ff, mode, self._contact, wrench)
 
-    def _safe_hold(self, why: str) -> GuardCommand:
+    def _safe_hold(self, why: str) -> DriveCommand:
         if not self.events or self.events[-1] != why:
             self.events.append(f"t={self.t:.4f} s: {why}")
-        self.mode, self.sd = "hold", 0.0
+        self.mode, self.sd = Mode.HOLD, 0.0
         g = np.clip(self._at(self.g), -self.lim.torque, self.lim.torque)
-        return GuardCommand(self._last_ref.copy(), np.zeros(9), g, "hold", self._contact,
+        return DriveCommand(self._last_ref.copy(), np.zeros(9), g, Mode.HOLD, self._contact,
                             np.zeros(6))
 
-    def step(self, theta: object, tau: object) -> GuardCommand:
+    def step(self, theta: object, tau: object) -> DriveCommand:
         """One tick (class doc); never raises."""
         got = reading(theta, tau, self.lim)  # never raises
         try:
@@ -313,7 +314,7 @@ class ContactGuard:
         except Exception:  # noqa: BLE001
             return cmd
 
-    def _step(self, got: tuple[np.ndarray, np.ndarray] | str) -> GuardCommand:
+    def _step(self, got: tuple[np.ndarray, np.ndarray] | str) -> DriveCommand:
         self._since_good += 1
         if isinstance(got, str):
             return self._safe_hold(got)
@@ -369,7 +370,7 @@ class ContactGuard:
         full = self.J[k].T @ self._r  # (wrench at the platform centre, crank torques)
         wrench = full[:6]
         if (self._over >= DEBOUNCE and not self._contact
-                and self.mode in ("follow", "stop")):
+                and self.mode in (Mode.FOLLOW, Mode.STOP)):
             self._contact = True
             self._contact_t = self.t
             self.contact_site = contact_site(full, np.abs(self.J[k]).T @ thr_site)
@@ -378,7 +379,7 @@ class ContactGuard:
                                f"residual {np.abs(self._r).max():.3f} N m; stopping")
         if self._contact and self.t - self._contact_t <= SITE_WINDOW:
             self._fmax = max(self._fmax, float(np.linalg.norm(full[0:3])))
-        if (self._contact and self.contact_site == "the platform" and self.mode == "stop"
+        if (self._contact and self.contact_site == "the platform" and self.mode == Mode.STOP
               and self.t - self._contact_t <= SITE_WINDOW
               and float(np.linalg.norm(full[0:3])) >= 0.5 * self._fmax
               and contact_site(full, np.abs(self.J[k]).T @ thr_site) == "a leg"):
@@ -392,7 +393,7 @@ class ContactGuard:
         sat = ((self._clipped or bool(np.any(np.abs(tq) >= SATURATED_SHARE * self.lim.torque)))
                and float(np.abs(self._last_ref - th).max()) > BLOCKED)
         self._saturated = self._saturated + dt if sat else 0.0
-        if self._saturated >= SATURATED_FOR and self.mode == "follow":
+        if self._saturated >= SATURATED_FOR and self.mode == Mode.FOLLOW:
             self._stop_from_measured()
             self.events.append(f"t={self.t:.4f} s: a drive saturated for "
                                f"{1e3 * self._saturated:.0f} ms: this robot cannot follow "
@@ -400,25 +401,25 @@ class ContactGuard:
         self.t += dt
         return self._advance(over, wrench)
 
-    def _advance(self, over: bool, wrench: np.ndarray) -> GuardCommand:
+    def _advance(self, over: bool, wrench: np.ndarray) -> DriveCommand:
         dt = self.dt
         k = int(round(min(max(self.s, 0.0), self.n - 1.0)))
         sdd = 0.0
-        if self.mode == "follow":
+        if self.mode == Mode.FOLLOW:
             self.s += self.rate * dt * self.sd
             if self.s >= self.n - 1:
-                self.s, self.sd, self.mode = self.n - 1.0, 0.0, "done"
-        elif self.mode == "stop" and self._blocked():
+                self.s, self.sd, self.mode = self.n - 1.0, 0.0, Mode.DONE
+        elif self.mode == Mode.STOP and self._blocked():
             # the platform no longer follows its reference while the force is on: a
             # body is held against something (a clamp). Advancing the reference would
             # only press harder: take the reference back to where the robot is, at rest
             self.s = self._nearest(self.s)
             self.sd, self._since, self._quiet = 0.0, 0.0, 0.0
             self._retract_from = self.s
-            self.mode = "retract"
+            self.mode = Mode.RETRACT
             self.events.append(f"t={self.t:.4f} s: blocked while stopping (a clamp): "
                                "retracting along the path")
-        elif self.mode == "stop":
+        elif self.mode == Mode.STOP:
             # the joint speed along the path, sigma = sd |theta'(s)|, falls at the table's
             # beta (control/gate/stop.py), or faster where the torque limits allow it at
             # the stop's own path speed; sd follows from it where the path goes on
@@ -453,16 +454,16 @@ class ContactGuard:
                 self._quiet = self._quiet + dt if self._over < DEBOUNCE else 0.0
                 if self._quiet >= RELEASED or (self._since >= CLAMP_WAIT
                                                and self._quiet >= GONE):
-                    self.mode = "hold"
+                    self.mode = Mode.HOLD
                     self.events.append(f"t={self.t:.4f} s: stopped, the force is gone (a "
                                        "collision): holding")
                 elif self._since >= CLAMP_WAIT and self._contact:
-                    self.mode = "retract"
+                    self.mode = Mode.RETRACT
                     self._retract_from = self.s
                     self.events.append(f"t={self.t:.4f} s: the force stays after the stop "
                                        "(a clamp, or a body still pressing): retracting "
                                        "along the path")
-        elif self.mode == "retract":
+        elif self.mode == Mode.RETRACT:
             beta = float(self.beta[k])
             if self.sd > -RETRACT_SPEED:
                 sdd = -beta
@@ -472,9 +473,9 @@ class ContactGuard:
             self._since += dt
             back = self._retract_from - self.s
             if self._quiet >= RELEASED or self.s <= 0.0 or back >= RETRACT_SAMPLES:
-                self.mode = "settle"  # come to rest, then hold
+                self.mode = Mode.SETTLE  # come to rest, then hold
                 self.events.append(f"t={self.t:.4f} s: released: coming to rest")
-        elif self.mode == "settle":
+        elif self.mode == Mode.SETTLE:
             # no harder than the table allows, and over at least SETTLE_TIME: a stiff
             # drive stopped at once from the retract's speed springs back towards the
             # person (measured: 6-8 cm/s)
@@ -482,15 +483,15 @@ class ContactGuard:
             self.sd = min(0.0, self.sd + sdd * dt)
             self.s = max(0.0, self.s + self.rate * dt * self.sd)
             if self.sd >= 0.0:
-                self.mode = "hold"
+                self.mode = Mode.HOLD
                 self.events.append(f"t={self.t:.4f} s: at rest: holding")
         self._sdd = sdd
-        mode_out = "retract" if self.mode == "settle" else self.mode
-        if self.mode == "hold" and self._contact and self.reaction == "yield":
+        mode_out = Mode.RETRACT if self.mode == Mode.SETTLE else self.mode
+        if self.mode == Mode.HOLD and self._contact and self.reaction == "yield":
             assert self._prev is not None
             g = np.clip(self._at(self.g), -self.lim.torque, self.lim.torque)
             self._last_ref = self._prev.copy()
-            return GuardCommand(self._prev.copy(), np.zeros(9), g, "hold", True, wrench)
+            return DriveCommand(self._prev.copy(), np.zeros(9), g, Mode.HOLD, True, wrench)
         return self._command(sdd, mode_out, wrench)
 
 

@@ -1,7 +1,7 @@
 """Lead-through: a person guides the platform by hand, sensorlessly (docs/leadthrough.md).
 
 Stepped each tick like :class:`~sixplus3.interaction.guard.ContactGuard`:
-``step(theta, tau) -> GuardCommand``, what the drive applies as
+``step(theta, tau) -> DriveCommand``, what the drive applies as
 tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref - theta_dot).
 
 Each tick:
@@ -59,8 +59,9 @@ from sixplus3.interaction import walls
 from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
     DEFAULT_RATE,
+    DriveCommand,
     DriveRate,
-    GuardCommand,
+    Mode,
     jump_bound,
     parse_drive,
     reading,
@@ -170,7 +171,7 @@ class LeadThrough:
         where the robot is."""
         if hasattr(self, "stream"):
             self.stream.reset()
-        self.mode = "hold"
+        self.mode = Mode.HOLD
         self.events: list[str] = []
         self._started = False
         self._tick = 0
@@ -209,7 +210,7 @@ class LeadThrough:
         self._started = True
 
     # ------------------------------------------------------------------ the tick
-    def step(self, theta: object, tau: object) -> GuardCommand:
+    def step(self, theta: object, tau: object) -> DriveCommand:
         """One tick (module doc); never raises, for any Python object as ``theta`` or
         ``tau`` (docs/leadthrough.md, "What it guarantees"):
 
@@ -278,14 +279,14 @@ class LeadThrough:
         self._cand, self._started, self._resync = None, False, True
         return None
 
-    def _fault(self, why: str) -> GuardCommand:
+    def _fault(self, why: str) -> DriveCommand:
         """Hold the reference (or, before any good reading, ask the drive to hold its own
         position), stop the guided motion, and restart the observer at the next good
         reading; said in :attr:`events`."""
         if why and len(self.events) < 100 and (not self.events
                                                or why not in self.events[-1]):
             self.events.append(f"tick {self._tick}: holding: {why}")
-        self.mode, self._above, self._still = "hold", 0, 0
+        self.mode, self._above, self._still = Mode.HOLD, 0, 0
         self.v[:] = 0.0
         self.psi_dot[:] = 0.0
         self._psi_dot_target[:] = 0.0
@@ -298,12 +299,12 @@ class LeadThrough:
             self._rate_from(self._reading)
             self._reading = None
         if not self._started or self._last_good is None:
-            return GuardCommand(self._home.copy(), np.zeros(9), np.zeros(9), "fault", False,
+            return DriveCommand(self._home.copy(), np.zeros(9), np.zeros(9), Mode.FAULT, False,
                                 np.zeros(6))
         if not np.all(np.isfinite(self._last_ff)):
             self._last_ff = np.zeros(9)
         ff = np.clip(self._last_ff, -COMMAND_SHARE * self.cap, COMMAND_SHARE * self.cap)
-        cmd = GuardCommand(self.theta_ref.copy(), np.zeros(9), ff, "hold", False, np.zeros(6))
+        cmd = DriveCommand(self.theta_ref.copy(), np.zeros(9), ff, Mode.HOLD, False, np.zeros(6))
         return self._bounded(cmd, self._last_good, fresh=False)
 
     def _rate_from(self, theta: np.ndarray) -> None:
@@ -351,7 +352,7 @@ class LeadThrough:
             self._b[k] = b
         self._n_walls = len(self._wall_list)
 
-    def _step(self, theta: np.ndarray, tau: np.ndarray) -> GuardCommand:
+    def _step(self, theta: np.ndarray, tau: np.ndarray) -> DriveCommand:
         s = self.stream
         w, std, band, _ = s.update(theta, tau)
         J, M, h, thd = s.J, s.M, s.h, s.theta_dot
@@ -367,22 +368,22 @@ class LeadThrough:
             raise InputError("the Jacobian is singular here", value=info,
                              valid="a pose off the singularities")
         self._sc[kern.PORT] += power * self.dt
-        if self.mode == "hold":
+        if self.mode == Mode.HOLD:
             self._above = self._above + 1 if beyond else 0
             if self._above >= self.start_ticks:
-                self.mode = "lead"
+                self.mode = Mode.LEAD
                 self._still = 0
                 self._slow_update(at_once=True)
             else:
                 w_in[:] = 0.0
-        elif self.mode == "lead" and self._wu.staged is not None:
+        elif self.mode == Mode.LEAD and self._wu.staged is not None:
             self._found(self._wu.middle())  # the slow update's middle stage
-        elif self.mode == "lead" and self._wu.pending is not None:
+        elif self.mode == Mode.LEAD and self._wu.pending is not None:
             self._walls = self._wu.second()  # and its last
-        elif self.mode == "lead" and self._tick % self.slow_every == 0:
+        elif self.mode == Mode.LEAD and self._tick % self.slow_every == 0:
             self._slow_update()
         self._admittance(w_in)
-        if self.mode == "lead":
+        if self.mode == Mode.LEAD:
             self._tick_lead(w_in)
         self._tick += 1
         return self._command(J, M, h, thd, theta, w)
@@ -393,7 +394,7 @@ class LeadThrough:
         appears suddenly (the clearance's closest pair changing) is met at once, not
         braked into; one approached smoothly is met early (lead_walls.HORIZON), gently
         (lead_walls.WALL_RATE)."""
-        wish = self._psi_dot_target if self.mode == "lead" else np.zeros(3)
+        wish = self._psi_dot_target if self.mode == Mode.LEAD else np.zeros(3)
         kern.admittance(w_in, self.v, self.psi_dot, wish, self.mass, self.damping, self.dt,
                         self._accel_cap, self._speed_cap, CRANK_ACCELERATION * self.dt,
                         self._sc)
@@ -413,7 +414,7 @@ class LeadThrough:
                  and _norm(self.v[3:]) < REST_SPEED[1])
         self._still = self._still + 1 if (still and not w_in.any()) else 0
         if self._still >= self.rest_ticks and not self.psi_dot.any():
-            self.mode, self._above = "hold", 0
+            self.mode, self._above = Mode.HOLD, 0
             self.v[:] = 0.0
             self._psi_dot_target[:] = 0.0
             self._walls = []
@@ -425,7 +426,7 @@ class LeadThrough:
         every stage ``at_once`` (the guided motion's first tick; an update every tick
         or two)."""
         args = (self.p_ref, self.R_ref, self.psi_ref, self.v, self.psi_dot,
-                self._tick * self.dt, self.mode == "lead")
+                self._tick * self.dt, self.mode == Mode.LEAD)
         if at_once or self.slow_every < 3:
             self._anchor_theta, found = self._wu.update(*args)
             self._found(found)
@@ -464,23 +465,23 @@ class LeadThrough:
 
     # ------------------------------------------------------------------ command
     def _command(self, J: np.ndarray, M: np.ndarray, h: np.ndarray, thd: np.ndarray,
-                 theta: np.ndarray, w: np.ndarray) -> GuardCommand:
+                 theta: np.ndarray, w: np.ndarray) -> DriveCommand:
         has_anchor = self._anchor_theta is not None  # this tick's slow update solved it
         anchor = self._anchor_theta if self._anchor_theta is not None else self._no_anchor
         ff = np.empty(9)
-        kern.command(J, M, h, thd, self.v, self.psi_dot, self.mode == "lead",
+        kern.command(J, M, h, thd, self.v, self.psi_dot, self.mode == Mode.LEAD,
                      self._theta_dot_ref, self.p_ref, self.R_ref, self.psi_ref,
                      self.theta_ref, anchor, has_anchor, self.tool, self.rate_cap, self.dt,
                      self._viscous, self._coulomb, self._cspeed, COMMAND_SHARE * self.cap,
                      ff)
         self._anchor_theta = None
         self._last_ff = ff
-        contact = bool(self.mode == "lead" or self._above > 0)
-        return self._bounded(GuardCommand(self.theta_ref.copy(), self._theta_dot_ref.copy(),
+        contact = bool(self.mode == Mode.LEAD or self._above > 0)
+        return self._bounded(DriveCommand(self.theta_ref.copy(), self._theta_dot_ref.copy(),
                                           ff, self.mode, contact, w), theta)
 
-    def _bounded(self, cmd: GuardCommand, theta: np.ndarray, fresh: bool = True
-                 ) -> GuardCommand:
+    def _bounded(self, cmd: DriveCommand, theta: np.ndarray, fresh: bool = True
+                 ) -> DriveCommand:
         """``cmd`` with the drive's whole command (tau_ff + PD) within the envelope, given
         its gains (the drive's rate feedback: the encoder's difference; ``fresh``: this
         tick's reading, else the last good one and its rate)."""

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from sixplus3.interaction.guard import ContactGuard
-from sixplus3.interaction.guard_parts import COMMAND_SHARE
+from sixplus3.interaction.guard_parts import COMMAND_SHARE, DriveCommand, Mode, TickController
 from sixplus3.robot_description.robot import Robot
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -53,7 +53,9 @@ def commands(cmds: list, theta: np.ndarray, kp: float, kd: float) -> np.ndarray:
 
 
 def test_nobody_there_the_guard_follows_the_file_to_its_end(guard, recorded) -> None:
+    assert isinstance(guard, TickController)
     cmds = replay(guard, recorded["quiet_theta"], recorded["quiet_tau"])
+    assert all(type(c) is DriveCommand and isinstance(c.mode, Mode) for c in cmds)
     np.testing.assert_array_equal(np.array([c.tau_ff for c in cmds]), recorded["quiet_ff"])
     assert not any(c.contact for c in cmds)
     modes = [c.mode for c in cmds]
@@ -117,8 +119,10 @@ def test_lead_through_leads_a_pull_within_its_envelope(recorded) -> None:
 
     kp, kd = float(recorded["lead_kp"]), float(recorded["lead_kd"])
     lt = LeadThrough(Robot.default(), RATE, drive_gains=(kp, kd))
+    assert isinstance(lt, TickController)
     theta, tau = recorded["lead_theta"], recorded["lead_tau"]
     cmds = [lt.step(th, ta) for th, ta in zip(theta, tau, strict=True)]
+    assert all(type(c) is DriveCommand and isinstance(c.mode, Mode) for c in cmds)
     np.testing.assert_array_equal(np.array([c.tau_ff for c in cmds]), recorded["lead_ff"])
     np.testing.assert_array_equal(np.array([c.theta_dot_ref for c in cmds]),
                                   recorded["lead_rate"])
@@ -128,3 +132,11 @@ def test_lead_through_leads_a_pull_within_its_envelope(recorded) -> None:
     assert float(recorded["lead_moved"]) > 0.03  # the recording: the hand moved it 4 cm
     applied = commands(cmds, theta, kp, kd)
     assert np.abs(applied).max() <= COMMAND_SHARE * lt.lim.torque + 1e-9
+
+
+def test_a_command_names_its_mode_from_the_enum() -> None:
+    z = np.zeros(9)
+    cmd = DriveCommand(z, z, z, "hold", False, np.zeros(6))
+    assert cmd.mode is Mode.HOLD and cmd.mode == "hold" and f"{cmd.mode}" == "hold"
+    with pytest.raises(ValueError):
+        DriveCommand(z, z, z, "hurry", False, np.zeros(6))
