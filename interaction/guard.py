@@ -173,15 +173,10 @@ class ContactGuard:
         judged = judged_limits(self.robot, Limits(**rep.limits)) if rep.limits else self.lim
         tables = path_tables(self.robot, rep, self.rate, judged, share, self.gain,
                              self.prior, self.n_sigma, torque_noise, parameter_cov)
+        #: the frozen tables of the path (guard_tables.PathTables: the reference, the
+        #: dynamics along it, the stop table, the thresholds), computed once
+        self.tables = tables
         self.n = len(tables.theta)
-        self.theta, self.theta_d, self.M, self.g = (tables.theta, tables.theta_d, tables.M,
-                                                    tables.g)
-        self.a, self.b, self.c, self.D, self.J = (tables.a, tables.b, tables.c, tables.D,
-                                                  tables.J)
-        self.b_cross = tables.b_cross
-        self.vnorm, self.beta = tables.vnorm, tables.beta
-        self.thr_base, self.thr_g, self.thr_k = tables.thr_base, tables.thr_g, tables.thr_k
-        self.thr_p, self.thr_a = tables.thr_p, tables.thr_a
         self.events: list[str] = []
         self.path = Path(trajectory_file)
         self.reset(drive_gains)  # the drive's gains and rate feedback (parse_drive)
@@ -195,7 +190,7 @@ class ContactGuard:
         if self.mode == Mode.FOLLOW and self._prev is not None:
             self.s = self._nearest(self.s)
             k = int(round(self.s))
-            tan = self.theta_d[k]
+            tan = self.tables.theta_d[k]
             t2 = float(tan @ tan)
             if t2 > 1e-12:
                 self.sd = min(self.sd, max(0.0, float(self._vel @ tan) / t2))
@@ -212,7 +207,7 @@ class ContactGuard:
         assert self._prev is not None
         k = int(min(max(s, 0.0), self.n - 1.0))
         lo = max(0, k - int(self.rate * 0.2))
-        d = np.abs(self.theta[lo:k + 1] - self._prev).max(axis=1)
+        d = np.abs(self.tables.theta[lo:k + 1] - self._prev).max(axis=1)
         return float(lo + int(np.argmin(d)))
 
     # ------------------------------------------------------------------ online
@@ -251,8 +246,8 @@ class ContactGuard:
         self.contact_site: str | None = None
         self._contact_t = 0.0
         self._fmax = 0.0  # the largest force estimated since the contact [N]
-        self._last_ref = self.theta[0].copy()
-        self._M_prev = self.M[0]
+        self._last_ref = self.tables.theta[0].copy()
+        self._M_prev = self.tables.M[0]
         self._sdd = 0.0
         self._retract_from = 0.0
         self._rested = False  # a contact's stop has come to rest
@@ -276,18 +271,19 @@ class ContactGuard:
         def at(arr: np.ndarray) -> np.ndarray:
             return (1.0 - f) * arr[i] + f * arr[j]
 
-        th = at(self.theta) + self._offset
-        ff = at(self.a) * sdd + at(self.b) * self.sd ** 2 + at(self.g)
+        tb = self.tables
+        th = at(tb.theta) + self._offset
+        ff = at(tb.a) * sdd + at(tb.b) * self.sd ** 2 + at(tb.g)
         cap = self.lim.torque
         ff = np.clip(np.nan_to_num(ff, nan=0.0), -cap, cap)
         self._last_ref = th
-        return DriveCommand(th, at(self.theta_d) * self.sd, ff, mode, self._contact, wrench)
+        return DriveCommand(th, at(tb.theta_d) * self.sd, ff, mode, self._contact, wrench)
 
     def _safe_hold(self, why: str) -> DriveCommand:
         if not self.events or self.events[-1] != why:
             self.events.append(f"t={self.t:.4f} s: {why}")
         self.mode, self.sd = Mode.HOLD, 0.0
-        g = np.clip(self._at(self.g), -self.lim.torque, self.lim.torque)
+        g = np.clip(self._at(self.tables.g), -self.lim.torque, self.lim.torque)
         return DriveCommand(self._last_ref.copy(), np.zeros(9), g, Mode.HOLD, self._contact,
                             np.zeros(6))
 
@@ -327,13 +323,13 @@ class ContactGuard:
                                    f"{self._since_good} tick(s)")
         span, self._since_good = max(1, self._since_good), 0
         if self._prev is None:  # the first tick: no torque has acted yet
-            gap = float(np.abs(th - self.theta[0]).max())
+            gap = float(np.abs(th - self.tables.theta[0]).max())
             if gap > START_TOL:  # the file runs only from its start (the feed's check)
                 return self._safe_hold(f"the first reading is {gap:.4f} rad from the "
                                        f"file's start (tolerance {START_TOL:g} rad): not "
                                        "starting")
             self._prev = th.copy()
-            self._p0 = self.M[0] @ self._vel
+            self._p0 = self.tables.M[0] @ self._vel
             self.t += dt
             return self._advance(False, np.zeros(6))
         # the encoder's difference: the rate at t - dt/2 (over the ticks since the last
@@ -343,7 +339,7 @@ class ContactGuard:
             self._rates.update(self._vel)
         self._prev = th.copy()
         k = int(round(min(max(self.s, 0.0), self.n - 1.0)))
-        M = self.M[k]
+        M = self.tables.M[k]
         p = M @ self._vel
         if self._p0 is None:
             self._p0 = p.copy()
@@ -351,11 +347,12 @@ class ContactGuard:
         # speed sm (c_k sm^2), and its slope times the rest of the measured rate (a drive
         # that lags, saturates or is pushed; not the reference's speed, which a stop or a
         # retract changes at once)
-        tan = self.theta_d[k]
+        tan = self.tables.theta_d[k]
         t2 = float(tan @ tan)
         sm = float(self._vel @ tan) / t2 if t2 > 1e-12 else 0.0
         self._sm = sm
-        h = (self.c[k] * sm ** 2 + sm * (self.D[k] @ (self._vel - sm * tan)) + self.g[k]
+        tb = self.tables
+        h = (tb.c[k] * sm ** 2 + sm * (tb.D[k] @ (self._vel - sm * tan)) + tb.g[k]
              + self.robot.motors.friction(self._vel))
         mdot = (M - self._M_prev) @ self._vel / dt
         self._M_prev = M
@@ -367,13 +364,13 @@ class ContactGuard:
         thr_site, thr = thresholds(self, k, self._motion)
         over = bool(np.any(np.abs(self._r) > thr))
         self._over = self._over + 1 if over else 0
-        full = self.J[k].T @ self._r  # (wrench at the platform centre, crank torques)
+        full = self.tables.J[k].T @ self._r  # (wrench at the platform centre, crank torques)
         wrench = full[:6]
         if (self._over >= DEBOUNCE and not self._contact
                 and self.mode in (Mode.FOLLOW, Mode.STOP)):
             self._contact = True
             self._contact_t = self.t
-            self.contact_site = contact_site(full, np.abs(self.J[k]).T @ thr_site)
+            self.contact_site = contact_site(full, np.abs(self.tables.J[k]).T @ thr_site)
             self._stop_from_measured()
             self.events.append(f"t={self.t:.4f} s: contact at {self.contact_site}, joint "
                                f"residual {np.abs(self._r).max():.3f} N m; stopping")
@@ -382,7 +379,7 @@ class ContactGuard:
         if (self._contact and self.contact_site == "the platform" and self.mode == Mode.STOP
               and self.t - self._contact_t <= SITE_WINDOW
               and float(np.linalg.norm(full[0:3])) >= 0.5 * self._fmax
-              and contact_site(full, np.abs(self.J[k]).T @ thr_site) == "a leg"):
+              and contact_site(full, np.abs(self.tables.J[k]).T @ thr_site) == "a leg"):
             # the crank torques grow with the force: a leg's shows within a few ticks
             self.contact_site = "a leg"
             self.events.append(f"t={self.t:.4f} s: the contact is on a leg (the residual's "
@@ -423,14 +420,15 @@ class ContactGuard:
             # the joint speed along the path, sigma = sd |theta'(s)|, falls at the table's
             # beta (control/gate/stop.py), or faster where the torque limits allow it at
             # the stop's own path speed; sd follows from it where the path goes on
-            beta = max(float(self.beta[k]), deceleration_at(
-                self.a[k], self.b_cross[k], self.g[k], self.theta_d[k], self.sd,
-                self.lim.torque, self.lim.acceleration))
-            v0 = float(self._at(self.vnorm))
+            tb = self.tables
+            beta = max(float(tb.beta[k]), deceleration_at(
+                tb.a[k], tb.b_cross[k], tb.g[k], tb.theta_d[k], self.sd, self.lim.torque,
+                self.lim.acceleration))
+            v0 = float(self._at(self.tables.vnorm))
             sigma = max(0.0, self.sd * v0 - beta * v0 * dt)
             s_new = min(self.n - 1.0, self.s + self.rate * dt * self.sd)
             self.s = s_new
-            v1 = float(self._at(self.vnorm))
+            v1 = float(self._at(self.tables.vnorm))
             sd_new = min(sigma / v1, STOP_SD_MAX) if v1 > 1e-9 and sigma > 0 else 0.0
             # never ahead of the robot: an impact (or the person) that slowed the
             # platform below the stop's profile is not undone by a stiff drive dragging
@@ -445,7 +443,7 @@ class ContactGuard:
                 # later reference (the retract runs parallel to the path)
                 self._rested = True
                 assert self._prev is not None
-                self._offset = np.clip(self._prev - self._at(self.theta), -REST_OFFSET,
+                self._offset = np.clip(self._prev - self._at(self.tables.theta), -REST_OFFSET,
                                        REST_OFFSET)
             if self.sd <= 0.0:
                 # at rest: the force present is the residual beyond its threshold for
@@ -464,7 +462,7 @@ class ContactGuard:
                                        "(a clamp, or a body still pressing): retracting "
                                        "along the path")
         elif self.mode == Mode.RETRACT:
-            beta = float(self.beta[k])
+            beta = float(self.tables.beta[k])
             if self.sd > -RETRACT_SPEED:
                 sdd = -beta
                 self.sd = max(-RETRACT_SPEED, self.sd - beta * dt)
@@ -479,7 +477,7 @@ class ContactGuard:
             # no harder than the table allows, and over at least SETTLE_TIME: a stiff
             # drive stopped at once from the retract's speed springs back towards the
             # person (measured: 6-8 cm/s)
-            sdd = min(float(self.beta[k]), RETRACT_SPEED / SETTLE_TIME)
+            sdd = min(float(self.tables.beta[k]), RETRACT_SPEED / SETTLE_TIME)
             self.sd = min(0.0, self.sd + sdd * dt)
             self.s = max(0.0, self.s + self.rate * dt * self.sd)
             if self.sd >= 0.0:
@@ -489,7 +487,7 @@ class ContactGuard:
         mode_out = Mode.RETRACT if self.mode == Mode.SETTLE else self.mode
         if self.mode == Mode.HOLD and self._contact and self.reaction == "yield":
             assert self._prev is not None
-            g = np.clip(self._at(self.g), -self.lim.torque, self.lim.torque)
+            g = np.clip(self._at(self.tables.g), -self.lim.torque, self.lim.torque)
             self._last_ref = self._prev.copy()
             return DriveCommand(self._prev.copy(), np.zeros(9), g, Mode.HOLD, True, wrench)
         return self._command(sdd, mode_out, wrench)

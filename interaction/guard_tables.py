@@ -159,11 +159,12 @@ def thresholds(g: Any, k: int, motion: deque[tuple[float, float]]
     robot follows a stop's reference a few ticks late, its motion outlasts the
     reference's); the first leaves out the stop's own acceleration, which the guard's
     stop after a contact adds to every joint alike."""
-    motion.append((max(g.sd ** 2, abs(g._sdd) / max(float(g.beta[k]), 1.0)), abs(g._sdd)))
+    tb = g.tables
+    motion.append((max(g.sd ** 2, abs(g._sdd) / max(float(tb.beta[k]), 1.0)), abs(g._sdd)))
     f_k = max(m[0] for m in motion)
     f_a = max(m[1] for m in motion)
-    thr_site = g.thr_base + g.thr_g[k] + g.thr_k[k] * f_k
-    return thr_site, thr_site + g.thr_a[k] * f_a
+    thr_site = tb.thr_base + tb.thr_g[k] + tb.thr_k[k] * f_k
+    return thr_site, thr_site + tb.thr_a[k] * f_a
 
 
 def deceleration_at(a: np.ndarray, b_cross: np.ndarray, g: np.ndarray,

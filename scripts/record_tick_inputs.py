@@ -73,7 +73,7 @@ def main() -> None:
         shutil.copyfile(res.csv, path)
     guard = ContactGuard(robot, path, 1000.0, drive_gains=DRIVE)
     quiet = record(guard, path, robot, None)
-    at = float(np.argmax(np.linalg.norm(guard.theta_d, axis=1))) / 1000.0
+    at = float(np.argmax(np.linalg.norm(guard.tables.theta_d, axis=1))) / 1000.0
     hand = contact_from_dict({"region": "hand", "kind": "free", "at": round(at, 3)})
     touch = record(guard, path, robot, hand)
     lead = run_lead(robot, robot, hand_from_dict(PULL), kp=LEAD_DRIVE[0], kd=LEAD_DRIVE[1])

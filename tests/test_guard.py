@@ -131,8 +131,8 @@ def test_step_never_raises_and_stays_in_the_envelope(hand_plan) -> None:
 
     g = ContactGuard(None, hand_plan)  # the robot from the file's header
     cap = g.lim.torque
-    th0 = g.theta[0]
-    cmd = g.step(th0, g.b[0] + g.g[0])
+    th0 = g.tables.theta[0]
+    cmd = g.step(th0, g.tables.b[0] + g.tables.g[0])
     assert cmd.mode == "follow" and cmd.tau_ff.shape == (9,) and cmd.wrench.shape == (6,)
     rng = np.random.default_rng(0)
     bad_inputs = [np.full(9, np.nan), np.zeros(8), "nonsense", None, th0 + 1.0,
@@ -185,8 +185,8 @@ def test_the_guard_stops_by_its_own_table_not_the_files(hand_plan) -> None:
     header, _ = parse(hand_plan.read_bytes())
     g = ContactGuard(None, hand_plan)
     filed = np.asarray(header["stop"]["deceleration"])
-    assert np.all(g.beta >= filed * (1 - 1e-9))
-    np.testing.assert_allclose(g.beta, filed, rtol=1e-4)
+    assert np.all(g.tables.beta >= filed * (1 - 1e-9))
+    np.testing.assert_allclose(g.tables.beta, filed, rtol=1e-4)
 
 
 def test_a_file_of_another_robot_is_refused(hand_plan) -> None:
@@ -208,7 +208,7 @@ def test_after_a_stop_hold_keeps_the_pose_and_yield_gives_way(hand_plan, reactio
     from sixplus3.interaction.guard import ContactGuard
 
     g = ContactGuard(ROBOT, hand_plan, reaction=reaction)
-    th, tau = g.theta, g.b + g.g
+    th, tau = g.tables.theta, g.tables.b + g.tables.g
     k = 0
     cmd = g.step(th[0], tau[0])
     for k in range(1, 60):  # follow the plan with the plan's own torques
@@ -222,11 +222,11 @@ def test_after_a_stop_hold_keeps_the_pose_and_yield_gives_way(hand_plan, reactio
     # the robot stayed put while its reference moved on: blocked, so a clamp: retract
     assert cmd.contact and cmd.mode in ("stop", "retract")
     for _ in range(400):  # the force gone, the robot where the reference is
-        cmd = g.step(cmd.theta_ref, g.g[min(int(g.s), g.n - 1)])
+        cmd = g.step(cmd.theta_ref, g.tables.g[min(int(g.s), g.n - 1)])
     assert cmd.mode == "hold", g.events
     held = cmd.theta_ref.copy()
     moved = held + 0.01  # pushed 10 mrad off on every joint
-    cmd = g.step(moved, g.g[min(int(g.s), g.n - 1)])
+    cmd = g.step(moved, g.tables.g[min(int(g.s), g.n - 1)])
     if reaction == "hold":
         np.testing.assert_allclose(cmd.theta_ref, held, atol=1e-12)
     else:
@@ -282,11 +282,11 @@ def test_the_velocity_slope_is_the_exact_derivative_of_the_velocity_torque(hand_
 
     def c(v: np.ndarray) -> np.ndarray:
         tau, _ = dyn.actuated_inverse_dynamics_batch(q, v, zero)
-        return tau - g.g[ks] - fr(v)
+        return tau - g.tables.g[ks] - fr(v)
 
     d = np.random.default_rng(3).normal(0.0, 2.0, (3, 9))
-    lhs = c(g.theta_d[ks] + d)
-    rhs = c(g.theta_d[ks]) + np.einsum("nij,nj->ni", g.D[ks], d) + c(d)
+    lhs = c(g.tables.theta_d[ks] + d)
+    rhs = c(g.tables.theta_d[ks]) + np.einsum("nij,nj->ni", g.tables.D[ks], d) + c(d)
     assert np.abs(lhs).max() > 0.01  # not a trivial identity
     np.testing.assert_allclose(lhs, rhs, atol=1e-9)
 
@@ -400,10 +400,10 @@ def test_the_parameters_confidence_enters_the_threshold(hand_plan) -> None:
     plain = ContactGuard(ROBOT, hand_plan)
     one = ContactGuard(ROBOT, hand_plan, parameter_cov=cov)
     four = ContactGuard(ROBOT, hand_plan, parameter_cov=(cov[0], 4.0 * cov[1]))
-    assert np.all(plain.thr_p == 0.0) and one.thr_p.max() > 0.0
-    np.testing.assert_allclose(four.thr_p, 2.0 * one.thr_p, rtol=1e-9)
-    np.testing.assert_allclose(one.thr_g - one.thr_p, 0.15 * np.abs(one.g), rtol=0,
-                               atol=1e-12)
+    assert np.all(plain.tables.thr_p == 0.0) and one.tables.thr_p.max() > 0.0
+    np.testing.assert_allclose(four.tables.thr_p, 2.0 * one.tables.thr_p, rtol=1e-9)
+    t1 = one.tables
+    np.testing.assert_allclose(t1.thr_g - t1.thr_p, 0.15 * np.abs(t1.g), rtol=0, atol=1e-12)
     rep = validate_file(hand_plan, ROBOT)
     _, _, cfg = path_tables(ROBOT, rep)
     th, thd = columns(rep.data, "pos")[:150], columns(rep.data, "vel")[:150]
@@ -435,7 +435,7 @@ def test_an_early_contact_on_a_stiff_drive_stops_within_25_ms_and_stays(
     assert rep.position is not None and rep.quaternion is not None and rep.psi is not None
     cfg = robot_ik(rep.position, rot.matrix_from_quat(rep.quaternion), rep.psi, ROBOT,
                    platform_margins=False)
-    v = tcp_velocity(cfg, g.theta_d)
+    v = tcp_velocity(cfg, g.tables.theta_d)
     k = int(np.argmax(np.linalg.norm(v, axis=1) >= speed))
     u = v[k] / np.linalg.norm(v[k])
     if across:  # turned 60 deg towards the horizontal perpendicular of the motion
@@ -475,7 +475,7 @@ def test_the_guard_survives_any_sequence_of_readings(hand_plan) -> None:
     g = ContactGuard(None, hand_plan, drive_gains=(kp, kd))
     cap = g.lim.torque
     lo, hi = g.lim.theta_min - ANGLE_SLACK, g.lim.theta_max + ANGLE_SLACK
-    path_lo, path_hi = g.theta.min(axis=0) - 0.03, g.theta.max(axis=0) + 0.03
+    path_lo, path_hi = g.tables.theta.min(axis=0) - 0.03, g.tables.theta.max(axis=0) + 0.03
 
     @settings(max_examples=1000, deadline=None, derandomize=True,
               suppress_health_check=[HealthCheck.too_slow])
@@ -485,9 +485,10 @@ def test_the_guard_survives_any_sequence_of_readings(hand_plan) -> None:
         rng = np.random.default_rng(seed)
         prev_good = None
         for k, (kind, arg) in enumerate(ticks):
-            th = g._at(g.theta)  # the robot on its reference
+            th = g._at(g.tables.theta)  # the robot on its reference
             good = kind == "good"
-            theta, tau = reading_for(kind, arg, th, g._at(g.b) * g.sd ** 2 + g._at(g.g), rng)
+            ff = g._at(g.tables.b) * g.sd ** 2 + g._at(g.tables.g)
+            theta, tau = reading_for(kind, arg, th, ff, rng)
             cmd = g.step(theta, tau)
             for a in (cmd.theta_ref, cmd.theta_dot_ref, cmd.tau_ff, cmd.wrench):
                 assert np.all(np.isfinite(a))
@@ -497,7 +498,7 @@ def test_the_guard_survives_any_sequence_of_readings(hand_plan) -> None:
                 assert np.all(cmd.theta_ref >= path_lo) and np.all(cmd.theta_ref <= path_hi)
             if k == 0 and not good:
                 assert cmd.mode == "hold" and not cmd.theta_dot_ref.any()
-                np.testing.assert_allclose(cmd.theta_ref, g.theta[0])
+                np.testing.assert_allclose(cmd.theta_ref, g.tables.theta[0])
             if good and prev_good is not None:
                 vel = (np.asarray(theta) - prev_good) * g.rate
                 total = (cmd.tau_ff + kp * (cmd.theta_ref - theta)
@@ -519,8 +520,8 @@ def test_a_1e300_first_reading_gives_the_guard_no_reference_there(hand_plan) -> 
     g = ContactGuard(None, hand_plan)
     cmd = g.step([1e300] * 9, np.zeros(9))
     assert cmd.mode == "hold" and any("not a reading" in e for e in g.events)
-    cmd = g.step(g.theta[0], g.b[0] + g.g[0])
-    assert np.abs(cmd.theta_ref - g.theta[0]).max() < 1e-6
+    cmd = g.step(g.tables.theta[0], g.tables.b[0] + g.tables.g[0])
+    assert np.abs(cmd.theta_ref - g.tables.theta[0]).max() < 1e-6
 
 
 def test_under_a_site_torque_limit_the_guard_refuses_or_stays_within_it(hand_plan,
@@ -570,9 +571,10 @@ def test_the_guard_knows_whether_its_robot_was_identified(hand_plan) -> None:
     known = ContactGuard(ROBOT, hand_plan, parameter_cov=cov)
     assert not plain.identified and plain.prior == UNIDENTIFIED
     assert known.identified and known.prior == IDENTIFIED
-    assert np.all(plain.thr_base > known.thr_base)
-    assert np.all(plain.thr_k >= known.thr_k) and np.all(plain.thr_a >= known.thr_a)
-    assert np.all(plain.thr_g >= known.thr_g - known.thr_p)
+    tp, tk = plain.tables, known.tables
+    assert np.all(tp.thr_base > tk.thr_base)
+    assert np.all(tp.thr_k >= tk.thr_k) and np.all(tp.thr_a >= tk.thr_a)
+    assert np.all(tp.thr_g >= tk.thr_g - tk.thr_p)
     # an explicit model error overrides the prior's model share (not its friction)
     assert ContactGuard(ROBOT, hand_plan, model_error=0.2).prior.model_error == 0.2
 

@@ -60,7 +60,7 @@ def test_nobody_there_the_guard_follows_the_file_to_its_end(guard, recorded) -> 
     assert not any(c.contact for c in cmds)
     modes = [c.mode for c in cmds]
     assert modes[0] == "follow" and modes[-1] == "done" and set(modes) == {"follow", "done"}
-    np.testing.assert_array_equal(cmds[-1].theta_ref, guard.theta[-1])
+    np.testing.assert_array_equal(cmds[-1].theta_ref, guard.tables.theta[-1])
     limit = guard.lim.torque
     applied = commands(cmds, recorded["quiet_theta"], guard.kp, guard.kd)
     assert np.abs(applied).max() <= COMMAND_SHARE * limit + 1e-9

@@ -81,7 +81,7 @@ def warm(robot: Any, trajectory: str | Path | None = None,
             g = ContactGuard(robot, trajectory, drive_gains=(3000.0, 30.0))
             for k in range(30):
                 k_ = min(k, g.n - 1)
-                g.step(g.theta[k_], g.b[k_] + g.g[k_])
+                g.step(g.tables.theta[k_], g.tables.b[k_] + g.tables.g[k_])
 
         step("the contact guard", guard)
     return secs
