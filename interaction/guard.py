@@ -56,6 +56,7 @@ from sixplus3.interaction.guard_tables import (
     IDENTIFIED,
     LAG,
     UNIDENTIFIED,
+    GuardState,
     ModelPrior,
     deceleration_at,
     path_tables,
@@ -109,10 +110,6 @@ class ContactGuard:
     rad) and the torque applied over the previous tick (9, N m; at the first call the
     file's first feed-forward)."""
 
-    s: float  #: path position [samples of the file]
-    sd: float  #: path speed [file seconds per second]
-    mode: Mode
-    _vel: np.ndarray
 
     def __init__(self, robot: Robot | None, trajectory_file: str | Path,
                  rate_hz: float = 1000.0, gain: float = GAIN,
@@ -177,7 +174,6 @@ class ContactGuard:
         #: dynamics along it, the stop table, the thresholds), computed once
         self.tables = tables
         self.n = len(tables.theta)
-        self.events: list[str] = []
         self.path = Path(trajectory_file)
         self.reset(drive_gains)  # the drive's gains and rate feedback (parse_drive)
 
@@ -187,27 +183,27 @@ class ContactGuard:
         angles, and the measured path speed (the rate projected on the path's tangent),
         never faster than the reference's.  An impact that has already slowed the
         platform is not undone by a reference that runs on ahead of it."""
-        if self.mode == Mode.FOLLOW and self._prev is not None:
-            self.s = self._nearest(self.s)
-            k = int(round(self.s))
+        if self.st.mode == Mode.FOLLOW and self.st.prev is not None:
+            self.st.s = self._nearest(self.st.s)
+            k = int(round(self.st.s))
             tan = self.tables.theta_d[k]
             t2 = float(tan @ tan)
             if t2 > 1e-12:
-                self.sd = min(self.sd, max(0.0, float(self._vel @ tan) / t2))
-        self.mode = Mode.STOP
+                self.st.sd = min(self.st.sd, max(0.0, float(self.st.vel @ tan) / t2))
+        self.st.mode = Mode.STOP
 
     def _blocked(self) -> bool:
         """The measured angles lag the reference by more than BLOCKED while the
         observer sees a force: the platform is held."""
-        return (self._prev is not None and self._over > 0
-                and float(np.abs(self._last_ref - self._prev).max()) > BLOCKED)
+        return (self.st.prev is not None and self.st.over > 0
+                and float(np.abs(self.st.last_ref - self.st.prev).max()) > BLOCKED)
 
     def _nearest(self, s: float) -> float:
         """The path position, at or before ``s``, nearest to the measured angles."""
-        assert self._prev is not None
+        assert self.st.prev is not None
         k = int(min(max(s, 0.0), self.n - 1.0))
         lo = max(0, k - int(self.rate * 0.2))
-        d = np.abs(self.tables.theta[lo:k + 1] - self._prev).max(axis=1)
+        d = np.abs(self.tables.theta[lo:k + 1] - self.st.prev).max(axis=1)
         return float(lo + int(np.argmin(d)))
 
     # ------------------------------------------------------------------ online
@@ -217,45 +213,33 @@ class ContactGuard:
         if drive_gains is not None:
             self.kp, self.kd, kind, tau = parse_drive(drive_gains)
             self._drive_rate = (kind, tau)
-        self.events = []
-        #: the drive's rate as the guard models it, and how far the drive's may be from
-        #: it (guard_parts.DriveRate: the bound on the whole command covers it)
-        self._rates = DriveRate(self.rate, self.robot, *self._drive_rate)
+        # the state: the drive's rate as the guard models it, and how far the drive's
+        # may be from it (guard_parts.DriveRate: the bound on the whole command covers
+        # it), the path position, the observer, the contact, the events
         self._reset()
 
     def _reset(self) -> None:
-        self.s = 0.0  # path position [samples]
-        self.sd = 1.0  # path speed [file seconds per second]
-        self.mode = Mode.FOLLOW
-        self._prev: np.ndarray | None = None
-        self._since_good = 0  # ticks since the last good reading
-  # the drive's rate: the encoder's difference
-        self._vel = np.zeros(9)
-        self._p0: np.ndarray | None = None
-        self._integral = np.zeros(9)
-        self._r = np.zeros(9)
-        self._over = 0
-        self._motion: deque[tuple[float, float]] = deque(maxlen=max(1, round(LAG * self.rate)))
-        self._saturated = 0.0
-        self._sm = 0.0  # the measured path speed (the rate along the path's tangent)
-        self._clipped = False  # the last command would have saturated the drive
-        self._since = 0.0
-        self._quiet = 0.0
-        self._contact = False
-        #: where the contact was found ("the platform" or "a leg"), once there was one
-        self.contact_site: str | None = None
-        self._contact_t = 0.0
-        self._fmax = 0.0  # the largest force estimated since the contact [N]
-        self._last_ref = self.tables.theta[0].copy()
-        self._M_prev = self.tables.M[0]
-        self._sdd = 0.0
-        self._retract_from = 0.0
-        self._rested = False  # a contact's stop has come to rest
-        self._offset = np.zeros(9)  # the measured angles less the path's, at that rest
-        self.t = 0.0
+        self.st = GuardState(
+            rates=DriveRate(self.rate, self.robot, *self._drive_rate),
+            motion=deque(maxlen=max(1, round(LAG * self.rate))),
+            last_ref=self.tables.theta[0].copy(), M_prev=self.tables.M[0])
+
+    @property
+    def events(self) -> list[str]:
+        """What the guard did and why, one line each (since the last reset)."""
+        return self.st.events
+
+    @property
+    def contact_site(self) -> str | None:
+        """Where the contact was found ("the platform" or "a leg"), once there was one."""
+        return self.st.contact_site
+
+    @property
+    def mode(self) -> Mode:
+        return self.st.mode
 
     def _at(self, arr: np.ndarray) -> np.ndarray:
-        k = min(max(self.s, 0.0), self.n - 1.0)
+        k = min(max(self.st.s, 0.0), self.n - 1.0)
         i = int(k)
         j = min(i + 1, self.n - 1)
         f = k - i
@@ -264,7 +248,7 @@ class ContactGuard:
     def _command(self, sdd: float, mode: Mode, wrench: np.ndarray) -> DriveCommand:
         """The reference at the path position s with path speed sd and acceleration
         sdd (the time-scaling feed-forward, clipped to the envelope)."""
-        k = min(max(self.s, 0.0), self.n - 1.0)
+        k = min(max(self.st.s, 0.0), self.n - 1.0)
         i = int(k)
         j, f = min(i + 1, self.n - 1), k - i
 
@@ -272,19 +256,19 @@ class ContactGuard:
             return (1.0 - f) * arr[i] + f * arr[j]
 
         tb = self.tables
-        th = at(tb.theta) + self._offset
-        ff = at(tb.a) * sdd + at(tb.b) * self.sd ** 2 + at(tb.g)
+        th = at(tb.theta) + self.st.offset
+        ff = at(tb.a) * sdd + at(tb.b) * self.st.sd ** 2 + at(tb.g)
         cap = self.lim.torque
         ff = np.clip(np.nan_to_num(ff, nan=0.0), -cap, cap)
-        self._last_ref = th
-        return DriveCommand(th, at(tb.theta_d) * self.sd, ff, mode, self._contact, wrench)
+        self.st.last_ref = th
+        return DriveCommand(th, at(tb.theta_d) * self.st.sd, ff, mode, self.st.contact, wrench)
 
     def _safe_hold(self, why: str) -> DriveCommand:
-        if not self.events or self.events[-1] != why:
-            self.events.append(f"t={self.t:.4f} s: {why}")
-        self.mode, self.sd = Mode.HOLD, 0.0
+        if not self.st.events or self.st.events[-1] != why:
+            self.st.events.append(f"t={self.st.t:.4f} s: {why}")
+        self.st.mode, self.st.sd = Mode.HOLD, 0.0
         g = np.clip(self._at(self.tables.g), -self.lim.torque, self.lim.torque)
-        return DriveCommand(self._last_ref.copy(), np.zeros(9), g, Mode.HOLD, self._contact,
+        return DriveCommand(self.st.last_ref.copy(), np.zeros(9), g, Mode.HOLD, self.st.contact,
                             np.zeros(6))
 
     def step(self, theta: object, tau: object) -> DriveCommand:
@@ -296,200 +280,200 @@ class ContactGuard:
             cmd = self._safe_hold(f"internal failure, holding: {type(exc).__name__}: "
                                   f"{str(exc)[:120]}")
         try:
-            if self.kp is None or self.kd is None or self._prev is None:
+            if self.kp is None or self.kd is None or self.st.prev is None:
                 return cmd
             # at the last good reading, the drive's rate the encoder's difference of two
             # good readings in a row (kept across a refused one), and how far the drive's
             # own rate may be from it (guard_parts.RateSpread)
-            out, wanted = within_envelope(cmd, self.kp, self.kd, self._prev,
-                                          self._rates.rate, COMMAND_SHARE * self.lim.torque,
-                                          self._rates.spread)
+            out, wanted = within_envelope(cmd, self.kp, self.kd, self.st.prev,
+                                          self.st.rates.rate, COMMAND_SHARE * self.lim.torque,
+                                          self.st.rates.spread)
             # the drive would have been at its limit without the move: saturated
-            self._clipped = wanted >= self.lim.torque
+            self.st.clipped = wanted >= self.lim.torque
             return out
         except Exception:  # noqa: BLE001
             return cmd
 
     def _step(self, got: tuple[np.ndarray, np.ndarray] | str) -> DriveCommand:
-        self._since_good += 1
+        self.st.since_good += 1
         if isinstance(got, str):
             return self._safe_hold(got)
         th, tq = got
         dt = self.dt
-        if (self._prev is not None and np.abs(th - self._prev).max()
-                > jump_bound(self.lim, dt, self._since_good)):
+        if (self.st.prev is not None and np.abs(th - self.st.prev).max()
+                > jump_bound(self.lim, dt, self.st.since_good)):
             return self._safe_hold(f"the measured angles jumped by "
-                                   f"{np.abs(th - self._prev).max():.3f} rad in "
-                                   f"{self._since_good} tick(s)")
-        span, self._since_good = max(1, self._since_good), 0
-        if self._prev is None:  # the first tick: no torque has acted yet
+                                   f"{np.abs(th - self.st.prev).max():.3f} rad in "
+                                   f"{self.st.since_good} tick(s)")
+        span, self.st.since_good = max(1, self.st.since_good), 0
+        if self.st.prev is None:  # the first tick: no torque has acted yet
             gap = float(np.abs(th - self.tables.theta[0]).max())
             if gap > START_TOL:  # the file runs only from its start (the feed's check)
                 return self._safe_hold(f"the first reading is {gap:.4f} rad from the "
                                        f"file's start (tolerance {START_TOL:g} rad): not "
                                        "starting")
-            self._prev = th.copy()
-            self._p0 = self.tables.M[0] @ self._vel
-            self.t += dt
+            self.st.prev = th.copy()
+            self.st.p0 = self.tables.M[0] @ self.st.vel
+            self.st.t += dt
             return self._advance(False, np.zeros(6))
         # the encoder's difference: the rate at t - dt/2 (over the ticks since the last
         # good reading, when readings were lost between)
-        self._vel = (th - self._prev) / (dt * span)
+        self.st.vel = (th - self.st.prev) / (dt * span)
         if span == 1:  # two good readings in a row: the drive's encoder difference
-            self._rates.update(self._vel)
-        self._prev = th.copy()
-        k = int(round(min(max(self.s, 0.0), self.n - 1.0)))
+            self.st.rates.update(self.st.vel)
+        self.st.prev = th.copy()
+        k = int(round(min(max(self.st.s, 0.0), self.n - 1.0)))
         M = self.tables.M[k]
-        p = M @ self._vel
-        if self._p0 is None:
-            self._p0 = p.copy()
+        p = M @ self.st.vel
+        if self.st.p0 is None:
+            self.st.p0 = p.copy()
         # the velocity torque at the measured rates: along the path at the measured path
         # speed sm (c_k sm^2), and its slope times the rest of the measured rate (a drive
         # that lags, saturates or is pushed; not the reference's speed, which a stop or a
         # retract changes at once)
         tan = self.tables.theta_d[k]
         t2 = float(tan @ tan)
-        sm = float(self._vel @ tan) / t2 if t2 > 1e-12 else 0.0
-        self._sm = sm
+        sm = float(self.st.vel @ tan) / t2 if t2 > 1e-12 else 0.0
+        self.st.sm = sm
         tb = self.tables
-        h = (tb.c[k] * sm ** 2 + sm * (tb.D[k] @ (self._vel - sm * tan)) + tb.g[k]
-             + self.robot.motors.friction(self._vel))
-        mdot = (M - self._M_prev) @ self._vel / dt
-        self._M_prev = M
-        step = (tq - h + mdot + self._r) * dt
-        self._integral += step
+        h = (tb.c[k] * sm ** 2 + sm * (tb.D[k] @ (self.st.vel - sm * tan)) + tb.g[k]
+             + self.robot.motors.friction(self.st.vel))
+        mdot = (M - self.st.M_prev) @ self.st.vel / dt
+        self.st.M_prev = M
+        step = (tq - h + mdot + self.st.r) * dt
+        self.st.integral += step
         # the momentum of the measured rate is the one half a tick ago: compare it with
         # the integral up to then (no lag of half a tick: K dt/2 M thetaddot otherwise)
-        self._r = self.gain * (p - self._p0 - (self._integral - 0.5 * step))
-        thr_site, thr = thresholds(self, k, self._motion)
-        over = bool(np.any(np.abs(self._r) > thr))
-        self._over = self._over + 1 if over else 0
-        full = self.tables.J[k].T @ self._r  # (wrench at the platform centre, crank torques)
+        self.st.r = self.gain * (p - self.st.p0 - (self.st.integral - 0.5 * step))
+        thr_site, thr = thresholds(self, k, self.st.motion)
+        over = bool(np.any(np.abs(self.st.r) > thr))
+        self.st.over = self.st.over + 1 if over else 0
+        full = self.tables.J[k].T @ self.st.r  # (wrench at the platform centre, crank torques)
         wrench = full[:6]
-        if (self._over >= DEBOUNCE and not self._contact
-                and self.mode in (Mode.FOLLOW, Mode.STOP)):
-            self._contact = True
-            self._contact_t = self.t
-            self.contact_site = contact_site(full, np.abs(self.tables.J[k]).T @ thr_site)
+        if (self.st.over >= DEBOUNCE and not self.st.contact
+                and self.st.mode in (Mode.FOLLOW, Mode.STOP)):
+            self.st.contact = True
+            self.st.contact_t = self.st.t
+            self.st.contact_site = contact_site(full, np.abs(self.tables.J[k]).T @ thr_site)
             self._stop_from_measured()
-            self.events.append(f"t={self.t:.4f} s: contact at {self.contact_site}, joint "
-                               f"residual {np.abs(self._r).max():.3f} N m; stopping")
-        if self._contact and self.t - self._contact_t <= SITE_WINDOW:
-            self._fmax = max(self._fmax, float(np.linalg.norm(full[0:3])))
-        if (self._contact and self.contact_site == "the platform" and self.mode == Mode.STOP
-              and self.t - self._contact_t <= SITE_WINDOW
-              and float(np.linalg.norm(full[0:3])) >= 0.5 * self._fmax
+            self.st.events.append(f"t={self.st.t:.4f} s: contact at {self.st.contact_site}, joint "
+                               f"residual {np.abs(self.st.r).max():.3f} N m; stopping")
+        if self.st.contact and self.st.t - self.st.contact_t <= SITE_WINDOW:
+            self.st.fmax = max(self.st.fmax, float(np.linalg.norm(full[0:3])))
+        if (self.st.contact and self.st.contact_site == "the platform" and self.st.mode == Mode.STOP
+              and self.st.t - self.st.contact_t <= SITE_WINDOW
+              and float(np.linalg.norm(full[0:3])) >= 0.5 * self.st.fmax
               and contact_site(full, np.abs(self.tables.J[k]).T @ thr_site) == "a leg"):
             # the crank torques grow with the force: a leg's shows within a few ticks
-            self.contact_site = "a leg"
-            self.events.append(f"t={self.t:.4f} s: the contact is on a leg (the residual's "
+            self.st.contact_site = "a leg"
+            self.st.events.append(f"t={self.st.t:.4f} s: the contact is on a leg (the residual's "
                                "crank torques)")
         # a drive held at its limit: this robot cannot follow the plan (it needs more
         # torque than the model says); the platform leaves the planned (and PFL-checked)
         # path, so stop along it
-        sat = ((self._clipped or bool(np.any(np.abs(tq) >= SATURATED_SHARE * self.lim.torque)))
-               and float(np.abs(self._last_ref - th).max()) > BLOCKED)
-        self._saturated = self._saturated + dt if sat else 0.0
-        if self._saturated >= SATURATED_FOR and self.mode == Mode.FOLLOW:
+        sat = ((self.st.clipped or bool(np.any(np.abs(tq) >= SATURATED_SHARE * self.lim.torque)))
+               and float(np.abs(self.st.last_ref - th).max()) > BLOCKED)
+        self.st.saturated = self.st.saturated + dt if sat else 0.0
+        if self.st.saturated >= SATURATED_FOR and self.st.mode == Mode.FOLLOW:
             self._stop_from_measured()
-            self.events.append(f"t={self.t:.4f} s: a drive saturated for "
-                               f"{1e3 * self._saturated:.0f} ms: this robot cannot follow "
+            self.st.events.append(f"t={self.st.t:.4f} s: a drive saturated for "
+                               f"{1e3 * self.st.saturated:.0f} ms: this robot cannot follow "
                                "the plan; stopping")
-        self.t += dt
+        self.st.t += dt
         return self._advance(over, wrench)
 
     def _advance(self, over: bool, wrench: np.ndarray) -> DriveCommand:
         dt = self.dt
-        k = int(round(min(max(self.s, 0.0), self.n - 1.0)))
+        k = int(round(min(max(self.st.s, 0.0), self.n - 1.0)))
         sdd = 0.0
-        if self.mode == Mode.FOLLOW:
-            self.s += self.rate * dt * self.sd
-            if self.s >= self.n - 1:
-                self.s, self.sd, self.mode = self.n - 1.0, 0.0, Mode.DONE
-        elif self.mode == Mode.STOP and self._blocked():
+        if self.st.mode == Mode.FOLLOW:
+            self.st.s += self.rate * dt * self.st.sd
+            if self.st.s >= self.n - 1:
+                self.st.s, self.st.sd, self.st.mode = self.n - 1.0, 0.0, Mode.DONE
+        elif self.st.mode == Mode.STOP and self._blocked():
             # the platform no longer follows its reference while the force is on: a
             # body is held against something (a clamp). Advancing the reference would
             # only press harder: take the reference back to where the robot is, at rest
-            self.s = self._nearest(self.s)
-            self.sd, self._since, self._quiet = 0.0, 0.0, 0.0
-            self._retract_from = self.s
-            self.mode = Mode.RETRACT
-            self.events.append(f"t={self.t:.4f} s: blocked while stopping (a clamp): "
+            self.st.s = self._nearest(self.st.s)
+            self.st.sd, self.st.since, self.st.quiet = 0.0, 0.0, 0.0
+            self.st.retract_from = self.st.s
+            self.st.mode = Mode.RETRACT
+            self.st.events.append(f"t={self.st.t:.4f} s: blocked while stopping (a clamp): "
                                "retracting along the path")
-        elif self.mode == Mode.STOP:
+        elif self.st.mode == Mode.STOP:
             # the joint speed along the path, sigma = sd |theta'(s)|, falls at the table's
             # beta (control/gate/stop.py), or faster where the torque limits allow it at
             # the stop's own path speed; sd follows from it where the path goes on
             tb = self.tables
             beta = max(float(tb.beta[k]), deceleration_at(
-                tb.a[k], tb.b_cross[k], tb.g[k], tb.theta_d[k], self.sd, self.lim.torque,
+                tb.a[k], tb.b_cross[k], tb.g[k], tb.theta_d[k], self.st.sd, self.lim.torque,
                 self.lim.acceleration))
             v0 = float(self._at(self.tables.vnorm))
-            sigma = max(0.0, self.sd * v0 - beta * v0 * dt)
-            s_new = min(self.n - 1.0, self.s + self.rate * dt * self.sd)
-            self.s = s_new
+            sigma = max(0.0, self.st.sd * v0 - beta * v0 * dt)
+            s_new = min(self.n - 1.0, self.st.s + self.rate * dt * self.st.sd)
+            self.st.s = s_new
             v1 = float(self._at(self.tables.vnorm))
             sd_new = min(sigma / v1, STOP_SD_MAX) if v1 > 1e-9 and sigma > 0 else 0.0
             # never ahead of the robot: an impact (or the person) that slowed the
             # platform below the stop's profile is not undone by a stiff drive dragging
             # it back up to the reference (the feed-forward keeps the table's rate)
-            sd_new = min(sd_new, max(0.0, self._sm))
-            sdd = max((sd_new - self.sd) / dt, -beta * max(v0, 1e-9) / max(v1, 1e-9))
-            self.sd = sd_new
-            if self.sd <= 0.0 and self._contact and not self._rested:
+            sd_new = min(sd_new, max(0.0, self.st.sm))
+            sdd = max((sd_new - self.st.sd) / dt, -beta * max(v0, 1e-9) / max(v1, 1e-9))
+            self.st.sd = sd_new
+            if self.st.sd <= 0.0 and self.st.contact and not self.st.rested:
                 # at rest after a contact: rest where the robot is. An impact pushes the
                 # platform off the path; a stiff drive pulling it back onto the path
                 # would move it towards the person again. The offset stays with every
                 # later reference (the retract runs parallel to the path)
-                self._rested = True
-                assert self._prev is not None
-                self._offset = np.clip(self._prev - self._at(self.tables.theta), -REST_OFFSET,
+                self.st.rested = True
+                assert self.st.prev is not None
+                self.st.offset = np.clip(self.st.prev - self._at(self.tables.theta), -REST_OFFSET,
                                        REST_OFFSET)
-            if self.sd <= 0.0:
+            if self.st.sd <= 0.0:
                 # at rest: the force present is the residual beyond its threshold for
                 # DEBOUNCE ticks (as a contact is found; one tick over is noise)
-                self._since += dt
-                self._quiet = self._quiet + dt if self._over < DEBOUNCE else 0.0
-                if self._quiet >= RELEASED or (self._since >= CLAMP_WAIT
-                                               and self._quiet >= GONE):
-                    self.mode = Mode.HOLD
-                    self.events.append(f"t={self.t:.4f} s: stopped, the force is gone (a "
+                self.st.since += dt
+                self.st.quiet = self.st.quiet + dt if self.st.over < DEBOUNCE else 0.0
+                if self.st.quiet >= RELEASED or (self.st.since >= CLAMP_WAIT
+                                               and self.st.quiet >= GONE):
+                    self.st.mode = Mode.HOLD
+                    self.st.events.append(f"t={self.st.t:.4f} s: stopped, the force is gone (a "
                                        "collision): holding")
-                elif self._since >= CLAMP_WAIT and self._contact:
-                    self.mode = Mode.RETRACT
-                    self._retract_from = self.s
-                    self.events.append(f"t={self.t:.4f} s: the force stays after the stop "
+                elif self.st.since >= CLAMP_WAIT and self.st.contact:
+                    self.st.mode = Mode.RETRACT
+                    self.st.retract_from = self.st.s
+                    self.st.events.append(f"t={self.st.t:.4f} s: the force stays after the stop "
                                        "(a clamp, or a body still pressing): retracting "
                                        "along the path")
-        elif self.mode == Mode.RETRACT:
+        elif self.st.mode == Mode.RETRACT:
             beta = float(self.tables.beta[k])
-            if self.sd > -RETRACT_SPEED:
+            if self.st.sd > -RETRACT_SPEED:
                 sdd = -beta
-                self.sd = max(-RETRACT_SPEED, self.sd - beta * dt)
-            self.s = max(0.0, self.s + self.rate * dt * self.sd)
-            self._quiet = self._quiet + dt if not over else 0.0
-            self._since += dt
-            back = self._retract_from - self.s
-            if self._quiet >= RELEASED or self.s <= 0.0 or back >= RETRACT_SAMPLES:
-                self.mode = Mode.SETTLE  # come to rest, then hold
-                self.events.append(f"t={self.t:.4f} s: released: coming to rest")
-        elif self.mode == Mode.SETTLE:
+                self.st.sd = max(-RETRACT_SPEED, self.st.sd - beta * dt)
+            self.st.s = max(0.0, self.st.s + self.rate * dt * self.st.sd)
+            self.st.quiet = self.st.quiet + dt if not over else 0.0
+            self.st.since += dt
+            back = self.st.retract_from - self.st.s
+            if self.st.quiet >= RELEASED or self.st.s <= 0.0 or back >= RETRACT_SAMPLES:
+                self.st.mode = Mode.SETTLE  # come to rest, then hold
+                self.st.events.append(f"t={self.st.t:.4f} s: released: coming to rest")
+        elif self.st.mode == Mode.SETTLE:
             # no harder than the table allows, and over at least SETTLE_TIME: a stiff
             # drive stopped at once from the retract's speed springs back towards the
             # person (measured: 6-8 cm/s)
             sdd = min(float(self.tables.beta[k]), RETRACT_SPEED / SETTLE_TIME)
-            self.sd = min(0.0, self.sd + sdd * dt)
-            self.s = max(0.0, self.s + self.rate * dt * self.sd)
-            if self.sd >= 0.0:
-                self.mode = Mode.HOLD
-                self.events.append(f"t={self.t:.4f} s: at rest: holding")
-        self._sdd = sdd
-        mode_out = Mode.RETRACT if self.mode == Mode.SETTLE else self.mode
-        if self.mode == Mode.HOLD and self._contact and self.reaction == "yield":
-            assert self._prev is not None
+            self.st.sd = min(0.0, self.st.sd + sdd * dt)
+            self.st.s = max(0.0, self.st.s + self.rate * dt * self.st.sd)
+            if self.st.sd >= 0.0:
+                self.st.mode = Mode.HOLD
+                self.st.events.append(f"t={self.st.t:.4f} s: at rest: holding")
+        self.st.sdd = sdd
+        mode_out = Mode.RETRACT if self.st.mode == Mode.SETTLE else self.st.mode
+        if self.st.mode == Mode.HOLD and self.st.contact and self.reaction == "yield":
+            assert self.st.prev is not None
             g = np.clip(self._at(self.tables.g), -self.lim.torque, self.lim.torque)
-            self._last_ref = self._prev.copy()
-            return DriveCommand(self._prev.copy(), np.zeros(9), g, Mode.HOLD, True, wrench)
+            self.st.last_ref = self.st.prev.copy()
+            return DriveCommand(self.st.prev.copy(), np.zeros(9), g, Mode.HOLD, True, wrench)
         return self._command(sdd, mode_out, wrench)
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -21,7 +21,7 @@ from sixplus3.control.gate.stop import (
 )
 from sixplus3.control.report import ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.interaction.guard_parts import parameter_std2, velocity_slope
+from sixplus3.interaction.guard_parts import DriveRate, Mode, parameter_std2, velocity_slope
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.robot_fk import ik_jacobian
@@ -151,6 +151,42 @@ def path_tables(robot: Robot, rep: ValidationReport, rate: float, lim: Limits,
                       thr_k=thr_k, thr_a=thr_a)
 
 
+@dataclass
+class GuardState:
+    """The contact guard's state while it runs a file (interaction/guard.py): made anew
+    by each ``reset``, the rest of the guard is its settings and its frozen tables."""
+
+    rates: DriveRate  #: the drive's rate as the guard models it (guard_parts.DriveRate)
+    motion: deque[tuple[float, float]]  #: the motion's threshold share over the last LAG
+    last_ref: np.ndarray  #: the last reference commanded
+    M_prev: np.ndarray  #: the reduced inertia at the last tick
+    s: float = 0.0  #: path position [samples]
+    sd: float = 1.0  #: path speed [file seconds per second]
+    sdd: float = 0.0  #: path acceleration
+    t: float = 0.0  #: [s] since the start
+    mode: Mode = Mode.FOLLOW
+    events: list[str] = field(default_factory=list)
+    prev: np.ndarray | None = None  #: the last good reading
+    since_good: int = 0  #: ticks since the last good reading
+    vel: np.ndarray = field(default_factory=lambda: np.zeros(9))  #: the encoder's rate
+    p0: np.ndarray | None = None  #: the first momentum
+    integral: np.ndarray = field(default_factory=lambda: np.zeros(9))
+    r: np.ndarray = field(default_factory=lambda: np.zeros(9))  #: the residual
+    over: int = 0  #: ticks above the threshold in a row
+    saturated: float = 0.0  #: [s] a drive at its limit
+    sm: float = 0.0  #: the measured path speed (the rate along the path's tangent)
+    clipped: bool = False  #: the last command would have saturated the drive
+    since: float = 0.0
+    quiet: float = 0.0
+    contact: bool = False
+    contact_site: str | None = None  #: "the platform" or "a leg", once there was one
+    contact_t: float = 0.0
+    fmax: float = 0.0  #: the largest force estimated since the contact [N]
+    retract_from: float = 0.0
+    rested: bool = False  #: a contact's stop has come to rest
+    offset: np.ndarray = field(default_factory=lambda: np.zeros(9))  #: measured - path at rest
+
+
 def thresholds(g: Any, k: int, motion: deque[tuple[float, float]]
                ) -> tuple[np.ndarray, np.ndarray]:
     """(where a contact is judged, whether there is one): the guard ``g``'s thresholds at
@@ -160,7 +196,8 @@ def thresholds(g: Any, k: int, motion: deque[tuple[float, float]]
     reference's); the first leaves out the stop's own acceleration, which the guard's
     stop after a contact adds to every joint alike."""
     tb = g.tables
-    motion.append((max(g.sd ** 2, abs(g._sdd) / max(float(tb.beta[k]), 1.0)), abs(g._sdd)))
+    st = g.st
+    motion.append((max(st.sd ** 2, abs(st.sdd) / max(float(tb.beta[k]), 1.0)), abs(st.sdd)))
     f_k = max(m[0] for m in motion)
     f_a = max(m[1] for m in motion)
     thr_site = tb.thr_base + tb.thr_g[k] + tb.thr_k[k] * f_k
@@ -186,5 +223,5 @@ def deceleration_at(a: np.ndarray, b_cross: np.ndarray, g: np.ndarray,
     return min(float(hi[0]), acceleration / max(vmax, 1e-9), 1e6)
 
 
-__all__ = ["FRICTION_BAND", "IDENTIFIED", "LAG", "UNIDENTIFIED", "ModelPrior", "PathTables",
-           "deceleration_at", "path_tables", "thresholds"]
+__all__ = ["FRICTION_BAND", "IDENTIFIED", "LAG", "UNIDENTIFIED", "GuardState", "ModelPrior",
+           "PathTables", "deceleration_at", "path_tables", "thresholds"]

@@ -222,11 +222,11 @@ def test_after_a_stop_hold_keeps_the_pose_and_yield_gives_way(hand_plan, reactio
     # the robot stayed put while its reference moved on: blocked, so a clamp: retract
     assert cmd.contact and cmd.mode in ("stop", "retract")
     for _ in range(400):  # the force gone, the robot where the reference is
-        cmd = g.step(cmd.theta_ref, g.tables.g[min(int(g.s), g.n - 1)])
+        cmd = g.step(cmd.theta_ref, g.tables.g[min(int(g.st.s), g.n - 1)])
     assert cmd.mode == "hold", g.events
     held = cmd.theta_ref.copy()
     moved = held + 0.01  # pushed 10 mrad off on every joint
-    cmd = g.step(moved, g.tables.g[min(int(g.s), g.n - 1)])
+    cmd = g.step(moved, g.tables.g[min(int(g.st.s), g.n - 1)])
     if reaction == "hold":
         np.testing.assert_allclose(cmd.theta_ref, held, atol=1e-12)
     else:
@@ -487,7 +487,7 @@ def test_the_guard_survives_any_sequence_of_readings(hand_plan) -> None:
         for k, (kind, arg) in enumerate(ticks):
             th = g._at(g.tables.theta)  # the robot on its reference
             good = kind == "good"
-            ff = g._at(g.tables.b) * g.sd ** 2 + g._at(g.tables.g)
+            ff = g._at(g.tables.b) * g.st.sd ** 2 + g._at(g.tables.g)
             theta, tau = reading_for(kind, arg, th, ff, rng)
             cmd = g.step(theta, tau)
             for a in (cmd.theta_ref, cmd.theta_dot_ref, cmd.tau_ff, cmd.wrench):
@@ -505,9 +505,9 @@ def test_the_guard_survives_any_sequence_of_readings(hand_plan) -> None:
                          + kd * (cmd.theta_dot_ref - vel))
                 assert np.abs(total).max() <= COMMAND_SHARE * cap + 1e-9
             prev_good = np.asarray(theta, dtype=float) if good else None
-        for a in (g._integral, g._r, g._vel, g._offset):
+        for a in (g.st.integral, g.st.r, g.st.vel, g.st.offset):
             assert np.all(np.isfinite(a))
-        assert g._p0 is None or np.all(np.isfinite(g._p0))
+        assert g.st.p0 is None or np.all(np.isfinite(g.st.p0))
 
     run()
 
