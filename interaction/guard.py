@@ -38,7 +38,7 @@ from sixplus3.control.drive.feed import START_TOL
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.file.trajectory_read import read_bytes
 from sixplus3.control.gate.stop import TORQUE_SHARE
-from sixplus3.control.gate.validation import validate_file
+from sixplus3.control.gate.validation import validate_bytes
 from sixplus3.errors import InputError, ValidationFailed, check_number
 from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
@@ -125,8 +125,11 @@ class ContactGuard:
         #: a compliant hold (the reference follows the measured angles, so the drive's
         #: PD only damps; gravity's feed-forward): a person can push the platform away
         self.reaction = reaction
+        # the file is read once: its robot (when none is given) and the samples the gate
+        # judges come from the same bytes
+        raw = read_bytes(trajectory_file)
         if robot is None:
-            header, _ = parse(read_bytes(trajectory_file), Path(trajectory_file).name)
+            header, _ = parse(raw, Path(trajectory_file).name)
             rec = header.get("robot")
             if not isinstance(rec, dict) or not isinstance(rec.get("parameters"), dict):
                 raise InputError("the file's header names no robot: give the robot",
@@ -153,7 +156,7 @@ class ContactGuard:
         self.kp: np.ndarray | None = None
         self.kd: np.ndarray | None = None
         self._drive_rate = DEFAULT_RATE
-        rep = validate_file(trajectory_file, self.robot)
+        rep = validate_bytes(raw, self.robot, Path(trajectory_file).name)
         if not rep.ok or rep.data is None or rep.header is None:
             raise ValidationFailed("the guard runs only a valid file: "
                                    + "; ".join(rep.messages()), rep.exit_code, rep)
