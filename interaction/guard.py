@@ -110,7 +110,6 @@ class ContactGuard:
     rad) and the torque applied over the previous tick (9, N m; at the first call the
     file's first feed-forward)."""
 
-
     def __init__(self, robot: Robot | None, trajectory_file: str | Path,
                  rate_hz: float = 1000.0, gain: float = GAIN,
                  model_error: float | None = None, n_sigma: float = N_SIGMA,
