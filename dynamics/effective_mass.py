@@ -33,6 +33,11 @@ from sixplus3.kinematics.robot import RobotConfig
 from sixplus3.kinematics.robot_fk import ik_jacobian
 from sixplus3.robot_description.body_regions import BodyRegion
 
+#: An inverse mass's eigenvalues below this share of its largest are directions the
+#: point cannot move in (a crank's tip: only along its circle); the gate's energy and
+#: the planner's rows both take them so.
+RCOND = 1e-9
+
 
 def point_map(r: np.ndarray) -> np.ndarray:
     """(n, 3, 9) P: the point's velocity from (v, omega, psi_dot), r (n, 3) [m] the point
@@ -115,12 +120,28 @@ def effective_mass(A: np.ndarray, u: np.ndarray) -> np.ndarray:
     return 1.0 / np.einsum("...i,...ij,...j->...", u, A, u)
 
 
+def worst_direction(A: np.ndarray, v: np.ndarray, region: BodyRegion
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(energy (n,) [J], effective mass (n,) [kg]) of the worst contact with ``region``
+    of points with inverse mass A (n, 3, 3) moving at v (n, 3): E = 1/2 v^T (A +
+    I/m_H)^-1 v (module doc), along n* ~ (A + I/m_H)^-1 v, and 1 / n*^T A n* (inf at
+    rest).  A pseudo-inverse (:data:`RCOND`): a crank's tip moves along one line only
+    (A of rank 1) and a clamped region has 1/m_H = 0; v lies in A's range (v = J
+    theta_dot, A = J M^-1 J^T), so the energy is finite."""
+    A = np.asarray(A, dtype=float)
+    v = np.asarray(v, dtype=float)
+    B = A + np.eye(3) / region.mass
+    with np.errstate(all="ignore"):
+        y = np.einsum("nij,nj->ni", np.linalg.pinv(B, rcond=RCOND, hermitian=True), v)
+        u = y / np.linalg.norm(y, axis=1, keepdims=True)
+        mass = 1.0 / np.einsum("ni,nij,nj->n", u, A, u)
+    return 0.5 * np.einsum("ni,ni->n", v, y), mass
+
+
 def contact_energy(A: np.ndarray, v: np.ndarray, region: BodyRegion) -> np.ndarray:
     """(n,) the largest energy [J] a contact with ``region`` along any direction could
     take from the point moving at v (n, 3): 1/2 v^T (A + I/m_H)^-1 v (module doc)."""
-    B = A + np.eye(3) / region.mass
-    v = np.asarray(v, dtype=float)
-    return 0.5 * np.einsum("ni,ni->n", v, np.linalg.solve(B, v[:, :, None])[:, :, 0])
+    return worst_direction(A, v, region)[0]
 
 
 def pfl_ratio(A: np.ndarray, v: np.ndarray, regions: Sequence[BodyRegion]
@@ -140,5 +161,5 @@ def worst_speed(A: np.ndarray, region: BodyRegion) -> np.ndarray:
     return region.transient_force * np.sqrt(lam / region.stiffness)
 
 
-__all__ = ["contact_energy", "effective_mass", "inverse_mass", "link_inverse_mass", "pfl_ratio",
-           "point_inverse_mass", "point_map", "worst_speed"]
+__all__ = ["RCOND", "contact_energy", "effective_mass", "inverse_mass", "link_inverse_mass",
+           "pfl_ratio", "point_inverse_mass", "point_map", "worst_direction", "worst_speed"]

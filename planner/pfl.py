@@ -27,7 +27,7 @@ import casadi as ca
 import numpy as np
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.dynamics.effective_mass import point_inverse_mass, worst_speed
+from sixplus3.dynamics.effective_mass import RCOND, point_inverse_mass, worst_speed
 from sixplus3.dynamics.leg_points import vertex_rates
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
@@ -42,9 +42,6 @@ from sixplus3.robot_description.robot import Robot
 PFL_SAFETY = 0.95
 #: Points per segment between waypoints at which the bound is evaluated.
 POINTS = 8
-#: An inverse mass's eigenvalues below this share of its largest: directions the point
-#: cannot move in (C takes 0 there).
-RCOND = 1e-9
 
 
 def task_regions(task: Task) -> tuple[BodyRegion, ...]:

@@ -24,7 +24,7 @@ import numpy as np
 from sixplus3.control.gate.findings import finding
 from sixplus3.control.report import Finding, ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.dynamics.effective_mass import point_inverse_mass, point_map
+from sixplus3.dynamics.effective_mass import point_inverse_mass, point_map, worst_direction
 from sixplus3.dynamics.leg_points import vertex_rates
 from sixplus3.errors import InputError
 from sixplus3.kinematics import rotations as rot
@@ -38,9 +38,6 @@ from sixplus3.robot_description.robot import Robot
 
 #: Points evaluated at a time (the reduced inertia of each: one Pinocchio pass).
 CHUNK = 4096
-#: An inverse mass's eigenvalues below this share of its largest are directions the
-#: point cannot move in (a crank's tip: only along its circle).
-RCOND = 1e-9
 
 
 @dataclass(frozen=True)
@@ -132,16 +129,9 @@ def _worst(A: np.ndarray, v: np.ndarray, regs: tuple[BodyRegion, ...]
     mass = np.empty((len(v), len(regs)))
     ok = np.isfinite(A).all(axis=(1, 2)) & np.isfinite(v).all(axis=1)
     A, v = np.where(ok[:, None, None], A, 0.0), np.where(ok[:, None], v, 0.0)
-    with np.errstate(all="ignore"):
-        for k, r in enumerate(regs):
-            # a pseudo-inverse: a crank's tip moves along one line only (A of rank 1),
-            # and a clamped region has 1/m_H = 0; v lies in A's range (v = J theta_dot,
-            # A = J M^-1 J^T), so the energy is finite
-            B = A + np.eye(3) / r.mass
-            y = np.einsum("nij,nj->ni", np.linalg.pinv(B, rcond=RCOND, hermitian=True), v)
-            ratio[:, k] = 0.5 * np.einsum("ni,ni->n", v, y) / r.energy
-            u = y / np.linalg.norm(y, axis=1, keepdims=True)
-            mass[:, k] = 1.0 / np.einsum("ni,nij,nj->n", u, A, u)
+    for k, r in enumerate(regs):
+        energy, mass[:, k] = worst_direction(A, v, r)
+        ratio[:, k] = energy / r.energy
     ratio[~ok], mass[~ok] = np.inf, np.nan
     return np.nan_to_num(ratio, nan=np.inf), mass
 
