@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sixplus3.control.drive.command import DriveCommand, Mode
 from sixplus3.control.drive.feed import START_TOL
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.file.trajectory_read import read_bytes
@@ -43,9 +44,7 @@ from sixplus3.errors import InputError, ValidationFailed, check_number
 from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
     DEFAULT_RATE,
-    DriveCommand,
     DriveRate,
-    Mode,
     contact_site,
     jump_bound,
     parse_drive,

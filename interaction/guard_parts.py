@@ -5,12 +5,10 @@ the whole command kept within the envelope given the drive's gains."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from enum import Enum
-from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from sixplus3.control.drive.command import DriveCommand
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.regressor import regressor_batch
 from sixplus3.errors import InputError, check_number
@@ -33,55 +31,6 @@ MAX_JUMP = 0.05
 #: [m] the residual's crank torques per newton of its force beyond which a contact is on
 #: a leg (a platform force has none; a leg link's, its lever under the cranks: cm).
 LEG_LEVER = 0.002
-
-
-class Mode(str, Enum):
-    """What a controller does this tick (a :class:`DriveCommand`'s ``mode``).  The
-    guard: ``follow`` the file, ``stop`` along it, ``retract`` from a clamp (``settle``
-    to rest first, reported as ``retract``), ``hold`` after a stop, ``done`` at the
-    file's end.  Lead-through: ``hold`` at rest, ``lead`` a person's hand, ``fault``
-    before its readings agree.  A str: it compares equal to its value."""
-
-    FOLLOW = "follow"
-    STOP = "stop"
-    RETRACT = "retract"
-    SETTLE = "settle"
-    HOLD = "hold"
-    DONE = "done"
-    LEAD = "lead"
-    FAULT = "fault"
-
-    def __str__(self) -> str:
-        return self.value
-
-
-@dataclass(frozen=True)
-class DriveCommand:
-    """What the drive applies: tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref -
-    theta_dot), the one command type of every controller a drive loop steps (the
-    contact guard, lead-through).  ``mode`` (:class:`Mode`; a name is converted, an
-    unknown one refused); ``contact``: the controller claims a contact; ``wrench`` (6):
-    the estimated wrench at the platform centre, base frame [N, N m]."""
-
-    theta_ref: np.ndarray
-    theta_dot_ref: np.ndarray
-    tau_ff: np.ndarray
-    mode: Mode
-    contact: bool
-    wrench: np.ndarray
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.mode, Mode):
-            object.__setattr__(self, "mode", Mode(self.mode))
-
-
-@runtime_checkable
-class TickController(Protocol):
-    """A controller a drive loop steps once per tick (the contact guard, lead-through):
-    the encoder's angles and the drives' torques in, a :class:`DriveCommand` out; it
-    never raises (a reading it cannot use is a hold or a fault, with its reason)."""
-
-    def step(self, theta: object, tau: object) -> DriveCommand: ...
 
 
 def velocity_slope(dyn: ClosedLoopDynamics, q: np.ndarray, theta_d: np.ndarray
@@ -301,7 +250,7 @@ def parse_gains(gains: tuple[object, object]) -> tuple[np.ndarray, np.ndarray]:
     return kp, kd
 
 
-__all__ = ["ANGLE_SLACK", "COMMAND_SHARE", "DEFAULT_RATE", "DRIVE_RATES", "DriveCommand",
-           "DriveRate", "LEG_LEVER", "MAX_JUMP", "Mode", "TORQUE_SLACK", "TickController",
+__all__ = ["ANGLE_SLACK", "COMMAND_SHARE", "DEFAULT_RATE", "DRIVE_RATES", "DriveRate",
+           "LEG_LEVER", "MAX_JUMP", "TORQUE_SLACK",
            "contact_site", "jump_bound", "parameter_std2", "parse_drive", "parse_gains",
            "reading", "velocity_slope", "within_envelope"]

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from sixplus3.control.drive.command import Mode
 from sixplus3.control.file.file_format import columns
 from sixplus3.control.gate.stop import (
     TORQUE_SHARE,
@@ -21,7 +22,7 @@ from sixplus3.control.gate.stop import (
 )
 from sixplus3.control.report import ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.interaction.guard_parts import DriveRate, Mode, parameter_std2, velocity_slope
+from sixplus3.interaction.guard_parts import DriveRate, parameter_std2, velocity_slope
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.robot_fk import ik_jacobian

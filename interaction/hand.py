@@ -26,13 +26,15 @@ z]}`` (base frame, metres; times increasing from 0), each with an optional ``rot
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from sixplus3.control.drive.loop import TORQUE_NOISE, DriveLoop
+from sixplus3.control.drive.command import DriveCommand
+from sixplus3.control.drive.loop import TORQUE_NOISE, DriveLoop, Tick, run
 from sixplus3.control.drive.simulation import KD, KP
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.errors import InputError, check_number
@@ -289,49 +291,43 @@ def run_lead(model: Robot, plant: Robot, hand: Hand, lead: LeadThrough | None = 
     out_t = np.arange(n) / rate
     tcp, anchor, force = np.empty((n, 3)), np.empty((n, 3)), np.zeros((n, 3))
     speed, angle, torque = np.empty(n), np.empty(n), np.zeros((n, 3))
-    modes = np.empty(n, dtype=object)
-    th_log, tau_log = np.empty((n, 9)), np.empty((n, 9))
-    rate_ref, ff_ref = np.empty((n, 9)), np.empty((n, 9))
     energy = 0.0
     e_min = 0.0
-    peak_cmd = peak_app = 0.0
-    # before the first tick the drives were holding the plant still (whatever controller
-    # ran before): the torque monitor's first reading is the plant's holding torque
-    th0 = loop.encoder()
-    applied = SingleState(plant).state(th0, np.zeros(9))[2]
+    de = 0.0
     touches = hand.stiffness > 0 or hand.damping > 0 or g.grips
-    for k in range(n):
-        t_k = k / rate
-        g.aim(t_k)
-        th = loop.encoder()
-        tau = loop.monitor(applied)
-        th_log[k], tau_log[k] = th, tau
-        cmd = lt.step(th, tau)
-        modes[k] = cmd.mode
-        rate_ref[k], ff_ref[k] = cmd.theta_dot_ref, cmd.tau_ff
+
+    def push(_s: int) -> None:
+        nonlocal de
+        g.push()
+        de += g.e
+
+    def before_tick(k: int, _cmd: DriveCommand) -> Callable[[int], None] | None:
+        nonlocal de
+        g.aim(k / rate)
         de = 0.0
+        return push if touches else None
 
-        def hook(_s: int) -> None:
-            nonlocal de
-            g.push()
-            de += g.e
-
-        # a fault (no good reading yet): the drive holds its own position (step's doc)
-        ref = th if cmd.mode == "fault" else cmd.theta_ref
-        tick = loop.tick(ref, cmd.theta_dot_ref, cmd.tau_ff,
-                         hook if touches else None, theta=th)
-        applied = tick.applied
-        peak_cmd = max(peak_cmd, float(np.abs(tick.command).max()))
-        peak_app = max(peak_app, float(np.abs(tick.applied).max()))
+    def after_tick(k: int, _tick: Tick) -> None:
+        nonlocal energy, e_min
         energy += de
         e_min = min(e_min, energy)
         p, v = g.point()
         tcp[k], speed[k] = p, float(np.linalg.norm(v))
-        anchor[k] = g.p0 + hand.target(t_k)
+        anchor[k] = g.p0 + hand.target(k / rate)
         force[k], torque[k] = g.f, g.moment
-        R = g.rotation()
-        angle[k] = float(np.linalg.norm(g.pin.log3(R @ g.R0.T)))
+        angle[k] = float(np.linalg.norm(g.pin.log3(g.rotation() @ g.R0.T)))
         g.d.xfrc_applied[g.body] = 0.0
+
+    # before the first tick the drives were holding the plant still (whatever controller
+    # ran before): the torque monitor's first reading is the plant's holding torque
+    held = SingleState(plant).state(loop.encoder(), np.zeros(9))[2]
+    out = run(loop, lt, n, initial=held, before=before_tick, after=after_tick)
+    modes = np.array([c.mode for c in out.commands], dtype=object)
+    rate_ref = np.array([c.theta_dot_ref for c in out.commands])
+    ff_ref = np.array([c.tau_ff for c in out.commands])
+    peak_cmd = float(np.abs(out.command).max())
+    peak_app = float(np.abs(out.applied).max())
+    th_log, tau_log = out.theta, out.readings[:n]
     log = DriveLog(t=out_t, theta=th_log, tau=tau_log, name="lead",
                    meta={"plant": plant.name, "seed": seed, "torque_noise": torque_noise,
                          "lead": True})

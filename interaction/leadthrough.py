@@ -53,15 +53,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from sixplus3.control.drive.command import DriveCommand, Mode
 from sixplus3.errors import InputError, check_number
 from sixplus3.interaction import _lead_kernel as kern
 from sixplus3.interaction import walls
 from sixplus3.interaction.guard_parts import (
     COMMAND_SHARE,
     DEFAULT_RATE,
-    DriveCommand,
     DriveRate,
-    Mode,
     jump_bound,
     parse_drive,
     reading,

@@ -19,14 +19,17 @@ A contact file (YAML): ``region`` (a body region name), ``kind`` (free or clamp)
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from sixplus3.control.drive.loop import FILTER_TAU, TORQUE_NOISE, DriveLoop
-from sixplus3.control.drive.simulation import KD, KP, MujocoRobot, first_configuration
+from sixplus3.control.drive.command import DriveCommand, FileController
+from sixplus3.control.drive.loop import FILTER_TAU, TORQUE_NOISE, DriveLoop, Tick, run
+from sixplus3.control.drive.mujoco_model import MujocoRobot
+from sixplus3.control.drive.simulation import KD, KP, first_configuration
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.control.file.file_format import columns
 from sixplus3.control.gate.interval import held_torque
@@ -200,31 +203,12 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
     if contact is not None:
         assert p_s is not None and normal is not None
         person = _Region(contact, p_s, normal, d, body, tool, timestep)
-    force = np.zeros(n)
-    speed_n = np.zeros(n)
-    flags = np.zeros(n, dtype=bool)
-    modes: list[str] = []
-    applied = ff_file[0].copy()
-    peak_cmd = 0.0
-    th_log, tau_log = np.empty((n, 9)), np.empty((n, 9))
-    for k in range(n):
-        th_meas = loop.encoder()
-        measured_tau = loop.monitor(applied)
-        th_log[k], tau_log[k] = th_meas, measured_tau
-        if g is not None:
-            cmd = g.step(th_meas, measured_tau if k else ff_file[0])
-            ref, vref, ff = cmd.theta_ref, cmd.theta_dot_ref, cmd.tau_ff
-            flags[k] = cmd.contact
-            if not modes or modes[-1] != cmd.mode:
-                modes.append(cmd.mode)
-        else:
-            j = min(k, n_file - 1)
-            ref, vref = theta_ref[j], vel_ref[j] if k < n_file else np.zeros(9)
-            ff = ff_file[j] if k < n_file else columns(data, "tau")[-1]
-        hook = person.push if person is not None and k >= k_on else None
-        tick = loop.tick(ref, vref, ff, hook, theta=th_meas)
-        applied = tick.applied
-        peak_cmd = max(peak_cmd, float(np.abs(tick.command).max()))
+    force, speed_n = np.zeros(n), np.zeros(n)
+
+    def before_tick(k: int, _cmd: DriveCommand) -> Callable[[int], None] | None:
+        return person.push if person is not None and k >= k_on else None
+
+    def after_tick(k: int, _tick: Tick) -> None:
         if person is not None:
             force[k] = person.peak
             person.peak = 0.0
@@ -232,16 +216,29 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
             mj.mj_jac(m, d, jac, None, site_point(d, body, tool), body)
             speed_n[k] = float((jac @ d.qvel) @ person.n)
         d.xfrc_applied[body] = 0.0
-    run = _outcome(contact, g is not None, rate, force, speed_n, flags, modes, peak_cmd,
-                   g.events if g is not None else [])
-    run.site = g.contact_site if g is not None else None
-    run.speed_n = speed_n
-    run.log = DriveLog(t=np.arange(n) / rate, theta=th_log, tau=tau_log, name=Path(path).name,
-                       meta={"plant": plant.name, "seed": seed, "torque_noise": torque_noise,
-                             "guard": g is not None, "contact": None if contact is None else
-                             {"region": contact.region.name, "kind": contact.kind,
-                              "at": contact.at}})
-    return run
+
+    # the guard, or the file followed as it is, through the one drive loop; before the
+    # first tick the drives held the file's first torque
+    ctrl = g if g is not None else FileController(theta_ref, vel_ref, ff_file,
+                                                  hold_tau=columns(data, "tau")[-1])
+    out = run(loop, ctrl, n, initial=ff_file[0], before=before_tick, after=after_tick)
+    flags = np.array([c.contact for c in out.commands]) if g is not None else np.zeros(n, bool)
+    modes: list[str] = []
+    for c in out.commands if g is not None else []:
+        if not modes or modes[-1] != c.mode:
+            modes.append(c.mode)
+    peak_cmd = float(np.abs(out.command).max())
+    th_log, tau_log = out.theta, out.readings[:n]
+    result = _outcome(contact, g is not None, rate, force, speed_n, flags, modes, peak_cmd,
+                      g.events if g is not None else [])
+    result.site = g.contact_site if g is not None else None
+    result.speed_n = speed_n
+    result.log = DriveLog(
+        t=np.arange(n) / rate, theta=th_log, tau=tau_log, name=Path(path).name,
+        meta={"plant": plant.name, "seed": seed, "torque_noise": torque_noise,
+              "guard": g is not None, "contact": None if contact is None else
+              {"region": contact.region.name, "kind": contact.kind, "at": contact.at}})
+    return result
 
 
 def contact_site(model: Robot, contact: Contact | None) -> tuple[str, np.ndarray | None]:

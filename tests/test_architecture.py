@@ -227,6 +227,34 @@ def test_no_class_keeps_more_than_20_attributes_on_self() -> None:
     assert len(_self_attributes(cg)) <= MAX_ATTRIBUTES
 
 
+def _calls(attr: str) -> set[str]:
+    """The library's modules that call ``<anything>.attr(...)``."""
+    found = set()
+    for path in _modules():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                    and node.func.attr == attr):
+                found.add(str(path.relative_to(ROOT)))
+    return found
+
+
+def test_one_drive_loop_and_one_command_type() -> None:
+    """Issue 68, item 1: every simulated drive goes through ``control/drive/loop.run``;
+    a second loop (a ``tick`` of the drives, or MuJoCo stepped by hand) fails here, as
+    does a second command or mode type."""
+    assert _calls("tick") == {"control/drive/loop.py"}
+    assert _calls("mj_step") == {"control/drive/loop.py"}
+    assert _calls("advance") <= {"control/drive/loop.py"}
+    classes: dict[str, set[str]] = {}
+    for path in _modules():
+        for cls in ast.walk(ast.parse(path.read_text())):
+            if isinstance(cls, ast.ClassDef) and cls.name in ("DriveCommand", "Mode",
+                                                              "TickController"):
+                classes.setdefault(cls.name, set()).add(str(path.relative_to(ROOT)))
+    assert classes == {n: {"control/drive/command.py"}
+                       for n in ("DriveCommand", "Mode", "TickController")}
+
+
 def test_no_library_function_is_over_100_lines() -> None:
     long = set()
     for path in _modules():

@@ -20,8 +20,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from sixplus3.control.drive.command import DriveCommand, Mode, TickController
+from sixplus3.errors import InputError
 from sixplus3.interaction.guard import ContactGuard
-from sixplus3.interaction.guard_parts import COMMAND_SHARE, DriveCommand, Mode, TickController
+from sixplus3.interaction.guard_parts import COMMAND_SHARE
 from sixplus3.robot_description.robot import Robot
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -140,3 +142,28 @@ def test_a_command_names_its_mode_from_the_enum() -> None:
     assert cmd.mode is Mode.HOLD and cmd.mode == "hold" and f"{cmd.mode}" == "hold"
     with pytest.raises(ValueError):
         DriveCommand(z, z, z, "hurry", False, np.zeros(6))
+
+
+def test_a_file_followed_as_it_is_is_a_controller_that_holds_at_its_end() -> None:
+    from sixplus3.control.drive.command import FileController
+
+    rng = np.random.default_rng(0)
+    th, vel, ff = rng.normal(size=(3, 4, 9))
+    hold = rng.normal(size=9)
+    fc = FileController(th, vel, ff, hold_tau=hold)
+    assert isinstance(fc, TickController)
+    cmds = [fc.step(np.full(9, np.nan), None) for _ in range(6)]  # it reads nothing
+    for k in range(4):
+        np.testing.assert_array_equal(cmds[k].theta_ref, th[k])
+        np.testing.assert_array_equal(cmds[k].theta_dot_ref, vel[k])
+        np.testing.assert_array_equal(cmds[k].tau_ff, ff[k])
+        assert cmds[k].mode is Mode.FOLLOW
+    for c in cmds[4:]:  # past the end: the last angles, at rest, with the hold torque
+        np.testing.assert_array_equal(c.theta_ref, th[-1])
+        np.testing.assert_array_equal(c.theta_dot_ref, np.zeros(9))
+        np.testing.assert_array_equal(c.tau_ff, hold)
+        assert c.mode is Mode.DONE
+    fc.reset()
+    np.testing.assert_array_equal(fc.step(None, None).theta_ref, th[0])
+    with pytest.raises(InputError, match=r"\(n, 9\)"):
+        FileController(th[:, :8], vel, ff)

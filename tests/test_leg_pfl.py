@@ -216,7 +216,7 @@ def test_the_vertices_in_mujoco_are_pinocchios() -> None:
     ``contact_site``): its position and MuJoCo's velocity there (``mj_jac`` at the
     point, the tree velocities that realise the rates) equal the gate's Pinocchio ones."""
     pytest.importorskip("mujoco")
-    from sixplus3.control.drive.simulation import MujocoRobot
+    from sixplus3.control.drive.mujoco_model import MujocoRobot
     from sixplus3.interaction.person import contact_from_dict, contact_site, site_point
 
     _, _, cfg, thd = _states(2, 9)

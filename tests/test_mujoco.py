@@ -19,8 +19,8 @@ import pytest
 from click.testing import CliRunner
 
 from sixplus3.cli import main
+from sixplus3.control.drive.mujoco_model import MujocoRobot
 from sixplus3.control.drive.simulation import (
-    MujocoRobot,
     engine_check,
     mujoco_inverse_dynamics,
     simulate_file,
@@ -273,3 +273,48 @@ def test_one_drive_loop_reads_counts_quantises_and_saturates() -> None:
         if feedback == "encoder":  # the damping acts on the encoder's difference
             expected = 300.0 * (th - second.theta) - 6.0 * moved * 1000.0
             np.testing.assert_allclose(second.command, expected, rtol=1e-9, atol=1e-9)
+
+
+def test_run_reads_then_steps_then_applies_and_a_fault_holds_the_drive() -> None:
+    """control/drive/loop.run, the one loop: the controller gets the encoder's angles
+    and the monitor's reading of the torque applied over the previous tick (the first
+    tick: ``initial``); a ``fault`` command holds the drive where it is; ``final`` reads
+    the last tick's torque; an ideal drive applies its command as asked."""
+    from sixplus3.control.drive.command import DriveCommand, Mode
+    from sixplus3.control.drive.loop import DriveLoop, run
+    from sixplus3.kinematics.robot import home
+    from sixplus3.robot_description.robot import Robot
+
+    robot = Robot.default()
+    q0 = np.asarray(home(robot).q[0])
+
+    class Faulty:  # asks for a far reference, then faults with the same far reference
+        def __init__(self) -> None:
+            self.seen: list[tuple[np.ndarray, np.ndarray]] = []
+
+        def step(self, theta: object, tau: object) -> DriveCommand:
+            th, ta = np.array(theta), np.array(tau)
+            self.seen.append((th, ta))
+            mode = Mode.FAULT if len(self.seen) > 2 else Mode.HOLD
+            return DriveCommand(th + 0.01, np.zeros(9), np.full(9, 0.5), mode, False,
+                                np.zeros(6))
+
+    loop = DriveLoop(robot, 1000.0, 300.0, 0.0, torque_noise=0.0)
+    loop.start(q0)
+    c = Faulty()
+    out = run(loop, c, 5, initial=np.full(9, 0.25), final=True)
+    np.testing.assert_array_equal(c.seen[0][1], np.full(9, 0.25))
+    for k in range(1, 5):  # the reading of the previous tick's torque, as applied
+        np.testing.assert_array_equal(c.seen[k][1], out.applied[k - 1])
+        np.testing.assert_array_equal(c.seen[k][0], out.theta[k])
+    np.testing.assert_array_equal(out.readings[5], out.applied[4])
+    np.testing.assert_allclose(out.command[:2], 0.5 + 3.0, rtol=1e-9)  # Kp 300 x 0.01
+    np.testing.assert_array_equal(out.command[2:], 0.5)  # a fault: the PD holds here
+    # no initial torque: row 0 is not a reading; an ideal drive applies what it asks
+    ideal = DriveLoop(robot, 1000.0, 300.0, 0.0, torque_noise=0.0, ideal=True)
+    ideal.start(q0)
+    out = run(ideal, Faulty(), 2)
+    assert np.isnan(out.readings[0]).all() and np.isnan(out.readings[2]).all()
+    np.testing.assert_array_equal(out.applied, out.command)
+    with pytest.raises(InputError, match="ideal drive"):
+        DriveLoop(robot, 1000.0, 300.0, 0.0, torque_noise=0.005, ideal=True)

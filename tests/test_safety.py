@@ -66,7 +66,7 @@ def test_the_effective_mass_equals_mujocos_impulse_response(tool) -> None:
     part of the mass): m = impulse / dv along u, at three poses, along x, y, z and a
     skew direction, against 1 / (u^T A u) from Pinocchio and the IK Jacobian."""
     mujoco = pytest.importorskip("mujoco")
-    from sixplus3.control.drive.simulation import MujocoRobot
+    from sixplus3.control.drive.mujoco_model import MujocoRobot
     from sixplus3.robot_description.physical import Tool
 
     robot = ROBOT.replace(tool=Tool(xyz=tool)) if any(tool) else ROBOT
@@ -377,7 +377,7 @@ def test_a_leg_links_effective_mass_is_mujocos_impulse_response() -> None:
     mass). Three poses, four links (a crank, the RU chain, the RUS rods), three
     directions each: within 0.5 %."""
     pytest.importorskip("mujoco")
-    from sixplus3.control.drive.simulation import MujocoRobot
+    from sixplus3.control.drive.mujoco_model import MujocoRobot
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.dynamics.effective_mass import link_inverse_mass
     from sixplus3.kinematics import rotations as rot

@@ -1,8 +1,11 @@
-"""One tick of the nine drives on the MuJoCo plant: the one drive loop the virtual
-prototype's replay (:func:`~sixplus3.control.drive.plant.run_on_plant`), its jog
-(:func:`~sixplus3.control.drive.plant.run_jog`) and the simulated person
-(:mod:`sixplus3.interaction.person`) step through (docs/identification.md, "The virtual
-prototype").
+"""The one drive loop of every simulation (docs/architecture.md, "One tick"):
+:func:`run` steps a controller (:class:`~sixplus3.control.drive.command.TickController`)
+once per tick on the nine drives of a MuJoCo plant (:class:`DriveLoop`).  The virtual
+prototype's replay and jog (:mod:`~sixplus3.control.drive.plant`), the ideal drive's
+replay (:func:`~sixplus3.control.drive.simulation.simulate`), the simulated person
+(:mod:`sixplus3.interaction.person`) and the simulated hand
+(:mod:`sixplus3.interaction.hand`) all go through it (docs/identification.md, "The
+virtual prototype").
 
 Each tick, as the prototype's drives run:
 
@@ -19,6 +22,9 @@ Each tick, as the prototype's drives run:
   range is the same), held over the tick in MuJoCo's sub-steps, with an optional hook
   before each sub-step (an external force);
 - the torque monitor reads what was applied, quantised, with a seeded Gaussian noise.
+
+An ``ideal`` drive (the replay that checks a file's feed-forward) reads the plant's angle
+and rate exactly and applies its command as asked: no quantisation, no limit, no noise.
 """
 
 from __future__ import annotations
@@ -29,7 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sixplus3.control.drive.simulation import MujocoRobot
+from sixplus3.control.drive.command import DriveCommand, Mode, TickController
+from sixplus3.control.drive.mujoco_model import MujocoRobot
 from sixplus3.errors import InputError, check_number
 from sixplus3.robot_description.hardware import effective_limits
 from sixplus3.robot_description.mjcf import TIMESTEP
@@ -51,6 +58,8 @@ class Tick:
     theta: np.ndarray
     command: np.ndarray
     applied: np.ndarray
+    #: the rate feedback the PD used
+    theta_dot: np.ndarray
 
 
 class DriveLoop:
@@ -60,7 +69,7 @@ class DriveLoop:
 
     def __init__(self, plant: Robot, rate: float, kp: float, kd: float,
                  timestep: float = TIMESTEP, torque_noise: float = TORQUE_NOISE,
-                 seed: int = 0, rate_feedback: str = "plant") -> None:
+                 seed: int = 0, rate_feedback: str = "plant", ideal: bool = False) -> None:
         self.plant = require_robot(plant)
         self.rate = check_number("rate", rate, 100.0, 20000.0)
         self.kp = check_number("kp", kp, 0.0, 1e5)
@@ -72,6 +81,11 @@ class DriveLoop:
                              f"got {rate_feedback!r}", value=rate_feedback,
                              valid=", ".join(RATE_FEEDBACKS))
         self.rate_feedback = rate_feedback
+        self.ideal = bool(ideal)
+        if self.ideal and (rate_feedback != "plant" or torque_noise != 0):
+            raise InputError("an ideal drive reads the plant's own rate, with no torque "
+                             "noise", value=(rate_feedback, torque_noise),
+                             valid='rate_feedback "plant", torque_noise 0')
         self.torque_noise = float(torque_noise)
         self.sim = MujocoRobot(self.plant, timestep)
         self.n_sub = round(1.0 / (self.rate * timestep))
@@ -95,8 +109,11 @@ class DriveLoop:
         self._filtered = np.zeros(9)
 
     def encoder(self) -> np.ndarray:
-        """The actuated angles as the encoders read them (quantised to a count)."""
+        """The actuated angles as the encoders read them (quantised to a count; an ideal
+        drive's exact)."""
         d = self.sim.data
+        if self.ideal:
+            return np.array(d.qpos[self.sim.act_qpos])
         return np.rint(d.qpos[self.sim.act_qpos] * self.counts) / self.counts
 
     def true_angles(self) -> np.ndarray:
@@ -127,11 +144,12 @@ class DriveLoop:
             thd = np.array(self.sim.data.qvel[self.sim.act_dof])
         self._prev = th
         u = tau_ff + self.kp * (theta_ref - th) + self.kd * (theta_dot_ref - thd)
-        applied = np.rint(np.clip(u, -self.cap, self.cap) / self.t_unit) * self.t_unit
+        applied = (u if self.ideal else
+                   np.rint(np.clip(u, -self.cap, self.cap) / self.t_unit) * self.t_unit)
         self.sim.data.ctrl[:] = applied
         if advance:
             self.advance(hook)
-        return Tick(theta=th, command=u, applied=applied)
+        return Tick(theta=th, command=u, applied=applied, theta_dot=thd)
 
     def advance(self, hook: Callable[[int], None] | None = None) -> None:
         """The plant moved one tick under the applied torques."""
@@ -142,4 +160,66 @@ class DriveLoop:
             mj.mj_step(m, d)
 
 
-__all__ = ["FILTER_TAU", "RATE_FEEDBACKS", "TORQUE_NOISE", "DriveLoop", "Tick"]
+@dataclass(frozen=True)
+class Run:
+    """What :func:`run` logged, one row a tick: the encoder's angles the controller read
+    (n, 9), the commands it returned (n), the drive's whole command before its limit
+    and the torque applied over the tick (n, 9); ``readings`` (n + 1, 9): the torque
+    monitor's reading at the start of each tick (what the controller got; row 0 NaN
+    when nothing was applied before), and row n its reading of the last tick's torque,
+    read after it (NaN unless ``final``).  A drive log pairs each tick's angles with
+    the torque applied over it: ``readings[1:]``."""
+
+    theta: np.ndarray
+    commands: list[DriveCommand]
+    command: np.ndarray
+    applied: np.ndarray
+    readings: np.ndarray
+
+
+#: Called before each tick's plant step, with the tick and the controller's command: a
+#: hook run before each MuJoCo sub-step (an external force), or None.
+Before = Callable[[int, DriveCommand], "Callable[[int], None] | None"]
+#: Called after each tick, with the tick and what it did (a measurement of the plant).
+After = Callable[[int, Tick], None]
+
+
+def run(loop: DriveLoop, controller: TickController, ticks: int,
+        initial: np.ndarray | None = None, before: Before | None = None,
+        after: After | None = None, final: bool = False,
+        advance_last: bool = True) -> Run:
+    """The one drive loop: ``ticks`` ticks of ``controller`` on ``loop``'s drives, from
+    the plant as :meth:`DriveLoop.start` left it.  Each tick the encoder and the torque
+    monitor are read (the monitor reads the torque applied over the previous tick, at
+    the first tick ``initial``: what held the plant before, or None when nothing was
+    and the controller reads no torque), the controller steps, and the drive applies its
+    command (a ``fault`` command: the drive holds where it is, its reference the angles
+    it read) and the plant moves one tick (not after the last unless ``advance_last``).
+    ``final``: the monitor reads the last tick's torque too (:class:`Run`)."""
+    check_number("ticks", ticks, 1, 10 ** 8, integer=True)
+    th_log, cmd_log, app_log = (np.empty((ticks, 9)) for _ in range(3))
+    readings = np.full((ticks + 1, 9), np.nan)
+    commands: list[DriveCommand] = []
+    applied = None if initial is None else np.asarray(initial, dtype=float)
+    for k in range(ticks):
+        th = loop.encoder()
+        if applied is not None:
+            readings[k] = loop.monitor(applied)
+        cmd = controller.step(th, readings[k])
+        commands.append(cmd)
+        hook = before(k, cmd) if before is not None else None
+        ref = th if cmd.mode == Mode.FAULT else cmd.theta_ref
+        tick = loop.tick(ref, cmd.theta_dot_ref, cmd.tau_ff, hook,
+                         advance=advance_last or k < ticks - 1, theta=th)
+        applied = tick.applied
+        th_log[k], cmd_log[k], app_log[k] = th, tick.command, applied
+        if after is not None:
+            after(k, tick)
+    if final and applied is not None:
+        readings[ticks] = loop.monitor(applied)
+    return Run(theta=th_log, commands=commands, command=cmd_log, applied=app_log,
+               readings=readings)
+
+
+__all__ = ["FILTER_TAU", "RATE_FEEDBACKS", "TORQUE_NOISE", "After", "Before", "DriveLoop",
+           "Run", "Tick", "run"]

@@ -23,13 +23,16 @@ monitor (``torque_noise``, default 0.005 N m).
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from sixplus3.control.drive.loop import TORQUE_NOISE, DriveLoop
-from sixplus3.control.drive.simulation import KD, KP, MujocoRobot, first_configuration
+from sixplus3.control.drive.command import FileController
+from sixplus3.control.drive.loop import TORQUE_NOISE, DriveLoop, run
+from sixplus3.control.drive.mujoco_model import MujocoRobot
+from sixplus3.control.drive.simulation import KD, KP, first_configuration
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.control.file.file_format import columns, motion_of
 from sixplus3.control.file.trajectory_parse import NUMBER
@@ -139,21 +142,24 @@ def run_on_plant(path: str | Path, model: Robot, plant: Robot, seed: int = 0,
     if platform < 0:
         platform = next(b for b in range(m.nbody) if m.body_jntnum[b] and
                         m.jnt_type[m.body_jntadr[b]] == mj.mjtJoint.mjJNT_FREE)
-    th_log = np.empty((n, 9))
-    tau_log = np.empty((n, 9))
     err = 0.0
-    peak = 0.0
-    for k in range(n):
-        th_true = loop.true_angles()
-        hook = None
-        if wrench is not None:
-            def hook(s: int, k: int = k) -> None:
-                _apply_wrench(sim, platform, wrench.at((k + s / loop.n_sub) / rate))
-        tick = loop.tick(theta_ref[k], vel_ref[k], ff[k], hook, advance=k < n - 1)
-        th_log[k] = tick.theta
-        tau_log[k] = loop.monitor(tick.applied)
-        err = max(err, float(np.abs(theta_ref[k] - th_true).max()))
-        peak = max(peak, float(np.abs(np.rint(tick.command / loop.t_unit) * loop.t_unit).max()))
+
+    def before_tick(k: int, _cmd: object) -> Callable[[int], None] | None:
+        nonlocal err
+        err = max(err, float(np.abs(theta_ref[k] - loop.true_angles()).max()))
+        if wrench is None:
+            return None
+
+        def hook(s: int) -> None:
+            _apply_wrench(sim, platform, wrench.at((k + s / loop.n_sub) / rate))
+        return hook
+
+    # the file followed as it is, through the one drive loop; the log pairs each tick's
+    # angles with the torque applied over it (the monitor read after the tick)
+    out = run(loop, FileController(theta_ref, vel_ref, ff), n, before=before_tick, final=True,
+              advance_last=False)
+    th_log, tau_log = out.theta, out.readings[1:]
+    peak = float(np.abs(np.rint(out.command / loop.t_unit) * loop.t_unit).max())
     t = np.arange(n) / rate
     log = DriveLog(t=t, theta=th_log, tau=tau_log, name=Path(path).name,
                    meta={"plant": plant.name, "seed": seed, "torque_noise": torque_noise})
@@ -195,11 +201,8 @@ def run_jog(plant: Robot, amplitude: float = 0.1, each: float = 1.2,
     loop = DriveLoop(plant, rate, kp, kd, timestep, torque_noise, seed)
     loop.start(q0)
     n = len(ref)
-    th_log, tau_log = np.empty((n, 9)), np.empty((n, 9))
-    for k in range(n):
-        tick = loop.tick(ref[k], vref[k], ff)
-        th_log[k] = tick.theta
-        tau_log[k] = loop.monitor(tick.applied)
+    out = run(loop, FileController(ref, vref, ff), n, final=True)
+    th_log, tau_log = out.theta, out.readings[1:]
     return DriveLog(t=np.arange(n) / rate, theta=th_log, tau=tau_log, name="jog",
                     meta={"plant": plant.name, "seed": seed, "jog_amplitude_rad": amplitude})
 
