@@ -198,11 +198,15 @@ def friction(w, viscous, coulomb, speed, out):
 
 
 @njit(cache=True, error_model="numpy")
-def observer_state(lu, piv, jx, q0, qa, c, r, thd, armature, viscous, coulomb, speed,
-                   J, M, h, R):
-    """The observer's state from the compiled model's outputs at x (r = x[3:6]):
-    M = J_x^-T Q_a J_x^-1 + diag(I_a), h = J_x^-T (Q_0 - Q_a J_x^-1 c) + friction(thd),
-    J = J_x blockdiag(I, J_l(r)^-1, I), R = exp([r]x) (into the outputs)."""
+def observer_state(lu, piv, model_out, r, thd, drive, outs):
+    """The observer's state from the compiled model's outputs ``model_out`` (jx, q0, qa,
+    c) at x (r = x[3:6]), with the drive's ``drive`` (armature, viscous, coulomb,
+    speed): M = J_x^-T Q_a J_x^-1 + diag(I_a), h = J_x^-T (Q_0 - Q_a J_x^-1 c) +
+    friction(thd), J = J_x blockdiag(I, J_l(r)^-1, I), R = exp([r]x) (into ``outs``:
+    J, M, h, R)."""
+    jx, q0, qa, c = model_out
+    armature, viscous, coulomb, speed = drive
+    J, M, h, R = outs
     Qa = np.empty((9, 9))
     for j in range(9):
         for i in range(9):
@@ -254,35 +258,60 @@ def velocity(theta, prev, have_prev, rate, b, a, z, out):
 
 
 @njit(cache=True, error_model="numpy")
-def momentum(tau, thd, J, M, h, prev_tau, prev_M, p0, integral, r, flags, gain, dt, var,
-             fc, v_band, w, std, band):
-    """One sample of the momentum observer (:class:`~sixplus3.interaction.stream.
-    WrenchStream`): the residual r from the generalized momentum M thd and the drive's
-    torque held over the last tick; the platform wrench J^T r (first six), its standard
-    deviation and the friction band of the slow joints.  ``flags``: [a previous torque,
-    a previous sample]."""
-    held = np.empty(9)
-    for i in range(9):
-        held[i] = 0.5 * (tau[i] + prev_tau[i]) if flags[0] else tau[i]
+def observe(tau, thd, M, h, dt, gain, lag, state):
+    """One sample of the momentum observer, the one the batch estimator, the stream,
+    the contact guard and lead-through run (:class:`~sixplus3.interaction.momentum.
+    MomentumObserver`): p = M thd; at the first sample p0 = p and r = 0; then
+    step = (tau - h + (M - M_prev) thd / dt + r) dt, the integral += step and
+    r = K (p - p0 - (integral - lag step)) (``lag``: how many ticks the momentum's rate
+    lags the sample: 1/2 for an encoder's difference).  ``state``: (M_prev (9, 9), p0,
+    integral, r (9), started (1,) int), in place."""
+    prev_M, p0, integral, r, started = state
     p = np.empty(9)
     matvec(M, thd, p)
-    if not flags[1]:
+    if not started[0]:
         p0[:] = p
     else:
-        mdot = np.empty(9)
+        step = np.empty(9)
         for i in range(9):
             s = 0.0
             for j in range(9):
                 s += (M[i, j] - prev_M[i, j]) * thd[j]
-            mdot[i] = s / dt
+            step[i] = (tau[i] - h[i] + s / dt + r[i]) * dt
         for i in range(9):
-            integral[i] += (held[i] - h[i] + mdot[i] + r[i]) * dt
-        for i in range(9):
-            r[i] = gain * (p[i] - p0[i] - integral[i])
-    prev_tau[:] = tau
+            integral[i] += step[i]
+            late = integral[i] - lag * step[i] if lag != 0.0 else integral[i]
+            r[i] = gain * (p[i] - p0[i] - late)
     prev_M[:, :] = M
-    flags[0] = 1
-    flags[1] = 1
+    started[0] = 1
+
+
+@njit(cache=True, error_model="numpy")
+def observe_series(t, tau, thd, M, h, gain, lag, state, out):
+    """:func:`observe` over a log's n samples (t (n,), the rest (n, 9) or (n, 9, 9)),
+    the residuals into ``out`` (n, 9)."""
+    for k in range(len(t)):
+        dt = t[k] - t[k - 1] if k > 0 else 1.0
+        observe(tau[k], thd[k], M[k], h[k], dt, gain, lag, state)
+        out[k, :] = state[3]
+
+
+@njit(cache=True, error_model="numpy")
+def momentum(tau, thd, J, M, h, prev_tau, state, gain, dt, settings, out):
+    """One sample of :class:`~sixplus3.interaction.stream.WrenchStream`'s observer: the
+    drive's torque held over the last tick (the mean of this sample's and the last, once
+    there was one), :func:`observe`, then the platform wrench J^T r (first six), its
+    standard deviation and the friction band of the slow joints.  ``settings``: (var (9),
+    fc (9), v_band); ``out``: (w, std, band) (6 each)."""
+    var, fc, v_band = settings
+    w, std, band = out
+    started = state[4]
+    held = np.empty(9)
+    for i in range(9):
+        held[i] = 0.5 * (tau[i] + prev_tau[i]) if started[0] else tau[i]
+    observe(held, thd, M, h, dt, gain, 0.0, state)
+    prev_tau[:] = tau
+    r = state[3]
     for k in range(6):
         s = 0.0
         s2 = 0.0
@@ -331,16 +360,19 @@ def envelope(tau_ff, ref, vref, kp, kd, theta, vel, spread, cap):
 
 
 @njit(cache=True, error_model="numpy")
-def native_state(kin_ptrs, kx, kth, kjx, obs_ptrs, ox, oxd, ojx, oq0, oqa, oc, x, lu, piv,
-                 step, theta, theta_prev, have, newton_max, tol, thd,
-                 armature, viscous, coulomb, speed, J, M, h, R):
+def native_state(model, theta, have, thd):
     """One sample of :class:`~sixplus3.interaction.compiled_state.CompiledState` in one
-    call, the generated C called by address (dynamics/native.py: ``kin_ptrs`` on the
-    buffers kx -> (kth, kjx), ``obs_ptrs`` on (ox, oxd) -> (., ojx, oq0, oqa, oc)): x
-    predicted from the previous sample (``have``), then Newton's steps (at most
-    newton_max + 1 evaluations) to ``tol``, then the observer's state at (x, J_x^-1 thd)
-    into J, M, h, R.  Returns (the largest angle error, the LU's info); the caller
-    accepts the sample when info is 0 and the error below 1e-8."""
+    call, the generated C called by address (dynamics/native.py).  ``model``: the
+    compiled state's buffers and settings (``CompiledState.native_args``): the pointers
+    ``kin_ptrs`` on the buffers kx -> (kth, kjx), ``obs_ptrs`` on (ox, oxd) -> (., ojx,
+    oq0, oqa, oc), the pose x, the LU's (lu, piv, step), the previous angles, Newton's
+    (newton_max, tol), the drive's (armature, viscous, coulomb, speed) and the outputs
+    (J, M, h, R).  x predicted from the previous sample (``have``), then Newton's steps
+    (at most newton_max + 1 evaluations) to ``tol``, then the observer's state at (x,
+    J_x^-1 thd) into J, M, h, R.  Returns (the largest angle error, the LU's info); the
+    caller accepts the sample when info is 0 and the error below 1e-8."""
+    (kin_ptrs, kx, kth, kjx, obs_ptrs, ox, oxd, ojx, oq0, oqa, oc, x, lu, piv, step,
+     theta_prev, newton_max, tol, armature, viscous, coulomb, speed, J, M, h, R) = model
     if have:
         predict(x, lu, piv, theta, theta_prev, step)
     err, info = math.inf, 0
@@ -355,37 +387,35 @@ def native_state(kin_ptrs, kx, kth, kjx, obs_ptrs, ox, oxd, ojx, oq0, oqa, oc, x
     ox[:] = x
     lu_solve(lu, piv, thd, oxd)
     call_casadi(obs_ptrs[0], obs_ptrs[1], obs_ptrs[2], obs_ptrs[3], obs_ptrs[4])
-    observer_state(lu, piv, ojx, oq0, oqa, oc, x[3:6], thd, armature, viscous, coulomb,
-                   speed, J, M, h, R)
+    observer_state(lu, piv, (ojx, oq0, oqa, oc), x[3:6], thd,
+                   (armature, viscous, coulomb, speed), (J, M, h, R))
     theta_prev[:] = theta
     return err, info
 
 
 @njit(cache=True, error_model="numpy")
-def stream_tick(theta, tau, prev_theta, rate, b, a, z, thd,
-                kin_ptrs, kx, kth, kjx, obs_ptrs, ox, oxd, ojx, oq0, oqa, oc,
-                x, lu, piv, step, theta_prev, newton_max, tol, armature, viscous, coulomb,
-                speed, J, M, h, R,
-                prev_tau, prev_M, p0, integral, r, flags, gain, dt, var, fc, v_band,
-                n_sigma, w, std, band):
+def stream_tick(theta, tau, filt, model, obs, n_sigma, out):
     """One sample of :class:`~sixplus3.interaction.stream.WrenchStream` in one call,
     after its first (a previous sample and its x): the readings checked, the velocity
-    filter, :func:`native_state`, the momentum observer.  Returns 0 (no contact), 1 (a
-    contact: a component of w beyond n_sigma std + band), -1 (a reading not finite:
-    nothing changed), -2 (forward kinematics did not converge: the filter moved on, the
-    observer did not; the caller starts again from the full forward kinematics)."""
+    filter (``filt``: prev_theta, rate, b, a, z and the rate's output thd),
+    :func:`native_state` (``model``), the momentum observer (``obs``: prev_tau, the
+    observer's state, gain, dt and (var, fc, v_band); ``out``: (w, std, band)).
+    Returns 0 (no contact), 1 (a contact: a component of w beyond n_sigma std + band),
+    -1 (a reading not finite: nothing changed), -2 (forward kinematics did not converge:
+    the filter moved on, the observer did not; the caller starts again from the full
+    forward kinematics)."""
+    prev_theta, rate, b, a, z, thd = filt
+    prev_tau, state, gain, dt, settings = obs
+    w, std, band = out
     for i in range(9):
         if not (math.isfinite(theta[i]) and math.isfinite(tau[i])):
             return -1
     velocity(theta, prev_theta, True, rate, b, a, z, thd)
-    err, info = native_state(kin_ptrs, kx, kth, kjx, obs_ptrs, ox, oxd, ojx, oq0, oqa, oc,
-                             x, lu, piv, step, theta, theta_prev, True,
-                             newton_max, tol, thd, armature, viscous, coulomb, speed, J, M,
-                             h, R)
+    err, info = native_state(model, theta, True, thd)
     if info != 0 or err >= 1e-8:
         return -2
-    momentum(tau, thd, J, M, h, prev_tau, prev_M, p0, integral, r, flags, gain, dt, var,
-             fc, v_band, w, std, band)
+    J, M, h = model[22], model[23], model[24]
+    momentum(tau, thd, J, M, h, prev_tau, state, gain, dt, settings, out)
     prev_theta[:] = theta
     for k in range(6):
         if abs(w[k]) > n_sigma * std[k] + band[k]:

@@ -123,9 +123,9 @@ class CompiledState:
         obs.evaluate()
         _, jx, q0, qa, c = obs.res
         J, M, h, R = np.empty((9, 9)), np.empty((9, 9)), np.empty(9), np.empty((3, 3))
-        observer_state(self._lu, self._piv, jx, q0, qa, c, x[3:6], theta_dot,
-                       self._armature, self._viscous, self._coulomb, self._speed,
-                       J, M, h, R)
+        observer_state(self._lu, self._piv, (jx, q0, qa, c), x[3:6], theta_dot,
+                       (self._armature, self._viscous, self._coulomb, self._speed),
+                       (J, M, h, R))
         self._theta[:] = theta
         self._have = True
         #: the platform's pose and the crank angles of the last sample
@@ -134,9 +134,9 @@ class CompiledState:
 
 
     def native_args(self) -> tuple[object, ...] | None:
-        """The arguments of :func:`~sixplus3.interaction._tick_kernel.native_state` from
-        ``kin_ptrs`` to ``R`` less theta, have and thd (in :func:`~sixplus3.interaction.
-        _tick_kernel.stream_tick`'s order), or None without the native path."""
+        """The ``model`` of :func:`~sixplus3.interaction._tick_kernel.native_state` and
+        :func:`~sixplus3.interaction._tick_kernel.stream_tick` (this state's buffers and
+        settings, one tuple), or None without the native path."""
         if self._native is None:
             return None
         kin, obs = self._native
@@ -156,16 +156,10 @@ class CompiledState:
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`state` in one compiled call (_tick_kernel.native_state), on the
         previous sample's x and factors."""
-        assert self._native is not None
-        kin, obs = self._native
-        kb, ob = kin.buf, obs.buf
+        model = self.native_args()
+        assert model is not None
         J, M, h, R = self._J, self._M, self._h, self._R
-        err, info = native_state(
-            kin.ptrs, kb.args[0], kb.res[0], kb.res[1], obs.ptrs,
-            ob.args[0], ob.args[1], ob.res[1], ob.res[2], ob.res[3], ob.res[4], self._x,
-            self._lu, self._piv, self._step, theta, self._theta, True, NEWTON, TOL,
-            theta_dot, self._armature, self._viscous, self._coulomb, self._speed, J, M, h,
-            R)
+        err, info = native_state(model, theta, True, theta_dot)
         if info != 0 or err >= 1e-8:
             self._have = False  # start again from the full forward kinematics next time
             raise InputError("forward kinematics did not converge for these angles",

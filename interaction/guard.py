@@ -61,6 +61,7 @@ from sixplus3.interaction.guard_tables import (
     path_tables,
     thresholds,
 )
+from sixplus3.interaction.momentum import MomentumObserver
 from sixplus3.robot_description.hardware import effective_limits, judged_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -223,7 +224,10 @@ class ContactGuard:
         self.st = GuardState(
             rates=DriveRate(self.rate, self.robot, *self._drive_rate),
             motion=deque(maxlen=max(1, round(LAG * self.rate))),
-            last_ref=self.tables.theta[0].copy(), M_prev=self.tables.M[0])
+            last_ref=self.tables.theta[0].copy(),
+            # the one momentum observer (momentum.py); the encoder's difference is the
+            # rate half a tick ago (lag 1/2)
+            observer=MomentumObserver(self.gain, lag=0.5))
 
     @property
     def events(self) -> list[str]:
@@ -314,7 +318,8 @@ class ContactGuard:
                                        f"file's start (tolerance {START_TOL:g} rad): not "
                                        "starting")
             self.st.prev = th.copy()
-            self.st.p0 = self.tables.M[0] @ self.st.vel
+            # at rest (the file's start): the first momentum, nothing integrated yet
+            self.st.observer.step(tq, self.st.vel, self.tables.M[0], self.tables.g[0], dt)
             self.st.t += dt
             return self._advance(False, np.zeros(6))
         # the encoder's difference: the rate at t - dt/2 (over the ticks since the last
@@ -325,9 +330,6 @@ class ContactGuard:
         self.st.prev = th.copy()
         k = int(round(min(max(self.st.s, 0.0), self.n - 1.0)))
         M = self.tables.M[k]
-        p = M @ self.st.vel
-        if self.st.p0 is None:
-            self.st.p0 = p.copy()
         # the velocity torque at the measured rates: along the path at the measured path
         # speed sm (c_k sm^2), and its slope times the rest of the measured rate (a drive
         # that lags, saturates or is pushed; not the reference's speed, which a stop or a
@@ -339,17 +341,11 @@ class ContactGuard:
         tb = self.tables
         h = (tb.c[k] * sm ** 2 + sm * (tb.D[k] @ (self.st.vel - sm * tan)) + tb.g[k]
              + self.robot.motors.friction(self.st.vel))
-        mdot = (M - self.st.M_prev) @ self.st.vel / dt
-        self.st.M_prev = M
-        step = (tq - h + mdot + self.st.r) * dt
-        self.st.integral += step
-        # the momentum of the measured rate is the one half a tick ago: compare it with
-        # the integral up to then (no lag of half a tick: K dt/2 M thetaddot otherwise)
-        self.st.r = self.gain * (p - self.st.p0 - (self.st.integral - 0.5 * step))
+        r = self.st.observer.step(tq, self.st.vel, M, h, dt)
         thr_site, thr = thresholds(self, k, self.st.motion)
-        over = bool(np.any(np.abs(self.st.r) > thr))
+        over = bool(np.any(np.abs(r) > thr))
         self.st.over = self.st.over + 1 if over else 0
-        full = self.tables.J[k].T @ self.st.r  # (wrench at the platform centre, crank torques)
+        full = self.tables.J[k].T @ r  # (wrench at the platform centre, crank torques)
         wrench = full[:6]
         if (self.st.over >= DEBOUNCE and not self.st.contact
                 and self.st.mode in (Mode.FOLLOW, Mode.STOP)):
@@ -358,7 +354,7 @@ class ContactGuard:
             self.st.contact_site = contact_site(full, np.abs(self.tables.J[k]).T @ thr_site)
             self._stop_from_measured()
             self.st.events.append(f"t={self.st.t:.4f} s: contact at {self.st.contact_site}, joint "
-                               f"residual {np.abs(self.st.r).max():.3f} N m; stopping")
+                               f"residual {np.abs(r).max():.3f} N m; stopping")
         if self.st.contact and self.st.t - self.st.contact_t <= SITE_WINDOW:
             self.st.fmax = max(self.st.fmax, float(np.linalg.norm(full[0:3])))
         if (self.st.contact and self.st.contact_site == "the platform" and self.st.mode == Mode.STOP

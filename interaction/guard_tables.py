@@ -23,6 +23,7 @@ from sixplus3.control.gate.stop import (
 from sixplus3.control.report import ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.interaction.guard_parts import DriveRate, parameter_std2, velocity_slope
+from sixplus3.interaction.momentum import MomentumObserver
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.robot_fk import ik_jacobian
@@ -160,7 +161,7 @@ class GuardState:
     rates: DriveRate  #: the drive's rate as the guard models it (guard_parts.DriveRate)
     motion: deque[tuple[float, float]]  #: the motion's threshold share over the last LAG
     last_ref: np.ndarray  #: the last reference commanded
-    M_prev: np.ndarray  #: the reduced inertia at the last tick
+    observer: MomentumObserver  #: the momentum observer (interaction/momentum.py)
     s: float = 0.0  #: path position [samples]
     sd: float = 1.0  #: path speed [file seconds per second]
     sdd: float = 0.0  #: path acceleration
@@ -170,9 +171,6 @@ class GuardState:
     prev: np.ndarray | None = None  #: the last good reading
     since_good: int = 0  #: ticks since the last good reading
     vel: np.ndarray = field(default_factory=lambda: np.zeros(9))  #: the encoder's rate
-    p0: np.ndarray | None = None  #: the first momentum
-    integral: np.ndarray = field(default_factory=lambda: np.zeros(9))
-    r: np.ndarray = field(default_factory=lambda: np.zeros(9))  #: the residual
     over: int = 0  #: ticks above the threshold in a row
     saturated: float = 0.0  #: [s] a drive at its limit
     sm: float = 0.0  #: the measured path speed (the rate along the path's tangent)

@@ -7,13 +7,14 @@ compiled call (:func:`~sixplus3.interaction._tick_kernel.stream_tick`)."""
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sixplus3.errors import InputError, check_number
 from sixplus3.filters import butter_ba
 from sixplus3.interaction._tick_kernel import momentum, stream_tick, velocity
+from sixplus3.interaction.momentum import MomentumObserver
 from sixplus3.interaction.wrench import (
     GAIN,
     MIN_RATE,
@@ -92,14 +93,12 @@ class WrenchStream:
         self._prev_theta = np.zeros(9)
         self._have_theta = False
         self._prev_tau = np.zeros(9)
-        self._prev_M = np.zeros((9, 9))
-        self._p0 = np.zeros(9)
-        self._flags = np.zeros(2, dtype=np.int64)  # a previous torque, a previous sample
-        self._integral = np.zeros(9)
-        self._r = np.zeros(9)
+        self.observer = MomentumObserver(self.gain)  # the one observer (momentum.py)
         sig = torque_sigma(self.robot, monitor_noise)
-        self._var = np.full(9, sig ** 2 * self.gain * self.dt / 2.0 + model_sigma ** 2)
-        self._fc = self.robot.motors.coulomb_per_joint
+        var = np.full(9, sig ** 2 * self.gain * self.dt / 2.0 + model_sigma ** 2)
+        #: the wrench's uncertainty: (the residual's variance, the Coulomb friction per
+        #: joint, the speed below which a joint's friction is a band)
+        self._settings = (var, self.robot.motors.coulomb_per_joint, float(v_band))
         self.v_band, self.n_sigma = v_band, n_sigma
         self._thd = np.zeros(9)
         self._out = (np.zeros(6), np.zeros(6), np.zeros(6))
@@ -112,9 +111,7 @@ class WrenchStream:
         (the next sample is the first)."""
         self._z[:] = 0.0
         self._have_theta = False
-        self._flags[:] = 0
-        self._integral[:] = 0.0
-        self._r[:] = 0.0
+        self.observer.reset()
         self.model.reset()
 
     def update(self, theta: np.ndarray, tau: np.ndarray
@@ -134,21 +131,17 @@ class WrenchStream:
         #: this sample's state, for a controller built on the stream (lead-through)
         self.J, self.M, self.h, self.theta_dot = J, M, h, thd
         w, std, band = np.empty(6), np.empty(6), np.empty(6)
-        momentum(tau, thd, J, M, h, self._prev_tau, self._prev_M, self._p0, self._integral,
-                 self._r, self._flags, self.gain, self.dt, self._var, self._fc,
-                 self.v_band, w, std, band)
+        momentum(tau, thd, J, M, h, self._prev_tau, self.observer.state, self.gain,
+                 self.dt, self._settings, (w, std, band))
         self._prev_theta[:] = theta
         self._have_theta = True
         return w, std, band, bool((np.abs(w) > self.n_sigma * std + band).any())
 
     def _tick(self, theta: np.ndarray, tau: np.ndarray, args: tuple[object, ...]) -> int:
         """_tick_kernel.stream_tick on this stream's state: its code."""
-        w, std, band = self._out
-        tick: Any = stream_tick  # (mypy reads numba's Dispatcher.__call__ as fixed-arity)
-        return int(tick(theta, tau, self._prev_theta, self.rate, self._b, self._a, self._z,
-                        self._thd, *args, self._prev_tau, self._prev_M, self._p0,
-                        self._integral, self._r, self._flags, self.gain, self.dt,
-                        self._var, self._fc, self.v_band, self.n_sigma, w, std, band))
+        filt = (self._prev_theta, self.rate, self._b, self._a, self._z, self._thd)
+        obs = (self._prev_tau, self.observer.state, self.gain, self.dt, self._settings)
+        return int(stream_tick(theta, tau, filt, args, obs, self.n_sigma, self._out))
 
     def _native_update(self, theta: np.ndarray, tau: np.ndarray, args: tuple[object, ...],
                        model: CompiledState

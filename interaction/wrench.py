@@ -50,6 +50,7 @@ from sixplus3.identification.base import (
     stacked_regressor,
 )
 from sixplus3.identification.signals import filter_log
+from sixplus3.interaction.momentum import momentum_observer
 from sixplus3.kinematics.robot_fk import ik_jacobian, robot_fk
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -229,21 +230,6 @@ def to_tcp(w: np.ndarray, off: np.ndarray) -> np.ndarray:
     return out
 
 
-def momentum_observer(t: np.ndarray, tau: np.ndarray, theta_dot: np.ndarray,
-                      M: np.ndarray, h: np.ndarray, gain: float = GAIN) -> np.ndarray:
-    """(n, 9) the observer's estimate of tau_ext (module doc), from its first sample."""
-    n = len(t)
-    r = np.zeros((n, 9))
-    p = np.einsum("nij,nj->ni", M, theta_dot)
-    integral = np.zeros(9)
-    for k in range(1, n):
-        dt = t[k] - t[k - 1]
-        mdot = (M[k] - M[k - 1]) @ theta_dot[k] / dt
-        integral += (tau[k] - h[k] + mdot + r[k - 1]) * dt
-        r[k] = gain * (p[k] - p[0] - integral)
-    return r  # r follows tau_ext = M theta_ddot + h - tau = tau_model - tau
-
-
 def estimate(log: DriveLog, robot: Robot, gain: float = GAIN, at: str = "centre",
              monitor_noise: float = 0.005, model_sigma: float = MODEL_SIGMA,
              v_band: float = V_BAND, n_sigma: float = N_SIGMA,
@@ -368,4 +354,4 @@ def parameter_variance(robot: Robot, theta: np.ndarray, theta_dot: np.ndarray,
 
 __all__ = ["GAIN", "MODEL_SIGMA", "N_SIGMA", "StateModel", "V_BAND", "WrenchEstimate",
            "checked_covariance", "parameter_variance",
-           "estimate", "momentum_observer", "to_tcp", "torque_sigma", "wrench_map"]
+           "estimate", "to_tcp", "torque_sigma", "wrench_map"]

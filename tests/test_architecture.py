@@ -193,7 +193,7 @@ def test_no_module_is_over_500_lines() -> None:
 MAX_ATTRIBUTES = 20
 #: The classes not there yet, with their count today: each may only go down (the
 #: contact guard went from 62 to 18: ``tables`` and ``st``, interaction/guard.py).
-ATTRIBUTE_DEBT = {"LeadThrough": 62, "WrenchStream": 29, "WallUpdate": 25,
+ATTRIBUTE_DEBT = {"LeadThrough": 62, "WrenchStream": 24, "WallUpdate": 25,
                   "CompiledState": 22}
 
 

@@ -112,7 +112,7 @@ def test_lead_through_survives_any_sequence_of_readings(lead, ticks, seed) -> No
         first = False
     # the observer's state is finite, and five good readings bring lead-through back
     st_ = lt.stream
-    for a in (st_._integral, st_._r, st_._p0, st_._prev_theta, lt.v, lt.psi_dot):
+    for a in (*st_.observer.state, st_._prev_theta, lt.v, lt.psi_dot):
         assert np.all(np.isfinite(a))
     for _ in range(5):
         cmd = lt.step(th + rng.normal(0.0, 1e-5, 9), hold)
