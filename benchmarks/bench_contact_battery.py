@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sixplus3.control.drive.loop import DriveSettings
 from sixplus3.control.file.file_format import columns
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.file.trajectory_read import read_bytes
@@ -170,8 +171,9 @@ def main() -> None:
                         for guard in guards:
                             r = run_contact(path, model, plant, c,
                                             guard=built if guard else False, kp=kp,
-                                            kd=kd, seed=args.seed, after=0.3,
-                                            reaction=args.reaction, rate_feedback=fb)
+                                            kd=kd, after=0.3, reaction=args.reaction,
+                                            drive=DriveSettings(rate_feedback=fb,
+                                                                seed=args.seed))
                             row = {"region": region, "kind": kind, "task": task,
                                    "target": label, "at": round(at, 4), "normal": nname,
                                    "point": point, "plant": pname,
@@ -257,7 +259,8 @@ def quiet(args: argparse.Namespace, out: object, t_start: float) -> None:
             for dname, fb in [(d, f) for d in args.drives for f in args.rate_feedback]:
                 kp, kd = DRIVES[dname]
                 r = run_contact(path, model, plant, None, guard=built, kp=kp, kd=kd,
-                                seed=args.seed, after=0.2, rate_feedback=fb)
+                                after=0.2, drive=DriveSettings(rate_feedback=fb,
+                                                               seed=args.seed))
                 row = {"file": path.name, "plant": pname, "drive": dname, "rate_feedback": fb,
                        "false_alarm": r.false_alarm, "peak_command": r.peak_command,
                        "saturation_stop": any("saturated" in e for e in r.events),

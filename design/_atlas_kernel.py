@@ -220,14 +220,15 @@ def _segments(row, i, legc, geo, out):
 
 
 @njit(cache=True, error_model="numpy")
-def _finish(seg, pm, m_legs, pos, R, psi, legc, par, hubs, radii, pairs, base, caps, mid,
-            half):
+def _finish(seg, pm, m_legs, pos, R, psi, legc, par, bodies, work):
     """Checks 5-6 of a candidate whose legs all passed 1-4 (their links ``seg`` (3, 6,
     2, 3), their smallest margin ``m_legs``; its crank angles ``psi`` (3,), its
     platform margin ``pm``): (stage 4..6, margin, -inf unless both pass).  Check 5 is
     the collision model's clearance >= 0 (kinematics.collision.clearance), with the
     bodies placed here: the legs' links, the hubs, the platform's spokes, edges and
-    cranks."""
+    cranks (``bodies``: hubs, radii, pairs, base; ``work``: caps, mid, half)."""
+    hubs, radii, pairs, base = bodies
+    caps, mid, half = work
     for i in range(NL):
         for a in range(_NSEG):
             caps[_NSEG * i + a] = seg[i, a]
@@ -297,12 +298,14 @@ def _platform_margin(psi, legc, par):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def pose_checks(pos, R, psi, platform, legc, par, geo, mode, ref, hubs, radii, pairs, base):
+def pose_checks(pos, R, psi, platform, packed):
     """Checks 1-6 of candidate crank choices: pos (n, 3), R (n, 3, 3), psi (n, k, 3)
     [rad], with their platform margins ``platform`` (n, k) (:func:`platform_margins`,
-    which depend on psi only).  Returns (stage (n, k) int8: checks passed, 0..6;
-    margin (n, k): the smallest leg and platform margin where all six pass, else
-    -inf)."""
+    which depend on psi only), for the robot ``packed`` (legc, par, geo, mode, ref,
+    hubs, radii, pairs, base: ``AtlasChecks.packed``).  Returns (stage (n, k) int8:
+    checks passed, 0..6; margin (n, k): the smallest leg and platform margin where all
+    six pass, else -inf)."""
+    legc, par, geo, mode, ref, hubs, radii, pairs, base = packed
     n, K = psi.shape[0], psi.shape[1]
     stage = np.zeros((n, K), dtype=np.int8)
     margin = np.full((n, K), -np.inf)
@@ -329,15 +332,15 @@ def pose_checks(pos, R, psi, platform, legc, par, geo, mode, ref, hubs, radii, p
             stage[k, c] = s_min
             if s_min == 4:
                 stage[k, c], margin[k, c] = _finish(
-                    seg, platform[k, c], m_min, pos[k], R[k], psi[k, c], legc, par, hubs,
-                    radii, pairs, base, caps, mid, half)
+                    seg, platform[k, c], m_min, pos[k], R[k], psi[k, c], legc, par,
+                    (hubs, radii, pairs, base), (caps, mid, half))
     return stage, margin
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def free_candidates(pos, R, grid, table, legc, par, geo, mode, ref, hubs, radii, pairs,
-                    base):
-    """The free search's candidates and their checks 1-6, in one pass per pose.
+def free_candidates(pos, R, grid, table, packed):
+    """The free search's candidates and their checks 1-6, in one pass per pose, for the
+    robot ``packed`` (as :func:`pose_checks`).
 
     Checks 1-4 of every leg on the crank grid (as :func:`leg_grid`); per leg the best
     grid value by the leg's smallest margin (the first maximum) and the second best (the
@@ -350,6 +353,7 @@ def free_candidates(pos, R, grid, table, legc, par, geo, mode, ref, hubs, radii,
     not all legs have a passing value), margin (n, 4) (-inf unless all six pass),
     leg_best (n, 3) int8: the most checks any grid value of each leg passed).
     """
+    legc, par, geo, mode, ref, hubs, radii, pairs, base = packed
     n, G = pos.shape[0], grid.shape[0]
     idx = np.zeros((n, 4, NL), dtype=np.int64)
     stage = np.zeros((n, 4), dtype=np.int8)
@@ -403,6 +407,6 @@ def free_candidates(pos, R, grid, table, legc, par, geo, mode, ref, hubs, radii,
                 m_min = min(m_min, score[w, i])
             pm = table[idx[k, c, 0], idx[k, c, 1], idx[k, c, 2]]
             stage[k, c], margin[k, c] = _finish(cand, pm, m_min, pos[k], R[k], psi_c, legc,
-                                                par, hubs, radii, pairs, base, caps, mid,
-                                                half)
+                                                par, (hubs, radii, pairs, base),
+                                                (caps, mid, half))
     return idx, stage, margin, leg_best

@@ -63,7 +63,7 @@ class PoseChecker:
         """
         stage, margin = _kernel.pose_checks(
             np.ascontiguousarray(pos), np.ascontiguousarray(R), np.ascontiguousarray(psi),
-            np.ascontiguousarray(platform, dtype=float), *self.packed)
+            np.ascontiguousarray(platform, dtype=float), self.packed)
         return self._torque(pos, R, psi, stage, margin)
 
     def _torque(self, pos: np.ndarray, R: np.ndarray, psi: np.ndarray, stage: np.ndarray,
@@ -118,7 +118,7 @@ class PoseChecker:
             return self._pick(home, s_home, m_home, np.zeros(n, dtype=np.int8))
         idx, s4, m4, leg_best = _kernel.free_candidates(
             np.ascontiguousarray(pos), np.ascontiguousarray(R), self.psi_grid,
-            self.platform_grid, *self.packed)
+            self.platform_grid, self.packed)
         cand = np.concatenate([self.psi_grid[idx], home], axis=1)  # + home: (n, 5, 3)
         live = np.all(leg_best >= 4, axis=1)
         stage = np.zeros((n, 5), dtype=np.int8)

@@ -149,13 +149,19 @@ def keep_out(v, psi_dot, G, b, n, cranks, scale):
 
 
 @njit(cache=True, error_model="numpy")
-def command(J, M, h, thd, v, psi_dot, lead, tdr, p_ref, R_ref, psi_ref, theta_ref, anchor,
-            has_anchor, tool, rate_cap, dt, viscous, coulomb, speed, cap, ff):
+def command(model, motion, ref, anchor, has_anchor, settings, ff):
     """The reference: the joint rates J (v_centre, omega, psi_dot) (the whole twist
     scaled within ``rate_cap``, v and psi_dot too), integrated into the pose, the cranks
     and the angles (from ``anchor`` when the slow update solved the pose); ``tdr`` (the
     rate reference) updated in place; tau_ff = h - friction(thd) + friction(rates) +
-    M (the reference's acceleration), within +-cap, into ``ff``."""
+    M (the reference's acceleration), within +-cap, into ``ff``.  ``model``: (J, M, h,
+    thd) this tick; ``motion``: (v, psi_dot, lead); ``ref``: (tdr, p_ref, R_ref,
+    psi_ref, theta_ref), in place; ``settings``: (tool, rate_cap, dt, viscous, coulomb,
+    speed, cap)."""
+    J, M, h, thd = model
+    v, psi_dot, lead = motion
+    tdr, p_ref, R_ref, psi_ref, theta_ref = ref
+    tool, rate_cap, dt, viscous, coulomb, speed, cap = settings
     off = np.empty(3)
     matvec(R_ref, tool, off)
     xi = np.empty(9)
@@ -241,13 +247,18 @@ def slow_scalars(sl, solved, n_probe, crank_step, band, prev_now, dt_prev, horiz
 
 
 @njit(cache=True, error_model="numpy")
-def update_poses(p, R, psi_ref, v, psi_dot, off, scale, crank_step, probes, tw, pos, rot,
-                 psi, u):
-    """The lead-through's slow update's poses (interaction.leadthrough, 5): row 0 the
+def update_poses(pose, motion, off, settings, tw, out, u):
+    """The lead-through's slow update's poses (interaction.leadthrough, 5) from the
+    reference ``pose`` (p, R, psi_ref) into ``out`` (pos, rot, psi): row 0 the
     reference, rows 1-3 and 4-6 each crank turned by +- ``crank_step``, rows 7.. the
-    probes ahead (``probes`` [m] along the direction u (9,) of the motion (v, psi_dot),
-    metric: rotations and cranks times ``scale``) of the tool point ``off`` (R tool);
-    tw (n, 6) work.  Returns |(v, omega scale, psi_dot scale)| (0: u = 0)."""
+    probes ahead (``probes`` [m] along the direction u (9,) of the ``motion`` (v,
+    psi_dot), metric: rotations and cranks times ``scale``; ``settings``: (scale,
+    crank_step, probes)) of the tool point ``off`` (R tool); tw (n, 6) work.  Returns
+    |(v, omega scale, psi_dot scale)| (0: u = 0)."""
+    p, R, psi_ref = pose
+    v, psi_dot = motion
+    scale, crank_step, probes = settings
+    pos, rot, psi = out
     n_probe = probes.shape[0]
     nx = 0.0
     for i in range(9):

@@ -254,12 +254,16 @@ def _leg_point(row, at, k):
 
 
 @njit(cache=True, error_model="numpy")
-def pose_slacks(p, R, psi, with_clearance, k, geo, mode, crank_pos, crank_angle, leg_rot,
-                leg_org, sph_ref, hubs, radii, pairs, base, out, theta, caps, mid, half,
-                rows, P, Ri, J, G, vec):
+def pose_slacks(p, R, psi, with_clearance, robot, out, theta, work):
     """The four slacks of one pose (interaction.walls) into ``out`` (4,) and its
     actuated angles into ``theta`` (9,); returns whether the pose has an assembly (if
-    not: every slack -1, theta 0).  rows (3, NF), P, Ri (3, 3), J, G (9, 9), vec (4, 9): work."""
+    not: every slack -1, theta 0).  ``robot``: the robot's constants (k, geo, mode,
+    crank_pos, crank_angle, leg_rot, leg_org, sph_ref, hubs, radii, pairs, base:
+    ``Walls._const``); ``work``: (caps, mid, half, rows (3, NF), P, Ri (3, 3), J, G
+    (9, 9), vec (4, 9))."""
+    (k, geo, mode, crank_pos, crank_angle, leg_rot, leg_org, sph_ref, hubs, radii, pairs,
+     base) = robot
+    caps, mid, half, rows, P, Ri, J, G, vec = work
     for i in range(3):
         b = crank_angle[i] + psi[i]
         c0 = crank_pos[i, 0] + k[K_CRANK] * math.cos(b)
@@ -331,10 +335,10 @@ def pose_slacks(p, R, psi, with_clearance, k, geo, mode, crank_pos, crank_angle,
 
 
 @njit(cache=True, error_model="numpy")
-def batch_slacks(p, R, psi, with_clearance, k, geo, mode, crank_pos, crank_angle, leg_rot,
-                 leg_org, sph_ref, hubs, radii, pairs, base, out, theta, ok):
+def batch_slacks(p, R, psi, with_clearance, robot, out, theta, ok):
     """:func:`pose_slacks` of n poses (p (n, 3), R (n, 3, 3), psi (n, 3),
     with_clearance (n,)) into out (n, 4), theta (n, 9), ok (n,)."""
+    radii = robot[9]
     caps = np.zeros((radii.shape[0], 2, 3))
     mid = np.empty((radii.shape[0], 3))
     half = np.empty(radii.shape[0])
@@ -342,11 +346,10 @@ def batch_slacks(p, R, psi, with_clearance, k, geo, mode, crank_pos, crank_angle
     P, Ri = np.empty((3, 3)), np.empty((3, 3))
     J, G = np.empty((9, 9)), np.empty((9, 9))
     vec = np.empty((4, 9))
+    work = (caps, mid, half, rows, P, Ri, J, G, vec)
     for n in range(p.shape[0]):
-        ok[n] = pose_slacks(p[n], R[n], psi[n], with_clearance[n], k, geo, mode, crank_pos,
-                            crank_angle, leg_rot, leg_org, sph_ref, hubs, radii, pairs,
-                            base, out[n], theta[n], caps, mid, half, rows, P, Ri, J, G,
-                            vec)
+        ok[n] = pose_slacks(p[n], R[n], psi[n], with_clearance[n], robot, out[n], theta[n],
+                            work)
 
 
 @njit(cache=True, error_model="numpy")

@@ -34,8 +34,7 @@ from typing import Any
 import numpy as np
 
 from sixplus3.control.drive.command import DriveCommand
-from sixplus3.control.drive.loop import TORQUE_NOISE, DriveLoop, Tick, run
-from sixplus3.control.drive.simulation import KD, KP
+from sixplus3.control.drive.loop import KD, KP, TORQUE_NOISE, DriveLoop, Tick, run
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.errors import InputError, check_number
 from sixplus3.fileio import read_yaml

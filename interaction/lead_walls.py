@@ -137,8 +137,9 @@ class WallUpdate:
         cranks may climb.  Returns the anchor: the reference's actuated angles (None:
         it has no assembly)."""
         pos, rotm, psi, u, sl = self._pos, self._rot, self._psi, self._u, self._sl
-        nx = kern.update_poses(p, R, psi_ref, v, psi_dot, R @ self.tool, walls.ANGLE_SCALE,
-                             CRANK_STEP, self._probes, self._tw, pos, rotm, psi, u)
+        nx = kern.update_poses((p, R, psi_ref), (v, psi_dot), R @ self.tool,
+                               (walls.ANGLE_SCALE, CRANK_STEP, self._probes), self._tw,
+                               (pos, rotm, psi), u)
         angles, solved, k = self._angles, self._solved, SPLIT
         self._fn.into(pos[:k], rotm[:k], psi[:k], self._sel[:k], sl[:k], angles[:k],
                       solved[:k])

@@ -468,11 +468,11 @@ class LeadThrough:
         has_anchor = self._anchor_theta is not None  # this tick's slow update solved it
         anchor = self._anchor_theta if self._anchor_theta is not None else self._no_anchor
         ff = np.empty(9)
-        kern.command(J, M, h, thd, self.v, self.psi_dot, self.mode == Mode.LEAD,
-                     self._theta_dot_ref, self.p_ref, self.R_ref, self.psi_ref,
-                     self.theta_ref, anchor, has_anchor, self.tool, self.rate_cap, self.dt,
-                     self._viscous, self._coulomb, self._cspeed, COMMAND_SHARE * self.cap,
-                     ff)
+        kern.command((J, M, h, thd), (self.v, self.psi_dot, self.mode == Mode.LEAD),
+                     (self._theta_dot_ref, self.p_ref, self.R_ref, self.psi_ref,
+                      self.theta_ref), anchor, has_anchor,
+                     (self.tool, self.rate_cap, self.dt, self._viscous, self._coulomb,
+                      self._cspeed, COMMAND_SHARE * self.cap), ff)
         self._anchor_theta = None
         self._last_ff = ff
         contact = bool(self.mode == Mode.LEAD or self._above > 0)

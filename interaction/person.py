@@ -27,9 +27,9 @@ from typing import Any
 import numpy as np
 
 from sixplus3.control.drive.command import DriveCommand, FileController
-from sixplus3.control.drive.loop import FILTER_TAU, TORQUE_NOISE, DriveLoop, Tick, run
+from sixplus3.control.drive.loop import FILTER_TAU, KD, KP, DriveSettings, Tick, run
 from sixplus3.control.drive.mujoco_model import MujocoRobot
-from sixplus3.control.drive.simulation import KD, KP, first_configuration
+from sixplus3.control.drive.simulation import first_configuration
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.control.file.file_format import columns
 from sixplus3.control.gate.interval import held_torque
@@ -43,7 +43,6 @@ from sixplus3.kinematics.robot_fk import ik_jacobian
 from sixplus3.kinematics.tcp import tcp_velocity
 from sixplus3.robot_description.body_regions import REGIONS, BodyRegion
 from sixplus3.robot_description.leg_links import VERTICES
-from sixplus3.robot_description.mjcf import TIMESTEP
 from sixplus3.robot_description.robot import Robot, require_robot
 
 #: A stopped point: its speed along the normal at most this [m/s].
@@ -151,19 +150,26 @@ class ContactRun:
 
 
 def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact | None,
-                guard: bool | ContactGuard = True, kp: float = KP, kd: float = KD, seed: int = 0,
-                after: float = 0.5, torque_noise: float = TORQUE_NOISE,
-                timestep: float = TIMESTEP, reaction: str = "hold",
+                guard: bool | ContactGuard = True, kp: float = KP, kd: float = KD,
+                after: float = 0.5, reaction: str = "hold",
                 parameter_cov: tuple[np.ndarray, np.ndarray] | None = None,
-                rate_feedback: str = "encoder") -> ContactRun:
+                drive: DriveSettings | None = None) -> ContactRun:
     """Run the file on ``plant`` with the person ``contact`` (None: nobody, for false
     alarms) in the way (module doc), the guard in the loop (``guard``) or the plan
     followed as it is, for ``after`` seconds past the contact (or the file's end);
-    ``reaction``: the guard's, hold or yield; ``rate_feedback``: the drives' (loop.py);
-    ``parameter_cov``: an identification's (base columns, covariance) for the guard's
-    thresholds.  ``guard`` may be a :class:`ContactGuard` of this file and model: it is
-    reset and run again (its tables are not rebuilt: a battery of contacts on a file)."""
+    ``reaction``: the guard's, hold or yield; ``drive``: the drives' rate feedback,
+    torque noise, seed and MuJoCo's step (loop.py; default: the encoder's difference);
+    ``parameter_cov``: an
+    identification's (base columns, covariance) for the guard's thresholds.  ``guard``
+    may be a :class:`ContactGuard` of this file and model: it is reset and run again
+    (its tables are not rebuilt: a battery of contacts on a file)."""
     model, plant = require_robot(model), require_robot(plant)
+    drive = DriveSettings() if drive is None else drive
+    if not isinstance(drive, DriveSettings):
+        raise InputError("drive must be a DriveSettings", value=type(drive).__name__,
+                         valid="control.drive.loop.DriveSettings")
+    seed, timestep, rate_feedback = drive.seed, drive.timestep, drive.rate_feedback
+    torque_noise = drive.torque_noise
     for name, v, lo, hi in (("after", after, 0.0, 30.0), ("kp", kp, 0.0, 1e5),
                             ("kd", kd, 0.0, 1e4), ("seed", seed, 0, 2 ** 32 - 1)):
         check_number(name, v, lo, hi, integer=name == "seed")
@@ -194,8 +200,7 @@ def run_contact(path: str | Path, model: Robot, plant: Robot, contact: Contact |
                parameter_cov)
     # the drives: the one drive loop, with the rate feedback a drive without an
     # observer has (the encoder's difference, which the guard's bound assumes too)
-    loop = DriveLoop(plant, rate, kp, kd, timestep, torque_noise, seed,
-                     rate_feedback=rate_feedback)
+    loop = drive.loop(plant, rate, kp, kd)
     loop.start(first_configuration(model, rep))
     mj, m, d = loop.sim.mj, loop.sim.model, loop.sim.data
     body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, body_name)

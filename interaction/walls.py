@@ -99,7 +99,7 @@ class Walls:
         """:meth:`__call__` into given arrays (C-contiguous float: position (n, 3),
         rotation (n, 3, 3), psi (n, 3), out (n, 4), theta (n, 9); bool: walls, ok (n,)),
         without a conversion or an allocation (a per-tick caller's)."""
-        wk.batch_slacks(position, rotation, psi, walls, *self._const, out, theta, ok)
+        wk.batch_slacks(position, rotation, psi, walls, self._const, out, theta, ok)
 
 
 def walls_of(robot: Robot) -> Walls:

@@ -252,10 +252,12 @@ def _sigma_min_unit_rows(a0, a1, a2, b0, b1, b2, c0, c1, c2):
 
 
 @njit(cache=True, inline="always", fastmath=_FM, error_model="numpy")
-def _torque_map(out, det_jp, det_jr, c0x, c0y, c0z, c1x, c1y, c1z, c2x, c2y, c2z,
-                k11, k21, k22, k31, k33, mass_g, accel_g):
-    """M = K^T J^-T (rows of ``out[MM:]``) from J's cofactor rows c0, c1, c2 and K's
-    entries, and the largest static torque ``out[TAU_EXT]`` of :func:`jacobian_point`."""
+def _torque_map(out, det_jp, det_jr, cof, kk, mass_g, accel_g):
+    """M = K^T J^-T (rows of ``out[MM:]``) from J's cofactor rows ``cof`` (c0x, c0y,
+    c0z, c1x, ..., c2z) and K's entries ``kk`` (k11, k21, k22, k31, k33), and the
+    largest static torque ``out[TAU_EXT]`` of :func:`jacobian_point`."""
+    c0x, c0y, c0z, c1x, c1y, c1z, c2x, c2y, c2z = cof
+    k11, k21, k22, k31, k33 = kk
     # N = S J'^-T: rows c0/det, dJp c1/det, dJp c2/det.
     inv = 1.0 / det_jr
     s = det_jp * inv
@@ -369,8 +371,8 @@ def jacobian_point(geo, mass_g, accel_g, out, margin_ii=True):
             out[MM + i] = math.inf
         out[TAU_EXT] = math.inf
         return
-    _torque_map(out, det_jp, det_jr, c0x, c0y, c0z, c1x, c1y, c1z, c2x, c2y, c2z,
-                k11, k21, k22, k31, k33, mass_g, accel_g)
+    _torque_map(out, det_jp, det_jr, (c0x, c0y, c0z, c1x, c1y, c1z, c2x, c2y, c2z),
+                (k11, k21, k22, k31, k33), mass_g, accel_g)
 
 
 def _full_batch(points, geo, mode, mass_g, accel_g):

@@ -154,6 +154,15 @@ class Motion:
         return samples_fingerprint(self.t, self.theta, self.theta_dot, self.theta_ddot,
                                    self.rate)
 
+    def window(self, start: int, stop: int) -> Motion:
+        """Samples ``start`` .. ``stop`` - 1: views of this motion's read-only arrays
+        (checked once, when this motion was made), not copies."""
+        out = object.__new__(Motion)
+        for name in _ARRAYS:
+            object.__setattr__(out, name, getattr(self, name)[start:stop])
+        object.__setattr__(out, "rate", self.rate)
+        return out
+
     def with_theta(self, theta: np.ndarray) -> Motion:
         """The same times, rates and accelerations with the angles ``theta``."""
         return Motion(self.t, theta, self.theta_dot, self.theta_ddot, self.rate)

@@ -172,7 +172,7 @@ def test_compiled_checks_agree_with_the_numpy_robot_functions() -> None:
     psi = np.radians(rng.uniform(5, 175, (len(pos), 1, 3)))
     packed = kern.pack(ROBOT)
     pm_psi = kern.platform_margins(psi[:, 0], *packed[:2])[:, None]  # psi only (R = I)
-    stage, margin = kern.pose_checks(pos, R, psi, pm_psi, *packed)
+    stage, margin = kern.pose_checks(pos, R, psi, pm_psi, packed)
     lim = ROBOT.limits
     cfg = robot_ik(pos, R, psi[:, 0], ROBOT, platform_margins=False)
     th_ok = cfg.ok & np.all((cfg.theta >= lim.theta_min) & (cfg.theta <= lim.theta_max), 1)
@@ -297,7 +297,7 @@ def test_free_candidates_are_the_leg_grid_then_pose_checks() -> None:
     chk = ac.PoseChecker(ROBOT, 7.5)
     grid, packed = chk.psi_grid, chk.packed
     idx, stage, margin, leg_best = kern.free_candidates(pos, R, grid, chk.platform_grid,
-                                                        *packed)
+                                                        packed)
     st, score = kern.leg_grid(pos, R, grid, *packed)
     np.testing.assert_array_equal(leg_best, st.max(axis=1))
     live = np.all(leg_best >= 4, axis=1)
@@ -310,7 +310,7 @@ def test_free_candidates_are_the_leg_grid_then_pose_checks() -> None:
                                  for i in range(3)], axis=1)
     np.testing.assert_array_equal(idx[live], ref_idx[live])
     pm = chk.platform_grid[ref_idx[..., 0], ref_idx[..., 1], ref_idx[..., 2]]
-    s_ref, m_ref = kern.pose_checks(pos, R, grid[ref_idx], pm, *packed)
+    s_ref, m_ref = kern.pose_checks(pos, R, grid[ref_idx], pm, packed)
     np.testing.assert_array_equal(stage[live], s_ref[live])
     np.testing.assert_array_equal(margin[live], m_ref[live])
     assert {4, 6} <= set(np.unique(stage[live]).tolist())  # clearance fails and passes

@@ -299,14 +299,16 @@ def test_with_the_drive_gains_no_command_leaves_the_envelope(hand_plan, feedback
     measured 10.0-13.1 N m on the true rate), the total tau_ff + PD the drive computes
     never leaves the envelope (97 % of it; the true rate's spread: 10 N m), and the
     clamp is still released."""
+    from sixplus3.control.drive.loop import DriveSettings
     from sixplus3.interaction.guard_parts import COMMAND_SHARE
     from sixplus3.interaction.person import contact_from_dict, run_contact
 
     c = contact_from_dict({"region": "hand", "kind": "clamp", "at": 0.12})
+    drive = DriveSettings(rate_feedback=feedback)
     blind = run_contact(hand_plan, ROBOT, ROBOT, c, guard=False, kp=3000.0, kd=30.0,
-                        after=0.3, rate_feedback=feedback)
+                        after=0.3, drive=drive)
     guarded = run_contact(hand_plan, ROBOT, ROBOT, c, guard=True, kp=3000.0, kd=30.0,
-                          after=0.3, rate_feedback=feedback)
+                          after=0.3, drive=drive)
     cap = ROBOT.limits.torque
     assert blind.peak_command > 2 * cap
     assert guarded.peak_command <= COMMAND_SHARE * cap + 1e-9, guarded.summary()

@@ -42,12 +42,32 @@ from sixplus3.robot_description.hardware import effective_limits
 from sixplus3.robot_description.mjcf import TIMESTEP
 from sixplus3.robot_description.robot import Robot, require_robot
 
+#: Default PD gains of the drives [N m/rad, N m s/rad]: about 100 rad/s bandwidth,
+#: critically damped, on a joint of 0.03 kg m^2 (rotor + links).
+KP, KD = 300.0, 6.0
 #: Default standard deviation of the torque monitor's noise [N m at the joint].
 TORQUE_NOISE = 0.005
 #: [s] the time constant of the ``"filtered"`` rate feedback's low-pass.
 FILTER_TAU = 1e-3
 #: The drive's rate feedbacks (module doc).
 RATE_FEEDBACKS = ("plant", "encoder", "filtered")
+
+
+@dataclass(frozen=True)
+class DriveSettings:
+    """A simulated drive's settings beside its PD gains (module doc): its rate feedback
+    (one of :data:`RATE_FEEDBACKS`), the torque monitor's noise [N m] and its seed, and
+    MuJoCo's step [s]."""
+
+    rate_feedback: str = "encoder"
+    torque_noise: float = TORQUE_NOISE
+    seed: int = 0
+    timestep: float = TIMESTEP
+
+    def loop(self, plant: Robot, rate: float, kp: float, kd: float) -> DriveLoop:
+        """The drives of ``plant`` at ``rate`` with these settings (checked there)."""
+        return DriveLoop(plant, rate, kp, kd, self.timestep, self.torque_noise, self.seed,
+                         rate_feedback=self.rate_feedback)
 
 
 @dataclass(frozen=True)
@@ -221,5 +241,6 @@ def run(loop: DriveLoop, controller: TickController, ticks: int,
                readings=readings)
 
 
-__all__ = ["FILTER_TAU", "RATE_FEEDBACKS", "TORQUE_NOISE", "After", "Before", "DriveLoop",
+__all__ = ["FILTER_TAU", "KD", "KP", "RATE_FEEDBACKS", "TORQUE_NOISE", "After", "Before",
+           "DriveLoop", "DriveSettings",
            "Run", "Tick", "run"]

@@ -30,9 +30,9 @@ from pathlib import Path
 import numpy as np
 
 from sixplus3.control.drive.command import FileController
-from sixplus3.control.drive.loop import TORQUE_NOISE, DriveLoop, run
+from sixplus3.control.drive.loop import KD, KP, TORQUE_NOISE, DriveLoop, run
 from sixplus3.control.drive.mujoco_model import MujocoRobot
-from sixplus3.control.drive.simulation import KD, KP, first_configuration
+from sixplus3.control.drive.simulation import first_configuration
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.control.file.file_format import columns, motion_of
 from sixplus3.control.file.trajectory_parse import NUMBER

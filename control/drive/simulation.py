@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from sixplus3.control.drive.command import FileController
-from sixplus3.control.drive.loop import DriveLoop, Tick, run
+from sixplus3.control.drive.loop import KD, KP, DriveLoop, Tick, run
 from sixplus3.control.drive.mujoco_model import MujocoRobot
 from sixplus3.control.file.file_format import columns
 from sixplus3.control.gate.findings import FEEDFORWARD_TOL
@@ -43,10 +43,6 @@ from sixplus3.kinematics.rotations import matrix_from_quat
 from sixplus3.motion import check_rate
 from sixplus3.robot_description.mjcf import TIMESTEP, build_mjcf, qpos_from_q
 from sixplus3.robot_description.robot import Robot, require_robot
-
-#: Default PD gains of the replay [N m/rad, N m s/rad]: about 100 rad/s bandwidth,
-#: critically damped, on a joint of 0.03 kg m^2 (rotor + links).
-KP, KD = 300.0, 6.0
 
 
 def mujoco_inverse_dynamics(robot: Robot, q: np.ndarray, theta_dot: np.ndarray,

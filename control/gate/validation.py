@@ -36,7 +36,7 @@ from sixplus3.control.file.trajectory_read import check_robot, read_bytes
 from sixplus3.control.gate.pfl import judged, pfl_check
 from sixplus3.control.gate.stop import HEADER_KEY as STOP_KEY
 from sixplus3.control.gate.stop import header_entry, stop_check, stop_table
-from sixplus3.control.gate.window import merge_windows, validate_window
+from sixplus3.control.gate.window import Window, merge_windows, validate_window
 from sixplus3.control.report import ValidationReport
 from sixplus3.errors import InputError, LimitError, TrajectoryFileError, ValidationFailed
 from sixplus3.kinematics import rotations as rot
@@ -111,20 +111,19 @@ def _judge(motion: Motion, robot: Robot, x_guess: np.ndarray, lim: Limits,
     if xg is None:
         raise InputError("x_guess (n, 9) is needed to seed the forward kinematics",
                          value=None, valid=f"({n}, 9)")
-    t, th, v, a, rate = (motion.t, motion.theta, motion.theta_dot, motion.theta_ddot,
-                         motion.rate)
+    rate = motion.rate
     if n <= WINDOW:
-        rep = validate_window(t, th, v, a, robot, rate, xg, lim, pf, tf_, midpoints,
-                              rate_range=rate_range)
+        rep = validate_window(motion, robot, lim, Window(xg, pf, tf_), midpoints,
+                              rate_range)
     else:
         reps = []
         for i0 in range(0, n - 1, WINDOW - 1):
             sl = slice(i0, min(n, i0 + WINDOW))
-            reps.append(validate_window(
-                t[sl], th[sl], v[sl], a[sl], robot, rate, xg[sl], lim,
-                None if pf is None else pf[sl], None if tf_ is None else tf_[sl],
-                midpoints, k0=i0, rest=(i0 == 0, sl.stop == n), n_total=n,
-                rate_range=rate_range))
+            win = Window(xg[sl], None if pf is None else pf[sl],
+                         None if tf_ is None else tf_[sl], k0=i0,
+                         rest=(i0 == 0, sl.stop == n), n_total=n)
+            reps.append(validate_window(motion.window(sl.start, sl.stop), robot, lim, win,
+                                        midpoints, rate_range))
             if reps[-1].tau is None:  # a window that could not be checked through
                 break
         rep = merge_windows(reps, n)

@@ -45,7 +45,7 @@ from sixplus3.kinematics.collision import clearance
 from sixplus3.kinematics.robot import RobotConfig
 from sixplus3.kinematics.robot_fk import BatchFK, robot_fk_batch
 from sixplus3.kinematics.spherical import spherical_tilts
-from sixplus3.motion import RATE_RANGE
+from sixplus3.motion import RATE_RANGE, Motion
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot
 
@@ -142,15 +142,32 @@ def _branch_finding(th: np.ndarray, fk: BatchFK, robot: Robot, t: np.ndarray
                    branch - BRANCH_TOL, branch, t, ["platform"])
 
 
-def validate_window(t: np.ndarray, th: np.ndarray, v: np.ndarray, a: np.ndarray,
-                    robot: Robot, rate: float, x_guess: np.ndarray, lim: Limits,
-                    platform: np.ndarray | None, tau_file: np.ndarray | None,
-                    midpoints: bool, k0: int = 0, rest: tuple[bool, bool] = (True, True),
-                    n_total: int | None = None,
+@dataclass(frozen=True)
+class Window:
+    """Where a window of samples sits in its motion, and the file's columns over it:
+    ``x_guess`` (n, 9) seeding the forward kinematics, the ``platform`` (n, 10) and
+    ``tau_file`` (n, 9) columns to compare (or None); the window's first sample ``k0``
+    of a motion of ``n_total`` samples (None: this window is the motion); ``rest``:
+    whether it holds the motion's start / end."""
+
+    x_guess: np.ndarray
+    platform: np.ndarray | None = None
+    tau_file: np.ndarray | None = None
+    k0: int = 0
+    rest: tuple[bool, bool] = (True, True)
+    n_total: int | None = None
+
+
+def validate_window(motion: Motion, robot: Robot, lim: Limits, win: Window,
+                    midpoints: bool = True,
                     rate_range: tuple[float, float] = RATE_RANGE) -> ValidationReport:
-    """:func:`~sixplus3.control.gate.validation.validate_motion` of samples
-    k0 .. k0 + len(t) - 1 of a motion of ``n_total`` samples; ``rest``: whether this
-    window holds the start / the end (module doc: the order of the checks)."""
+    """:func:`~sixplus3.control.gate.validation.validate_motion` of the samples
+    ``motion`` (a :meth:`~sixplus3.motion.Motion.window` of the whole), placed by
+    ``win`` (module doc: the order of the checks)."""
+    t, th, v, a, rate = (motion.t, motion.theta, motion.theta_dot, motion.theta_ddot,
+                         motion.rate)
+    x_guess, platform, tau_file = win.x_guess, win.platform, win.tau_file
+    k0, rest, n_total = win.k0, win.rest, win.n_total
     n = len(t)
     grid = grid_finding(t, th, v, a, rate, rate_range, k0, n_total, MAX_DURATION)
     tol = Tolerances(1.0 / rate if math.isfinite(rate) and rate > 0 else math.nan, lim.jerk)
@@ -249,4 +266,4 @@ def _margins(cfg_points: list[RobotConfig], lim: Limits
             bool(np.all(range_excess(th_all, lim) <= 0.0)))
 
 
-__all__ = ["MAX_DURATION", "merge_windows", "validate_window"]
+__all__ = ["MAX_DURATION", "Window", "merge_windows", "validate_window"]

@@ -19,6 +19,7 @@ def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
                      noise: float, hold: float, force: bool, kp: float, kd: float,
                      as_json: bool, reaction: str = "hold",
                      parameters_file: str | None = None) -> None:
+    from sixplus3.control.drive.loop import DriveSettings
     from sixplus3.interaction.person import read_contact, run_contact
     from sixplus3.robot_description.hardware import effective_limits
     from sixplus3.robot_description.robot import load_robot
@@ -39,9 +40,9 @@ def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
         from sixplus3.cli.interaction import _load_parameters
 
         cov = _load_parameters(parameters_file)
-    run = run_contact(csv_file, robot, plant, contact, guard=guard, kp=kp, kd=kd, seed=seed,
-                      after=max(hold, 0.5), torque_noise=noise, reaction=reaction,
-                      parameter_cov=cov)
+    run = run_contact(csv_file, robot, plant, contact, guard=guard, kp=kp, kd=kd,
+                      after=max(hold, 0.5), reaction=reaction, parameter_cov=cov,
+                      drive=DriveSettings(seed=seed, torque_noise=noise))
     _logged(run, log_file, robot, plant, seed, noise, csv_file, as_json)
     assert run.log is not None
     if not as_json:
