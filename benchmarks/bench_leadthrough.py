@@ -206,7 +206,7 @@ def main() -> None:
                 run = run_lead(model, plant, hand_from_dict(doc), lead=lt, kp=KP, kd=KD,
                                start=start)
                 if case == "cranks60":
-                    end = robot_ik(lt.p_ref, lt.R_ref, lt.psi_ref, model)
+                    end = robot_ik(lt.st.p_ref, lt.st.R_ref, lt.st.psi_ref, model)
                     lt.min_margin = float(end.margins.minimum[0])  # the end's margin
                 if times is not None:
                     step_times = times[1:]

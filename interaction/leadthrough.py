@@ -49,7 +49,6 @@ Each tick:
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 
@@ -66,12 +65,12 @@ from sixplus3.interaction.guard_parts import (
     reading,
     within_envelope,
 )
-from sixplus3.interaction.lead_settings import pair, six
+from sixplus3.interaction.lead_settings import LeadSettings, LeadState, LeadTables
 from sixplus3.interaction.lead_walls import Found, WallUpdate
 from sixplus3.interaction.stream import WrenchStream
-from sixplus3.interaction.wrench import GAIN, MODEL_SIGMA, N_SIGMA
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.robot_description.hardware import Hardware, effective_limits
+from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
 
 #: Platform speeds below which the guided platform is at rest [m/s], [rad/s].
@@ -83,8 +82,6 @@ RATE_SHARE = 0.5
 #: Good readings in a row that agree with each other before a reference starts there
 #: (at the first readings, and after a jump).
 CONFIRM = 3
-#: The walls near at once, at most (the four slacks' and a cliff ahead).
-MAX_WALLS = 8
 
 
 def _norm(a: np.ndarray) -> float:
@@ -92,121 +89,102 @@ def _norm(a: np.ndarray) -> float:
 
 
 class LeadThrough:
-    """The platform follows a person's hand (module doc).  ``mass`` [kg, kg m^2] and
-    ``damping`` [N s/m, N m s/rad]: per axis of the tool point, (translation, rotation)
-    or six; ``speed`` [m/s, rad/s] and ``acceleration`` [m/s^2, rad/s^2]: caps of the
-    tool point's twist; ``drive_gains``: the drive's (Kp, Kd) (None: the feed-forward
-    alone is kept within the envelope); ``compiled``: the observer's state from the
-    compiled CasADi model (interaction/compiled_state.py) rather than Pinocchio."""
+    """The platform follows a person's hand (module doc): its ``settings``
+    (:class:`~sixplus3.interaction.lead_settings.LeadSettings`: the defaults, changed
+    by name as keyword arguments, e.g. ``crank_gain=0``), its frozen ``tables``
+    (:class:`~sixplus3.interaction.lead_settings.LeadTables`) and its state ``st``
+    (:class:`~sixplus3.interaction.lead_settings.LeadState`, made anew by
+    :meth:`reset`).  ``drive_gains``: the drive's (Kp, Kd[, rate feedback[, tau]])
+    (None: the feed-forward alone is kept within the envelope); ``hardware``: the site
+    whose limits tighten the robot's (default ``$SIXPLUS3_HARDWARE`` or the
+    catalogue's)."""
 
     def __init__(self, robot: Robot, rate_hz: float = 1000.0,
-                 mass: Sequence[float] = (4.0, 0.08),
-                 damping: Sequence[float] = (20.0, 0.4),
-                 speed: Sequence[float] = (0.25, 1.0),
-                 acceleration: Sequence[float] = (2.0, 10.0),
-                 crank_gain: float = 2.0, crank_rate: float = 0.5,
+                 settings: LeadSettings | None = None,
                  drive_gains: tuple[object, ...] | None = None,
-                 n_sigma: float = N_SIGMA, start_time: float = 0.005,
-                 rest_time: float = 0.1, slow_every: int = 10, energy: float = 0.5,
-                 gain: float = GAIN, model_sigma: float = MODEL_SIGMA,
-                 monitor_noise: float = 0.005, compiled: bool = True,
-                 hardware: Hardware | None = None) -> None:
+                 hardware: Hardware | None = None, **named: object) -> None:
         self.robot = require_robot(robot)
-        self.rate = check_number("rate_hz", rate_hz, 200.0, 20000.0)
-        self.dt = 1.0 / self.rate
-        self.mass = six("mass", mass, 1e-3, 1e3)
-        self.damping = six("damping", damping, 0.0, 1e4)
-        self.speed = pair("speed [m/s, rad/s]", speed, 1e-3, 10.0)
-        self.accel = pair("acceleration [m/s^2, rad/s^2]", acceleration, 1e-2, 1e3)
-        self.crank_gain = check_number("crank_gain", crank_gain, 0.0, 100.0)
-        self.crank_rate = check_number("crank_rate", crank_rate, 0.0, 10.0)
-        self.n_sigma = check_number("n_sigma", n_sigma, 0.0, 100.0)
-        self.start_ticks = max(1, round(check_number("start_time", start_time, 0.0, 1.0)
-                                        * self.rate))
-        self.rest_ticks = max(1, round(check_number("rest_time", rest_time, 0.0, 10.0)
-                                       * self.rate))
-        self.slow_every = int(check_number("slow_every", slow_every, 1, 1000, integer=True))
-        self.energy0 = check_number("energy", energy, 0.0, 100.0)
+        rate = check_number("rate_hz", rate_hz, 200.0, 20000.0)
+        if settings is not None and not isinstance(settings, LeadSettings):
+            raise InputError("settings must be a LeadSettings", value=type(settings).__name__,
+                             valid="interaction.lead_settings.LeadSettings")
+        self.settings = se = LeadSettings.named(settings, named)
         drive = None if drive_gains is None else parse_drive(drive_gains)
-        self.gains = None if drive is None else (drive[0], drive[1])
-        self.stream = WrenchStream(self.robot, self.rate, gain=gain,
-                                   monitor_noise=monitor_noise, model_sigma=model_sigma,
-                                   n_sigma=n_sigma, compiled=compiled)
-        #: the envelope every command stays within: the robot's limits tightened by the
-        #: site's (``hardware``, else ``$SIXPLUS3_HARDWARE`` or the catalogue's: the
-        #: gate's one authority, robot_description/hardware.py)
-        self.lim = effective_limits(self.robot, hardware)
-        self.cap = self.lim.torque
-        self.rate_cap = RATE_SHARE * self.lim.velocity
-        self.tool = np.asarray(self.robot.tool.xyz, dtype=float)
+        self.stream = WrenchStream(self.robot, rate, gain=se.gain,
+                                   monitor_noise=se.monitor_noise,
+                                   model_sigma=se.model_sigma, n_sigma=se.n_sigma,
+                                   compiled=se.compiled)
+        # the envelope every command stays within: the robot's limits tightened by the
+        # site's (the gate's one authority, robot_description/hardware.py)
+        lim = effective_limits(self.robot, hardware)
         mot = self.robot.motors
-        self._viscous = np.asarray(mot.viscous_per_joint, dtype=float)
-        self._coulomb = np.asarray(mot.coulomb_per_joint, dtype=float)
-        self._cspeed = float(mot.coulomb_velocity)
-        self._accel_cap = np.array(self.accel, dtype=float)
-        self._speed_cap = np.array(self.speed, dtype=float)
-        # the per-tick kernels' work arrays (interaction/_lead_kernel.py)
-        self._lu = np.zeros((9, 9))
-        self._piv = np.zeros(9, dtype=np.int64)
-        self._G = np.zeros((MAX_WALLS, 9))
-        self._b = np.zeros(MAX_WALLS)
-        self._no_anchor = np.zeros(9)
-        # a fault's placeholder reference before any good reading (step's doc): the
-        # home pose's angles, never a target
-        self._home = np.asarray(robot_ik(np.asarray(self.robot.home_position),
-                                         np.eye(3), np.asarray(self.robot.home_psi),
-                                         self.robot, platform_margins=False).theta,
-                                dtype=float).reshape(-1)[:9]
+        home = robot_ik(np.asarray(self.robot.home_position), np.eye(3),
+                        np.asarray(self.robot.home_psi), self.robot,
+                        platform_margins=False).theta
+        self.tables = LeadTables(
+            rate=rate, dt=1.0 / rate,
+            start_ticks=max(1, round(se.start_time * rate)),
+            rest_ticks=max(1, round(se.rest_time * rate)),
+            lim=lim, cap=lim.torque, rate_cap=RATE_SHARE * lim.velocity,
+            tool=np.asarray(self.robot.tool.xyz, dtype=float),
+            viscous=np.asarray(mot.viscous_per_joint, dtype=float),
+            coulomb=np.asarray(mot.coulomb_per_joint, dtype=float),
+            cspeed=float(mot.coulomb_velocity),
+            accel_cap=np.array(se.acceleration, dtype=float),
+            speed_cap=np.array(se.speed, dtype=float),
+            gains=None if drive is None else (drive[0], drive[1]),
+            home=np.asarray(home, dtype=float).reshape(-1)[:9])
         # the walls near and the cranks' climb, every slow_every ticks (lead_walls.py)
-        self._wu = WallUpdate(self.robot, self.tool, self.crank_gain, self.crank_rate)
+        self._wu = WallUpdate(self.robot, self.tables.tool, se.crank_gain, se.crank_rate)
         #: the drive's rate as modelled, and how far the drive's may be from it
-        self._rates = DriveRate(self.rate, self.robot, *(DEFAULT_RATE if drive is None
-                                                         else (drive[2], drive[3])))
+        self._rates = DriveRate(rate, self.robot, *(DEFAULT_RATE if drive is None
+                                                    else (drive[2], drive[3])))
         self.reset()
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
         """Forget the reference and the observer's past: the next tick starts a hold
         where the robot is."""
-        if hasattr(self, "stream"):
-            self.stream.reset()
-        self.mode = Mode.HOLD
-        self.events: list[str] = []
-        self._started = False
-        self._tick = 0
-        self._above = 0  # ticks the input has stayed beyond the rest threshold
-        self._still = 0  # ticks with no input and the platform still
-        self.v = np.zeros(6)  # the tool point's twist (v, omega) [m/s, rad/s]
-        self.psi_dot = np.zeros(3)
-        self._psi_dot_target = np.zeros(3)
-        self._walls = []
-        self._theta_dot_ref = np.zeros(9)
+        self.stream.reset()
+        e0 = self.settings.energy
         # [J] the tank's initial energy, what the person put into the robot (estimated),
         # the tank, its least value (interaction/_lead_kernel.py: E0, PORT, TANK, MIN_TANK)
-        self._sc = np.array([self.energy0, 0.0, self.energy0, self.energy0])
-        if hasattr(self, "_wu"):
-            self._wu.reset()
-        if hasattr(self, "_rates"):
-            self._rates.reset()
-        self._last_ff = np.zeros(9)
-        self._prev_theta = np.zeros(9)
-        self._vel = np.zeros(9)
-        self._have_prev = False
-        self._anchor_theta: np.ndarray | None = None
-        self._last_good: np.ndarray | None = None  # the last reading accepted
-        self._since_good = 0  # ticks since it
-        self._resync = False  # the observer restarts at the next good reading
-        self._cand: np.ndarray | None = None  # readings that do not follow, agreeing ...
-        self._cand_n = 0  # ... this many in a row
-        self._reading: np.ndarray | None = None  # this tick's reading, until its rate is
+        self.st = LeadState(sc=np.array([e0, 0.0, e0, e0]))
+        self._wu.reset()
+        self._rates.reset()
+
+    # the settings and tables a caller reads
+    @property
+    def rate(self) -> float:
+        """[Hz]"""
+        return self.tables.rate
+
+    @property
+    def lim(self) -> Limits:
+        """The envelope (the robot's limits tightened by the site's)."""
+        return self.tables.lim
+
+    @property
+    def cap(self) -> float:
+        """[N m] the envelope's torque."""
+        return self.tables.cap
+
+    @property
+    def mode(self) -> Mode:
+        return self.st.mode
+
+    @property
+    def events(self) -> list[str]:
+        """What lead-through did and why, one line each (since the last reset)."""
+        return self.st.events
 
     def _start(self, theta: np.ndarray) -> None:
-        st = self.stream.model
-        self.p_ref = np.array(st.position, dtype=float)
-        self.R_ref = np.array(st.rotation, dtype=float)
-        self.psi_ref = np.array(st.psi, dtype=float)
-        self.theta_ref = theta.copy()
-        self._started = True
+        model = self.stream.model
+        self.st.p_ref = np.array(model.position, dtype=float)
+        self.st.R_ref = np.array(model.rotation, dtype=float)
+        self.st.psi_ref = np.array(model.psi, dtype=float)
+        self.st.theta_ref = theta.copy()
+        self.st.started = True
 
     # ------------------------------------------------------------------ the tick
     def step(self, theta: object, tau: object) -> DriveCommand:
@@ -228,24 +206,24 @@ class LeadThrough:
           drive's gains its whole PD within it too, for every rate the drive may use
           (guard_parts.DriveRate)."""
         try:
-            self._since_good += 1 if self._last_good is not None else 0
-            got = reading(theta, tau, self.lim)
+            self.st.since_good += 1 if self.st.last_good is not None else 0
+            got = reading(theta, tau, self.tables.lim)
             if isinstance(got, str):
-                self._cand = None
-                self._have_prev = False  # no rate from the encoder's difference next tick
+                self.st.cand = None
+                self.st.have_prev = False  # no rate from the encoder's difference next tick
                 return self._fault(got)
             th, tq = got
-            self._reading = th
-            if self._last_good is None or (float(np.abs(th - self._last_good).max())
-                                           > jump_bound(self.lim, self.dt,
-                                                        self._since_good)):
+            self.st.reading = th
+            if self.st.last_good is None or (float(np.abs(th - self.st.last_good).max())
+                                           > jump_bound(self.tables.lim, self.tables.dt,
+                                                        self.st.since_good)):
                 why = self._candidate(th)
                 if why is not None:
                     return self._fault(why)
-            if self._resync:  # the observer's past is void: start it at this reading
+            if self.st.resync:  # the observer's past is void: start it at this reading
                 self.stream.reset()
-                self._resync = False
-            self._last_good, self._since_good = th, 0
+                self.st.resync = False
+            self.st.last_good, self.st.since_good = th, 0
             cmd = self._step(th, tq)
             if not (np.all(np.isfinite(cmd.theta_ref)) and np.all(np.isfinite(cmd.tau_ff))
                     and np.all(np.isfinite(cmd.theta_dot_ref))):
@@ -259,132 +237,120 @@ class LeadThrough:
         None once CONFIRM of them in a row agree (the controller re-anchored there: a new
         start where the robot reads itself to be), else why it is refused ('' for the
         first readings: no event)."""
-        if self._cand is not None and (float(np.abs(th - self._cand).max())
-                                       <= jump_bound(self.lim, self.dt, 1)):
-            self._cand_n += 1
+        if self.st.cand is not None and (float(np.abs(th - self.st.cand).max())
+                                       <= jump_bound(self.tables.lim, self.tables.dt, 1)):
+            self.st.cand_n += 1
         else:
-            self._cand_n = 1
-            self._reading, self._have_prev = None, False  # no rate across a jump
-        self._cand = th
-        if self._cand_n < CONFIRM:
-            if self._last_good is None:
+            self.st.cand_n = 1
+            self.st.reading, self.st.have_prev = None, False  # no rate across a jump
+        self.st.cand = th
+        if self.st.cand_n < CONFIRM:
+            if self.st.last_good is None:
                 return ""  # the first readings: a fault command, not an event
             return (f"the measured angles jumped by "
-                    f"{float(np.abs(th - self._last_good).max()):.3f} rad in "
-                    f"{self._since_good} tick(s)")
-        if self._last_good is not None and len(self.events) < 100:
-            self.events.append(f"tick {self._tick}: {CONFIRM} readings agree after a jump: "
+                    f"{float(np.abs(th - self.st.last_good).max()):.3f} rad in "
+                    f"{self.st.since_good} tick(s)")
+        if self.st.last_good is not None and len(self.st.events) < 100:
+            self.st.events.append(f"tick {self.st.tick}: {CONFIRM} readings agree after a jump: "
                                "holding where the robot reads itself to be")
-        self._cand, self._started, self._resync = None, False, True
+        self.st.cand, self.st.started, self.st.resync = None, False, True
         return None
 
     def _fault(self, why: str) -> DriveCommand:
         """Hold the reference (or, before any good reading, ask the drive to hold its own
         position), stop the guided motion, and restart the observer at the next good
         reading; said in :attr:`events`."""
-        if why and len(self.events) < 100 and (not self.events
-                                               or why not in self.events[-1]):
-            self.events.append(f"tick {self._tick}: holding: {why}")
-        self.mode, self._above, self._still = Mode.HOLD, 0, 0
-        self.v[:] = 0.0
-        self.psi_dot[:] = 0.0
-        self._psi_dot_target[:] = 0.0
+        if why and len(self.st.events) < 100 and (not self.st.events
+                                               or why not in self.st.events[-1]):
+            self.st.events.append(f"tick {self.st.tick}: holding: {why}")
+        self.st.mode, self.st.above, self.st.still = Mode.HOLD, 0, 0
+        self.st.v[:] = 0.0
+        self.st.psi_dot[:] = 0.0
+        self.st.psi_dot_target[:] = 0.0
         self._wu.staged = self._wu.pending = None
-        self._walls = []
-        self._theta_dot_ref = np.zeros(9)
-        self._resync = True
-        self._tick += 1
-        if self._reading is not None:  # a plausible reading refused: the rate from it
-            self._rate_from(self._reading)
-            self._reading = None
-        if not self._started or self._last_good is None:
-            return DriveCommand(self._home.copy(), np.zeros(9), np.zeros(9), Mode.FAULT, False,
-                                np.zeros(6))
-        if not np.all(np.isfinite(self._last_ff)):
-            self._last_ff = np.zeros(9)
-        ff = np.clip(self._last_ff, -COMMAND_SHARE * self.cap, COMMAND_SHARE * self.cap)
-        cmd = DriveCommand(self.theta_ref.copy(), np.zeros(9), ff, Mode.HOLD, False, np.zeros(6))
-        return self._bounded(cmd, self._last_good, fresh=False)
+        self.st.walls = []
+        self.st.theta_dot_ref = np.zeros(9)
+        self.st.resync = True
+        self.st.tick += 1
+        if self.st.reading is not None:  # a plausible reading refused: the rate from it
+            self._rate_from(self.st.reading)
+            self.st.reading = None
+        if not self.st.started or self.st.last_good is None:
+            return DriveCommand(self.tables.home.copy(), np.zeros(9), np.zeros(9), Mode.FAULT,
+                                False, np.zeros(6))
+        if not np.all(np.isfinite(self.st.last_ff)):
+            self.st.last_ff = np.zeros(9)
+        top = COMMAND_SHARE * self.tables.cap
+        ff = np.clip(self.st.last_ff, -top, top)
+        cmd = DriveCommand(self.st.theta_ref.copy(), np.zeros(9), ff, Mode.HOLD, False, np.zeros(6))
+        return self._bounded(cmd, self.st.last_good, fresh=False)
 
     def _rate_from(self, theta: np.ndarray) -> None:
         """The encoder's difference (the drive's rate feedback) at this reading."""
         # within what a joint can do (twice the rate limit): the envelope's move of the
         # reference never answers a rate that is not one
-        vmax = 2.0 * self.lim.velocity
-        self._vel = (np.clip((theta - self._prev_theta) * self.rate, -vmax, vmax)
-                     if self._have_prev else np.zeros(9))
-        if self._have_prev:
-            self._rates.update(self._vel)
-        self._prev_theta[:] = theta
-        self._have_prev = True
+        vmax = 2.0 * self.tables.lim.velocity
+        self.st.vel = (np.clip((theta - self.st.prev_theta) * self.tables.rate, -vmax, vmax)
+                     if self.st.have_prev else np.zeros(9))
+        if self.st.have_prev:
+            self._rates.update(self.st.vel)
+        self.st.prev_theta[:] = theta
+        self.st.have_prev = True
 
     # the tank's scalars (kept in the kernels' array)
     @property
     def port_energy(self) -> float:
         """[J] the energy the person put into the robot (estimated)."""
-        return float(self._sc[kern.PORT])
+        return float(self.st.sc[kern.PORT])
 
     @port_energy.setter
     def port_energy(self, value: float) -> None:
-        self._sc[kern.PORT] = value
+        self.st.sc[kern.PORT] = value
 
     @property
     def tank(self) -> float:
         """[J] the energy tank (module doc, 4)."""
-        return float(self._sc[kern.TANK])
+        return float(self.st.sc[kern.TANK])
 
     @property
     def min_tank(self) -> float:
         """[J] the tank's least value so far."""
-        return float(self._sc[kern.MIN_TANK])
-
-    @property
-    def _walls(self) -> list[tuple[np.ndarray, float]]:
-        """The walls near: (gradient (9,) in the walls' metric, bound) each."""
-        return list(self._wall_list)
-
-    @_walls.setter
-    def _walls(self, found: list[tuple[np.ndarray, float]]) -> None:
-        self._wall_list = list(found)[:MAX_WALLS]
-        for k, (g, b) in enumerate(self._wall_list):
-            self._G[k] = g
-            self._b[k] = b
-        self._n_walls = len(self._wall_list)
+        return float(self.st.sc[kern.MIN_TANK])
 
     def _step(self, theta: np.ndarray, tau: np.ndarray) -> DriveCommand:
         s = self.stream
         w, std, band, _ = s.update(theta, tau)
         J, M, h, thd = s.J, s.M, s.h, s.theta_dot
-        if not self._started:
+        if not self.st.started:
             self._start(theta)
-        off = self.R_ref @ self.tool
+        off = self.st.R_ref @ self.tables.tool
         # the wrench at the tool point, the input beyond the deadband, and the energy
         # the person put in (the measured twist of the tool point)
         w_t, w_in = np.empty(6), np.empty(6)
-        beyond, power, info = kern.lead_input(w, std, band, J, thd, off, self.n_sigma, w_t,
-                                              w_in, self._lu, self._piv)
+        beyond, power, info = kern.lead_input(w, std, band, J, thd, off, self.settings.n_sigma, w_t,
+                                              w_in, self.st.lu, self.st.piv)
         if info != 0:
             raise InputError("the Jacobian is singular here", value=info,
                              valid="a pose off the singularities")
-        self._sc[kern.PORT] += power * self.dt
-        if self.mode == Mode.HOLD:
-            self._above = self._above + 1 if beyond else 0
-            if self._above >= self.start_ticks:
-                self.mode = Mode.LEAD
-                self._still = 0
+        self.st.sc[kern.PORT] += power * self.tables.dt
+        if self.st.mode == Mode.HOLD:
+            self.st.above = self.st.above + 1 if beyond else 0
+            if self.st.above >= self.tables.start_ticks:
+                self.st.mode = Mode.LEAD
+                self.st.still = 0
                 self._slow_update(at_once=True)
             else:
                 w_in[:] = 0.0
-        elif self.mode == Mode.LEAD and self._wu.staged is not None:
+        elif self.st.mode == Mode.LEAD and self._wu.staged is not None:
             self._found(self._wu.middle())  # the slow update's middle stage
-        elif self.mode == Mode.LEAD and self._wu.pending is not None:
-            self._walls = self._wu.second()  # and its last
-        elif self.mode == Mode.LEAD and self._tick % self.slow_every == 0:
+        elif self.st.mode == Mode.LEAD and self._wu.pending is not None:
+            self.st.walls = self._wu.second()  # and its last
+        elif self.st.mode == Mode.LEAD and self.st.tick % self.settings.slow_every == 0:
             self._slow_update()
         self._admittance(w_in)
-        if self.mode == Mode.LEAD:
+        if self.st.mode == Mode.LEAD:
             self._tick_lead(w_in)
-        self._tick += 1
+        self.st.tick += 1
         return self._command(J, M, h, thd, theta, w)
 
     def _admittance(self, w_in: np.ndarray) -> None:
@@ -393,10 +359,10 @@ class LeadThrough:
         appears suddenly (the clearance's closest pair changing) is met at once, not
         braked into; one approached smoothly is met early (lead_walls.HORIZON), gently
         (lead_walls.WALL_RATE)."""
-        wish = self._psi_dot_target if self.mode == Mode.LEAD else np.zeros(3)
-        kern.admittance(w_in, self.v, self.psi_dot, wish, self.mass, self.damping, self.dt,
-                        self._accel_cap, self._speed_cap, CRANK_ACCELERATION * self.dt,
-                        self._sc)
+        wish = self.st.psi_dot_target if self.st.mode == Mode.LEAD else np.zeros(3)
+        tb, se = self.tables, self.settings
+        kern.admittance(w_in, self.st.v, self.st.psi_dot, wish, se.mass, se.damping, tb.dt,
+                        tb.accel_cap, tb.speed_cap, CRANK_ACCELERATION * tb.dt, self.st.sc)
         self._keep_out()
 
     def _keep_out(self) -> None:
@@ -405,18 +371,18 @@ class LeadThrough:
         at most lead_walls.WALL_RATE s per second (a barrier: g . (v, psi_dot) >= -WALL_RATE max(s,
         0): beyond a wall it may not fall, and the platform is not pushed back against
         the person), by the least change (cyclic projections)."""
-        kern.keep_out(self.v, self.psi_dot, self._G, self._b, self._n_walls,
-                      self.crank_gain > 0, walls.ANGLE_SCALE)
+        kern.keep_out(self.st.v, self.st.psi_dot, self.st.G, self.st.b, self.st.n_walls,
+                      self.settings.crank_gain > 0, walls.ANGLE_SCALE)
 
     def _tick_lead(self, w_in: np.ndarray) -> None:
-        still = (_norm(self.v[:3]) < REST_SPEED[0]
-                 and _norm(self.v[3:]) < REST_SPEED[1])
-        self._still = self._still + 1 if (still and not w_in.any()) else 0
-        if self._still >= self.rest_ticks and not self.psi_dot.any():
-            self.mode, self._above = Mode.HOLD, 0
-            self.v[:] = 0.0
-            self._psi_dot_target[:] = 0.0
-            self._walls = []
+        still = (_norm(self.st.v[:3]) < REST_SPEED[0]
+                 and _norm(self.st.v[3:]) < REST_SPEED[1])
+        self.st.still = self.st.still + 1 if (still and not w_in.any()) else 0
+        if self.st.still >= self.tables.rest_ticks and not self.st.psi_dot.any():
+            self.st.mode, self.st.above = Mode.HOLD, 0
+            self.st.v[:] = 0.0
+            self.st.psi_dot_target[:] = 0.0
+            self.st.walls = []
             self._wu.staged = self._wu.pending = None
 
     def _slow_update(self, at_once: bool = False) -> None:
@@ -424,23 +390,23 @@ class LeadThrough:
         stage (the reference re-anchored on the inverse kinematics of its pose), or
         every stage ``at_once`` (the guided motion's first tick; an update every tick
         or two)."""
-        args = (self.p_ref, self.R_ref, self.psi_ref, self.v, self.psi_dot,
-                self._tick * self.dt, self.mode == Mode.LEAD)
-        if at_once or self.slow_every < 3:
-            self._anchor_theta, found = self._wu.update(*args)
+        args = (self.st.p_ref, self.st.R_ref, self.st.psi_ref, self.st.v, self.st.psi_dot,
+                self.st.tick * self.tables.dt, self.st.mode == Mode.LEAD)
+        if at_once or self.settings.slow_every < 3:
+            self.st.anchor_theta, found = self._wu.update(*args)
             self._found(found)
         else:
-            self._anchor_theta = self._wu.first(*args)
+            self.st.anchor_theta = self._wu.first(*args)
 
     def _found(self, f: Found) -> None:
         """The middle stage's decisions applied (lead_walls.py)."""
-        self._psi_dot_target = f.target
+        self.st.psi_dot_target = f.target
         if f.stand_still:  # the reference itself unsolvable: stand still
-            self.v[:] = 0.0
-            self.psi_dot[:] = 0.0
-            self._walls = []
+            self.st.v[:] = 0.0
+            self.st.psi_dot[:] = 0.0
+            self.st.walls = []
         elif f.walls is not None:
-            self._walls = f.walls
+            self.st.walls = f.walls
 
     # the slow update's record (lead_walls.WallUpdate)
     @property
@@ -465,19 +431,20 @@ class LeadThrough:
     # ------------------------------------------------------------------ command
     def _command(self, J: np.ndarray, M: np.ndarray, h: np.ndarray, thd: np.ndarray,
                  theta: np.ndarray, w: np.ndarray) -> DriveCommand:
-        has_anchor = self._anchor_theta is not None  # this tick's slow update solved it
-        anchor = self._anchor_theta if self._anchor_theta is not None else self._no_anchor
+        has_anchor = self.st.anchor_theta is not None  # this tick's slow update solved it
+        anchor = self.st.anchor_theta if self.st.anchor_theta is not None else self.st.no_anchor
+        tb = self.tables
         ff = np.empty(9)
-        kern.command((J, M, h, thd), (self.v, self.psi_dot, self.mode == Mode.LEAD),
-                     (self._theta_dot_ref, self.p_ref, self.R_ref, self.psi_ref,
-                      self.theta_ref), anchor, has_anchor,
-                     (self.tool, self.rate_cap, self.dt, self._viscous, self._coulomb,
-                      self._cspeed, COMMAND_SHARE * self.cap), ff)
-        self._anchor_theta = None
-        self._last_ff = ff
-        contact = bool(self.mode == Mode.LEAD or self._above > 0)
-        return self._bounded(DriveCommand(self.theta_ref.copy(), self._theta_dot_ref.copy(),
-                                          ff, self.mode, contact, w), theta)
+        kern.command((J, M, h, thd), (self.st.v, self.st.psi_dot, self.st.mode == Mode.LEAD),
+                     (self.st.theta_dot_ref, self.st.p_ref, self.st.R_ref, self.st.psi_ref,
+                      self.st.theta_ref), anchor, has_anchor,
+                     (tb.tool, tb.rate_cap, tb.dt, tb.viscous, tb.coulomb, tb.cspeed,
+                      COMMAND_SHARE * tb.cap), ff)
+        self.st.anchor_theta = None
+        self.st.last_ff = ff
+        contact = bool(self.st.mode == Mode.LEAD or self.st.above > 0)
+        return self._bounded(DriveCommand(self.st.theta_ref.copy(), self.st.theta_dot_ref.copy(),
+                                          ff, self.st.mode, contact, w), theta)
 
     def _bounded(self, cmd: DriveCommand, theta: np.ndarray, fresh: bool = True
                  ) -> DriveCommand:
@@ -486,10 +453,11 @@ class LeadThrough:
         tick's reading, else the last good one and its rate)."""
         if fresh:
             self._rate_from(theta)
-            self._reading = None
-        if self.gains is None:
+            self.st.reading = None
+        if self.tables.gains is None:
             return cmd
-        return within_envelope(cmd, self.gains[0], self.gains[1], theta, self._rates.rate,
-                               COMMAND_SHARE * self.cap, self._rates.spread)[0]
+        kp, kd = self.tables.gains
+        return within_envelope(cmd, kp, kd, theta, self._rates.rate,
+                               COMMAND_SHARE * self.tables.cap, self._rates.spread)[0]
 
 __all__ = ["CONFIRM", "LeadThrough", "RATE_SHARE", "REST_SPEED"]

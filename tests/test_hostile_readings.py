@@ -38,7 +38,7 @@ def lead():
     from sixplus3.interaction.wrench import SingleState
 
     lt = LeadThrough(ROBOT, 1000.0, drive_gains=(KP, KD))
-    th0 = lt._home.copy()
+    th0 = lt.tables.home.copy()
     hold = SingleState(ROBOT).state(th0, np.zeros(9))[2]  # gravity: nobody pushes
     return lt, th0, np.asarray(hold, dtype=float)
 
@@ -112,7 +112,7 @@ def test_lead_through_survives_any_sequence_of_readings(lead, ticks, seed) -> No
         first = False
     # the observer's state is finite, and five good readings bring lead-through back
     st_ = lt.stream
-    for a in (*st_.observer.state, st_._prev_theta, lt.v, lt.psi_dot):
+    for a in (*st_.observer.state, st_._prev_theta, lt.st.v, lt.st.psi_dot):
         assert np.all(np.isfinite(a))
     for _ in range(5):
         cmd = lt.step(th + rng.normal(0.0, 1e-5, 9), hold)

@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 
+from sixplus3.control.drive.command import Mode
 from sixplus3.errors import InputError
 from sixplus3.identification.plants import perturbed_plant
 from sixplus3.robot_description.robot import Robot
@@ -78,7 +79,7 @@ def test_stable_and_passive_with_a_stiff_and_a_soft_hand(stiffness, damping) -> 
     lt, run = _run(hand)
     last = run.t > run.t[-1] - 0.5
     assert run.speed[last].max() < 0.01, run.speed[last].max()
-    assert run.port_energy_min >= -lt.energy0, run.port_energy_min
+    assert run.port_energy_min >= -lt.settings.energy, run.port_energy_min
     assert np.linalg.norm(run.tcp[-1] - run.tcp[0]) > 0.03
 
 
@@ -96,7 +97,7 @@ def test_walls_keep_the_reference_inside_the_gates_limits() -> None:
     # guard is inside the limit
     assert lt.min_slack > -walls.CLEARANCE_GUARD / 0.01, lt.min_slack
     assert lt.min_margin >= ROBOT.limits.margin
-    assert 0.15 < lt.p_ref[0] - run.tcp[0][0] < 0.26
+    assert 0.15 < lt.st.p_ref[0] - run.tcp[0][0] < 0.26
     assert run.peak_command <= ROBOT.limits.torque
     assert not run.events
     # a wall approached along x is met early and gently enough that the commanded
@@ -119,7 +120,7 @@ def test_the_cranks_climb_to_a_better_margin_while_guided() -> None:
     out = {}
     for gain in (2.0, 0.0):
         lt, run = _run(hand, crank_gain=gain, start_q=start.q[0])
-        cfg = robot_ik(lt.p_ref, lt.R_ref, lt.psi_ref, ROBOT)
+        cfg = robot_ik(lt.st.p_ref, lt.st.R_ref, lt.st.psi_ref, ROBOT)
         out[gain] = float(cfg.margins.minimum[0])
         assert run.peak_command <= 0.97 * ROBOT.limits.torque + 1e-9
     assert out[2.0] > m0 + 0.02, (m0, out)
@@ -134,19 +135,19 @@ def test_keep_out_is_the_least_change_that_respects_the_walls() -> None:
     for _ in range(20):
         g = rng.normal(size=9)
         b = float(rng.normal())
-        lt.v, lt.psi_dot = rng.normal(size=6), rng.normal(size=3)
+        lt.st.v, lt.st.psi_dot = rng.normal(size=6), rng.normal(size=3)
         L = 0.5
-        x0 = np.r_[lt.v[:3], lt.v[3:] * L, lt.psi_dot * L]
-        lt._walls = [(g, b)]
+        x0 = np.r_[lt.st.v[:3], lt.st.v[3:] * L, lt.st.psi_dot * L]
+        lt.st.walls = [(g, b)]
         lt._keep_out()
-        x = np.r_[lt.v[:3], lt.v[3:] * L, lt.psi_dot * L]
+        x = np.r_[lt.st.v[:3], lt.st.v[3:] * L, lt.st.psi_dot * L]
         expect = x0 + max(0.0, b - g @ x0) / (g @ g) * g  # the projection on g.x >= b
         np.testing.assert_allclose(x, expect, atol=1e-12)
     gs = [(rng.normal(size=9), -0.1) for _ in range(3)]
-    lt._walls = gs
-    lt.v, lt.psi_dot = rng.normal(size=6), rng.normal(size=3)
+    lt.st.walls = gs
+    lt.st.v, lt.st.psi_dot = rng.normal(size=6), rng.normal(size=3)
     lt._keep_out()
-    x = np.r_[lt.v[:3], lt.v[3:] * L, lt.psi_dot * L]
+    x = np.r_[lt.st.v[:3], lt.st.v[3:] * L, lt.st.psi_dot * L]
     assert all(g @ x >= b - 1e-3 for g, b in gs)
 
 
@@ -155,12 +156,12 @@ def test_an_empty_tank_only_lets_the_platform_slow_down() -> None:
 
     lt = LeadThrough(ROBOT, 1000.0)
     lt.port_energy = -10.0  # the robot has given more than it received
-    lt.v = np.array([0.1, 0, 0, 0, 0, 0])
+    lt.st.v = np.array([0.1, 0, 0, 0, 0, 0])
     lt._admittance(np.array([5.0, 0, 0, 0, 0, 0]))
-    assert lt.tank <= 0 and lt.v[0] <= 0.1
-    v1 = lt.v[0]
+    assert lt.tank <= 0 and lt.st.v[0] <= 0.1
+    v1 = lt.st.v[0]
     lt._admittance(np.array([-5.0, 0, 0, 0, 0, 0]))
-    assert lt.v[0] < v1
+    assert lt.st.v[0] < v1
 
 
 def test_a_tick_never_raises_and_holds_the_reference() -> None:
@@ -335,20 +336,20 @@ def test_a_near_walls_gradient_arrives_two_ticks_after_the_update() -> None:
     lt = LeadThrough(ROBOT, 1000.0)
     for _ in range(CONFIRM):
         lt.step(home.theta[0], np.zeros(9))
-    lt.mode = "lead"
-    lt.p_ref = np.asarray(ROBOT.home_position) + [0.21, 0.0, 0.0]  # the clearance near
-    p, R, psi = lt.p_ref.copy(), lt.R_ref.copy(), lt.psi_ref.copy()
+    lt.st.mode = Mode.LEAD
+    lt.st.p_ref = np.asarray(ROBOT.home_position) + [0.21, 0.0, 0.0]  # the clearance near
+    p, R, psi = lt.st.p_ref.copy(), lt.st.R_ref.copy(), lt.st.psi_ref.copy()
     old = [(np.ones(9), -1.0)]
-    lt._walls = old
+    lt.st.walls = old
     lt._slow_update()
-    assert lt._wu.staged is not None and lt._walls == old  # the last walls in force
-    lt.p_ref = p + [0.001, 0.0, 0.0]  # the reference moves on meanwhile
+    assert lt._wu.staged is not None and lt.st.walls == old  # the last walls in force
+    lt.st.p_ref = p + [0.001, 0.0, 0.0]  # the reference moves on meanwhile
     lt._found(lt._wu.middle())
-    assert lt._wu.pending is not None and lt._walls == old  # a wall is near: still
-    lt.p_ref = p + [0.002, 0.0, 0.0]
-    lt._walls = lt._wu.second()
-    assert lt._wu.pending is None and len(lt._walls) == 1
-    g, b = lt._walls[0]
+    assert lt._wu.pending is not None and lt.st.walls == old  # a wall is near: still
+    lt.st.p_ref = p + [0.002, 0.0, 0.0]
+    lt.st.walls = lt._wu.second()
+    assert lt._wu.pending is None and len(lt.st.walls) == 1
+    g, b = lt.st.walls[0]
     now = walls.slacks(ROBOT, p[None], R[None], psi[None])[0]
     assert 0.0 < now[3] < walls.WALL_BAND and now[:3].min() > walls.WALL_BAND
     d = lw.TWIST_STEP * np.eye(6)
@@ -429,7 +430,7 @@ def test_a_site_torque_limit_bounds_lead_through_from_the_cli_and_the_api(tmp_pa
     hardware.use(hw)
     try:
         lt = LeadThrough(ROBOT, 1000.0, drive_gains=(3000.0, 30.0))
-        assert lt.cap == 4.0 and lt.rate_cap == RATE_SHARE * 6.0
+        assert lt.cap == 4.0 and lt.tables.rate_cap == RATE_SHARE * 6.0
         run = run_lead(ROBOT, PLANT, hand_from_dict(hand), lead=lt, kp=3000.0, kd=30.0)
     finally:
         hardware.use(None)
