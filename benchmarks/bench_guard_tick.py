@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from sixplus3.control.file.trajectory_read import read_trajectory
-from sixplus3.interaction.guard import ContactGuard
+from sixplus3.interaction.contact.guard import ContactGuard
 from sixplus3.robot_description.robot import Robot
 
 

@@ -28,7 +28,7 @@ friction differ):
 Tick cost: LeadThrough.step timed inside the drag run (median, p99); the drag run's drive
 samples replayed through a fresh LeadThrough with the compiled observer state, then
 through one with Pinocchio's (median, p99, with and without the ticks that update the
-walls and cranks: the three stages of lead_walls.py, ticks 0-2 of every 10); and a 1 kHz
+walls and cranks: the three stages of wall_update.py, ticks 0-2 of every 10); and a 1 kHz
 Python loop replaying them, sleeping to each 1 ms deadline: its lateness (median, p99,
 max).
 
@@ -47,8 +47,8 @@ import time
 import numpy as np
 
 from sixplus3.identification.plants import perturbed_plant
-from sixplus3.interaction.hand import hand_from_dict, run_lead
-from sixplus3.interaction.leadthrough import LeadThrough
+from sixplus3.interaction.lead.leadthrough import LeadThrough
+from sixplus3.interaction.people.hand import hand_from_dict, run_lead
 from sixplus3.kinematics.robot import robot_ik, robot_ik_pose
 from sixplus3.robot_description.robot import Robot, load_robot
 
@@ -246,7 +246,7 @@ def main() -> None:
     if replay is not None:
         for name, ts in replay_cost(model, *replay).items():
             us = 1e6 * ts[10:]
-            # the walls' and cranks' update (interaction/lead_walls.py): its first stage
+            # the walls' and cranks' update (interaction/lead/wall_update.py): its first stage
             # every 10th tick, the middle one the tick after, the near walls' gradients
             # (if any) the tick after that
             slow = np.arange(10, len(ts)) % 10 <= 2

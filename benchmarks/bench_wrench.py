@@ -19,9 +19,9 @@ import numpy as np
 
 from sixplus3.control.drive.plant import WrenchProfile, run_on_plant
 from sixplus3.control.pipeline import run_plan
-from sixplus3.interaction.resolution import plot_resolution_map, resolution
-from sixplus3.interaction.stream import WrenchStream
-from sixplus3.interaction.wrench import estimate
+from sixplus3.interaction.observer.resolution import plot_resolution_map, resolution
+from sixplus3.interaction.observer.stream import WrenchStream
+from sixplus3.interaction.observer.wrench import estimate
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 
@@ -84,7 +84,7 @@ def main() -> None:
             print(json.dumps(r))
     # streaming cost
     run = run_on_plant(slow, robot, robot, seed=3, hold=0.5)
-    # the Pinocchio state and the compiled CasADi one (interaction/compiled_state.py):
+    # the Pinocchio state and the compiled CasADi one (interaction/observer/compiled_state.py):
     # that they agree (stepped in turn), then each one's cost (a fresh stream alone over
     # the log: two stepped in turn evict each other's caches)
     streams = {"pinocchio": WrenchStream(robot, run.log.rate),

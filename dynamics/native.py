@@ -1,5 +1,5 @@
 """CasADi's generated C called from compiled Python (numba) without the interpreter in
-between: the per-tick loops (interaction/_native_tick.py) call the same shared library
+between: the per-tick kernels (interaction/observer/_tick_kernel.py) call the same shared library
 :func:`~sixplus3.dynamics.codegen.compiled_small` built, through ctypes, on the
 arrays of a :class:`~sixplus3.dynamics.compiled_kinematics.Buffered` (the same
 buffers, the same numbers: tests/test_leadthrough.py).

@@ -186,7 +186,7 @@ def observer_function(robot: Robot) -> ca.Function:
     forces at zero acceleration, their slope in xdd (Q is linear in xdd: Q = Q_0 + Q_a
     xdd) and the actuated acceleration at xdd = 0 (theta_ddot = J_x xdd + c).  The
     per-tick state of the wrench observer in compiled form
-    (:mod:`sixplus3.interaction.compiled_state`): M = J_x^-T Q_a J_x^-1 + I_a and
+    (:mod:`sixplus3.interaction.observer.compiled_state`): M = J_x^-T Q_a J_x^-1 + I_a and
     h = J_x^-T (Q_0 - Q_a J_x^-1 c) + friction follow by two 9 x 9 solves."""
     def make() -> ca.Function:
         x, xd, xdd, setup, Q, theta, Jth, th_ddot = _core(robot).sym

@@ -1,2 +1,16 @@
-"""Physical interaction: the wrench a person applies to the platform, from the drives
-alone (docs/interaction.md)."""
+"""Physical interaction, sensorless: what a person does to the robot, from the drives
+alone, and what the robot does about it (docs/architecture.md, "Contact safety, module
+by module").  One concept per sub-package:
+
+- :mod:`sixplus3.interaction.observer`: the external torque and wrench from the drives
+  (the one momentum observer; the batch estimate, the 1 kHz stream and its compiled
+  state; force resolution; docs/interaction.md);
+- :mod:`sixplus3.interaction.envelope`: what every controller may read and must command
+  (the reading check, the drive's rate model, the whole command within the envelope);
+- :mod:`sixplus3.interaction.contact`: the contact guard that runs a validated file and
+  stops, holds or retracts on a contact (docs/safety.md);
+- :mod:`sixplus3.interaction.lead`: lead-through and teach (docs/leadthrough.md);
+- :mod:`sixplus3.interaction.report`: the safety report per plan for the integrator;
+- :mod:`sixplus3.interaction.people`: the simulated person and hand that meet the
+  virtual prototype (test harnesses and benchmarks, not parts a controller uses).
+"""

@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from sixplus3.control.pipeline import run_plan
-from sixplus3.interaction.guard import ContactGuard
-from sixplus3.interaction.hand import hand_from_dict, run_lead
-from sixplus3.interaction.person import contact_from_dict, run_contact
+from sixplus3.interaction.contact.guard import ContactGuard
+from sixplus3.interaction.people.hand import hand_from_dict, run_lead
+from sixplus3.interaction.people.person import contact_from_dict, run_contact
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 

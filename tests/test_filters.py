@@ -76,7 +76,7 @@ def test_the_log_commands_do_not_import_scipy_signal():
     """scipy.signal's import alone took 0.8-1.8 s, longer than a short log (issue 53)."""
     code = ("import sys\n"
             "import sixplus3.identification.signals, sixplus3.identification.identify\n"
-            "import sixplus3.interaction.wrench, sixplus3.interaction.stream\n"
+            "import sixplus3.interaction.observer.wrench, sixplus3.interaction.observer.stream\n"
             "import sixplus3.identification.commission\n"
             "print('scipy.signal' in sys.modules)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

@@ -1,5 +1,5 @@
-"""The contact guard (interaction/guard.py) against the MuJoCo plant with a simulated
-person (interaction/person.py): no false alarm without a touch, a free contact detected
+"""The contact guard (interaction/contact/guard.py) against the MuJoCo plant with a simulated
+person (interaction/people/person.py): no false alarm without a touch, a free contact detected
 within milliseconds and below its limit on a PFL plan, a clamp released by a stiff drive,
 and a step that never raises and never commands beyond the envelope."""
 
@@ -39,7 +39,7 @@ def test_no_false_alarm_without_a_touch(hand_plan, plant) -> None:
     """The plan followed to its end and held, with nobody there: never a contact, on
     the nominal plant and on one whose masses, rotors and friction differ by a few
     percent (what an identified robot leaves: docs/identification.md)."""
-    from sixplus3.interaction.person import run_contact
+    from sixplus3.interaction.people.person import run_contact
 
     p = ROBOT if plant == "nominal" else perturbed_plant(ROBOT, 7, mass=0.05, rotor=0.05,
                                                           friction=1.2)
@@ -50,7 +50,7 @@ def test_no_false_alarm_without_a_touch(hand_plan, plant) -> None:
 
 @pytest.mark.parametrize("kp, kd", [(300.0, 6.0), (3000.0, 30.0)], ids=["soft", "stiff"])
 def test_a_free_hand_is_hit_below_its_limit_and_the_guard_stops(hand_plan, kp, kd) -> None:
-    from sixplus3.interaction.person import contact_from_dict, run_contact
+    from sixplus3.interaction.people.person import contact_from_dict, run_contact
 
     c = contact_from_dict({"region": "hand", "kind": "free", "at": 0.12})
     res = run_contact(hand_plan, ROBOT, ROBOT, c, guard=True, kp=kp, kd=kd, after=0.3)
@@ -81,7 +81,7 @@ def test_a_contact_on_a_leg_is_caught_and_placed_on_the_leg(hand_plan, link) -> 
     covariance of nearly nothing): the prior's wider thresholds of an unidentified robot
     place these contacts on the platform (the residual cannot tell them apart)."""
     from sixplus3.identification.base import base_parameters
-    from sixplus3.interaction.person import contact_from_dict, run_contact
+    from sixplus3.interaction.people.person import contact_from_dict, run_contact
 
     base = base_parameters(ROBOT)
     known = (base.index, 1e-10 * np.eye(base.rank))
@@ -101,7 +101,7 @@ def clamp_plan(tmp_path_factory):
 
 @pytest.mark.parametrize("kp, kd", [(300.0, 6.0), (3000.0, 30.0)], ids=["soft", "stiff"])
 def test_a_clamp_on_a_clamp_safe_plan_stays_within_both_limits(clamp_plan, kp, kd) -> None:
-    from sixplus3.interaction.person import contact_from_dict, run_contact
+    from sixplus3.interaction.people.person import contact_from_dict, run_contact
 
     c = contact_from_dict({"region": "hand", "kind": "clamp", "at": 0.15})
     res = run_contact(clamp_plan, ROBOT, ROBOT, c, guard=True, kp=kp, kd=kd, after=0.4)
@@ -113,7 +113,7 @@ def test_a_clamp_on_a_clamp_safe_plan_stays_within_both_limits(clamp_plan, kp, k
 def test_a_clamp_is_released_by_a_stiff_drive(hand_plan) -> None:
     """Clamped against a wall, a stiff drive that only follows its plan keeps pressing;
     the guard sees the platform blocked, retracts along the path and lets go."""
-    from sixplus3.interaction.person import contact_from_dict, run_contact
+    from sixplus3.interaction.people.person import contact_from_dict, run_contact
 
     c = contact_from_dict({"region": "hand", "kind": "clamp", "at": 0.12})
     blind = run_contact(hand_plan, ROBOT, ROBOT, c, guard=False, kp=3000.0, kd=30.0,
@@ -127,7 +127,7 @@ def test_a_clamp_is_released_by_a_stiff_drive(hand_plan) -> None:
 
 
 def test_step_never_raises_and_stays_in_the_envelope(hand_plan) -> None:
-    from sixplus3.interaction.guard import ContactGuard
+    from sixplus3.interaction.contact.guard import ContactGuard
 
     g = ContactGuard(None, hand_plan)  # the robot from the file's header
     cap = g.lim.torque
@@ -160,7 +160,7 @@ def test_a_stop_table_that_does_not_stop_is_refused_by_every_consumer(hand_plan,
     from sixplus3.control.file.trajectory_file import encode
     from sixplus3.control.file.trajectory_parse import parse
     from sixplus3.errors import ValidationFailed
-    from sixplus3.interaction.guard import ContactGuard
+    from sixplus3.interaction.contact.guard import ContactGuard
 
     header, data = parse(hand_plan.read_bytes())
     value = {"zero": 0.0, "negative": -10.0, "tiny": 1e-300, "huge_negative": -1e6}[forged]
@@ -177,10 +177,10 @@ def test_a_stop_table_that_does_not_stop_is_refused_by_every_consumer(hand_plan,
 
 
 def test_the_guard_stops_by_its_own_table_not_the_files(hand_plan) -> None:
-    """The guard recomputes its stop table (interaction/guard_tables.py): it equals the
+    """The guard recomputes its stop table (interaction/contact/tables.py): it equals the
     gate's recomputation and is never below the file's honest table's floor."""
     from sixplus3.control.file.trajectory_parse import parse
-    from sixplus3.interaction.guard import ContactGuard
+    from sixplus3.interaction.contact.guard import ContactGuard
 
     header, _ = parse(hand_plan.read_bytes())
     g = ContactGuard(None, hand_plan)
@@ -191,7 +191,7 @@ def test_the_guard_stops_by_its_own_table_not_the_files(hand_plan) -> None:
 
 def test_a_file_of_another_robot_is_refused(hand_plan) -> None:
     from sixplus3.errors import Sixplus3Error
-    from sixplus3.interaction.guard import ContactGuard
+    from sixplus3.interaction.contact.guard import ContactGuard
 
     with pytest.raises(Sixplus3Error):
         ContactGuard(Robot.named("compact"), hand_plan)
@@ -205,7 +205,7 @@ def test_after_a_stop_hold_keeps_the_pose_and_yield_gives_way(hand_plan, reactio
     gone it holds.  Pushed off the path then, "hold" keeps its reference (the drive's PD
     pushes back) and "yield" takes the measured pose as its reference (only damping
     remains: a person can move the platform away)."""
-    from sixplus3.interaction.guard import ContactGuard
+    from sixplus3.interaction.contact.guard import ContactGuard
 
     g = ContactGuard(ROBOT, hand_plan, reaction=reaction)
     th, tau = g.tables.theta, g.tables.b + g.tables.g
@@ -266,7 +266,7 @@ def test_the_velocity_slope_is_the_exact_derivative_of_the_velocity_torque(hand_
     dynamics at other rates than the ones D_k was built from."""
     from sixplus3.control.gate.validation import validate_file
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-    from sixplus3.interaction.guard import ContactGuard
+    from sixplus3.interaction.contact.guard import ContactGuard
     from sixplus3.kinematics import rotations as rot
     from sixplus3.kinematics.robot import robot_ik
 
@@ -300,8 +300,8 @@ def test_with_the_drive_gains_no_command_leaves_the_envelope(hand_plan, feedback
     never leaves the envelope (97 % of it; the true rate's spread: 10 N m), and the
     clamp is still released."""
     from sixplus3.control.drive.loop import DriveSettings
-    from sixplus3.interaction.guard_parts import COMMAND_SHARE
-    from sixplus3.interaction.person import contact_from_dict, run_contact
+    from sixplus3.interaction.envelope import COMMAND_SHARE
+    from sixplus3.interaction.people.person import contact_from_dict, run_contact
 
     c = contact_from_dict({"region": "hand", "kind": "clamp", "at": 0.12})
     drive = DriveSettings(rate_feedback=feedback)
@@ -320,7 +320,7 @@ def test_a_drive_that_cannot_follow_is_a_stop_not_a_contact(tmp_path_factory) ->
     than the model's: the drives saturate and the robot falls behind.  That is not a
     touch: the guard stops along the path and says why, with no contact flagged."""
     from sixplus3.identification.plants import per_joint_motors
-    from sixplus3.interaction.person import run_contact
+    from sixplus3.interaction.people.person import run_contact
 
     free = _move(tmp_path_factory, [])
     mot = ROBOT.motors
@@ -382,7 +382,7 @@ def test_a_stop_at_the_tables_deceleration_stays_within_the_torque_limit(hand_pl
 def test_the_parameters_confidence_enters_the_threshold(hand_plan) -> None:
     """An identification's covariance (base parameters) raises the guard's threshold by
     n_sigma standard deviations of the model torque at each planned state; the variance
-    equals the wrench estimator's (interaction/wrench.py: the log's forward kinematics,
+    equals the wrench estimator's (interaction/observer/wrench.py: the log's forward kinematics,
     not the plan's poses) at zero acceleration; a covariance of another shape is
     refused."""
     from sixplus3.control.file.file_format import columns
@@ -391,9 +391,9 @@ def test_the_parameters_confidence_enters_the_threshold(hand_plan) -> None:
     from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
     from sixplus3.errors import InputError
     from sixplus3.identification.base import base_parameters
-    from sixplus3.interaction.guard import ContactGuard
-    from sixplus3.interaction.guard_parts import parameter_std2
-    from sixplus3.interaction.wrench import parameter_variance
+    from sixplus3.interaction.contact.guard import ContactGuard
+    from sixplus3.interaction.contact.parts import parameter_std2
+    from sixplus3.interaction.observer.wrench import parameter_variance
 
     base = base_parameters(ROBOT)
     rng = np.random.default_rng(2)
@@ -426,8 +426,8 @@ def test_an_early_contact_on_a_stiff_drive_stops_within_25_ms_and_stays(
     stop takes the deceleration the limits allow at its own path speed (the table's
     holds at every speed and is 1/s there), and rests where the impact left the robot:
     the point does not come back towards the person afterwards."""
-    from sixplus3.interaction.guard import ContactGuard
-    from sixplus3.interaction.person import contact_from_dict, run_contact
+    from sixplus3.interaction.contact.guard import ContactGuard
+    from sixplus3.interaction.people.person import contact_from_dict, run_contact
     from sixplus3.kinematics import rotations as rot
     from sixplus3.kinematics.robot import robot_ik
     from sixplus3.kinematics.tcp import tcp_velocity
@@ -470,8 +470,8 @@ def test_the_guard_survives_any_sequence_of_readings(hand_plan) -> None:
     from hypothesis import strategies as st
     from test_hostile_readings import TICK, reading_for
 
-    from sixplus3.interaction.guard import ContactGuard
-    from sixplus3.interaction.guard_parts import ANGLE_SLACK, COMMAND_SHARE
+    from sixplus3.interaction.contact.guard import ContactGuard
+    from sixplus3.interaction.envelope import ANGLE_SLACK, COMMAND_SHARE
 
     kp, kd = 3000.0, 30.0
     g = ContactGuard(None, hand_plan, drive_gains=(kp, kd))
@@ -516,7 +516,7 @@ def test_the_guard_survives_any_sequence_of_readings(hand_plan) -> None:
 def test_a_1e300_first_reading_gives_the_guard_no_reference_there(hand_plan) -> None:
     """Session 34: a 1e300 first reading gave the guard a reference of about 1e300 rad
     on the next good tick.  Now it is not a reading: a hold at the file's start."""
-    from sixplus3.interaction.guard import ContactGuard
+    from sixplus3.interaction.contact.guard import ContactGuard
 
     g = ContactGuard(None, hand_plan)
     cmd = g.step([1e300] * 9, np.zeros(9))
@@ -535,7 +535,7 @@ def test_under_a_site_torque_limit_the_guard_refuses_or_stays_within_it(hand_pla
 
     from sixplus3.cli import main as cli
     from sixplus3.errors import ValidationFailed
-    from sixplus3.interaction.guard import ContactGuard
+    from sixplus3.interaction.contact.guard import ContactGuard
     from sixplus3.robot_description import hardware
 
     site = tmp_path / "site.yaml"
@@ -558,13 +558,13 @@ def test_under_a_site_torque_limit_the_guard_refuses_or_stays_within_it(hand_pla
 
 def test_the_guard_knows_whether_its_robot_was_identified(hand_plan) -> None:
     """Without an identification's covariance the guard's robot is unidentified: its
-    thresholds come from the stated prior of a build's spread (guard_tables.UNIDENTIFIED:
+    thresholds come from the stated prior of a build's spread (tables.UNIDENTIFIED:
     model error 0.5, friction up to 3 times), every share of them at least the
     identified one's; with it, the identified thresholds (0.15) and the parameters'
     confidence."""
     from sixplus3.identification.base import base_parameters
-    from sixplus3.interaction.guard import ContactGuard
-    from sixplus3.interaction.guard_tables import IDENTIFIED, UNIDENTIFIED
+    from sixplus3.interaction.contact.guard import ContactGuard
+    from sixplus3.interaction.contact.tables import IDENTIFIED, UNIDENTIFIED
 
     base = base_parameters(ROBOT)
     cov = (base.index, 1e-8 * np.eye(base.rank))
@@ -588,7 +588,7 @@ def test_an_unidentified_robot_raises_no_false_claim_and_still_catches_a_hand(
     contacts without a touch.  With the prior's thresholds: nobody there, no claim on
     either drive; a free hand met at the plan's fastest still caught within 10 ms, below
     its limits."""
-    from sixplus3.interaction.person import contact_from_dict, run_contact
+    from sixplus3.interaction.people.person import contact_from_dict, run_contact
 
     plant = perturbed_plant(ROBOT, seed)  # identify plant's defaults
     for kp, kd in ((300.0, 6.0), (3000.0, 30.0)):

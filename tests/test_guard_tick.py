@@ -22,8 +22,8 @@ import pytest
 
 from sixplus3.control.drive.command import DriveCommand, Mode, TickController
 from sixplus3.errors import InputError
-from sixplus3.interaction.guard import ContactGuard
-from sixplus3.interaction.guard_parts import COMMAND_SHARE
+from sixplus3.interaction.contact.guard import ContactGuard
+from sixplus3.interaction.envelope import COMMAND_SHARE
 from sixplus3.robot_description.robot import Robot
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -117,7 +117,7 @@ def test_one_broken_reading_in_the_touch_neither_raises_nor_moves_the_guard(
 
 
 def test_lead_through_leads_a_pull_within_its_envelope(recorded) -> None:
-    from sixplus3.interaction.leadthrough import LeadThrough
+    from sixplus3.interaction.lead.leadthrough import LeadThrough
 
     kp, kd = float(recorded["lead_kp"]), float(recorded["lead_kd"])
     lt = LeadThrough(Robot.default(), RATE, drive_gains=(kp, kd))

@@ -198,7 +198,7 @@ def test_a_contact_file_with_a_list_or_mapping_for_a_name(tmp_path, doc) -> None
     key).  Now one line, exit 2, naming the valid regions."""
     import yaml
 
-    from sixplus3.interaction.person import contact_from_dict, read_contact
+    from sixplus3.interaction.people.person import contact_from_dict, read_contact
 
     with pytest.raises(InputError, match="must be one of|must be free or clamp"):
         contact_from_dict(doc)
@@ -252,7 +252,7 @@ def test_teach_with_an_empty_pfl_is_refused_as_plan_refuses_it(tmp_path) -> None
 def test_lead_through_settings_are_refused_by_name(kwargs, name) -> None:
     """Session 34: ``speed=None`` and ``acceleration=2.0`` raised raw TypeErrors;
     ``model_sigma=nan`` and ``monitor_noise=-1`` were accepted."""
-    from sixplus3.interaction.leadthrough import LeadThrough
+    from sixplus3.interaction.lead.leadthrough import LeadThrough
 
     with pytest.raises(InputError, match=name):
         LeadThrough(ROBOT, 1000.0, **kwargs)
@@ -263,7 +263,7 @@ def test_a_bad_parameter_covariance_is_an_input_error(cov) -> None:
     """Session 34: a bad ``parameter_cov`` gave a raw ValueError.  Now an InputError
     naming what is expected: two arrays, of the robot's base, symmetric PSD."""
     from sixplus3.identification.base import base_parameters
-    from sixplus3.interaction.wrench import checked_covariance
+    from sixplus3.interaction.observer.wrench import checked_covariance
 
     base = base_parameters(ROBOT)
     if cov in ("asym", "negative"):
@@ -281,7 +281,7 @@ def test_a_hand_file_with_a_long_path_is_no_alias_bomb(tmp_path) -> None:
     """Session 34: a hand file whose path was long (written out, no alias) was refused
     as an "alias bomb".  Within the file size cap it is read; a real alias bomb is still
     refused."""
-    from sixplus3.interaction.hand import read_hand
+    from sixplus3.interaction.people.hand import read_hand
 
     n = 12_000  # 12 s of a 1 kHz hand path: ~110 000 values
     lines = ["stiffness: 400", "damping: 10", "duration: 12.0", "path:"]

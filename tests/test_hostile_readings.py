@@ -20,7 +20,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sixplus3.interaction.guard_parts import ANGLE_SLACK, COMMAND_SHARE
+from sixplus3.interaction.envelope import ANGLE_SLACK, COMMAND_SHARE
 from sixplus3.robot_description.robot import Robot
 
 ROBOT = Robot.default()
@@ -34,8 +34,8 @@ GARBAGE = [np.full(9, np.nan), np.full(9, np.inf), np.full(9, -np.inf), np.full(
 
 @pytest.fixture(scope="module")
 def lead():
-    from sixplus3.interaction.leadthrough import LeadThrough
-    from sixplus3.interaction.wrench import SingleState
+    from sixplus3.interaction.lead.leadthrough import LeadThrough
+    from sixplus3.interaction.observer.wrench import SingleState
 
     lt = LeadThrough(ROBOT, 1000.0, drive_gains=(KP, KD))
     th0 = lt.tables.home.copy()
@@ -143,7 +143,7 @@ def test_a_garbage_first_reading_gives_no_reference(lead, first) -> None:
     good tick, a NaN one a 0 rad reference, 2.2 rad from the robot.  Now the first
     command is a fault (the drive holds its own position), and the reference starts
     where CONFIRM good readings in a row agree."""
-    from sixplus3.interaction.leadthrough import CONFIRM
+    from sixplus3.interaction.lead.leadthrough import CONFIRM
 
     lt, th0, hold = lead
     lt.reset()

@@ -504,7 +504,7 @@ def test_the_wrench_on_a_perturbed_plant_with_its_identified_robot(excitation, t
     from sixplus3.control.drive.plant import WrenchProfile, run_on_plant
     from sixplus3.control.pipeline import run_plan
     from sixplus3.identification.identify import identify
-    from sixplus3.interaction.wrench import estimate
+    from sixplus3.interaction.observer.wrench import estimate
     from sixplus3.planner.task import task_from_dict
 
     plant = perturbed_plant(ROBOT, 7)

@@ -10,8 +10,8 @@ from click.testing import CliRunner
 from sixplus3.cli import main as cli
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.errors import InputError
-from sixplus3.interaction.stream import WrenchStream
-from sixplus3.interaction.wrench import SingleState, StateModel, estimate
+from sixplus3.interaction.observer.stream import WrenchStream
+from sixplus3.interaction.observer.wrench import SingleState, StateModel, estimate
 from sixplus3.robot_description.robot import Robot
 
 ROBOT = Robot.default()

@@ -1,5 +1,5 @@
-"""Lead-through (interaction/leadthrough.py) on the MuJoCo plant with a simulated hand
-(interaction/hand.py), and teach-and-replay (interaction/teach.py): nothing creeps at
+"""Lead-through (interaction/lead/leadthrough.py) on the MuJoCo plant with a simulated hand
+(interaction/people/hand.py), and teach-and-replay (interaction/lead/teach.py): nothing creeps at
 rest, a push below the friction band starts nothing, the platform follows a hand at the
 admittance's law, a stiff and a soft hand stay stable and the robot passive, the walls
 keep the reference inside the gate's limits, the cranks climb to a better margin, and a
@@ -24,8 +24,8 @@ PLANT = perturbed_plant(ROBOT, 13, mass=0.05, rotor=0.05, friction=1.2)
 
 
 def _run(hand: dict, plant: Robot = PLANT, **lead):
-    from sixplus3.interaction.hand import hand_from_dict, run_lead
-    from sixplus3.interaction.leadthrough import LeadThrough
+    from sixplus3.interaction.lead.leadthrough import LeadThrough
+    from sixplus3.interaction.people.hand import hand_from_dict, run_lead
 
     start = lead.pop("start_q", None)
     lt = LeadThrough(ROBOT, 1000.0, drive_gains=(300.0, 6.0), **lead)
@@ -87,7 +87,7 @@ def test_walls_keep_the_reference_inside_the_gates_limits() -> None:
     """A hand pulls 25 N toward the workspace's edge along x (the legs' clearance, then
     a singularity, then no assembly at all): the reference stops at the wall, and every
     pose of it is one the gate accepts (margins, clearance, spherical joints, range)."""
-    from sixplus3.interaction import walls
+    from sixplus3.interaction.lead import walls
 
     hand = {"stiffness": 1000.0, "damping": 20.0, "max_force": 25.0, "duration": 4.5,
             "path": [{"t": 0.0, "offset": [0, 0, 0]}, {"t": 3.0, "offset": [0.4, 0, 0]}]}
@@ -128,7 +128,7 @@ def test_the_cranks_climb_to_a_better_margin_while_guided() -> None:
 
 
 def test_keep_out_is_the_least_change_that_respects_the_walls() -> None:
-    from sixplus3.interaction.leadthrough import LeadThrough
+    from sixplus3.interaction.lead.leadthrough import LeadThrough
 
     lt = LeadThrough(ROBOT, 1000.0)
     rng = np.random.default_rng(3)
@@ -152,7 +152,7 @@ def test_keep_out_is_the_least_change_that_respects_the_walls() -> None:
 
 
 def test_an_empty_tank_only_lets_the_platform_slow_down() -> None:
-    from sixplus3.interaction.leadthrough import LeadThrough
+    from sixplus3.interaction.lead.leadthrough import LeadThrough
 
     lt = LeadThrough(ROBOT, 1000.0)
     lt.port_energy = -10.0  # the robot has given more than it received
@@ -165,7 +165,7 @@ def test_an_empty_tank_only_lets_the_platform_slow_down() -> None:
 
 
 def test_a_tick_never_raises_and_holds_the_reference() -> None:
-    from sixplus3.interaction.leadthrough import CONFIRM, LeadThrough
+    from sixplus3.interaction.lead.leadthrough import CONFIRM, LeadThrough
     from sixplus3.kinematics.robot import home
 
     lt = LeadThrough(ROBOT, 1000.0)
@@ -185,7 +185,7 @@ def test_a_tick_never_raises_and_holds_the_reference() -> None:
                                          ({"speed": (0.1,)}, "speed"),
                                          ({"rate_hz": 50.0}, "rate_hz")])
 def test_bad_settings_are_refused_by_name(kwargs, what) -> None:
-    from sixplus3.interaction.leadthrough import LeadThrough
+    from sixplus3.interaction.lead.leadthrough import LeadThrough
 
     with pytest.raises(InputError, match=what):
         LeadThrough(ROBOT, **kwargs)
@@ -198,7 +198,7 @@ def test_bad_settings_are_refused_by_name(kwargs, what) -> None:
     ({"path": [{"t": 0.0, "offset": [0, 0]}]}, "offset"), ({"grip": 1}, "unknown key"),
     ({"path": [{"t": 0.0, "offset": [0, 0, 0], "rotation": [9, 0, 0]}]}, "rotation")])
 def test_bad_hand_files_are_refused_by_name(doc, what) -> None:
-    from sixplus3.interaction.hand import hand_from_dict
+    from sixplus3.interaction.people.hand import hand_from_dict
 
     with pytest.raises(InputError, match=what):
         hand_from_dict(doc)
@@ -208,7 +208,7 @@ def test_teach_finds_the_pauses_of_a_guided_motion() -> None:
     """A synthetic log (exact angles by inverse kinematics): rest, a move, a pause of
     0.5 s, a turn, a rest.  The waypoints are the start, the pause's pose and the end."""
     from sixplus3.control.file.drive_log import DriveLog
-    from sixplus3.interaction.teach import teach
+    from sixplus3.interaction.lead.teach import teach
     from sixplus3.kinematics import rotations as rot
     from sixplus3.kinematics.robot import robot_ik
 
@@ -276,8 +276,8 @@ def test_the_compiled_state_is_pinocchios_to_rounding() -> None:
     kinematics by Newton in minimal coordinates, J, M, h) against Pinocchio's
     (SingleState), along a sequence of readings away from home, cranks off their home
     angles, on a perturbed robot (its own masses and friction)."""
-    from sixplus3.interaction.compiled_state import CompiledState
-    from sixplus3.interaction.wrench import SingleState
+    from sixplus3.interaction.observer.compiled_state import CompiledState
+    from sixplus3.interaction.observer.wrench import SingleState
     from sixplus3.kinematics.robot import robot_ik_pose
 
     robot = perturbed_plant(ROBOT, 5, mass=0.2, rotor=0.2, friction=1.5)
@@ -305,9 +305,9 @@ def test_a_wall_no_gradient_announces_is_seen_ahead() -> None:
     """Pulled fast toward -y with a stiff drive, the legs' clearance wall appears
     suddenly (the closest pair of the collision model changes): the probes ahead stop
     the reference inside the gate's limits (before them it went 1.4 mm past zero)."""
-    from sixplus3.interaction import walls
-    from sixplus3.interaction.hand import hand_from_dict, run_lead
-    from sixplus3.interaction.leadthrough import LeadThrough
+    from sixplus3.interaction.lead import walls
+    from sixplus3.interaction.lead.leadthrough import LeadThrough
+    from sixplus3.interaction.people.hand import hand_from_dict, run_lead
 
     hand = {"stiffness": 1000.0, "damping": 20.0, "max_force": 25.0, "duration": 2.0,
             "path": [{"t": 0.0, "offset": [0, 0, 0]}, {"t": 1.0, "offset": [0, -0.4, 0]}]}
@@ -320,18 +320,18 @@ def test_a_wall_no_gradient_announces_is_seen_ahead() -> None:
 
 
 def test_a_near_walls_gradient_arrives_two_ticks_after_the_update() -> None:
-    """The slow update in three stages (interaction/lead_walls.py): the walls found last
+    """The slow update in three stages (interaction/lead/wall_update.py): the walls found last
     stay in force until the near wall's gradient is computed, at the update's reference,
     two ticks after; that gradient is the finite difference of walls.slacks (the public,
     allocating path) at that reference."""
-    from sixplus3.interaction import lead_walls as lw
-    from sixplus3.interaction import walls
-    from sixplus3.interaction.leadthrough import LeadThrough
+    from sixplus3.interaction.lead import wall_update as lw
+    from sixplus3.interaction.lead import walls
+    from sixplus3.interaction.lead.leadthrough import LeadThrough
     from sixplus3.kinematics.robot import robot_ik
 
     home = robot_ik(np.asarray(ROBOT.home_position), np.eye(3), np.asarray(ROBOT.home_psi),
                     ROBOT)
-    from sixplus3.interaction.leadthrough import CONFIRM
+    from sixplus3.interaction.lead.leadthrough import CONFIRM
 
     lt = LeadThrough(ROBOT, 1000.0)
     for _ in range(CONFIRM):
@@ -370,7 +370,7 @@ def test_the_native_tick_is_the_buffered_one() -> None:
     same recovery after them."""
     from sixplus3.dynamics.codegen import codegen_enabled
     from sixplus3.dynamics.native import native
-    from sixplus3.interaction.stream import WrenchStream
+    from sixplus3.interaction.observer.stream import WrenchStream
     from sixplus3.kinematics.robot import robot_ik_pose
 
     robot = perturbed_plant(ROBOT, 6, mass=0.1, rotor=0.1, friction=1.2)
@@ -396,8 +396,8 @@ def test_the_native_tick_is_the_buffered_one() -> None:
         for s in (a, b):
             try:
                 w, std, band, contact = s.update(reading, tau)
-                outs.append((w, std, band, contact, s.J.copy(), s.M.copy(), s.h.copy(),
-                             s.theta_dot.copy(), s.model.position, s.model.psi))
+                outs.append((w, std, band, contact, *(a.copy() for a in s.sample),
+                             s.model.position, s.model.psi))
             except InputError as exc:
                 outs.append(str(exc))
         if isinstance(outs[0], str):
@@ -417,8 +417,8 @@ def test_a_site_torque_limit_bounds_lead_through_from_the_cli_and_the_api(tmp_pa
 
     from sixplus3.cli import main as cli
     from sixplus3.identification.report import robot_yaml
-    from sixplus3.interaction.hand import hand_from_dict, run_lead
-    from sixplus3.interaction.leadthrough import RATE_SHARE, LeadThrough
+    from sixplus3.interaction.lead.leadthrough import RATE_SHARE, LeadThrough
+    from sixplus3.interaction.people.hand import hand_from_dict, run_lead
     from sixplus3.robot_description import hardware
 
     site = tmp_path / "site.yaml"

@@ -1,4 +1,4 @@
-"""Issue 68, item 2: one momentum observer (interaction/momentum.py) for the batch
+"""Issue 68, item 2: one momentum observer (interaction/observer/momentum.py) for the batch
 estimator, the stream, the contact guard and lead-through, checked on the same log."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from sixplus3.errors import InputError
-from sixplus3.interaction._tick_kernel import momentum
-from sixplus3.interaction.momentum import MomentumObserver, momentum_observer
+from sixplus3.interaction.observer._tick_kernel import momentum
+from sixplus3.interaction.observer.momentum import MomentumObserver, momentum_observer
 
 ROOT = Path(__file__).resolve().parents[1]
 GAIN = 150.0
@@ -41,7 +41,7 @@ def test_the_batch_is_the_observer_stepped_sample_by_sample() -> None:
 
 
 def test_the_stream_runs_the_same_observer_on_its_held_torque() -> None:
-    """The stream's kernel (interaction/stream.py) holds the torque over a tick as the
+    """The stream's kernel (interaction/observer/stream.py) holds the torque over a tick as the
     mean of its two readings, then observes: the batch fed those torques gives its
     residuals bit for bit."""
     t, tau, thd, M, h = _log(seed=1)
@@ -64,7 +64,7 @@ def test_the_stream_runs_the_same_observer_on_its_held_torque() -> None:
 def test_the_guard_runs_the_same_observer() -> None:
     """The contact guard's residuals, tick by tick on a recorded run, are the batch
     observer's on the guard's own inputs (the encoder's difference, lag 1/2)."""
-    from sixplus3.interaction.guard import ContactGuard
+    from sixplus3.interaction.contact.guard import ContactGuard
     from sixplus3.robot_description.robot import Robot
 
     data = np.load(ROOT / "tests" / "data" / "tick_readings.npz")
@@ -94,7 +94,7 @@ def test_the_guard_runs_the_same_observer() -> None:
 
 
 def test_lead_through_reads_the_stream_s_observer() -> None:
-    from sixplus3.interaction.leadthrough import LeadThrough
+    from sixplus3.interaction.lead.leadthrough import LeadThrough
     from sixplus3.robot_description.robot import Robot
 
     lt = LeadThrough(Robot.default(), 1000.0)
@@ -110,7 +110,7 @@ def test_the_observer_s_settings_are_checked() -> None:
 
 def test_there_is_one_observer() -> None:
     """A second observer fails here: the integral of the momentum's balance is taken in
-    one kernel (interaction/_tick_kernel.observe) and nowhere else in the library."""
+    one kernel (interaction/observer/_tick_kernel.observe) and nowhere else in the library."""
     folders = ["sixplus3", "robot_description", "kinematics", "dynamics", "planner",
                "control", "design", "visualization", "identification", "interaction"]
     found = set()
@@ -119,8 +119,8 @@ def test_there_is_one_observer() -> None:
             for node in ast.walk(ast.parse(path.read_text())):
                 if isinstance(node, ast.AugAssign) and "integral" in ast.unparse(node.target):
                     found.add(str(path.relative_to(ROOT)))
-    assert found == {"interaction/_tick_kernel.py"}
-    kernel = ast.parse((ROOT / "interaction" / "_tick_kernel.py").read_text())
+    assert found == {"interaction/observer/_tick_kernel.py"}
+    kernel = ast.parse((ROOT / "interaction" / "observer" / "_tick_kernel.py").read_text())
     owners = {f.name for f in ast.walk(kernel) if isinstance(f, ast.FunctionDef)
               and any(isinstance(n, ast.AugAssign) and "integral" in ast.unparse(n.target)
                       for n in ast.walk(f))}

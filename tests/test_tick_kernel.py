@@ -1,6 +1,6 @@
 """The per-tick kernels against independent derivations: the 9 x 9 LU
-(interaction/_tick_kernel.py) against LAPACK's (scipy), the envelope against its closed
-form, the walls' slacks (interaction/_walls_kernel.py) against the gate's own checks.  The
+(interaction/observer/_tick_kernel.py) against LAPACK's (scipy), the envelope against its closed
+form, the walls' slacks (interaction/lead/_walls_kernel.py) against the gate's own checks.  The
 observer's state built on them is checked against Pinocchio's in
 tests/test_leadthrough.py.  The slow update's pieces: the 9 x 9 extreme eigenvalues
 against LAPACK's, the exp map against kinematics.rotations, its scalars against
@@ -13,10 +13,10 @@ import pytest
 from scipy.linalg import lu_factor as scipy_lu_factor
 from scipy.linalg import lu_solve as scipy_lu_solve
 
-from sixplus3.interaction import _lead_kernel as lead_kern
-from sixplus3.interaction import _walls_kernel as wk
-from sixplus3.interaction import walls
-from sixplus3.interaction._tick_kernel import envelope, lu_factor, lu_solve, lu_solve_t
+from sixplus3.interaction.lead import _lead_kernel as lead_kern
+from sixplus3.interaction.lead import _walls_kernel as wk
+from sixplus3.interaction.lead import walls
+from sixplus3.interaction.observer._tick_kernel import envelope, lu_factor, lu_solve, lu_solve_t
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.checks import actuated_bounds
 from sixplus3.kinematics.collision import clearance
@@ -83,7 +83,7 @@ def test_the_envelope_is_the_closed_form() -> None:
 
 
 def test_the_walls_kernel_is_the_gates_checks_composed() -> None:
-    """interaction/_walls_kernel.py against robot_ik's margins, spherical_tilts, the
+    """interaction/lead/_walls_kernel.py against robot_ik's margins, spherical_tilts, the
     actuated range and the collision model's clearance (the gate's own functions), on
     random poses around home (some without an assembly), clearance on some rows."""
     robot = Robot.default()
@@ -198,12 +198,12 @@ def test_the_envelope_holds_for_every_rate_within_the_spread() -> None:
 
 
 def test_the_drive_rate_model_is_the_drives_filter() -> None:
-    """guard_parts.DriveRate against the simulated drive's own rate feedbacks
+    """envelope.DriveRate against the simulated drive's own rate feedbacks
     (control/drive/loop.py's arithmetic), on encoder differences of a random motion: the
     encoder's difference and a 1 ms filter from rest are modelled exactly; the true rate
     (the motion's derivative at the tick) stays within the model's spread."""
     from sixplus3.control.drive.loop import FILTER_TAU
-    from sixplus3.interaction.guard_parts import DriveRate
+    from sixplus3.interaction.envelope import DriveRate
 
     robot = Robot.default()
     rate = 1000.0

@@ -38,7 +38,7 @@ not the one the limits it is judged by give, within the writer's rounding:
   another form or torque share (nothing reads one: a header entry nobody checks is not
   let through either).
 
-The guard (interaction/guard_tables.py) never stops more slowly than its own
+The guard (interaction/contact/tables.py) never stops more slowly than its own
 recomputation, whatever the file says.
 """
 
@@ -182,7 +182,7 @@ def stop_runs(beta: np.ndarray, vnorm: np.ndarray, rate: float,
               max_time: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
     """(stop time (n,) [s], path position at rest (n,) [samples]) of a stop begun at
     each sample at the plan's speed, by the table ``beta`` alone, as the guard runs it
-    (interaction/guard.py): each tick the joint speed sigma = sd |theta'(s)| loses
+    (interaction/contact/guard.py): each tick the joint speed sigma = sd |theta'(s)| loses
     beta(s) |theta'(s)| / rate, the path advances by sd, and sd follows from sigma at the
     new place (``vnorm`` (n,) = |theta'| per sample).  The guard may stop faster (it
     also takes what the torque allows at the stop's own speed), never slower.  A stop

@@ -46,7 +46,7 @@ def wrench(log: str, out_file: str | None, at: str, gain: float, noise: float,
     observer on the closed-loop dynamics; the direct residual for comparison)."""
     request_fast_exit()
     from sixplus3.control.file.drive_log import read_log
-    from sixplus3.interaction.wrench import estimate
+    from sixplus3.interaction.observer.wrench import estimate
 
     check_output(out_file, (log,))
     check_png(plot_file, "--plot")
@@ -152,7 +152,7 @@ def wrench_resolution(out_file: str, step: float, as_json: bool) -> None:
     import numpy as np
 
     from sixplus3.errors import InputError
-    from sixplus3.interaction.resolution import plot_resolution_map, resolution
+    from sixplus3.interaction.observer.resolution import plot_resolution_map, resolution
 
     if not 0.002 <= step <= 0.05:
         raise InputError(f"--step must be in [0.002, 0.05] m, got {step:g}", value=step,
@@ -205,7 +205,7 @@ def teach(log: str, out_file: str, pfl: str | None, people: str | None, stop: bo
     import yaml
 
     from sixplus3.control.file.drive_log import read_log
-    from sixplus3.interaction.teach import teach as teach_log
+    from sixplus3.interaction.lead.teach import teach as teach_log
     from sixplus3.robot_description.body_regions import regions
 
     check_output(out_file, (log,), force)

@@ -134,8 +134,8 @@ def safety_report_cmd(csv_file: str, out_dir: str | None, task_file: str | None)
     (exit 1), and says so."""
     from pathlib import Path
 
-    from sixplus3.interaction.safety_page import write_report
-    from sixplus3.interaction.safety_report import safety_report
+    from sixplus3.interaction.report.safety_page import write_report
+    from sixplus3.interaction.report.safety_report import safety_report
 
     robot = task_robot(task_file)
     rep = safety_report(csv_file, robot)

@@ -51,8 +51,8 @@ def warm(robot: Any, trajectory: str | Path | None = None,
     the seconds each took (a warm cache: well under a second each)."""
     from sixplus3.identification.commission import check_directions
     from sixplus3.identification.identify import check
-    from sixplus3.interaction.leadthrough import LeadThrough
-    from sixplus3.interaction.wrench import estimate
+    from sixplus3.interaction.lead.leadthrough import LeadThrough
+    from sixplus3.interaction.observer.wrench import estimate
 
     secs: dict[str, float] = {}
 
@@ -75,7 +75,7 @@ def warm(robot: Any, trajectory: str | Path | None = None,
 
     step("lead-through and the streaming observer", lead)
     if trajectory is not None and Path(trajectory).is_file():
-        from sixplus3.interaction.guard import ContactGuard
+        from sixplus3.interaction.contact.guard import ContactGuard
 
         def guard() -> None:
             g = ContactGuard(robot, trajectory, drive_gains=(3000.0, 30.0))

@@ -1,7 +1,7 @@
-"""The lead-through's slow update (:mod:`~sixplus3.interaction.leadthrough`, module doc
+"""The lead-through's slow update (:mod:`~sixplus3.interaction.lead.leadthrough`, module doc
 5; docs/leadthrough.md, "Walls and cranks"): every ``slow_every`` ticks, the walls near
 the reference pose and the cranks' climb, from exact slacks
-(:mod:`~sixplus3.interaction.walls`).
+(:mod:`~sixplus3.interaction.lead.walls`).
 
 It runs in three stages on consecutive ticks, so that no tick carries the whole of it:
 
@@ -26,13 +26,13 @@ cache costs milliseconds the first time a process calls each), not in the loop."
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from sixplus3.interaction import _lead_kernel as kern
-from sixplus3.interaction import _walls_kernel as wk
-from sixplus3.interaction import walls
+from sixplus3.interaction.lead import _lead_kernel as kern
+from sixplus3.interaction.lead import _walls_kernel as wk
+from sixplus3.interaction.lead import walls
 from sixplus3.robot_description.robot import Robot
 
 #: Crank-score gradients below this are a plateau: the cranks stay.
@@ -68,6 +68,35 @@ class Found:
     stand_still: bool  # the reference itself has no assembly
 
 
+def _twist_steps() -> np.ndarray:
+    d = TWIST_STEP * np.eye(6)
+    d[:, 3:] /= walls.ANGLE_SCALE
+    return d
+
+
+@dataclass(eq=False)
+class _Work:
+    """The slow update's arrays (:class:`WallUpdate`'s rows of poses, their slacks and
+    angles, the probes', the kernels' work), allocated once."""
+
+    probes: np.ndarray = field(default_factory=lambda: np.array(PROBES))
+    tw: np.ndarray = field(default_factory=lambda: np.zeros((10, 6)))
+    #: the twist steps along each axis (rotations / ANGLE_SCALE)
+    dtw: np.ndarray = field(default_factory=lambda: _twist_steps())
+    pos: np.ndarray = field(default_factory=lambda: np.zeros((16, 3)))
+    rot: np.ndarray = field(default_factory=lambda: np.zeros((16, 3, 3)))
+    psi: np.ndarray = field(default_factory=lambda: np.zeros((16, 3)))
+    u: np.ndarray = field(default_factory=lambda: np.zeros(9))
+    #: every slack, the clearance too
+    sel: np.ndarray = field(default_factory=lambda: np.ones(16, dtype=np.bool_))
+    sl: np.ndarray = field(default_factory=lambda: np.zeros((16, 4)))
+    angles: np.ndarray = field(default_factory=lambda: np.zeros((16, 9)))
+    solved: np.ndarray = field(default_factory=lambda: np.zeros(16, dtype=np.bool_))
+    inside: np.ndarray = field(default_factory=lambda: np.zeros(len(PROBES), dtype=np.bool_))
+    active: np.ndarray = field(default_factory=lambda: np.zeros(4, dtype=np.bool_))
+    grad: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+
 class WallUpdate:
     """The slow update's stages on arrays allocated once (module doc).
 
@@ -83,18 +112,7 @@ class WallUpdate:
         self.tool = np.asarray(tool, dtype=float)
         self.crank_gain, self.crank_rate = crank_gain, crank_rate
         self._fn = walls.walls_of(robot)
-        self._probes = np.array(PROBES)
-        self._tw = np.zeros((10, 6))
-        self._dtw = TWIST_STEP * np.eye(6)
-        self._dtw[:, 3:] /= walls.ANGLE_SCALE
-        self._pos, self._rot = np.zeros((16, 3)), np.zeros((16, 3, 3))
-        self._psi, self._u = np.zeros((16, 3)), np.zeros(9)
-        self._sel = np.ones(16, dtype=np.bool_)  # every slack, the clearance too
-        self._sl, self._angles = np.zeros((16, 4)), np.zeros((16, 9))
-        self._solved = np.zeros(16, dtype=np.bool_)
-        self._inside = np.zeros(len(PROBES), dtype=np.bool_)
-        self._active = np.zeros(4, dtype=np.bool_)
-        self._grad = np.zeros(3)
+        self.w = _Work()  # the stages' arrays, allocated once
         self.reset()
         self._warm()
         self.reset()
@@ -136,12 +154,12 @@ class WallUpdate:
         tool point's twist, the crank rates), at time ``t_now`` [s]; ``lead``: the
         cranks may climb.  Returns the anchor: the reference's actuated angles (None:
         it has no assembly)."""
-        pos, rotm, psi, u, sl = self._pos, self._rot, self._psi, self._u, self._sl
+        pos, rotm, psi, u, sl = self.w.pos, self.w.rot, self.w.psi, self.w.u, self.w.sl
         nx = kern.update_poses((p, R, psi_ref), (v, psi_dot), R @ self.tool,
-                               (walls.ANGLE_SCALE, CRANK_STEP, self._probes), self._tw,
+                               (walls.ANGLE_SCALE, CRANK_STEP, self.w.probes), self.w.tw,
                                (pos, rotm, psi), u)
-        angles, solved, k = self._angles, self._solved, SPLIT
-        self._fn.into(pos[:k], rotm[:k], psi[:k], self._sel[:k], sl[:k], angles[:k],
+        angles, solved, k = self.w.angles, self.w.solved, SPLIT
+        self._fn.into(pos[:k], rotm[:k], psi[:k], self.w.sel[:k], sl[:k], angles[:k],
                       solved[:k])
         self.staged = (nx, t_now, lead, p.copy(), R.copy(), psi_ref.copy())
         return angles[0].copy() if solved[0] else None
@@ -151,16 +169,16 @@ class WallUpdate:
         assert self.staged is not None, "no first stage is staged"
         nx, t_now, lead, p, R, psi_ref = self.staged
         self.staged = None
-        pos, rotm, psi, u, sl, k = self._pos, self._rot, self._psi, self._u, self._sl, SPLIT
-        solved = self._solved
-        self._fn.into(pos[k:10], rotm[k:10], psi[k:10], self._sel[k:10], sl[k:10],
-                      self._angles[k:10], solved[k:10])
+        pos, rotm, psi, u, sl, k = self.w.pos, self.w.rot, self.w.psi, self.w.u, self.w.sl, SPLIT
+        solved = self.w.solved
+        self._fn.into(pos[k:10], rotm[k:10], psi[k:10], self.w.sel[k:10], sl[k:10],
+                      self.w.angles[k:10], solved[k:10])
         now = sl[0]
         if now[0] > -1.0:
             self.min_margin = min(self.min_margin, float(now[0]) + self.robot.limits.margin
                                   + walls.MARGIN_GUARD)
         prev, t_prev = self._prev
-        inside, active, grad = self._inside, self._active, self._grad
+        inside, active, grad = self.w.inside, self.w.active, self.w.grad
         gnorm, n_active = kern.slow_scalars(sl, solved, len(PROBES), CRANK_STEP,
                                             walls.WALL_BAND, prev, t_now - t_prev,
                                             HORIZON, grad, active, inside)
@@ -198,12 +216,12 @@ class WallUpdate:
         assert self.pending is not None, "no middle stage is pending"
         now, active, cliff, p, R, psi_ref = self.pending
         self.pending = None
-        pos, rotm, psi, sl, sel = self._pos, self._rot, self._psi, self._sl, self._sel
-        wk.moved(p, R, self._dtw, pos[10:], rotm[10:])
+        pos, rotm, psi, sl, sel = self.w.pos, self.w.rot, self.w.psi, self.w.sl, self.w.sel
+        wk.moved(p, R, self.w.dtw, pos[10:], rotm[10:])
         psi[10:] = psi_ref
         sel[10:] = bool(active[3])  # the clearance only when it is near
-        self._fn.into(pos[10:], rotm[10:], psi[10:], sel[10:], sl[10:], self._angles[10:],
-                      self._solved[10:])
+        self._fn.into(pos[10:], rotm[10:], psi[10:], sel[10:], sl[10:], self.w.angles[10:],
+                      self.w.solved[10:])
         found: list[Wall] = []
         scale = 2.0 * CRANK_STEP * walls.ANGLE_SCALE
         for c in np.flatnonzero(active):

@@ -16,7 +16,7 @@ A pose the closed-form inverse kinematics cannot solve has every slack -1.  The 
 stand inside the gate's limits by the guards, so a guided motion that stays inside them
 is a motion the gate accepts.
 
-The slacks are computed by a compiled kernel (:mod:`sixplus3.interaction._walls_kernel`:
+The slacks are computed by a compiled kernel (:mod:`sixplus3.interaction.lead._walls_kernel`:
 the same numbers as the gate's checks composed, to 1e-10, tests/test_tick_kernel.py).
 
 The cranks climb the **crank score**: the singularity slack, less how deep the
@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from sixplus3.cache import cached
-from sixplus3.interaction import _walls_kernel as wk
+from sixplus3.interaction.lead import _walls_kernel as wk
 from sixplus3.kinematics.checks import actuated_bounds
 from sixplus3.kinematics.collision import BASE_BODIES, PAIRS, hub_segments, radii
 from sixplus3.kinematics.spherical import spherical_reference
@@ -54,7 +54,7 @@ ANGLE_SCALE = 0.5
 
 class Walls:
     """The slacks of one robot's poses (module doc), compiled
-    (:mod:`sixplus3.interaction._walls_kernel`): the robot's constants packed once."""
+    (:mod:`sixplus3.interaction.lead._walls_kernel`): the robot's constants packed once."""
 
     def __init__(self, robot: Robot) -> None:
         geom, lim, col = robot.geometry, robot.limits, robot.collision

@@ -50,7 +50,7 @@ from sixplus3.identification.base import (
     stacked_regressor,
 )
 from sixplus3.identification.signals import filter_log
-from sixplus3.interaction.momentum import momentum_observer
+from sixplus3.interaction.observer.momentum import momentum_observer
 from sixplus3.kinematics.robot_fk import ik_jacobian, robot_fk
 from sixplus3.robot_description.robot import Robot, require_robot
 

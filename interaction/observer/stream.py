@@ -1,8 +1,8 @@
 """The momentum observer one sample at a time, for a 1 kHz controller
 (docs/interaction.md, "Streaming"): :class:`WrenchStream`, on Pinocchio's state
-(:class:`~sixplus3.interaction.wrench.SingleState`) or the CasADi model compiled to C
-(:class:`~sixplus3.interaction.compiled_state.CompiledState`), whose sample is then one
-compiled call (:func:`~sixplus3.interaction._tick_kernel.stream_tick`)."""
+(:class:`~sixplus3.interaction.observer.wrench.SingleState`) or the CasADi model compiled to C
+(:class:`~sixplus3.interaction.observer.compiled_state.CompiledState`), whose sample is then one
+compiled call (:func:`~sixplus3.interaction.observer._tick_kernel.stream_tick`)."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ import numpy as np
 
 from sixplus3.errors import InputError, check_number
 from sixplus3.filters import butter_ba
-from sixplus3.interaction._tick_kernel import momentum, stream_tick, velocity
-from sixplus3.interaction.momentum import MomentumObserver
-from sixplus3.interaction.wrench import (
+from sixplus3.interaction.observer._tick_kernel import momentum, stream_tick, velocity
+from sixplus3.interaction.observer.momentum import MomentumObserver
+from sixplus3.interaction.observer.wrench import (
     GAIN,
     MIN_RATE,
     MODEL_SIGMA,
@@ -27,7 +27,7 @@ from sixplus3.interaction.wrench import (
 from sixplus3.robot_description.robot import Robot, require_robot
 
 if TYPE_CHECKING:
-    from sixplus3.interaction.compiled_state import CompiledState
+    from sixplus3.interaction.observer.compiled_state import CompiledState
 
 
 class WrenchStream:
@@ -44,7 +44,7 @@ class WrenchStream:
     price of running online; the offline :func:`estimate` filters without lag).  The
     drive's torque is taken as held over the previous tick.  ``compiled``: the state
     (forward kinematics, J, M, h) from the CasADi model compiled to C
-    (:class:`~sixplus3.interaction.compiled_state.CompiledState`, the same numbers to
+    (:class:`~sixplus3.interaction.observer.compiled_state.CompiledState`, the same numbers to
     1e-10) instead of Pinocchio.  Cost per sample: BENCHMARKS.md, "Sensorless touch" and
     "Lead-through"."""
 
@@ -72,8 +72,8 @@ class WrenchStream:
         model_sigma = check_number("model_sigma [N m]", model_sigma, 0.0, 10.0)
         v_band = check_number("v_band [rad/s]", v_band, 0.0, 100.0)
         n_sigma = check_number("n_sigma", n_sigma, 0.0, 100.0)
-        if compiled:  # the CasADi model compiled to C (interaction/compiled_state.py)
-            from sixplus3.interaction.compiled_state import (
+        if compiled:  # the CasADi model compiled to C (interaction/observer/compiled_state.py)
+            from sixplus3.interaction.observer.compiled_state import (
                 CompiledState,  # deferred: its first build compiles C (seconds, once)
             )
 
@@ -86,10 +86,11 @@ class WrenchStream:
             self.model = SingleState(self.robot)
             self._compiled, self._native = None, None
         b, a = butter_ba(2, rate / 8.0, rate)
-        self._b, self._a = np.asarray(b, dtype=float), np.asarray(a, dtype=float)
+        #: the velocity's biquad: (b, a, its state z (2, 9), transposed direct form II)
+        self._biquad = (np.asarray(b, dtype=float), np.asarray(a, dtype=float),
+                        np.zeros((2, 9)))
         self.rate = float(rate)
-        self._z = np.zeros((2, 9))  # the biquad's state (transposed direct form II)
-        # the observer's state, on preallocated arrays (interaction/_tick_kernel.py)
+        # the observer's state, on preallocated arrays (interaction/observer/_tick_kernel.py)
         self._prev_theta = np.zeros(9)
         self._have_theta = False
         self._prev_tau = np.zeros(9)
@@ -109,7 +110,7 @@ class WrenchStream:
     def reset(self) -> None:
         """Start again: the filter, the observer and the pose tracking forget the past
         (the next sample is the first)."""
-        self._z[:] = 0.0
+        self._biquad[2][:] = 0.0
         self._have_theta = False
         self.observer.reset()
         self.model.reset()
@@ -125,11 +126,12 @@ class WrenchStream:
             raise InputError("theta and tau must be 9 finite numbers each", value=None,
                              valid="finite")
         thd = np.empty(9)
-        velocity(theta, self._prev_theta, self._have_theta, self.rate, self._b, self._a,
-                 self._z, thd)
+        b, a, z = self._biquad
+        velocity(theta, self._prev_theta, self._have_theta, self.rate, b, a, z, thd)
         J, M, h, _ = self.model.state(theta, thd)
-        #: this sample's state, for a controller built on the stream (lead-through)
-        self.J, self.M, self.h, self.theta_dot = J, M, h, thd
+        #: this sample's (J, M, h, theta_dot), for a controller built on the stream
+        #: (lead-through)
+        self.sample = (J, M, h, thd)
         w, std, band = np.empty(6), np.empty(6), np.empty(6)
         momentum(tau, thd, J, M, h, self._prev_tau, self.observer.state, self.gain,
                  self.dt, self._settings, (w, std, band))
@@ -139,7 +141,7 @@ class WrenchStream:
 
     def _tick(self, theta: np.ndarray, tau: np.ndarray, args: tuple[object, ...]) -> int:
         """_tick_kernel.stream_tick on this stream's state: its code."""
-        filt = (self._prev_theta, self.rate, self._b, self._a, self._z, self._thd)
+        filt = (self._prev_theta, self.rate, *self._biquad, self._thd)
         obs = (self._prev_tau, self.observer.state, self.gain, self.dt, self._settings)
         return int(stream_tick(theta, tau, filt, args, obs, self.n_sigma, self._out))
 
@@ -147,7 +149,7 @@ class WrenchStream:
                        model: CompiledState
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
         """:meth:`update` in one compiled call (_tick_kernel.stream_tick: the generated
-        C called from the kernel); J, M, h, theta_dot are then the model's arrays, valid
+        C called from the kernel); ``sample`` is then the model's arrays, valid
         until the next sample."""
         w, std, band = self._out
         code = self._tick(theta, tau, args)
@@ -159,8 +161,8 @@ class WrenchStream:
             raise InputError("forward kinematics did not converge for these angles",
                              value=None, valid="angles of an assembly")
         model.native_done()
-        self.J, self.M, self.h = model._J, model._M, model._h
-        self.theta_dot = self._thd
+        J, M, h, _ = model._out
+        self.sample = (J, M, h, self._thd)
         return w.copy(), std.copy(), band.copy(), code == 1
 
 

@@ -1,6 +1,6 @@
 """The lead-through's per-tick arithmetic, compiled (numba): the wrench's deadband, the
 admittance with its caps and tank, the walls' least change, and the command
-(:class:`~sixplus3.interaction.leadthrough.LeadThrough`, whose module doc states each
+(:class:`~sixplus3.interaction.lead.leadthrough.LeadThrough`, whose module doc states each
 step; it keeps the state and the mode logic, these kernels the arithmetic, on its
 preallocated arrays).
 
@@ -14,14 +14,14 @@ import math
 import numpy as np
 from numba import njit
 
-from sixplus3.interaction._tick_kernel import (
+from sixplus3.interaction.lead._walls_kernel import moved
+from sixplus3.interaction.observer._tick_kernel import (
     friction,
     lu_factor,
     lu_solve,
     matvec,
     skew_squared,
 )
-from sixplus3.interaction._walls_kernel import moved
 
 E0, PORT, TANK, MIN_TANK = 0, 1, 2, 3
 
@@ -212,7 +212,7 @@ def command(model, motion, ref, anchor, has_anchor, settings, ff):
 @njit(cache=True, error_model="numpy")
 def slow_scalars(sl, solved, n_probe, crank_step, band, prev_now, dt_prev, horizon, grad,
                  active, inside):
-    """The slow update's arithmetic on its poses' slacks sl (interaction.leadthrough,
+    """The slow update's arithmetic on its poses' slacks sl (interaction.lead.leadthrough,
     _slow_update: row 0 the reference, 1-6 the cranks turned by +- crank_step, 7.. the
     probes): ``inside`` (n_probe,) whether each probe has an assembly and every slack
     above min(the reference's, 0); ``grad`` (3,) the crank score's central gradient
@@ -248,7 +248,7 @@ def slow_scalars(sl, solved, n_probe, crank_step, band, prev_now, dt_prev, horiz
 
 @njit(cache=True, error_model="numpy")
 def update_poses(pose, motion, off, settings, tw, out, u):
-    """The lead-through's slow update's poses (interaction.leadthrough, 5) from the
+    """The lead-through's slow update's poses (interaction.lead.leadthrough, 5) from the
     reference ``pose`` (p, R, psi_ref) into ``out`` (pos, rot, psi): row 0 the
     reference, rows 1-3 and 4-6 each crank turned by +- ``crank_step``, rows 7.. the
     probes ahead (``probes`` [m] along the direction u (9,) of the ``motion`` (v,

@@ -1,6 +1,6 @@
 """The safety report's files (issue 70): one HTML page with its plots embedded, for the
 person who signs off on a cell, and the JSON file it was drawn from
-(:func:`sixplus3.interaction.safety_report.safety_report`), both written atomically.
+(:func:`sixplus3.interaction.report.safety_report.safety_report`), both written atomically.
 Every number on the page is read from that mapping: the page and the JSON cannot
 disagree."""
 

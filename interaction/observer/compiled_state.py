@@ -1,5 +1,5 @@
 """The wrench observer's per-tick state in compiled form (docs/leadthrough.md, "Cost per
-tick"): the same (J, M, h, tcp offset) as :class:`~sixplus3.interaction.wrench.
+tick"): the same (J, M, h, tcp offset) as :class:`~sixplus3.interaction.observer.wrench.
 SingleState`, from the CasADi model in minimal coordinates
 (:func:`~sixplus3.dynamics.symbolic.observer_function`, generated as C and compiled like
 the planner's functions) instead of Pinocchio.
@@ -33,7 +33,7 @@ from sixplus3.dynamics.symbolic import (
     structure,
 )
 from sixplus3.errors import InputError
-from sixplus3.interaction._tick_kernel import (
+from sixplus3.interaction.observer._tick_kernel import (
     lu_solve,
     native_state,
     newton,
@@ -51,8 +51,8 @@ TOL = 1e-10
 
 class CompiledState:
     """One sample at a time from the compiled CasADi model (module doc): the interface of
-    :class:`~sixplus3.interaction.wrench.SingleState`.  The small linear algebra between
-    the two C calls is compiled too (:mod:`sixplus3.interaction._tick_kernel`)."""
+    :class:`~sixplus3.interaction.observer.wrench.SingleState`.  The small linear algebra between
+    the two C calls is compiled too (:mod:`sixplus3.interaction.observer._tick_kernel`)."""
 
     def __init__(self, robot: Robot) -> None:
         self.robot = require_robot(robot)
@@ -63,10 +63,11 @@ class CompiledState:
         self._obs = Buffered(obs, ((9,), (9, 9), (9,), (9, 9), (9,)))
         self._obs.args[2][:] = setup_parameters(self.robot)  # the robot's setup, fixed
         mot = self.robot.motors
-        self._armature = np.asarray(mot.armature_per_joint, dtype=float)
-        self._viscous = np.asarray(mot.viscous_per_joint, dtype=float)
-        self._coulomb = np.asarray(mot.coulomb_per_joint, dtype=float)
-        self._speed = float(mot.coulomb_velocity)
+        #: the drive train's (armature, viscous, coulomb, the Coulomb law's speed)
+        self._drive = (np.asarray(mot.armature_per_joint, dtype=float),
+                       np.asarray(mot.viscous_per_joint, dtype=float),
+                       np.asarray(mot.coulomb_per_joint, dtype=float),
+                       float(mot.coulomb_velocity))
         self._tool = np.asarray(self.robot.tool.xyz, dtype=float)
         self._x = np.zeros(9)
         self._have = False  # a previous sample to start from
@@ -74,8 +75,8 @@ class CompiledState:
         self._piv = np.zeros(9, dtype=np.int64)
         self._theta = np.zeros(9)
         self._step = np.zeros(9)
-        self._J, self._M = np.zeros((9, 9)), np.zeros((9, 9))
-        self._h, self._R = np.zeros(9), np.zeros((3, 3))
+        #: the native path's outputs (J, M, h, R), valid until the next sample
+        self._out = (np.zeros((9, 9)), np.zeros((9, 9)), np.zeros(9), np.zeros((3, 3)))
         # the generated C called from the kernel itself (dynamics/native.py), where the
         # libraries are on disk; else through CasADi's buffers (the same numbers)
         nkin = native("kin_x", key, self._kin)
@@ -124,7 +125,7 @@ class CompiledState:
         _, jx, q0, qa, c = obs.res
         J, M, h, R = np.empty((9, 9)), np.empty((9, 9)), np.empty(9), np.empty((3, 3))
         observer_state(self._lu, self._piv, (jx, q0, qa, c), x[3:6], theta_dot,
-                       (self._armature, self._viscous, self._coulomb, self._speed),
+                       self._drive,
                        (J, M, h, R))
         self._theta[:] = theta
         self._have = True
@@ -134,8 +135,8 @@ class CompiledState:
 
 
     def native_args(self) -> tuple[object, ...] | None:
-        """The ``model`` of :func:`~sixplus3.interaction._tick_kernel.native_state` and
-        :func:`~sixplus3.interaction._tick_kernel.stream_tick` (this state's buffers and
+        """The ``model`` of :func:`~sixplus3.interaction.observer._tick_kernel.native_state` and
+        :func:`~sixplus3.interaction.observer._tick_kernel.stream_tick` (this state's buffers and
         settings, one tuple), or None without the native path."""
         if self._native is None:
             return None
@@ -143,14 +144,13 @@ class CompiledState:
         kb, ob = kin.buf, obs.buf
         return (kin.ptrs, kb.args[0], kb.res[0], kb.res[1], obs.ptrs,
                 ob.args[0], ob.args[1], ob.res[1], ob.res[2], ob.res[3], ob.res[4], self._x,
-                self._lu, self._piv, self._step, self._theta, NEWTON, TOL, self._armature,
-                self._viscous, self._coulomb, self._speed, self._J, self._M, self._h,
-                self._R)
+                self._lu, self._piv, self._step, self._theta, NEWTON, TOL, *self._drive,
+                *self._out)
 
     def native_done(self) -> None:
         """After a sample taken by stream_tick: the pose of :meth:`state`."""
         x = self._x
-        self.position, self.rotation, self.psi = x[0:3].copy(), self._R.copy(), x[6:9].copy()
+        self.position, self.rotation, self.psi = x[0:3].copy(), self._out[3].copy(), x[6:9].copy()
 
     def _native_state(self, theta: np.ndarray, theta_dot: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -158,7 +158,7 @@ class CompiledState:
         previous sample's x and factors."""
         model = self.native_args()
         assert model is not None
-        J, M, h, R = self._J, self._M, self._h, self._R
+        J, M, h, R = self._out
         err, info = native_state(model, theta, True, theta_dot)
         if info != 0 or err >= 1e-8:
             self._have = False  # start again from the full forward kinematics next time

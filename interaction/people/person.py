@@ -1,6 +1,6 @@
 """A person in the virtual prototype (docs/safety.md, "A simulated person"): a body
 region in the platform's way, as ISO/TS 15066's two-body model, with the trajectory run
-on a MuJoCo plant by the drives, the :class:`~sixplus3.interaction.guard.ContactGuard`
+on a MuJoCo plant by the drives, the :class:`~sixplus3.interaction.contact.guard.ContactGuard`
 in the loop or not.
 
 The region is a plane through the tool centre point's planned position at the contact
@@ -36,7 +36,7 @@ from sixplus3.control.gate.interval import held_torque
 from sixplus3.control.gate.validation import validate_file
 from sixplus3.errors import InputError, ValidationFailed, check_number
 from sixplus3.fileio import read_yaml
-from sixplus3.interaction.guard import ContactGuard
+from sixplus3.interaction.contact.guard import ContactGuard
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.robot_fk import ik_jacobian
@@ -316,7 +316,7 @@ def _report(path: str | Path, model: Robot, guard: bool | ContactGuard) -> Any:
 
 def _drive(kp: float, kd: float, rate_feedback: str) -> tuple[float, float, str, float]:
     """The guard's ``drive_gains`` for the simulated drives: their PD and their rate
-    feedback as the guard models it (guard_parts.DriveRate: the plant's rate is the true
+    feedback as the guard models it (envelope.DriveRate: the plant's rate is the true
     rate, the filter the drive loop's)."""
     kind = {"plant": "true", "encoder": "encoder", "filtered": "filtered"}.get(
         rate_feedback if isinstance(rate_feedback, str) else "")

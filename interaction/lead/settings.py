@@ -1,4 +1,4 @@
-"""Lead-through's data (interaction/leadthrough.py): its settings
+"""Lead-through's data (interaction/lead/leadthrough.py): its settings
 (:class:`LeadSettings`, read by name with their ranges), the tables computed once from
 them, the robot and the site (:class:`LeadTables`), and the state a tick changes
 (:class:`LeadState`, made anew by each ``reset``).  Per-axis values of the tool point
@@ -13,7 +13,7 @@ import numpy as np
 
 from sixplus3.control.drive.command import Mode
 from sixplus3.errors import InputError, check_number
-from sixplus3.interaction.wrench import GAIN, MODEL_SIGMA, N_SIGMA
+from sixplus3.interaction.observer.wrench import GAIN, MODEL_SIGMA, N_SIGMA
 from sixplus3.robot_description.limits import Limits
 
 #: The walls near at once, at most (the four slacks' and a cliff ahead).
@@ -128,8 +128,8 @@ class LeadTables:
 
 @dataclass(eq=False)
 class LeadState:
-    """Lead-through's state while it runs (interaction/leadthrough.py): made anew by
-    each ``reset``.  ``sc``: the tank's scalars (interaction/_lead_kernel.py: E0, PORT,
+    """Lead-through's state while it runs (interaction/lead/leadthrough.py): made anew by
+    each ``reset``.  ``sc``: the tank's scalars (interaction/lead/_lead_kernel.py: E0, PORT,
     TANK, MIN_TANK) [J]; the walls near are kept as the kernels' arrays (G, b, n_walls)
     behind :attr:`walls`; ``lu``, ``piv`` and ``no_anchor`` the kernels' work."""
 

@@ -15,7 +15,7 @@ the path, from the file's samples:
   and with the guard's worst measured detection before it (at the plan's speed).
 
 and states what it does not cover, the guard's settings and its measured detection
-figures with their source, and the assumptions.  :mod:`sixplus3.interaction.safety_page`
+figures with their source, and the assumptions.  :mod:`sixplus3.interaction.report.safety_page`
 writes the page.
 """
 
@@ -30,8 +30,8 @@ from sixplus3.control.file.file_format import motion_of
 from sixplus3.control.gate.pfl import Judged, judged, pfl_profile
 from sixplus3.control.gate.stop import TORQUE_SHARE, stop_runs, stop_table
 from sixplus3.control.gate.validation import validate_file, validation_record
-from sixplus3.interaction.guard_parts import COMMAND_SHARE, DEFAULT_RATE, MAX_JUMP
-from sixplus3.interaction.guard_tables import IDENTIFIED, LAG, UNIDENTIFIED
+from sixplus3.interaction.contact.tables import IDENTIFIED, LAG, UNIDENTIFIED
+from sixplus3.interaction.envelope import COMMAND_SHARE, DEFAULT_RATE, MAX_JUMP
 from sixplus3.robot_description import hardware
 from sixplus3.robot_description.body_regions import REGIONS
 from sixplus3.robot_description.leg_links import link_names
@@ -195,7 +195,7 @@ def _stop(rep: Any, robot: Robot, motion: Any, prof: Any) -> dict[str, Any]:
 
 
 def _guard() -> dict[str, Any]:
-    """The contact guard's settings (interaction/guard.py) and its measured figures."""
+    """The contact guard's settings (interaction/contact/guard.py) and its measured figures."""
     return {"settings": {
         "threshold lag window [s]": LAG,
         "model error, identified / prior": [IDENTIFIED.model_error, UNIDENTIFIED.model_error],

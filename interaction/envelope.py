@@ -1,6 +1,9 @@
-"""The contact guard's parts that are not its state machine (interaction/guard.py): the
-command it returns, the offline slope of the velocity torque, where a contact is, and
-the whole command kept within the envelope given the drive's gains."""
+"""What every controller's command must satisfy and what it may read
+(docs/safety.md, "The command on any drive"): a reading checked before any observer
+sees it (:func:`reading`, :func:`jump_bound`), the drive's rate as a controller models
+it (:class:`DriveRate`, :func:`parse_drive`), and the whole command tau_ff + PD kept
+within the envelope for every rate the drive may use (:func:`within_envelope`).  The
+contact guard and lead-through both apply it."""
 
 from __future__ import annotations
 
@@ -9,10 +12,8 @@ import math
 import numpy as np
 
 from sixplus3.control.drive.command import DriveCommand
-from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.dynamics.regressor import regressor_batch
 from sixplus3.errors import InputError, check_number
-from sixplus3.interaction._tick_kernel import envelope
+from sixplus3.interaction.observer._tick_kernel import envelope
 from sixplus3.robot_description.limits import Limits
 
 #: The share of the envelope a command (tau_ff plus the drive's PD) may ask for when the
@@ -28,65 +29,6 @@ TORQUE_SLACK = 2.0
 #: [rad] the largest change of a measured angle in one tick beyond the joint rate limit's
 #: own (a faulty reading otherwise: the guard's and lead-through's jump check).
 MAX_JUMP = 0.05
-#: [m] the residual's crank torques per newton of its force beyond which a contact is on
-#: a leg (a platform force has none; a leg link's, its lever under the cranks: cm).
-LEG_LEVER = 0.002
-
-
-def velocity_slope(dyn: ClosedLoopDynamics, q: np.ndarray, theta_d: np.ndarray
-                   ) -> np.ndarray:
-    """D_k (n, 9, 9) = d c / d theta_dot at sample k's planned rates: the velocity
-    torque c (Coriolis and centripetal) is a quadratic form in the rates, so a
-    central difference of it is exact, and c(v_k + d) = c_k + D_k d + c(d) with
-    c(d) of second order in the tracking error d (docs/safety.md)."""
-    n = len(q)
-    D = np.empty((n, 9, 9))
-    zero = np.zeros((n, 9))
-    assert dyn.robot is not None
-    fr = dyn.robot.motors.friction
-    for j in range(9):
-        e = np.zeros(9)
-        e[j] = 1.0
-        up, _ = dyn.actuated_inverse_dynamics_batch(q, theta_d + e, zero)
-        dn, _ = dyn.actuated_inverse_dynamics_batch(q, theta_d - e, zero)
-        D[:, :, j] = 0.5 * ((up - fr(theta_d + e)) - (dn - fr(theta_d - e)))
-    return D
-
-
-def parameter_std2(dyn: ClosedLoopDynamics, q: np.ndarray, theta_dot: np.ndarray,
-                   theta_ddot: np.ndarray, parameter_cov: tuple[np.ndarray, np.ndarray]
-                   ) -> np.ndarray:
-    """(n, 9) the variance of each joint's model torque at the states (q, rates,
-    accelerations) from an identification's base parameters' covariance
-    (``parameter_cov``: (the base columns, the covariance), its parameters.npz):
-    diag(Y_b Sigma Y_b^T), Y_b the base regressor (Pinocchio's, through the closures)."""
-    from sixplus3.interaction.wrench import (
-        checked_covariance,  # deferred: only with a covariance (the wrench estimator's rule)
-    )
-
-    assert dyn.robot is not None
-    base, cov = checked_covariance(dyn.robot, parameter_cov)
-    out = np.empty((len(q), 9))
-    for i in range(0, len(q), 2000):
-        sl = slice(i, i + 2000)
-        Y, _ = regressor_batch(dyn, q[sl], theta_dot[sl], theta_ddot[sl])
-        Wb = base.reduce(Y)
-        out[sl] = np.einsum("nja,ab,njb->nj", Wb, cov, Wb)
-    return np.maximum(np.nan_to_num(out, nan=0.0), 0.0)
-
-
-def contact_site(full: np.ndarray, bound: np.ndarray) -> str:
-    """Where the contact is: a force on the platform does no work when the cranks
-    turn with the platform held, so the residual's crank torques (J^T r)[6:9] stay
-    within what the thresholds map to there (|J|^T thr), and small against the
-    force (the observer's own error during an impact: below 1 mm of lever here).  A
-    force on a leg link turns the cranks with a lever of its link's motion under
-    them: beyond both, the contact is on a leg (docs/safety.md)."""
-    crank = np.abs(full[6:9])
-    lever = float(np.linalg.norm(full[6:9])) / max(float(np.linalg.norm(full[0:3])),
-                                                   1e-9)
-    return ("a leg" if bool(np.any(crank > bound[6:9])) and lever > LEG_LEVER
-            else "the platform")
 
 
 def within_envelope(cmd: DriveCommand, kp: np.ndarray, kd: np.ndarray, theta: np.ndarray,
@@ -251,6 +193,5 @@ def parse_gains(gains: tuple[object, object]) -> tuple[np.ndarray, np.ndarray]:
 
 
 __all__ = ["ANGLE_SLACK", "COMMAND_SHARE", "DEFAULT_RATE", "DRIVE_RATES", "DriveRate",
-           "LEG_LEVER", "MAX_JUMP", "TORQUE_SLACK",
-           "contact_site", "jump_bound", "parameter_std2", "parse_drive", "parse_gains",
-           "reading", "velocity_slope", "within_envelope"]
+           "MAX_JUMP", "TORQUE_SLACK", "jump_bound", "parse_drive", "parse_gains", "reading",
+           "within_envelope"]

@@ -1,5 +1,5 @@
 """A hand that guides the platform in the virtual prototype (docs/leadthrough.md, "The
-simulated hand"), with :class:`~sixplus3.interaction.leadthrough.LeadThrough` in the
+simulated hand"), with :class:`~sixplus3.interaction.lead.leadthrough.LeadThrough` in the
 drives' loop.
 
 The hand is a spring-damper between the tool centre point and an anchor that follows a
@@ -38,8 +38,8 @@ from sixplus3.control.drive.loop import KD, KP, TORQUE_NOISE, DriveLoop, Tick, r
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.errors import InputError, check_number
 from sixplus3.fileio import read_yaml
-from sixplus3.interaction.leadthrough import LeadThrough
-from sixplus3.interaction.wrench import SingleState
+from sixplus3.interaction.lead.leadthrough import LeadThrough
+from sixplus3.interaction.observer.wrench import SingleState
 from sixplus3.kinematics.robot import home
 from sixplus3.robot_description.mjcf import TIMESTEP
 from sixplus3.robot_description.robot import Robot, require_robot

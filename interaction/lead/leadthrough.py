@@ -1,13 +1,13 @@
 """Lead-through: a person guides the platform by hand, sensorlessly (docs/leadthrough.md).
 
-Stepped each tick like :class:`~sixplus3.interaction.guard.ContactGuard`:
+Stepped each tick like :class:`~sixplus3.interaction.contact.guard.ContactGuard`:
 ``step(theta, tau) -> DriveCommand``, what the drive applies as
 tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref - theta_dot).
 
 Each tick:
 
 1. **The wrench** a person applies, from the drives alone: the momentum observer of
-   :class:`~sixplus3.interaction.stream.WrenchStream` (its standard deviation ``std``
+   :class:`~sixplus3.interaction.observer.stream.WrenchStream` (its standard deviation ``std``
    and, for joints slower than ``V_BAND``, the dry friction ``band``), moved to the tool
    centre point (the point a person holds).
 2. **A deadband with hysteresis.** At rest (mode ``hold``) a component counts only
@@ -26,7 +26,7 @@ Each tick:
    capped at 4 ``energy``.  At T <= 0 the admittance takes only the input that slows it
    down: the robot never gives the person more energy than it received.
 5. **Walls and cranks** (every ``slow_every`` ticks, in two halves on consecutive
-   ticks: :mod:`sixplus3.interaction.lead_walls`; :mod:`sixplus3.interaction.walls`):
+   ticks: :mod:`sixplus3.interaction.lead.wall_update`; :mod:`sixplus3.interaction.lead.walls`):
    the reference pose's slacks against the walls of singularity, spherical cones,
    actuated range and clearance.  A wall is near when its slack is inside the band or
    would be within HORIZON at the rate it fell; its gradient in the twist and the crank
@@ -43,7 +43,7 @@ Each tick:
    kinematics of the reference pose at each slow update; tau_ff the model's torque at the
    reference's acceleration (friction at the reference rate, so the encoder's noise does
    not chatter the feed-forward), and with ``drive_gains`` the whole command within 97 %
-   of the envelope (:func:`~sixplus3.interaction.guard_parts.within_envelope`).
+   of the envelope (:func:`~sixplus3.interaction.envelope.within_envelope`).
 """
 
 from __future__ import annotations
@@ -54,9 +54,7 @@ import numpy as np
 
 from sixplus3.control.drive.command import DriveCommand, Mode
 from sixplus3.errors import InputError, check_number
-from sixplus3.interaction import _lead_kernel as kern
-from sixplus3.interaction import walls
-from sixplus3.interaction.guard_parts import (
+from sixplus3.interaction.envelope import (
     COMMAND_SHARE,
     DEFAULT_RATE,
     DriveRate,
@@ -65,9 +63,11 @@ from sixplus3.interaction.guard_parts import (
     reading,
     within_envelope,
 )
-from sixplus3.interaction.lead_settings import LeadSettings, LeadState, LeadTables
-from sixplus3.interaction.lead_walls import Found, WallUpdate
-from sixplus3.interaction.stream import WrenchStream
+from sixplus3.interaction.lead import _lead_kernel as kern
+from sixplus3.interaction.lead import walls
+from sixplus3.interaction.lead.settings import LeadSettings, LeadState, LeadTables
+from sixplus3.interaction.lead.wall_update import Found, WallUpdate
+from sixplus3.interaction.observer.stream import WrenchStream
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.robot_description.hardware import Hardware, effective_limits
 from sixplus3.robot_description.limits import Limits
@@ -90,10 +90,10 @@ def _norm(a: np.ndarray) -> float:
 
 class LeadThrough:
     """The platform follows a person's hand (module doc): its ``settings``
-    (:class:`~sixplus3.interaction.lead_settings.LeadSettings`: the defaults, changed
+    (:class:`~sixplus3.interaction.lead.settings.LeadSettings`: the defaults, changed
     by name as keyword arguments, e.g. ``crank_gain=0``), its frozen ``tables``
-    (:class:`~sixplus3.interaction.lead_settings.LeadTables`) and its state ``st``
-    (:class:`~sixplus3.interaction.lead_settings.LeadState`, made anew by
+    (:class:`~sixplus3.interaction.lead.settings.LeadTables`) and its state ``st``
+    (:class:`~sixplus3.interaction.lead.settings.LeadState`, made anew by
     :meth:`reset`).  ``drive_gains``: the drive's (Kp, Kd[, rate feedback[, tau]])
     (None: the feed-forward alone is kept within the envelope); ``hardware``: the site
     whose limits tighten the robot's (default ``$SIXPLUS3_HARDWARE`` or the
@@ -107,7 +107,7 @@ class LeadThrough:
         rate = check_number("rate_hz", rate_hz, 200.0, 20000.0)
         if settings is not None and not isinstance(settings, LeadSettings):
             raise InputError("settings must be a LeadSettings", value=type(settings).__name__,
-                             valid="interaction.lead_settings.LeadSettings")
+                             valid="interaction.lead.settings.LeadSettings")
         self.settings = se = LeadSettings.named(settings, named)
         drive = None if drive_gains is None else parse_drive(drive_gains)
         self.stream = WrenchStream(self.robot, rate, gain=se.gain,
@@ -134,7 +134,7 @@ class LeadThrough:
             speed_cap=np.array(se.speed, dtype=float),
             gains=None if drive is None else (drive[0], drive[1]),
             home=np.asarray(home, dtype=float).reshape(-1)[:9])
-        # the walls near and the cranks' climb, every slow_every ticks (lead_walls.py)
+        # the walls near and the cranks' climb, every slow_every ticks (wall_update.py)
         self._wu = WallUpdate(self.robot, self.tables.tool, se.crank_gain, se.crank_rate)
         #: the drive's rate as modelled, and how far the drive's may be from it
         self._rates = DriveRate(rate, self.robot, *(DEFAULT_RATE if drive is None
@@ -148,7 +148,7 @@ class LeadThrough:
         self.stream.reset()
         e0 = self.settings.energy
         # [J] the tank's initial energy, what the person put into the robot (estimated),
-        # the tank, its least value (interaction/_lead_kernel.py: E0, PORT, TANK, MIN_TANK)
+        # the tank, its least value (interaction/lead/_lead_kernel.py: E0, PORT, TANK, MIN_TANK)
         self.st = LeadState(sc=np.array([e0, 0.0, e0, e0]))
         self._wu.reset()
         self._rates.reset()
@@ -191,12 +191,12 @@ class LeadThrough:
         """One tick (module doc); never raises, for any Python object as ``theta`` or
         ``tau`` (docs/leadthrough.md, "What it guarantees"):
 
-        - a reading that is not one (guard_parts.reading: not 9 finite numbers, an angle
+        - a reading that is not one (envelope.reading: not 9 finite numbers, an angle
           far outside the range, a torque no drive applies) never reaches the observer:
           the guided motion stops, the reference holds (mode ``hold``), and the observer
           starts afresh at the next good reading;
         - a reading that jumped further than the joints can move since the last good one
-          (guard_parts.jump_bound) is refused the same way; only CONFIRM readings in a
+          (envelope.jump_bound) is refused the same way; only CONFIRM readings in a
           row that agree with each other re-anchor the controller there (a hold where
           the robot reads itself to be: no motion);
         - before CONFIRM good readings in a row there is no reference: mode ``fault``,
@@ -204,7 +204,7 @@ class LeadThrough:
           ``theta_ref`` is the robot's home pose, a placeholder, not a target);
         - every command is finite, its feed-forward within the envelope, and with the
           drive's gains its whole PD within it too, for every rate the drive may use
-          (guard_parts.DriveRate)."""
+          (envelope.DriveRate)."""
         try:
             self.st.since_good += 1 if self.st.last_good is not None else 0
             got = reading(theta, tau, self.tables.lim)
@@ -320,7 +320,7 @@ class LeadThrough:
     def _step(self, theta: np.ndarray, tau: np.ndarray) -> DriveCommand:
         s = self.stream
         w, std, band, _ = s.update(theta, tau)
-        J, M, h, thd = s.J, s.M, s.h, s.theta_dot
+        J, M, h, thd = s.sample
         if not self.st.started:
             self._start(theta)
         off = self.st.R_ref @ self.tables.tool
@@ -357,8 +357,8 @@ class LeadThrough:
         """The admittance's step (the tank first) and the cranks' wish within their caps,
         then the walls (the least change that keeps out of them) last: a wall that
         appears suddenly (the clearance's closest pair changing) is met at once, not
-        braked into; one approached smoothly is met early (lead_walls.HORIZON), gently
-        (lead_walls.WALL_RATE)."""
+        braked into; one approached smoothly is met early (wall_update.HORIZON), gently
+        (wall_update.WALL_RATE)."""
         wish = self.st.psi_dot_target if self.st.mode == Mode.LEAD else np.zeros(3)
         tb, se = self.tables, self.settings
         kern.admittance(w_in, self.st.v, self.st.psi_dot, wish, se.mass, se.damping, tb.dt,
@@ -368,7 +368,7 @@ class LeadThrough:
     def _keep_out(self) -> None:
         """The twist and the crank rates (metric: rotations and cranks weighed by
         ``walls.ANGLE_SCALE``) kept out of the walls near: each wall's slack s may fall
-        at most lead_walls.WALL_RATE s per second (a barrier: g . (v, psi_dot) >= -WALL_RATE max(s,
+        at most wall_update.WALL_RATE s per second (a barrier: g . (v, psi_dot) >= -WALL_RATE max(s,
         0): beyond a wall it may not fall, and the platform is not pushed back against
         the person), by the least change (cyclic projections)."""
         kern.keep_out(self.st.v, self.st.psi_dot, self.st.G, self.st.b, self.st.n_walls,
@@ -386,7 +386,7 @@ class LeadThrough:
             self._wu.staged = self._wu.pending = None
 
     def _slow_update(self, at_once: bool = False) -> None:
-        """The walls near and the cranks' climb (module doc, 5; lead_walls.py): its first
+        """The walls near and the cranks' climb (module doc, 5; wall_update.py): its first
         stage (the reference re-anchored on the inverse kinematics of its pose), or
         every stage ``at_once`` (the guided motion's first tick; an update every tick
         or two)."""
@@ -399,7 +399,7 @@ class LeadThrough:
             self.st.anchor_theta = self._wu.first(*args)
 
     def _found(self, f: Found) -> None:
-        """The middle stage's decisions applied (lead_walls.py)."""
+        """The middle stage's decisions applied (wall_update.py)."""
         self.st.psi_dot_target = f.target
         if f.stand_still:  # the reference itself unsolvable: stand still
             self.st.v[:] = 0.0
@@ -408,7 +408,7 @@ class LeadThrough:
         elif f.walls is not None:
             self.st.walls = f.walls
 
-    # the slow update's record (lead_walls.WallUpdate)
+    # the slow update's record (wall_update.WallUpdate)
     @property
     def min_margin(self) -> float:
         """The reference's smallest singularity margin at the slow updates."""

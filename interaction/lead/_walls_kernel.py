@@ -6,8 +6,8 @@ own checks composed (:func:`~sixplus3.kinematics.robot.robot_ik`'s margins,
 (:mod:`sixplus3.kinematics._geometry_kernel`), without their per-call overhead (the
 lead-through's slow update evaluates 10-16 poses every 10 ms).
 
-:class:`~sixplus3.interaction.walls.Walls` packs the robot's constants (``k``: see
-:func:`~sixplus3.interaction.walls.Walls.__init__`); tests/test_leadthrough.py checks
+:class:`~sixplus3.interaction.lead.walls.Walls` packs the robot's constants (``k``: see
+:func:`~sixplus3.interaction.lead.walls.Walls.__init__`); tests/test_leadthrough.py checks
 the kernel against the composition of those functions."""
 
 from __future__ import annotations
@@ -255,7 +255,7 @@ def _leg_point(row, at, k):
 
 @njit(cache=True, error_model="numpy")
 def pose_slacks(p, R, psi, with_clearance, robot, out, theta, work):
-    """The four slacks of one pose (interaction.walls) into ``out`` (4,) and its
+    """The four slacks of one pose (interaction.lead.walls) into ``out`` (4,) and its
     actuated angles into ``theta`` (9,); returns whether the pose has an assembly (if
     not: every slack -1, theta 0).  ``robot``: the robot's constants (k, geo, mode,
     crank_pos, crank_angle, leg_rot, leg_org, sph_ref, hubs, radii, pairs, base:

@@ -6,20 +6,20 @@ allow; a clamp (the force stays after the stop) is released by retracting along 
 path until the force is gone; then it holds.
 
 Nothing is solved online.  At construction, from the gate's own reading of the file and
-Pinocchio, for every sample k of the path theta(s) (interaction/guard_tables.py): the
+Pinocchio, for every sample k of the path theta(s) (interaction/contact/tables.py): the
 reduced inertia M_k, gravity g_k, the time-scaling terms a_k = M_k theta'_k and
 b_k = tau_k - g_k (moving along the path at path speed sd and acceleration sdd needs
 a_k sdd + b_k sd^2 + g_k), the velocity torque's slope D_k in the rates, the IK
 Jacobian J_k, the thresholds (from the robot's prior: identified or not) and the stop
 table beta_k, always recomputed here: the header's is never used.
 
-Each tick: the reading checked (guard_parts.reading, jump_bound), the observer
+Each tick: the reading checked (envelope.reading, jump_bound), the observer
 r = K (p - p_0 - sum (tau - h + Mdot thetadot + r) dt) with p = M_k thetadot, and a
 contact when a joint's |r| stays beyond its threshold for DEBOUNCE ticks.  A drive held
 at its limit for SATURATED_FOR while the robot is off its reference by more than
 BLOCKED is a stop along the path, not a contact.  With the drive's gains and rate
 feedback (``drive_gains``), every command's total tau_ff + PD stays within the envelope
-for every rate the drive may use (guard_parts.DriveRate, within_envelope).
+for every rate the drive may use (envelope.DriveRate, within_envelope).
 
 ``step`` never raises: a reading that is not one, a jump, or any failure inside is a
 safe stop (mode ``hold`` at the last good reference, gravity feed-forward), said in
@@ -41,17 +41,8 @@ from sixplus3.control.file.trajectory_read import read_bytes
 from sixplus3.control.gate.stop import TORQUE_SHARE
 from sixplus3.control.gate.validation import validate_bytes
 from sixplus3.errors import InputError, ValidationFailed, check_number
-from sixplus3.interaction.guard_parts import (
-    COMMAND_SHARE,
-    DEFAULT_RATE,
-    DriveRate,
-    contact_site,
-    jump_bound,
-    parse_drive,
-    reading,
-    within_envelope,
-)
-from sixplus3.interaction.guard_tables import (
+from sixplus3.interaction.contact.parts import contact_site
+from sixplus3.interaction.contact.tables import (
     IDENTIFIED,
     LAG,
     UNIDENTIFIED,
@@ -61,7 +52,16 @@ from sixplus3.interaction.guard_tables import (
     path_tables,
     thresholds,
 )
-from sixplus3.interaction.momentum import MomentumObserver
+from sixplus3.interaction.envelope import (
+    COMMAND_SHARE,
+    DEFAULT_RATE,
+    DriveRate,
+    jump_bound,
+    parse_drive,
+    reading,
+    within_envelope,
+)
+from sixplus3.interaction.observer.momentum import MomentumObserver
 from sixplus3.robot_description.hardware import effective_limits, judged_limits
 from sixplus3.robot_description.limits import Limits
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -138,7 +138,7 @@ class ContactGuard:
         self.rate = check_number("rate_hz", rate_hz, 100.0, 20000.0)
         self.gain = check_number("gain", gain, 10.0, 5000.0)
         #: how well the robot is known: identified (its parameters' covariance given:
-        #: ``parameter_cov``) or the stated prior of a build's spread (guard_tables:
+        #: ``parameter_cov``) or the stated prior of a build's spread (tables:
         #: IDENTIFIED, UNIDENTIFIED); ``model_error`` given overrides the model share
         self.identified = parameter_cov is not None
         prior = IDENTIFIED if self.identified else UNIDENTIFIED
@@ -151,7 +151,7 @@ class ContactGuard:
         share = check_number("torque_share", torque_share, 0.1, 1.0)
         #: the drive's (Kp [N m/rad], Kd [N m s/rad]), scalars or 9 each; given, every
         #: command's tau_ff + Kp (theta_ref - theta) + Kd (theta_dot_ref - theta_dot)
-        #: stays within the envelope (:func:`guard_parts.within_envelope`)
+        #: stays within the envelope (:func:`envelope.within_envelope`)
         self.kp: np.ndarray | None = None
         self.kd: np.ndarray | None = None
         self._drive_rate = DEFAULT_RATE
@@ -172,7 +172,7 @@ class ContactGuard:
         judged = judged_limits(self.robot, Limits(**rep.limits)) if rep.limits else self.lim
         tables = path_tables(self.robot, rep, self.rate, judged, share, self.gain,
                              self.prior, self.n_sigma, torque_noise, parameter_cov)
-        #: the frozen tables of the path (guard_tables.PathTables: the reference, the
+        #: the frozen tables of the path (tables.PathTables: the reference, the
         #: dynamics along it, the stop table, the thresholds), computed once
         self.tables = tables
         self.n = len(tables.theta)
@@ -216,7 +216,7 @@ class ContactGuard:
             self.kp, self.kd, kind, tau = parse_drive(drive_gains)
             self._drive_rate = (kind, tau)
         # the state: the drive's rate as the guard models it, and how far the drive's
-        # may be from it (guard_parts.DriveRate: the bound on the whole command covers
+        # may be from it (envelope.DriveRate: the bound on the whole command covers
         # it), the path position, the observer, the contact, the events
         self._reset()
 
@@ -280,24 +280,47 @@ class ContactGuard:
         """One tick (class doc); never raises."""
         got = reading(theta, tau, self.lim)  # never raises
         try:
+            self._drive_reads(got)
             cmd = self._step(got)
         except Exception as exc:  # noqa: BLE001 - the loop must never see an exception
             cmd = self._safe_hold(f"internal failure, holding: {type(exc).__name__}: "
                                   f"{str(exc)[:120]}")
         try:
             if self.kp is None or self.kd is None or self.st.prev is None:
-                return cmd
-            # at the last good reading, the drive's rate the encoder's difference of two
-            # good readings in a row (kept across a refused one), and how far the drive's
-            # own rate may be from it (guard_parts.RateSpread)
-            out, wanted = within_envelope(cmd, self.kp, self.kd, self.st.prev,
-                                          self.st.rates.rate, COMMAND_SHARE * self.lim.torque,
+                return cmd  # no good reading yet: the file's start, held, unmoved
+            # at the angles the drive's PD acts on this tick (its encoder's: this
+            # reading, a refused jump too; the last good one when this is not a
+            # reading), with the drive's rate the encoder's difference of its last two
+            # readings, and how far the drive's own rate may be from it
+            # (envelope.DriveRate).  This tick's command only: the guard's state is not
+            # moved by a reading it refused
+            at = self.st.prev if isinstance(got, str) else got[0]
+            out, wanted = within_envelope(cmd, self.kp, self.kd, at, self.st.rates.rate,
+                                          COMMAND_SHARE * self.lim.torque,
                                           self.st.rates.spread)
             # the drive would have been at its limit without the move: saturated
             self.st.clipped = wanted >= self.lim.torque
             return out
         except Exception:  # noqa: BLE001
             return cmd
+
+    def _drive_reads(self, got: tuple[np.ndarray, np.ndarray] | str) -> None:
+        """The drive's rate feedback this tick, as this guard models it.  The drive
+        differences every reading its encoder gives, the ones this guard refuses as a
+        jump too: the rate model follows each plausible reading (within twice the rate
+        limit: the envelope's move of the reference never answers a rate no joint has)
+        and starts again after one that is not a reading (found by hypothesis: a jump
+        accepted over two ticks, a refused one back, then two good readings: the drive's
+        difference of the last two was not modelled, and the whole command reached
+        9.77 N m against 9.7)."""
+        if isinstance(got, str):
+            self.st.read = None
+            return
+        th = got[0]
+        if self.st.read is not None:
+            vmax = 2.0 * self.lim.velocity
+            self.st.rates.update(np.clip((th - self.st.read) / self.dt, -vmax, vmax))
+        self.st.read = th
 
     def _step(self, got: tuple[np.ndarray, np.ndarray] | str) -> DriveCommand:
         self.st.since_good += 1
@@ -325,8 +348,6 @@ class ContactGuard:
         # the encoder's difference: the rate at t - dt/2 (over the ticks since the last
         # good reading, when readings were lost between)
         self.st.vel = (th - self.st.prev) / (dt * span)
-        if span == 1:  # two good readings in a row: the drive's encoder difference
-            self.st.rates.update(self.st.vel)
         self.st.prev = th.copy()
         k = int(round(min(max(self.st.s, 0.0), self.n - 1.0)))
         M = self.tables.M[k]

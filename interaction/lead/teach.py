@@ -23,7 +23,7 @@ import numpy as np
 from sixplus3.control.file.drive_log import DriveLog
 from sixplus3.errors import InputError, check_number
 from sixplus3.identification.base import poses_of
-from sixplus3.interaction.wrench import MIN_RATE
+from sixplus3.interaction.observer.wrench import MIN_RATE
 from sixplus3.kinematics import rotations as rot
 from sixplus3.robot_description.body_regions import REGIONS
 from sixplus3.robot_description.robot import Robot, require_robot

@@ -11,7 +11,7 @@ import numpy as np
 
 from sixplus3.errors import Sixplus3Error
 from sixplus3.fileio import save_figure
-from sixplus3.interaction.wrench import MODEL_SIGMA, N_SIGMA, torque_sigma
+from sixplus3.interaction.observer.wrench import MODEL_SIGMA, N_SIGMA, torque_sigma
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.robot_fk import ik_jacobian
 from sixplus3.robot_description.robot import Robot, require_robot

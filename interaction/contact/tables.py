@@ -1,4 +1,4 @@
-"""The contact guard's offline tables (interaction/guard.py's module doc): for every
+"""The contact guard's offline tables (interaction/contact/guard.py's module doc): for every
 sample k of a validated file's path, the reduced inertia, gravity, the time-scaling
 terms, the velocity torque and its slope, the IK Jacobian, the stop table and the
 observer's thresholds.  Nothing here runs per tick."""
@@ -22,8 +22,9 @@ from sixplus3.control.gate.stop import (
 )
 from sixplus3.control.report import ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.interaction.guard_parts import DriveRate, parameter_std2, velocity_slope
-from sixplus3.interaction.momentum import MomentumObserver
+from sixplus3.interaction.contact.parts import parameter_std2, velocity_slope
+from sixplus3.interaction.envelope import DriveRate
+from sixplus3.interaction.observer.momentum import MomentumObserver
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.robot_fk import ik_jacobian
@@ -155,13 +156,13 @@ def path_tables(robot: Robot, rep: ValidationReport, rate: float, lim: Limits,
 
 @dataclass
 class GuardState:
-    """The contact guard's state while it runs a file (interaction/guard.py): made anew
+    """The contact guard's state while it runs a file (interaction/contact/guard.py): made anew
     by each ``reset``, the rest of the guard is its settings and its frozen tables."""
 
-    rates: DriveRate  #: the drive's rate as the guard models it (guard_parts.DriveRate)
+    rates: DriveRate  #: the drive's rate as the guard models it (envelope.DriveRate)
     motion: deque[tuple[float, float]]  #: the motion's threshold share over the last LAG
     last_ref: np.ndarray  #: the last reference commanded
-    observer: MomentumObserver  #: the momentum observer (interaction/momentum.py)
+    observer: MomentumObserver  #: the momentum observer (interaction/observer/momentum.py)
     s: float = 0.0  #: path position [samples]
     sd: float = 1.0  #: path speed [file seconds per second]
     sdd: float = 0.0  #: path acceleration
@@ -169,6 +170,7 @@ class GuardState:
     mode: Mode = Mode.FOLLOW
     events: list[str] = field(default_factory=list)
     prev: np.ndarray | None = None  #: the last good reading
+    read: np.ndarray | None = None  #: the last tick's angles, when they were a reading
     since_good: int = 0  #: ticks since the last good reading
     vel: np.ndarray = field(default_factory=lambda: np.zeros(9))  #: the encoder's rate
     over: int = 0  #: ticks above the threshold in a row

@@ -5,9 +5,10 @@ A 1 kHz loop in Python cannot afford numpy's per-call overhead on 9-vectors (abo
 microsecond a call, a few hundred calls a tick): these kernels do a tick's small linear
 algebra in compiled code, on preallocated arrays, with the same formulas (and the same
 order of operations) as the Python they replaced.  Their callers
-(:mod:`~sixplus3.interaction.compiled_state`, :class:`~sixplus3.interaction.stream.
-WrenchStream`, :class:`~sixplus3.interaction.leadthrough.LeadThrough`,
-:func:`~sixplus3.interaction.guard_parts.within_envelope`) keep the state and the logic.
+(:mod:`~sixplus3.interaction.observer.compiled_state`,
+:class:`~sixplus3.interaction.observer.stream.WrenchStream`,
+:class:`~sixplus3.interaction.lead.leadthrough.LeadThrough`,
+:func:`~sixplus3.interaction.envelope.within_envelope`) keep the state and the logic.
 
 The 9 x 9 solves are an LU factorisation with partial pivoting (LAPACK's dgetrf
 convention: row i swapped with ``piv[i]``), checked against scipy's in
@@ -260,7 +261,7 @@ def velocity(theta, prev, have_prev, rate, b, a, z, out):
 @njit(cache=True, error_model="numpy")
 def observe(tau, thd, M, h, dt, gain, lag, state):
     """One sample of the momentum observer, the one the batch estimator, the stream,
-    the contact guard and lead-through run (:class:`~sixplus3.interaction.momentum.
+    the contact guard and lead-through run (:class:`~sixplus3.interaction.observer.momentum.
     MomentumObserver`): p = M thd; at the first sample p0 = p and r = 0; then
     step = (tau - h + (M - M_prev) thd / dt + r) dt, the integral += step and
     r = K (p - p0 - (integral - lag step)) (``lag``: how many ticks the momentum's rate
@@ -298,7 +299,7 @@ def observe_series(t, tau, thd, M, h, gain, lag, state, out):
 
 @njit(cache=True, error_model="numpy")
 def momentum(tau, thd, J, M, h, prev_tau, state, gain, dt, settings, out):
-    """One sample of :class:`~sixplus3.interaction.stream.WrenchStream`'s observer: the
+    """One sample of :class:`~sixplus3.interaction.observer.stream.WrenchStream`'s observer: the
     drive's torque held over the last tick (the mean of this sample's and the last, once
     there was one), :func:`observe`, then the platform wrench J^T r (first six), its
     standard deviation and the friction band of the slow joints.  ``settings``: (var (9),
@@ -331,7 +332,7 @@ def momentum(tau, thd, J, M, h, prev_tau, state, gain, dt, settings, out):
 def envelope(tau_ff, ref, vref, kp, kd, theta, vel, spread, cap):
     """The drive's whole command tau_ff + Kp (ref - theta) + Kd (vref - v) kept within
     +-cap for every rate v the drive may use in [vel - spread, vel + spread]
-    (:func:`~sixplus3.interaction.guard_parts.within_envelope`): tau_ff clipped to the
+    (:func:`~sixplus3.interaction.envelope.within_envelope`): tau_ff clipped to the
     cap, then the reference moved toward the measured angles (or, with Kp = 0, the rate
     reference toward the measured rate) where the PD, widened by Kd spread either way,
     would leave it.  Where Kd spread alone exceeds the cap, the PD cancels tau_ff (the
@@ -361,7 +362,7 @@ def envelope(tau_ff, ref, vref, kp, kd, theta, vel, spread, cap):
 
 @njit(cache=True, error_model="numpy")
 def native_state(model, theta, have, thd):
-    """One sample of :class:`~sixplus3.interaction.compiled_state.CompiledState` in one
+    """One sample of :class:`~sixplus3.interaction.observer.compiled_state.CompiledState` in one
     call, the generated C called by address (dynamics/native.py).  ``model``: the
     compiled state's buffers and settings (``CompiledState.native_args``): the pointers
     ``kin_ptrs`` on the buffers kx -> (kth, kjx), ``obs_ptrs`` on (ox, oxd) -> (., ojx,
@@ -395,7 +396,7 @@ def native_state(model, theta, have, thd):
 
 @njit(cache=True, error_model="numpy")
 def stream_tick(theta, tau, filt, model, obs, n_sigma, out):
-    """One sample of :class:`~sixplus3.interaction.stream.WrenchStream` in one call,
+    """One sample of :class:`~sixplus3.interaction.observer.stream.WrenchStream` in one call,
     after its first (a previous sample and its x): the readings checked, the velocity
     filter (``filt``: prev_theta, rate, b, a, z and the rate's output thd),
     :func:`native_state` (``model``), the momentum observer (``obs``: prev_tau, the

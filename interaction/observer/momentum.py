@@ -1,8 +1,8 @@
 """The momentum observer, once (De Luca and Mattone 2003; docs/interaction.md): the
-batch estimator (:func:`~sixplus3.interaction.wrench.estimate`), the stream
-(:class:`~sixplus3.interaction.stream.WrenchStream`, which lead-through reads) and the
-contact guard (:class:`~sixplus3.interaction.guard.ContactGuard`) all run
-:func:`~sixplus3.interaction._tick_kernel.observe`, through :class:`MomentumObserver`
+batch estimator (:func:`~sixplus3.interaction.observer.wrench.estimate`), the stream
+(:class:`~sixplus3.interaction.observer.stream.WrenchStream`, which lead-through reads) and the
+contact guard (:class:`~sixplus3.interaction.contact.guard.ContactGuard`) all run
+:func:`~sixplus3.interaction.observer._tick_kernel.observe`, through :class:`MomentumObserver`
 or :func:`momentum_observer`.  What differs between them is only what they feed it:
 the rates (a zero-lag filter offline, a causal one in the stream, the encoder's
 difference in the guard), the model's M and h (Pinocchio or the compiled model at the
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from sixplus3.errors import check_number
-from sixplus3.interaction._tick_kernel import observe, observe_series
+from sixplus3.interaction.observer._tick_kernel import observe, observe_series
 
 
 def _state() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
