@@ -89,7 +89,7 @@ def main() -> None:
             "nominal_plan_peak_on_plant": a.peak_torque,
             "identified_plan_peak_on_plant": c.peak_torque,
             "excitation_peak_on_plant": exc.peak_torque,
-            "condition": idf.ls.condition, "identify_s": t_id, "replan_s": t_plan,
+            "condition": idf.condition, "identify_s": t_id, "replan_s": t_plan,
             "replan_compiled": replanned.solution.source,
             "unseen_rms_nominal": e_nom.rms_all, "unseen_rms_identified": e_id.rms_all,
             "unseen_rms_identified_over_noise": e_id.rms_all / sigma_inj,

@@ -53,7 +53,7 @@ def main() -> None:
     print(f"{args.seconds:g} s log at {one.rate:g} Hz ({len(t)} samples, {idf.rows} rows "
           f"fitted): identify median {statistics.median(times):.2f} s (read "
           f"{statistics.median(reads):.2f} s) over {args.repeat} runs; "
-          f"condition {idf.ls.condition:.4g}")
+          f"condition {idf.condition:.4g}")
 
 
 if __name__ == "__main__":

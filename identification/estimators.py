@@ -16,7 +16,7 @@ lists the built-in ones by name; a lab passes its own to ``identify(estimator=..
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -48,10 +48,27 @@ class Problem:
     pi0: np.ndarray
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Estimate:
-    ls: LeastSquares  #: the base parameters, their standard deviations and covariance
-    consistent: Consistent  #: the full, physically consistent parameters
+    """What any estimator returns, in terms every method has: ``beta`` (r,) the base
+    parameters; ``cov`` (r, r) their covariance [SI^2], or None (no confidence: the
+    wrench's parameter term and ``parameters.npz`` are then left out); ``pi`` (P,) the
+    full parameters, which :func:`~sixplus3.identification.identify.identify` checks to
+    be physically consistent before it writes a robot; ``facts``: what the estimator
+    says of itself for the report, by name (numbers or words: the built-in's condition
+    number, IRLS iterations, prior weight, distance from the nominal, solver)."""
+
+    beta: np.ndarray
+    cov: np.ndarray | None
+    pi: np.ndarray
+    facts: dict[str, float | int | str] = field(default_factory=dict)
+
+    @property
+    def std(self) -> np.ndarray:
+        """(r,) the base parameters' standard deviations (NaN without a covariance)."""
+        if self.cov is None:
+            return np.full(len(self.beta), np.nan)
+        return np.sqrt(np.maximum(np.diag(self.cov), 0.0))
 
 
 @runtime_checkable
@@ -87,10 +104,20 @@ class ConsistentEstimator:
                              value=ls.condition, valid=f"<= {self.max_condition:g}")
         cons = consistent(problem.Wb, problem.tau, ls.weights, problem.base, problem.pi0,
                           self.prior_weight)
-        return Estimate(ls, cons)
+        return built_in_estimate(ls, cons)
+
+
+def built_in_estimate(ls: LeastSquares, cons: Consistent) -> Estimate:
+    """The :class:`Estimate` of a least-squares fit of the base parameters and a
+    consistent full set (what :class:`ConsistentEstimator` computes), with their facts."""
+    return Estimate(beta=ls.beta, cov=ls.cov, pi=cons.pi, facts={
+        "condition": float(ls.condition), "irls_iterations": int(ls.iterations),
+        "prior_weight": float(cons.prior_weight), "distance_from_nominal": float(cons.distance),
+        "min_pseudo_inertia_eigenvalue": float(cons.min_eigenvalue), "solver": cons.solver})
 
 
 #: The built-in estimators by name (each with its defaults).
 ESTIMATORS: dict[str, type[ConsistentEstimator]] = {"consistent": ConsistentEstimator}
 
-__all__ = ["ESTIMATORS", "ConsistentEstimator", "Estimate", "Estimator", "Problem"]
+__all__ = ["ESTIMATORS", "ConsistentEstimator", "Estimate", "Estimator", "Problem",
+           "built_in_estimate"]

@@ -29,11 +29,15 @@ from sixplus3.identification.base import BaseParameters, base_parameters, stacke
 from sixplus3.identification.estimate import (
     MAX_CONDITION,
     PRIOR_WEIGHT,
-    Consistent,
-    LeastSquares,
     check_consistent,
+    pseudo_inertia,
 )
-from sixplus3.identification.estimators import ConsistentEstimator, Estimator, Problem
+from sixplus3.identification.estimators import (
+    ConsistentEstimator,
+    Estimate,
+    Estimator,
+    Problem,
+)
 from sixplus3.identification.plants import robot_with_parameters
 from sixplus3.identification.signals import Filtered, filter_log
 from sixplus3.robot_description.robot import Robot, require_robot
@@ -92,8 +96,11 @@ def dataset(logs: list[DriveLog], robot: Robot, base: BaseParameters,
 class Identification:
     robot: Robot  # the identified robot (physically consistent)
     base: BaseParameters
-    ls: LeastSquares  # the base parameters by WLS + IRLS
-    consistent: Consistent
+    estimate: Estimate  # the estimator's (identification/estimators.py)
+    estimator: str  # its name
+    #: the smallest eigenvalue of the written robot's bodies' pseudo-inertias, computed
+    #: here from the robot written, whatever the estimator said
+    min_eigenvalue: float
     beta_nominal: np.ndarray
     beta_consistent: np.ndarray
     rows: int
@@ -106,27 +113,36 @@ class Identification:
     def summary(self) -> dict[str, Any]:
         return {
             "base_parameters": self.base.rank, "parameters": self.base.layout.size,
-            "rows": self.rows, "condition": self.ls.condition,
-            "cutoff_hz": self.cutoffs, "irls_iterations": self.ls.iterations,
+            "rows": self.rows, "estimator": self.estimator,
+            "condition": self.estimate.facts.get("condition"), "cutoff_hz": self.cutoffs,
+            "irls_iterations": self.estimate.facts.get("irls_iterations"),
             "residual_rms_n_m": self.residual_rms.tolist(),
             "nominal_rms_n_m": self.nominal_rms.tolist(),
-            "prior_weight": self.consistent.prior_weight,
-            "distance_from_nominal": self.consistent.distance,
-            "min_pseudo_inertia_eigenvalue": self.consistent.min_eigenvalue,
-            "solver": self.consistent.solver, "seconds": self.seconds,
+            "prior_weight": self.estimate.facts.get("prior_weight"),
+            "distance_from_nominal": self.estimate.facts.get("distance_from_nominal"),
+            "min_pseudo_inertia_eigenvalue": self.min_eigenvalue,
+            "solver": self.estimate.facts.get("solver"), "seconds": self.seconds,
             "robot_hash": self.robot.hash, "notes": self.notes,
             "not_measured": not_measured(self.residual_rms),
         }
+
+    @property
+    def condition(self) -> float:
+        """The estimator's condition number (NaN when it does not say)."""
+        c = self.estimate.facts.get("condition")
+        return float(c) if isinstance(c, (int, float)) else math.nan
 
     def table(self) -> list[dict[str, Any]]:
         """One row per base parameter: its combination, nominal, WLS estimate with its
         standard deviation, and the consistent set's value."""
         out = []
-        rel = self.ls.relative_std
+        beta, std = self.estimate.beta, self.estimate.std
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rel = 100.0 * std / np.abs(beta)
         for k in range(self.base.rank):
             out.append({"k": k, "combination": self.base.combination(k),
                         "nominal": float(self.beta_nominal[k]),
-                        "wls": float(self.ls.beta[k]), "std": float(self.ls.std[k]),
+                        "wls": float(beta[k]), "std": float(std[k]),
                         "relative_std_pct": float(rel[k]),
                         "consistent": float(self.beta_consistent[k])})
         return out
@@ -177,18 +193,26 @@ def identify(logs: list[DriveLog], robot: Robot, cutoff: float | None = None,
                          valid=f"> {2 * base.rank} rows")
     pi0 = parameters(ClosedLoopDynamics(robot))
     est = est_of(Problem(Wb, ds.tau, ds.joint, base, pi0))
-    ls, cons = est.ls, est.consistent
-    check_consistent(cons.pi, base.layout, tol=1e-12)
-    new = robot_with_parameters(robot, cons.pi, base.layout,
+    if not isinstance(est, Estimate):
+        raise InputError(f"the estimator {getattr(est_of, 'name', '?')!r} returned "
+                         f"{type(est).__name__}, not an Estimate", value=type(est).__name__,
+                         valid="identification.estimators.Estimate")
+    check_consistent(est.pi, base.layout, tol=1e-12)
+    new = robot_with_parameters(robot, est.pi, base.layout,
                                 name=name or f"{robot.name}-identified")
     # what the written robot realises, as its own model computes it
     pi_new = parameters(ClosedLoopDynamics(new))
     check_consistent(pi_new, base.layout, tol=1e-12)
+    nb = len(base.layout.bodies)
+    min_ev = min(float(np.linalg.eigvalsh(pseudo_inertia(pi_new[N_BODY * b:N_BODY * (b + 1)]))[0])
+                 for b in range(nb))
     beta_c = base.beta(pi_new)
     res = ds.tau - Wb @ beta_c
     res0 = ds.tau - Wb @ base.beta(pi0)
     return Identification(
-        robot=new, base=base, ls=ls, consistent=cons, beta_nominal=base.beta(pi0),
+        robot=new, base=base, estimate=est, estimator=str(est_of.name),
+        min_eigenvalue=min_ev,
+        beta_nominal=base.beta(pi0),
         beta_consistent=beta_c, rows=ds.rows, cutoffs=[f.cutoff_hz for f in ds.filtered],
         residual_rms=per_joint_rms(res, ds.joint), nominal_rms=per_joint_rms(res0, ds.joint),
         seconds=time.perf_counter() - t0)

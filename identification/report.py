@@ -39,8 +39,8 @@ def robot_yaml(robot: Robot, header: str = "") -> str:
 def write_robot(path: str | Path, idf: Identification, logs: list[str]) -> Path:
     """The identified robot file, atomically, with a comment naming its logs."""
     head = (f"sixplus3 identified robot: from {', '.join(logs)}; {idf.base.rank} base "
-            f"parameters, condition {idf.ls.condition:.4g}; physically consistent "
-            f"(smallest pseudo-inertia eigenvalue {idf.consistent.min_eigenvalue:.3g}); "
+            f"parameters, condition {idf.condition:.4g}; physically consistent "
+            f"(smallest pseudo-inertia eigenvalue {idf.min_eigenvalue:.3g}); "
             f"hash {idf.robot.hash[:16]}")
     atomic_write(path, robot_yaml(idf.robot, head).encode())
     return Path(path)
@@ -78,7 +78,7 @@ def write_report(out_dir: str | Path, idf: Identification, logs: list[DriveLog],
         name = f"torques_{Path(validation.name).stem[:60]}_validation.png"
         _plot_torques(out / name, validation, idf.robot, nominal)
         files.append(name)
-    if idf.ls.cov is not None:  # the base parameters' confidence, for `sixplus3 wrench`
+    if idf.estimate.cov is not None:  # the base parameters' confidence, for `sixplus3 wrench`
         save_parameters(out / "parameters.npz", idf)
         files.append("parameters.npz")
     summary["files"] = files + ["summary.json"]
@@ -90,9 +90,9 @@ def write_report(out_dir: str | Path, idf: Identification, logs: list[DriveLog],
 def save_parameters(path: Path, idf: Identification) -> None:
     """The base parameters' definition, estimate and covariance (``np.load``-able):
     ``index`` (the base columns), ``beta``, ``cov``, ``robot_hash``."""
-    assert idf.ls.cov is not None
+    assert idf.estimate.cov is not None
     buf = io.BytesIO()
-    np.savez(buf, index=idf.base.index, beta=idf.beta_consistent, cov=idf.ls.cov,
+    np.savez(buf, index=idf.base.index, beta=idf.beta_consistent, cov=idf.estimate.cov,
              robot_hash=np.array(idf.robot.hash))
     atomic_write(path, buf.getvalue())
 

@@ -532,7 +532,7 @@ def test_identify_takes_an_estimator(excitation) -> None:
     checked to be physical before a robot is made of it."""
     pytest.importorskip("mujoco")
     from sixplus3.control.drive.plant import run_on_plant
-    from sixplus3.identification.estimate import Consistent, least_squares
+    from sixplus3.identification.estimate import least_squares
     from sixplus3.identification.estimators import (
         ESTIMATORS,
         ConsistentEstimator,
@@ -559,12 +559,29 @@ def test_identify_takes_an_estimator(excitation) -> None:
         def __call__(self, p: Problem) -> Estimate:
             pi = p.pi0.copy()
             pi[0] += self.shift  # the first body's mass
-            return Estimate(least_squares(p.Wb, p.tau, p.joint),
-                            Consistent(pi, 0.0, 1.0, "none", "nominal", 0.0))
+            ls = least_squares(p.Wb, p.tau, p.joint)
+            return Estimate(beta=ls.beta, cov=None, pi=pi, facts={"believes": "nominal"})
 
     mine = identify([log], ROBOT, estimator=Nominal())
     np.testing.assert_allclose(mine.beta_consistent, mine.beta_nominal, rtol=1e-9, atol=1e-12)
     assert mine.residual_rms.mean() > default.residual_rms.mean()
+    # a second estimator reports in its own terms, faking none of the built-in's
+    summ = mine.summary()
+    assert summ["estimator"] == "nominal" and summ["condition"] is None
+    assert summ["solver"] is None and summ["min_pseudo_inertia_eigenvalue"] >= 0.0
+    assert default.summary()["estimator"] == "consistent"
+    assert default.summary()["condition"] == pytest.approx(default.condition)
+    assert default.condition > 1.0
+    assert all(math.isnan(row["std"]) for row in mine.table())
+
+    class Wrong:
+        name = "wrong"
+
+        def __call__(self, p: Problem) -> object:
+            return (p.pi0, p.pi0)
+
+    with pytest.raises(InputError, match="not an Estimate"):
+        identify([log], ROBOT, estimator=Wrong())  # type: ignore[arg-type]
     with pytest.raises(InputError, match="not physically consistent"):
         identify([log], ROBOT, estimator=Nominal(shift=-100.0))  # a negative mass
     with pytest.raises(InputError, match="must be an Estimator"):

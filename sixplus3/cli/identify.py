@@ -158,7 +158,7 @@ def estimate(logs: tuple[str, ...], out_file: str, report_dir: str | None,
         return
     cuts = ", ".join(f"{c:.0f}" for c in idf.cutoffs)
     click.echo(f"wrote {path}: {idf.base.rank} base parameters from {idf.rows} rows, "
-               f"condition {idf.ls.condition:.4g}, filter {cuts} Hz, {idf.seconds:.1f} s")
+               f"condition {idf.condition:.4g}, filter {cuts} Hz, {idf.seconds:.1f} s")
     click.echo("  torque residual RMS per joint [N m]: identified "
                + _per_joint(idf.residual_rms) + "; nominal " + _per_joint(idf.nominal_rms))
     _say_not_measured(idf.residual_rms)
