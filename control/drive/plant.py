@@ -32,9 +32,9 @@ import numpy as np
 from sixplus3.control.drive.command import FileController
 from sixplus3.control.drive.loop import KD, KP, TORQUE_NOISE, DriveLoop, run
 from sixplus3.control.drive.mujoco_model import MujocoRobot
-from sixplus3.control.drive.simulation import first_configuration
+from sixplus3.control.drive.simulation import first_configuration, judged_motion
 from sixplus3.control.file.drive_log import DriveLog
-from sixplus3.control.file.file_format import columns, motion_of
+from sixplus3.control.file.file_format import columns
 from sixplus3.control.file.trajectory_parse import NUMBER
 from sixplus3.control.gate.interval import held_torque
 from sixplus3.control.gate.validation import validate_file
@@ -124,8 +124,7 @@ def run_on_plant(path: str | Path, model: Robot, plant: Robot, seed: int = 0,
         raise ValidationFailed("not run on the plant: " + "; ".join(rep.messages()),
                                rep.exit_code, rep)
     data = rep.data
-    motion = motion_of(data, float(rep.header["rate_hz"]))
-    assert motion.fingerprint == rep.fingerprint  # the plant runs what the gate judged
+    motion = judged_motion(rep)  # the plant runs what the gate judged
     rate, theta_ref, vel_ref = motion.rate, motion.theta, motion.theta_dot
     ff = held_torque(columns(data, "tau"), "mean")
     n_hold = int(round(hold * rate))

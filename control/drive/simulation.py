@@ -22,6 +22,7 @@ are done with it:
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -31,7 +32,7 @@ import numpy as np
 from sixplus3.control.drive.command import FileController
 from sixplus3.control.drive.loop import KD, KP, DriveLoop, Tick, run
 from sixplus3.control.drive.mujoco_model import MujocoRobot
-from sixplus3.control.file.file_format import columns
+from sixplus3.control.file.file_format import columns, motion_of
 from sixplus3.control.gate.findings import FEEDFORWARD_TOL
 from sixplus3.control.gate.interval import check_torque_hold, held_torque
 from sixplus3.control.gate.validation import validate_file
@@ -40,7 +41,7 @@ from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.errors import InputError, check_number
 from sixplus3.kinematics.robot import home, robot_ik
 from sixplus3.kinematics.rotations import matrix_from_quat
-from sixplus3.motion import check_rate
+from sixplus3.motion import Motion
 from sixplus3.robot_description.mjcf import TIMESTEP, build_mjcf, qpos_from_q
 from sixplus3.robot_description.robot import Robot, require_robot
 
@@ -109,20 +110,38 @@ def _check(name: str, v: float, lo: float, hi: float) -> float:
     return check_number(name, v, lo, hi)
 
 
-def simulate(robot: Robot, q0: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray,
-             tau_ff: np.ndarray, rate: float, kp: float = KP, kd: float = KD,
-             feedforward_scale: float = 1.0, timestep: float = TIMESTEP) -> SimulationReport:
-    """Replay a sampled motion in MuJoCo under feed-forward + PD at ``rate`` [Hz].
+def judged_motion(rep: ValidationReport) -> Motion:
+    """The motion the gate judged in ``rep`` (a report of a file it passed): its samples
+    at the header's rate, the same fingerprint."""
+    if rep.data is None or rep.header is None:
+        raise InputError("a replay needs a report of validate_file with its samples",
+                         value=None, valid="a report with data")
+    motion = motion_of(rep.data, float(rep.header["rate_hz"]))
+    if motion.fingerprint != rep.fingerprint:
+        raise InputError("the samples are not the ones the gate judged", value=None,
+                         valid="the report's own samples")
+    return motion
+
+
+def simulate(robot: Robot, q0: np.ndarray, motion: Motion, tau_ff: np.ndarray,
+             kp: float = KP, kd: float = KD, feedforward_scale: float = 1.0,
+             timestep: float = TIMESTEP) -> SimulationReport:
+    """Replay a sampled ``motion`` (the gate's: its rate judged there, not again here)
+    in MuJoCo under feed-forward ``tau_ff`` (n, 9) + PD at its rate.
 
     ``q0`` is the first sample's configuration (Pinocchio's coordinates; the motion must
-    start at rest or at theta_dot[0]).  Gains and the feed-forward scale are checked.
+    start at rest or at its first rates).  Gains and the feed-forward scale are checked,
+    and that MuJoCo's step divides the control period.
     """
     kp = _check("kp", kp, 0.0, 1e5)
     kd = _check("kd", kd, 0.0, 1e4)
     s = _check("feedforward_scale", feedforward_scale, 0.0, 2.0)
-
-    rate = check_rate(rate, name="rate")
-    n_sub = round(1.0 / (rate * timestep))
+    if not isinstance(motion, Motion):
+        raise InputError("simulate replays a Motion (the gate's, e.g. motion_of of a "
+                         "validated file's samples)", value=type(motion).__name__,
+                         valid="sixplus3.motion.Motion")
+    rate, theta, theta_dot = motion.rate, motion.theta, motion.theta_dot
+    n_sub = round(1.0 / (rate * timestep)) if math.isfinite(rate) and rate > 0 else 0
     if n_sub < 1 or abs(n_sub * timestep * rate - 1.0) > 1e-9:
         raise InputError(f"the control period 1/{rate:g} s is not a multiple of the "
                          f"simulation step {timestep:g} s", value=rate,
@@ -187,10 +206,9 @@ def simulate_file(path: str | Path, robot: Robot, kp: float = KP,
     rep = validate_file(path, robot)
     if not rep.ok or rep.data is None or rep.position is None:
         return rep, None
-    rate = float(rep.header["rate_hz"]) if rep.header else float("nan")
     ff = held_torque(columns(rep.data, "tau"), torque_hold)
-    sim = simulate(robot, first_configuration(robot, rep), columns(rep.data, "pos"),
-                   columns(rep.data, "vel"), ff, rate, kp, kd, feedforward_scale)
+    sim = simulate(robot, first_configuration(robot, rep), judged_motion(rep), ff, kp, kd,
+                   feedforward_scale)
     sim.torque_hold = torque_hold
     return rep, sim
 
@@ -226,10 +244,8 @@ def engine_check(robot: Robot, rep: ValidationReport, kp: float = KP, kd: float 
     q = robot_ik(rep.position, matrix_from_quat(rep.quaternion), rep.psi, robot).q
     tau, res = mujoco_inverse_dynamics(robot, q, columns(data, "vel"), columns(data, "acc"))
     ff = float(np.abs(tau - columns(data, "tau")).max())
-    rate = float(rep.header["rate_hz"]) if rep.header else float("nan")
-
-    sim = simulate(robot, q[0], columns(data, "pos"), columns(data, "vel"),
-                   held_torque(columns(data, "tau"), torque_hold), rate, kp, kd)
+    sim = simulate(robot, q[0], judged_motion(rep), held_torque(columns(data, "tau"),
+                                                                 torque_hold), kp, kd)
     sim.torque_hold = torque_hold
     code, msgs = 0, []
     if not ff <= FEEDFORWARD_TOL:
