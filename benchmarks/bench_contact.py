@@ -19,8 +19,9 @@ import argparse
 import json
 import statistics
 
+from sixplus3.control.drive.person import contact_from_dict
 from sixplus3.identification.plants import perturbed_plant
-from sixplus3.interaction.people.person import contact_from_dict, run_contact
+from sixplus3.interaction.people.person import run_contact
 from sixplus3.robot_description.robot import Robot, load_robot
 
 

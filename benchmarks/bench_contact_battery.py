@@ -38,13 +38,14 @@ from pathlib import Path
 import numpy as np
 
 from sixplus3.control.drive.loop import DriveSettings
+from sixplus3.control.drive.person import POINTS, contact_from_dict
 from sixplus3.control.file.file_format import columns
 from sixplus3.control.file.trajectory_parse import parse
 from sixplus3.control.file.trajectory_read import read_bytes
 from sixplus3.control.gate.validation import validate_file
 from sixplus3.identification.plants import perturbed_plant
 from sixplus3.interaction.contact.guard import ContactGuard
-from sixplus3.interaction.people.person import POINTS, contact_from_dict, run_contact
+from sixplus3.interaction.people.person import run_contact
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.kinematics.tcp import tcp_velocity

@@ -46,9 +46,10 @@ import time
 
 import numpy as np
 
+from sixplus3.control.drive.hand import hand_from_dict
 from sixplus3.identification.plants import perturbed_plant
 from sixplus3.interaction.lead.leadthrough import LeadThrough
-from sixplus3.interaction.people.hand import hand_from_dict, run_lead
+from sixplus3.interaction.people.hand import run_lead
 from sixplus3.kinematics.robot import robot_ik, robot_ik_pose
 from sixplus3.robot_description.robot import Robot, load_robot
 

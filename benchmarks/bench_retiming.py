@@ -105,8 +105,9 @@ def free_plans(names: list[str]) -> None:
 def contact() -> None:
     import tempfile
 
+    from sixplus3.control.drive.person import contact_from_dict
     from sixplus3.control.pipeline import run_plan
-    from sixplus3.interaction.people.person import contact_from_dict, run_contact
+    from sixplus3.interaction.people.person import run_contact
     from sixplus3.planner import timing
     from sixplus3.planner.retiming import retimed
     from sixplus3.planner.task import task_from_dict

@@ -11,6 +11,8 @@ by module").  One concept per sub-package:
   stops, holds or retracts on a contact (docs/safety.md);
 - :mod:`sixplus3.interaction.lead`: lead-through and teach (docs/leadthrough.md);
 - :mod:`sixplus3.interaction.report`: the safety report per plan for the integrator;
-- :mod:`sixplus3.interaction.people`: the simulated person and hand that meet the
-  virtual prototype (test harnesses and benchmarks, not parts a controller uses).
+- :mod:`sixplus3.interaction.people`: the runs that put the guard or lead-through in the
+  loop with a simulated person or hand (the people themselves, test harnesses, sit
+  beside the plant they drive: :mod:`sixplus3.control.drive.person`,
+  :mod:`sixplus3.control.drive.hand`).
 """

@@ -23,10 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
+from sixplus3.control.drive.hand import hand_from_dict
+from sixplus3.control.drive.person import contact_from_dict
 from sixplus3.control.pipeline import run_plan
 from sixplus3.interaction.contact.guard import ContactGuard
-from sixplus3.interaction.people.hand import hand_from_dict, run_lead
-from sixplus3.interaction.people.person import contact_from_dict, run_contact
+from sixplus3.interaction.people.hand import run_lead
+from sixplus3.interaction.people.person import run_contact
 from sixplus3.planner.task import task_from_dict
 from sixplus3.robot_description.robot import Robot
 

@@ -1,5 +1,5 @@
 """The contact guard (interaction/contact/guard.py) against the MuJoCo plant with a simulated
-person (interaction/people/person.py): no false alarm without a touch, a free contact detected
+person (control/drive/person.py): no false alarm without a touch, a free contact detected
 within milliseconds and below its limit on a PFL plan, a clamp released by a stiff drive,
 and a step that never raises and never commands beyond the envelope."""
 
@@ -50,7 +50,8 @@ def test_no_false_alarm_without_a_touch(hand_plan, plant) -> None:
 
 @pytest.mark.parametrize("kp, kd", [(300.0, 6.0), (3000.0, 30.0)], ids=["soft", "stiff"])
 def test_a_free_hand_is_hit_below_its_limit_and_the_guard_stops(hand_plan, kp, kd) -> None:
-    from sixplus3.interaction.people.person import contact_from_dict, run_contact
+    from sixplus3.control.drive.person import contact_from_dict
+    from sixplus3.interaction.people.person import run_contact
 
     c = contact_from_dict({"region": "hand", "kind": "free", "at": 0.12})
     res = run_contact(hand_plan, ROBOT, ROBOT, c, guard=True, kp=kp, kd=kd, after=0.3)
@@ -80,8 +81,9 @@ def test_a_contact_on_a_leg_is_caught_and_placed_on_the_leg(hand_plan, link) -> 
     legs.  The model is the plant here, so the guard is told it is identified (a
     covariance of nearly nothing): the prior's wider thresholds of an unidentified robot
     place these contacts on the platform (the residual cannot tell them apart)."""
+    from sixplus3.control.drive.person import contact_from_dict
     from sixplus3.identification.base import base_parameters
-    from sixplus3.interaction.people.person import contact_from_dict, run_contact
+    from sixplus3.interaction.people.person import run_contact
 
     base = base_parameters(ROBOT)
     known = (base.index, 1e-10 * np.eye(base.rank))
@@ -101,7 +103,8 @@ def clamp_plan(tmp_path_factory):
 
 @pytest.mark.parametrize("kp, kd", [(300.0, 6.0), (3000.0, 30.0)], ids=["soft", "stiff"])
 def test_a_clamp_on_a_clamp_safe_plan_stays_within_both_limits(clamp_plan, kp, kd) -> None:
-    from sixplus3.interaction.people.person import contact_from_dict, run_contact
+    from sixplus3.control.drive.person import contact_from_dict
+    from sixplus3.interaction.people.person import run_contact
 
     c = contact_from_dict({"region": "hand", "kind": "clamp", "at": 0.15})
     res = run_contact(clamp_plan, ROBOT, ROBOT, c, guard=True, kp=kp, kd=kd, after=0.4)
@@ -113,7 +116,8 @@ def test_a_clamp_on_a_clamp_safe_plan_stays_within_both_limits(clamp_plan, kp, k
 def test_a_clamp_is_released_by_a_stiff_drive(hand_plan) -> None:
     """Clamped against a wall, a stiff drive that only follows its plan keeps pressing;
     the guard sees the platform blocked, retracts along the path and lets go."""
-    from sixplus3.interaction.people.person import contact_from_dict, run_contact
+    from sixplus3.control.drive.person import contact_from_dict
+    from sixplus3.interaction.people.person import run_contact
 
     c = contact_from_dict({"region": "hand", "kind": "clamp", "at": 0.12})
     blind = run_contact(hand_plan, ROBOT, ROBOT, c, guard=False, kp=3000.0, kd=30.0,
@@ -300,8 +304,9 @@ def test_with_the_drive_gains_no_command_leaves_the_envelope(hand_plan, feedback
     never leaves the envelope (97 % of it; the true rate's spread: 10 N m), and the
     clamp is still released."""
     from sixplus3.control.drive.loop import DriveSettings
+    from sixplus3.control.drive.person import contact_from_dict
     from sixplus3.interaction.envelope import COMMAND_SHARE
-    from sixplus3.interaction.people.person import contact_from_dict, run_contact
+    from sixplus3.interaction.people.person import run_contact
 
     c = contact_from_dict({"region": "hand", "kind": "clamp", "at": 0.12})
     drive = DriveSettings(rate_feedback=feedback)
@@ -426,8 +431,9 @@ def test_an_early_contact_on_a_stiff_drive_stops_within_25_ms_and_stays(
     stop takes the deceleration the limits allow at its own path speed (the table's
     holds at every speed and is 1/s there), and rests where the impact left the robot:
     the point does not come back towards the person afterwards."""
+    from sixplus3.control.drive.person import contact_from_dict
     from sixplus3.interaction.contact.guard import ContactGuard
-    from sixplus3.interaction.people.person import contact_from_dict, run_contact
+    from sixplus3.interaction.people.person import run_contact
     from sixplus3.kinematics import rotations as rot
     from sixplus3.kinematics.robot import robot_ik
     from sixplus3.kinematics.tcp import tcp_velocity
@@ -588,7 +594,8 @@ def test_an_unidentified_robot_raises_no_false_claim_and_still_catches_a_hand(
     contacts without a touch.  With the prior's thresholds: nobody there, no claim on
     either drive; a free hand met at the plan's fastest still caught within 10 ms, below
     its limits."""
-    from sixplus3.interaction.people.person import contact_from_dict, run_contact
+    from sixplus3.control.drive.person import contact_from_dict
+    from sixplus3.interaction.people.person import run_contact
 
     plant = perturbed_plant(ROBOT, seed)  # identify plant's defaults
     for kp, kd in ((300.0, 6.0), (3000.0, 30.0)):

@@ -198,7 +198,7 @@ def test_a_contact_file_with_a_list_or_mapping_for_a_name(tmp_path, doc) -> None
     key).  Now one line, exit 2, naming the valid regions."""
     import yaml
 
-    from sixplus3.interaction.people.person import contact_from_dict, read_contact
+    from sixplus3.control.drive.person import contact_from_dict, read_contact
 
     with pytest.raises(InputError, match="must be one of|must be free or clamp"):
         contact_from_dict(doc)
@@ -281,7 +281,7 @@ def test_a_hand_file_with_a_long_path_is_no_alias_bomb(tmp_path) -> None:
     """Session 34: a hand file whose path was long (written out, no alias) was refused
     as an "alias bomb".  Within the file size cap it is read; a real alias bomb is still
     refused."""
-    from sixplus3.interaction.people.hand import read_hand
+    from sixplus3.control.drive.hand import read_hand
 
     n = 12_000  # 12 s of a 1 kHz hand path: ~110 000 values
     lines = ["stiffness: 400", "damping: 10", "duration: 12.0", "path:"]

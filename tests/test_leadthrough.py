@@ -1,5 +1,5 @@
 """Lead-through (interaction/lead/leadthrough.py) on the MuJoCo plant with a simulated hand
-(interaction/people/hand.py), and teach-and-replay (interaction/lead/teach.py): nothing creeps at
+(control/drive/hand.py), and teach-and-replay (interaction/lead/teach.py): nothing creeps at
 rest, a push below the friction band starts nothing, the platform follows a hand at the
 admittance's law, a stiff and a soft hand stay stable and the robot passive, the walls
 keep the reference inside the gate's limits, the cranks climb to a better margin, and a
@@ -24,8 +24,9 @@ PLANT = perturbed_plant(ROBOT, 13, mass=0.05, rotor=0.05, friction=1.2)
 
 
 def _run(hand: dict, plant: Robot = PLANT, **lead):
+    from sixplus3.control.drive.hand import hand_from_dict
     from sixplus3.interaction.lead.leadthrough import LeadThrough
-    from sixplus3.interaction.people.hand import hand_from_dict, run_lead
+    from sixplus3.interaction.people.hand import run_lead
 
     start = lead.pop("start_q", None)
     lt = LeadThrough(ROBOT, 1000.0, drive_gains=(300.0, 6.0), **lead)
@@ -198,7 +199,7 @@ def test_bad_settings_are_refused_by_name(kwargs, what) -> None:
     ({"path": [{"t": 0.0, "offset": [0, 0]}]}, "offset"), ({"grip": 1}, "unknown key"),
     ({"path": [{"t": 0.0, "offset": [0, 0, 0], "rotation": [9, 0, 0]}]}, "rotation")])
 def test_bad_hand_files_are_refused_by_name(doc, what) -> None:
-    from sixplus3.interaction.people.hand import hand_from_dict
+    from sixplus3.control.drive.hand import hand_from_dict
 
     with pytest.raises(InputError, match=what):
         hand_from_dict(doc)
@@ -305,9 +306,10 @@ def test_a_wall_no_gradient_announces_is_seen_ahead() -> None:
     """Pulled fast toward -y with a stiff drive, the legs' clearance wall appears
     suddenly (the closest pair of the collision model changes): the probes ahead stop
     the reference inside the gate's limits (before them it went 1.4 mm past zero)."""
+    from sixplus3.control.drive.hand import hand_from_dict
     from sixplus3.interaction.lead import walls
     from sixplus3.interaction.lead.leadthrough import LeadThrough
-    from sixplus3.interaction.people.hand import hand_from_dict, run_lead
+    from sixplus3.interaction.people.hand import run_lead
 
     hand = {"stiffness": 1000.0, "damping": 20.0, "max_force": 25.0, "duration": 2.0,
             "path": [{"t": 0.0, "offset": [0, 0, 0]}, {"t": 1.0, "offset": [0, -0.4, 0]}]}
@@ -416,9 +418,10 @@ def test_a_site_torque_limit_bounds_lead_through_from_the_cli_and_the_api(tmp_pa
     from click.testing import CliRunner
 
     from sixplus3.cli import main as cli
+    from sixplus3.control.drive.hand import hand_from_dict
     from sixplus3.identification.report import robot_yaml
     from sixplus3.interaction.lead.leadthrough import RATE_SHARE, LeadThrough
-    from sixplus3.interaction.people.hand import hand_from_dict, run_lead
+    from sixplus3.interaction.people.hand import run_lead
     from sixplus3.robot_description import hardware
 
     site = tmp_path / "site.yaml"

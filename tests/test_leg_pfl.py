@@ -212,12 +212,12 @@ def test_plan_refuses_an_unknown_leg_link_before_solving(tmp_path) -> None:
 
 
 def test_the_vertices_in_mujoco_are_pinocchios() -> None:
-    """The simulated person meets a vertex on MuJoCo's body (interaction/people/person.py:
+    """The simulated person meets a vertex on MuJoCo's body (control/drive/person.py:
     ``contact_site``): its position and MuJoCo's velocity there (``mj_jac`` at the
     point, the tree velocities that realise the rates) equal the gate's Pinocchio ones."""
     pytest.importorskip("mujoco")
     from sixplus3.control.drive.mujoco_model import MujocoRobot
-    from sixplus3.interaction.people.person import contact_from_dict, contact_site, site_point
+    from sixplus3.control.drive.person import contact_from_dict, contact_site, site_point
 
     _, _, cfg, thd = _states(2, 9)
     verts = vertices_of(ALL)

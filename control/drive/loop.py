@@ -3,8 +3,8 @@
 once per tick on the nine drives of a MuJoCo plant (:class:`DriveLoop`).  The virtual
 prototype's replay and jog (:mod:`~sixplus3.control.drive.plant`), the ideal drive's
 replay (:func:`~sixplus3.control.drive.simulation.simulate`), the simulated person
-(:mod:`sixplus3.interaction.people.person`) and the simulated hand
-(:mod:`sixplus3.interaction.people.hand`) all go through it (docs/identification.md, "The
+(:mod:`sixplus3.control.drive.person`) and the simulated hand
+(:mod:`sixplus3.control.drive.hand`) all go through it (docs/identification.md, "The
 virtual prototype").
 
 Each tick, as the prototype's drives run:

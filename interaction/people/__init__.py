@@ -1,5 +1,6 @@
-"""The simulated people who meet the virtual prototype: a body region in the robot's
-way (``person.py``, ISO/TS 15066's two-body model; docs/safety.md) and a hand that
-guides the platform (``hand.py``; docs/leadthrough.md).  They drive the MuJoCo plant
-through the one drive loop (control/drive/loop.py) with a controller in it: test
-harnesses and benchmarks, not parts a controller uses."""
+"""The controllers met by simulated people: :func:`~.person.run_contact` builds the
+contact guard and runs it with a body region in the robot's way, :func:`~.hand.run_lead`
+builds lead-through and runs it with a hand guiding the platform.  The people
+themselves (ISO/TS 15066's two-body model, the hand's spring-damper) are test harnesses
+beside the plant they drive: ``control/drive/person.py`` and ``control/drive/hand.py``
+(docs/safety.md, docs/leadthrough.md)."""

@@ -20,7 +20,8 @@ def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
                      as_json: bool, reaction: str = "hold",
                      parameters_file: str | None = None) -> None:
     from sixplus3.control.drive.loop import DriveSettings
-    from sixplus3.interaction.people.person import read_contact, run_contact
+    from sixplus3.control.drive.person import read_contact
+    from sixplus3.interaction.people.person import run_contact
     from sixplus3.robot_description.hardware import effective_limits
     from sixplus3.robot_description.robot import load_robot
 
@@ -76,7 +77,8 @@ def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
 def simulate_lead(csv_file: str | None, lead_file: str | None, robot: Any,
                   plant_file: str | None, log_file: str | None, seed: int, noise: float,
                   force: bool, kp: float, kd: float, as_json: bool) -> None:
-    from sixplus3.interaction.people.hand import read_hand, run_lead
+    from sixplus3.control.drive.hand import read_hand
+    from sixplus3.interaction.people.hand import run_lead
     from sixplus3.robot_description.robot import load_robot
 
     if lead_file is None:
