@@ -279,10 +279,7 @@ def guide(model: Robot, plant: Robot, hand: Hand, controller: TickController,
     the encoder's difference).  The controller's ``events``, ``min_margin``,
     ``min_slack`` and ``walls_met``, when it has them, are the run's."""
     model, plant = require_robot(model), require_robot(plant)
-    drive = DriveSettings() if drive is None else drive
-    if not isinstance(drive, DriveSettings):
-        raise InputError("drive must be a DriveSettings", value=type(drive).__name__,
-                         valid="control.drive.loop.DriveSettings")
+    drive = DriveSettings.of(drive)
     seed, torque_noise, timestep = drive.seed, drive.torque_noise, drive.timestep
     lt = controller
     loop = drive.loop(plant, rate, kp, kd)

@@ -64,6 +64,16 @@ class DriveSettings:
     seed: int = 0
     timestep: float = TIMESTEP
 
+    @classmethod
+    def of(cls, drive: DriveSettings | None) -> DriveSettings:
+        """``drive``, or the default settings for None; anything else is refused."""
+        if drive is None:
+            return cls()
+        if not isinstance(drive, cls):
+            raise InputError("drive must be a DriveSettings", value=type(drive).__name__,
+                             valid="control.drive.loop.DriveSettings")
+        return drive
+
     def loop(self, plant: Robot, rate: float, kp: float, kd: float) -> DriveLoop:
         """The drives of ``plant`` at ``rate`` with these settings (checked there)."""
         return DriveLoop(plant, rate, kp, kd, self.timestep, self.torque_noise, self.seed,

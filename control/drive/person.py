@@ -154,10 +154,7 @@ def checked_run(kp: float, kd: float, after: float, drive: DriveSettings | None
                 ) -> DriveSettings:
     """A run's drive gains, its time after the contact and its drive settings checked
     with their ranges (the default drive: the encoder's difference)."""
-    drive = DriveSettings() if drive is None else drive
-    if not isinstance(drive, DriveSettings):
-        raise InputError("drive must be a DriveSettings", value=type(drive).__name__,
-                         valid="control.drive.loop.DriveSettings")
+    drive = DriveSettings.of(drive)
     for name, v, lo, hi in (("after", after, 0.0, 30.0), ("kp", kp, 0.0, 1e5),
                             ("kd", kd, 0.0, 1e4), ("seed", drive.seed, 0, 2 ** 32 - 1)):
         check_number(name, v, lo, hi, integer=name == "seed")
