@@ -63,21 +63,32 @@ def inverse_mass(J: np.ndarray, M: np.ndarray, r: np.ndarray) -> np.ndarray:
     return 0.5 * (A + np.swapaxes(A, 1, 2))
 
 
+def point_jacobian(dyn: ClosedLoopDynamics, cfg: RobotConfig, point: Any
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(J_p (n, 3, 9) [m/rad], M (n, 9, 9)): the platform point ``point`` ((3,) in the
+    platform frame [m]) moves at J_p theta_dot (J_p = P J^-1, module doc); M the reduced
+    inertia in the actuated coordinates (rotors included), from Pinocchio."""
+    n = len(cfg.q)
+    M = np.empty((n, 9, 9))
+    dyn.actuated_inverse_dynamics_batch(cfg.q, np.zeros((n, 9)), np.zeros((n, 9)),
+                                        inertia=M)
+    r = np.einsum("nij,j->ni", cfg.rotation, np.asarray(point, dtype=float))
+    return point_map(r) @ np.linalg.inv(ik_jacobian(cfg)), M
+
+
 def point_inverse_mass(dyn: ClosedLoopDynamics, cfg: RobotConfig,
                        at_tool: bool = True, point: Any = None) -> np.ndarray:
     """(n, 3, 3) the inverse mass matrix of the tool centre point (``at_tool``; the
     platform centre otherwise; or ``point``, (3,) in the platform frame [m]) at the
     configurations ``cfg``, from Pinocchio's reduced inertia (rotors included) and the
     analytic IK Jacobian."""
-    n = len(cfg.q)
-    M = np.empty((n, 9, 9))
-    dyn.actuated_inverse_dynamics_batch(cfg.q, np.zeros((n, 9)), np.zeros((n, 9)),
-                                        inertia=M)
     tool = np.asarray(point if point is not None else
                       dyn.robot.tool.xyz if (at_tool and dyn.robot is not None)
                       else (0.0, 0.0, 0.0), dtype=float)
-    r = np.einsum("nij,j->ni", cfg.rotation, tool)
-    return inverse_mass(ik_jacobian(cfg), M, r)
+    PJ, M = point_jacobian(dyn, cfg, tool)
+    X = np.linalg.solve(M, np.swapaxes(PJ, 1, 2))  # M^-1 (P J^-1)^T
+    A = PJ @ X
+    return 0.5 * (A + np.swapaxes(A, 1, 2))
 
 
 def link_inverse_mass(dyn: ClosedLoopDynamics, q: np.ndarray, joint: str,
@@ -162,4 +173,5 @@ def worst_speed(A: np.ndarray, region: BodyRegion) -> np.ndarray:
 
 
 __all__ = ["RCOND", "contact_energy", "effective_mass", "inverse_mass", "link_inverse_mass",
-           "pfl_ratio", "point_inverse_mass", "point_map", "worst_direction", "worst_speed"]
+           "pfl_ratio", "point_inverse_mass", "point_jacobian", "point_map",
+           "worst_direction", "worst_speed"]

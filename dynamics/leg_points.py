@@ -46,18 +46,17 @@ def _frame(i: int, vertex: str) -> str:
             "P": f"leg{i}_P"}[vertex]
 
 
-def vertex_rates(dyn: ClosedLoopDynamics, q: np.ndarray, theta_dot: np.ndarray,
-                 vertices: tuple[tuple[int, str], ...]
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(position (n, k, 3) [m], velocity (n, k, 3) [m/s], inverse mass A (n, k, 3, 3)
-    [1/kg]) of the ``vertices`` at the tree configurations q (n, nq) moving at the
-    actuated rates theta_dot (n, 9), with the motors' torques held (module doc).  A
-    state at a parallel singularity gets NaN (its caller judges it unsafe)."""
+def vertex_jacobians(dyn: ClosedLoopDynamics, q: np.ndarray,
+                     vertices: tuple[tuple[int, str], ...]
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(position (n, k, 3) [m], J_theta (n, k, 3, 9) [m/rad], M (n, 9, 9)) of the
+    ``vertices`` at the tree configurations q (n, nq): each vertex moves at J_theta
+    theta_dot, and M is the reduced inertia (rotors included; module doc).  A state at
+    a parallel singularity gets NaN."""
     import pinocchio as pin  # deferred: only where the legs are judged
 
     m, d = dyn.model, dyn.data
     q = np.asarray(q, dtype=float)
-    theta_dot = np.asarray(theta_dot, dtype=float)
     n, k = len(q), len(vertices)
     zeros = np.zeros((n, 9))
     M = np.empty((n, 9, 9))
@@ -78,12 +77,29 @@ def vertex_rates(dyn: ClosedLoopDynamics, q: np.ndarray, theta_dot: np.ndarray,
         for j, f in enumerate(fids):
             pos[t, j] = d.oMf[f].translation
             Jp[t, 3 * j:3 * j + 3] = pin.getFrameJacobian(m, d, f, world)[0:3]
-    Jth = (Jp @ S).reshape(n, k, 3, 9)
-    vel = np.einsum("nkij,nj->nki", Jth, theta_dot)
+    return pos, (Jp @ S).reshape(n, k, 3, 9), M
+
+
+def vertex_rates(dyn: ClosedLoopDynamics, q: np.ndarray, theta_dot: np.ndarray,
+                 vertices: tuple[tuple[int, str], ...]
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(position (n, k, 3) [m], velocity (n, k, 3) [m/s], inverse mass A (n, k, 3, 3)
+    [1/kg]) of the ``vertices`` at the tree configurations q (n, nq) moving at the
+    actuated rates theta_dot (n, 9), with the motors' torques held (module doc).  A
+    state at a parallel singularity gets NaN (its caller judges it unsafe)."""
+    pos, Jth, M = vertex_jacobians(dyn, q, vertices)
+    return (pos, *rates_from(Jth, M, theta_dot))
+
+
+def rates_from(Jth: np.ndarray, M: np.ndarray, theta_dot: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """(velocity (n, k, 3), inverse mass (n, k, 3, 3)) from :func:`vertex_jacobians`'
+    J_theta and M at the actuated rates theta_dot (n, 9)."""
+    vel = np.einsum("nkij,nj->nki", Jth, np.asarray(theta_dot, dtype=float))
     with np.errstate(all="ignore"):
         Y = np.linalg.solve(M[:, None], np.swapaxes(Jth, 2, 3))  # M^-1 J_theta^T
     A = Jth @ Y
-    return pos, vel, 0.5 * (A + np.swapaxes(A, 2, 3))
+    return vel, 0.5 * (A + np.swapaxes(A, 2, 3))
 
 
-__all__ = ["vertex_rates"]
+__all__ = ["rates_from", "vertex_jacobians", "vertex_rates"]

@@ -27,8 +27,14 @@ import casadi as ca
 import numpy as np
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.dynamics.effective_mass import RCOND, point_inverse_mass, worst_speed
-from sixplus3.dynamics.leg_points import vertex_rates
+from sixplus3.dynamics.drive_contact import DriveCase, contact_peaks
+from sixplus3.dynamics.effective_mass import (
+    RCOND,
+    point_inverse_mass,
+    point_jacobian,
+    worst_speed,
+)
+from sixplus3.dynamics.leg_points import rates_from, vertex_jacobians
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import robot_ik
 from sixplus3.planner.task import Task
@@ -42,6 +48,9 @@ from sixplus3.robot_description.robot import Robot
 PFL_SAFETY = 0.95
 #: Points per segment between waypoints at which the bound is evaluated.
 POINTS = 8
+#: The drive's rate the rows assume with a declared position loop [Hz] (the default
+#: file's; the gate judges the file at its own rate, and the pipeline re-plans).
+NLP_RATE = 1000.0
 
 
 def task_regions(task: Task) -> tuple[BodyRegion, ...]:
@@ -143,24 +152,57 @@ def pfl_matrices(robot: Robot, x: np.ndarray, regs: tuple[BodyRegion, ...],
     if not ok.any():
         raise ValueError("no state of the power and force limiting rows has a pose")
     dyn = ClosedLoopDynamics(robot)
+    sub = cfg.take(ok)
     if point is not None and point.leg is not None:
-        sub = cfg.take(ok)
         verts = tuple((point.leg, v) for v in point.vertices)
-        A = vertex_rates(dyn, sub.q, np.zeros((len(sub.q), 9)), verts)[2]  # (m, k, 3, 3)
+        Jp, M = vertex_jacobians(dyn, sub.q, verts)[1:]  # (m, k, 3, 9), (m, 9, 9)
     else:
-        A = point_inverse_mass(dyn, cfg.take(ok), point=robot.tool.xyz if point is None
+        Jp, M = point_jacobian(dyn, sub, robot.tool.xyz if point is None
                                else point.platform)
+        Jp = Jp[:, None]
+    A = rates_from(Jp, M, np.zeros((len(M), 9)))[1]  # (m, k, 3, 3)
     lam, U = np.linalg.eigh(A)
     lam[lam <= RCOND * lam[..., -1:]] = np.inf  # a direction the point cannot move in
     inv_m = np.array([0.0 if not np.isfinite(r.mass) else 1.0 / r.mass for r in regs])
     two_e = np.array([2.0 * r.energy for r in regs])
-    c = (1.0 / ((lam[..., None, :] + inv_m[:, None]) * two_e[:, None])).max(axis=-2)
+    c_r = 1.0 / ((lam[..., None, :] + inv_m[:, None]) * two_e[:, None])  # (m, k, R, 3)
+    _with_loop(c_r, U, Jp, M, regs)
+    c = c_r.max(axis=-2)
+    if point is None or point.leg is None:
+        A, U, c = A[:, 0], U[:, 0], c[:, 0]
     C = np.zeros((len(x), *A.shape[1:]))
     C[ok] = np.einsum("...ij,...j,...kj->...ik", U, c, U)
     if not ok.all():
         size = np.trace(C[ok], axis1=-2, axis2=-1).reshape(int(ok.sum()), -1).sum(axis=1)
         C[~ok] = C[ok][int(np.argmax(size))]
     return C
+
+
+def _with_loop(c: np.ndarray, U: np.ndarray, Jp: np.ndarray, M: np.ndarray,
+               regs: tuple[BodyRegion, ...]) -> None:
+    """Scale ``c`` (m, k, R, 3: along each eigenvector of A, per region) in place for
+    the site's declared position loop (module doc): along each principal direction u, a
+    free region's c times (F / F_max)^2, F the contact's peak with the loop in it
+    (:func:`sixplus3.dynamics.drive_contact.contact_peaks`) at the speed where the
+    two-body model reaches the limit, the planned torques taken as zero.  No loop
+    declared: nothing."""
+    loop = hardware.active().position_loop
+    if loop is None:
+        return
+    m, k = Jp.shape[:2]
+    cap = np.full(9, hardware.catalogue_envelope(hardware.active().drive_train).torque)
+    Minv = np.repeat(np.linalg.inv(M), k * 3, axis=0)
+    ju = np.einsum("mkji,mkjd->mkdi", Jp, U).reshape(-1, 9)  # J^T u per direction
+    for r, region in enumerate(regs):
+        if not np.isfinite(region.mass):
+            continue  # a clamp: the guard's reaction decides (docs/safety.md)
+        cr = c[:, :, r, :].reshape(-1)
+        with np.errstate(divide="ignore"):
+            speed = np.where(cr > 0, 1.0 / np.sqrt(np.where(cr > 0, cr, 1.0)), 0.0)
+        case = DriveCase(Minv, ju, speed, np.zeros((len(cr), 9)), cap,
+                         np.full(len(cr), region.mass), np.full(len(cr), region.stiffness))
+        f = contact_peaks(case, loop, NLP_RATE) / region.transient_force
+        c[:, :, r, :] = np.where(cr > 0, cr * f * f, cr).reshape(m, k, 3)
 
 
 def pfl_speed(task: Task, robot: Robot) -> float | None:

@@ -28,7 +28,7 @@ import math
 import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from sixplus3.errors import GeometryError, InputError, LimitError
 from sixplus3.fileio import parse_yaml, read_bytes
@@ -114,6 +114,31 @@ def catalogue_envelope(key: str) -> Limits:
     return Limits().replace_upper(torque=d.joint_torque, velocity=d.joint_velocity)
 
 
+class PositionLoop(NamedTuple):
+    """The site's drives' position loop (docs/safety.md, "The drive in the contact"): PD
+    gains at the joint, the same on each of the nine, running at the file's rate on the
+    encoder's difference, the command within the drive's torque limit."""
+
+    kp: float  #: [N m/rad]
+    kd: float  #: [N m s/rad]
+
+
+def position_loop_from(doc: object) -> PositionLoop | None:
+    """A site file's ``position_loop`` ({kp, kd}) checked, or None (not declared)."""
+    if doc is None:
+        return None
+    if not isinstance(doc, dict) or set(doc) != {"kp", "kd"}:
+        raise GeometryError("hardware.position_loop", str(doc)[:60],
+                            "a mapping {kp: N m/rad, kd: N m s/rad}")
+    out = []
+    for name, hi in (("kp", 1e5), ("kd", 1e4)):
+        v = doc[name]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= hi:
+            raise GeometryError(f"hardware.position_loop.{name}", v, f"a number in [0, {hi:g}]")
+        out.append(float(v))
+    return PositionLoop(*out)
+
+
 @dataclass(frozen=True)
 class Hardware:
     """The site's hardware: a catalogue drive train and the site's tightening of its
@@ -129,6 +154,9 @@ class Hardware:
     #: the leg links every PFL motion must be safe at (``leg{i}_{link}``,
     #: dynamics/leg_points.py): no task or file can drop them
     pfl_links: tuple[str, ...] = ()
+    #: the drives' position loop, when the site declares it: power and force limiting
+    #: then judges free regions with the loop in the contact (dynamics/drive_contact.py)
+    position_loop: PositionLoop | None = None
 
     def __post_init__(self) -> None:
         drive_train(self.drive_train)
@@ -224,7 +252,7 @@ def hardware_from_dict(doc: object, origin: str) -> Hardware:
     tightening of the catalogue's envelope)."""
     if not isinstance(doc, dict):
         raise GeometryError("hardware", type(doc).__name__, "a mapping")
-    known = {"drive_train", "people", "limits", "pfl", "pfl_links"}
+    known = {"drive_train", "people", "limits", "pfl", "pfl_links", "position_loop"}
     extra = sorted(str(k) for k in doc if k not in known)
     if extra:
         raise GeometryError(f"hardware.{extra[0]}", "?", f"one of {sorted(known)}",
@@ -261,7 +289,7 @@ def hardware_from_dict(doc: object, origin: str) -> Hardware:
     except InputError as exc:
         raise GeometryError("hardware.pfl_links", exc.value, str(exc.valid)) from None
     return Hardware(drive_train=key, limits=limits, origin=origin, pfl=names,
-                    pfl_links=legs)
+                    pfl_links=legs, position_loop=position_loop_from(doc.get("position_loop")))
 
 
 def load_hardware(path: str | Path) -> Hardware:
@@ -313,4 +341,5 @@ def envelope_record(hw: Hardware | None = None) -> dict[str, Any]:
     hw = active() if hw is None else hw
     return {"drive_train": hw.drive_train, "origin": hw.origin,
             "limits": json.loads(json.dumps(hw.limits.as_dict())), "pfl": list(hw.pfl),
-            "pfl_links": list(hw.pfl_links)}
+            "pfl_links": list(hw.pfl_links),
+            "position_loop": None if hw.position_loop is None else hw.position_loop._asdict()}

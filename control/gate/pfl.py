@@ -24,8 +24,15 @@ import numpy as np
 from sixplus3.control.gate.findings import finding
 from sixplus3.control.report import Finding, ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.dynamics.effective_mass import point_inverse_mass, point_map, worst_direction
-from sixplus3.dynamics.leg_points import vertex_rates
+from sixplus3.dynamics.drive_contact import drive_ratio
+from sixplus3.dynamics.effective_mass import (
+    RCOND,
+    point_inverse_mass,
+    point_jacobian,
+    point_map,
+    worst_direction,
+)
+from sixplus3.dynamics.leg_points import rates_from, vertex_jacobians
 from sixplus3.errors import InputError
 from sixplus3.kinematics import rotations as rot
 from sixplus3.kinematics.robot import RobotConfig, robot_ik
@@ -136,10 +143,38 @@ def _worst(A: np.ndarray, v: np.ndarray, regs: tuple[BodyRegion, ...]
     return np.nan_to_num(ratio, nan=np.inf), mass
 
 
+def _with_drive(ratio: np.ndarray, Jp: np.ndarray, M: np.ndarray, v: np.ndarray,
+                tau: np.ndarray, cap: np.ndarray, regs: tuple[BodyRegion, ...],
+                rate: float) -> np.ndarray:
+    """``ratio`` (n, R) with each free region's contact judged with the site's
+    position loop in it too (:func:`sixplus3.dynamics.drive_contact.drive_ratio`),
+    along the two-body model's worst direction and the direction of motion: the larger
+    of the two models.  No loop declared: ``ratio`` itself."""
+    loop = hardware.active().position_loop
+    if loop is None:
+        return ratio
+    ratio = ratio.copy()
+    A = Jp @ np.linalg.solve(M, np.swapaxes(Jp, 1, 2))
+    with np.errstate(all="ignore"):
+        along = v / np.linalg.norm(v, axis=1, keepdims=True)
+    for k, r in enumerate(regs):
+        if not np.isfinite(r.mass):
+            continue  # a clamp: the guard's reaction decides (docs/safety.md)
+        with np.errstate(all="ignore"):
+            y = np.einsum("nij,nj->ni", np.linalg.pinv(A + np.eye(3) / r.mass,
+                                                       rcond=RCOND, hermitian=True), v)
+            worst = y / np.linalg.norm(y, axis=1, keepdims=True)
+        ratio[:, k] = np.maximum(ratio[:, k], drive_ratio(
+            Jp, M, v, tau, cap, r, loop, rate, [worst, along]))
+    return ratio
+
+
 def pfl_profile(rep: ValidationReport, robot: Robot, motion: Motion, what: Judged
                 ) -> PflProfile:
     """:class:`PflProfile` of ``motion``'s samples (a report whose forward kinematics
-    went through: ``rep.position``, ``rep.quaternion``, ``rep.psi``)."""
+    went through: ``rep.position``, ``rep.quaternion``, ``rep.psi``).  A site that
+    declares its drives' position loop has free regions judged with it too
+    (:func:`_with_drive`), on the gate's own torques (``rep.tau``)."""
     assert rep.position is not None and rep.quaternion is not None and rep.psi is not None
     dyn = ClosedLoopDynamics(robot)
     tool = tuple(float(c) for c in robot.tool.xyz)
@@ -149,6 +184,10 @@ def pfl_profile(rep: ValidationReport, robot: Robot, motion: Motion, what: Judge
     n, P, R = len(rep.position), len(labels), len(what.regions)
     speed, mass, ratio = np.empty((n, P)), np.empty((n, P, R)), np.empty((n, P, R))
     position = np.empty((n, P, 3))
+    drive = hardware.active().position_loop is not None
+    tau = np.zeros((n, 9)) if rep.tau is None else np.asarray(rep.tau, dtype=float)
+    # the drives' own limit (the catalogue's): the loop may ask up to it in a contact
+    cap = np.full(9, hardware.catalogue_envelope(hardware.active().drive_train).torque)
     for i in range(0, n, CHUNK):
         sl = slice(i, min(n, i + CHUNK))
         R_ = rot.matrix_from_quat(rep.quaternion[sl])
@@ -161,13 +200,21 @@ def pfl_profile(rep: ValidationReport, robot: Robot, motion: Motion, what: Judge
             position[sl, j] = cfg.position + r
             speed[sl, j] = np.linalg.norm(v, axis=1)
             ratio[sl, j], mass[sl, j] = _worst(A, v, what.regions)
+            if drive:
+                Jp, M = point_jacobian(dyn, cfg, point)
+                ratio[sl, j] = _with_drive(ratio[sl, j], Jp, M, v, tau[sl], cap,
+                                           what.regions, motion.rate)
         if verts:
-            pos, vel, A = vertex_rates(dyn, cfg.q, motion.theta_dot[sl], verts)
+            pos, Jth, M = vertex_jacobians(dyn, cfg.q, verts)
+            vel, A = rates_from(Jth, M, motion.theta_dot[sl])
             position[sl, len(plat):] = pos
             for k in range(len(verts)):
                 j = len(plat) + k
                 speed[sl, j] = np.linalg.norm(vel[:, k], axis=1)
                 ratio[sl, j], mass[sl, j] = _worst(A[:, k], vel[:, k], what.regions)
+                if drive:
+                    ratio[sl, j] = _with_drive(ratio[sl, j], Jth[:, k], M, vel[:, k],
+                                               tau[sl], cap, what.regions, motion.rate)
     speed = np.nan_to_num(speed, nan=np.inf)
     return PflProfile(labels, what.regions, position, speed, mass,
                       np.nan_to_num(ratio, nan=np.inf))
