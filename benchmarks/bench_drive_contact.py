@@ -1,0 +1,76 @@
+"""The drive's position loop in a contact (issue 70, dynamics/drive_contact.py) against
+MuJoCo: each plan's leg contacts (where a leg vertex moves fastest, and where the
+gate's ratio is largest), a free region met along the motion with no guard, on the
+torques held (PD 0/0), the soft drive (300/6) and the stiff one (3000/30); the model's
+peak at MuJoCo's contact speed beside MuJoCo's (BENCHMARKS.md, "The drive in the
+contact").
+
+    .venv/bin/python benchmarks/bench_drive_contact.py PLANS/lower_arm/combined.csv \
+        PLANS/hand/translate.csv [--region lower_arm]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from bench_contact_battery import file_robot, leg_instants  # noqa: E402
+
+from sixplus3.control.drive.person import contact_from_dict  # noqa: E402
+from sixplus3.control.file.file_format import columns  # noqa: E402
+from sixplus3.control.gate.validation import validate_file  # noqa: E402
+from sixplus3.dynamics.closed_loop import ClosedLoopDynamics  # noqa: E402
+from sixplus3.dynamics.drive_contact import DriveCase, contact_peaks  # noqa: E402
+from sixplus3.dynamics.leg_points import vertex_jacobians  # noqa: E402
+from sixplus3.interaction.people.person import run_contact  # noqa: E402
+from sixplus3.kinematics import rotations as rot  # noqa: E402
+from sixplus3.kinematics.robot import robot_ik  # noqa: E402
+from sixplus3.robot_description import hardware  # noqa: E402
+from sixplus3.robot_description.body_regions import REGIONS  # noqa: E402
+from sixplus3.robot_description.hardware import PositionLoop  # noqa: E402
+
+DRIVES = {"held": (0.0, 0.0), "soft": (300.0, 6.0), "stiff": (3000.0, 30.0)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("files", nargs="+")
+    ap.add_argument("--region", default=None, help="default: the file's first region")
+    args = ap.parse_args()
+    cap = np.full(9, hardware.catalogue_envelope(hardware.active().drive_train).torque)
+    for f in args.files:
+        path = Path(f)
+        robot = file_robot(path)
+        rep = validate_file(path, robot)
+        assert rep.header is not None and rep.data is not None
+        region = REGIONS[args.region or rep.header["pfl"][0]]
+        rate = float(rep.header["rate_hz"])
+        dyn = ClosedLoopDynamics(robot)
+        for label, at, point, vel in leg_instants(path, robot):
+            u = vel / np.linalg.norm(vel)
+            k = int(round(at * rate))
+            cfg = robot_ik(rep.position[k:k + 1], rot.matrix_from_quat(rep.quaternion[k:k + 1]),
+                           rep.psi[k:k + 1], robot, platform_margins=False)
+            Jth, M = vertex_jacobians(dyn, cfg.q, ((int(point[3]), point[5:]),))[1:]
+            contact = contact_from_dict({"region": region.name, "kind": "free", "at": at,
+                                         "normal": [float(x) for x in u], "point": point})
+            cells = []
+            for name, (kp, kd) in DRIVES.items():
+                run = run_contact(path, robot, robot, contact, guard=False, kp=kp, kd=kd,
+                                  after=0.1)
+                case = DriveCase(np.linalg.inv(M), (Jth[0, 0].T @ u)[None],
+                                 np.array([run.speed]), columns(rep.data, "tau")[k][None],
+                                 cap, np.array([region.mass]), np.array([region.stiffness]))
+                model = contact_peaks(case, PositionLoop(kp, kd), rate)[0]
+                cells.append(f"{name} v={run.speed:.2f} MuJoCo {run.peak_transient:6.1f} "
+                             f"model {model:6.1f} ({run.peak_transient / model:.3f})")
+            print(f"{path.stem:12s} {region.name:9s} {label:5s} {point:7s} | "
+                  + " | ".join(cells), flush=True)
+
+
+if __name__ == "__main__":
+    main()
