@@ -21,6 +21,7 @@ mass has rank 1: C takes 0 along the directions it cannot move in.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import casadi as ca
@@ -182,26 +183,30 @@ def _with_loop(c: np.ndarray, U: np.ndarray, Jp: np.ndarray, M: np.ndarray,
                regs: tuple[BodyRegion, ...]) -> None:
     """Scale ``c`` (m, k, R, 3: along each eigenvector of A, per region) in place for
     the site's declared position loop (module doc): along each principal direction u, a
-    free region's c times (F / F_max)^2, F the contact's peak with the loop in it
-    (:func:`sixplus3.dynamics.drive_contact.contact_peaks`) at the speed where the
-    two-body model reaches the limit, the planned torques taken as zero.  No loop
-    declared: nothing."""
-    loop = hardware.active().position_loop
-    if loop is None:
+    region's c times (F / F_max)^2, F the contact's peak with the loop in it
+    (:func:`sixplus3.dynamics.drive_contact.contact_peaks`; a clamp's reference stands
+    after the guard's detection) at the speed where the two-body model reaches the
+    limit, the planned torques taken as zero and the actuated rates the least that move
+    the point so.  No loop declared: nothing."""
+    hw = hardware.active()
+    if hw.position_loop is None:
         return
     m, k = Jp.shape[:2]
-    cap = np.full(9, hardware.catalogue_envelope(hardware.active().drive_train).torque)
+    cap = np.full(9, hardware.catalogue_envelope(hw.drive_train).torque)
     Minv = np.repeat(np.linalg.inv(M), k * 3, axis=0)
     ju = np.einsum("mkji,mkjd->mkdi", Jp, U).reshape(-1, 9)  # J^T u per direction
+    pinv = np.repeat(np.linalg.pinv(Jp, rcond=RCOND), 3, axis=1).reshape(-1, 9, 3)
     for r, region in enumerate(regs):
-        if not np.isfinite(region.mass):
-            continue  # a clamp: the guard's reaction decides (docs/safety.md)
         cr = c[:, :, r, :].reshape(-1)
         with np.errstate(divide="ignore"):
             speed = np.where(cr > 0, 1.0 / np.sqrt(np.where(cr > 0, cr, 1.0)), 0.0)
+        thd = np.einsum("nij,nj->ni", pinv, U.transpose(0, 1, 3, 2).reshape(-1, 3)
+                        * speed[:, None])
         case = DriveCase(Minv, ju, speed, np.zeros((len(cr), 9)), cap,
-                         np.full(len(cr), region.mass), np.full(len(cr), region.stiffness))
-        f = contact_peaks(case, loop, NLP_RATE) / region.transient_force
+                         np.full(len(cr), region.mass), np.full(len(cr), region.stiffness),
+                         thd)
+        stop = math.inf if np.isfinite(region.mass) else hw.guard_detection + 1.0 / NLP_RATE
+        f = contact_peaks(case, hw.position_loop, NLP_RATE, stop=stop) / region.transient_force
         c[:, :, r, :] = np.where(cr > 0, cr * f * f, cr).reshape(m, k, 3)
 
 

@@ -114,6 +114,12 @@ def catalogue_envelope(key: str) -> Limits:
     return Limits().replace_upper(torque=d.joint_torque, velocity=d.joint_velocity)
 
 
+#: The contact guard's detection the gate assumes for a clamp with a declared position
+#: loop [s]: the worst measured in the contact batteries (BENCHMARKS.md, "Safe in
+#: contact, the stop and the reaction": detection median 4 ms, worst 10 ms).
+GUARD_DETECTION = 0.010
+
+
 class PositionLoop(NamedTuple):
     """The site's drives' position loop (docs/safety.md, "The drive in the contact"): PD
     gains at the joint, the same on each of the nine, running at the file's rate on the
@@ -157,6 +163,9 @@ class Hardware:
     #: the drives' position loop, when the site declares it: power and force limiting
     #: then judges free regions with the loop in the contact (dynamics/drive_contact.py)
     position_loop: PositionLoop | None = None
+    #: with a position loop: how long after a clamp's onset the contact guard has
+    #: stopped the reference at the latest [s] (its detection; one tick is added)
+    guard_detection: float = GUARD_DETECTION
 
     def __post_init__(self) -> None:
         drive_train(self.drive_train)
@@ -252,7 +261,8 @@ def hardware_from_dict(doc: object, origin: str) -> Hardware:
     tightening of the catalogue's envelope)."""
     if not isinstance(doc, dict):
         raise GeometryError("hardware", type(doc).__name__, "a mapping")
-    known = {"drive_train", "people", "limits", "pfl", "pfl_links", "position_loop"}
+    known = {"drive_train", "people", "limits", "pfl", "pfl_links", "position_loop",
+             "guard_detection"}
     extra = sorted(str(k) for k in doc if k not in known)
     if extra:
         raise GeometryError(f"hardware.{extra[0]}", "?", f"one of {sorted(known)}",
@@ -289,7 +299,18 @@ def hardware_from_dict(doc: object, origin: str) -> Hardware:
     except InputError as exc:
         raise GeometryError("hardware.pfl_links", exc.value, str(exc.valid)) from None
     return Hardware(drive_train=key, limits=limits, origin=origin, pfl=names,
-                    pfl_links=legs, position_loop=position_loop_from(doc.get("position_loop")))
+                    pfl_links=legs, position_loop=position_loop_from(doc.get("position_loop")),
+                    guard_detection=_guard_detection(doc.get("guard_detection", GUARD_DETECTION)))
+
+
+def _guard_detection(v: object) -> float:
+    """A site's ``guard_detection`` [s] checked: no shorter than the worst measured
+    (a site may assume a slower guard, never a faster one), at most 1 s."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
+            GUARD_DETECTION <= v <= 1.0):
+        raise GeometryError("hardware.guard_detection", v,
+                            f"a time in [{GUARD_DETECTION:g}, 1] s")
+    return float(v)
 
 
 def load_hardware(path: str | Path) -> Hardware:
@@ -342,4 +363,5 @@ def envelope_record(hw: Hardware | None = None) -> dict[str, Any]:
     return {"drive_train": hw.drive_train, "origin": hw.origin,
             "limits": json.loads(json.dumps(hw.limits.as_dict())), "pfl": list(hw.pfl),
             "pfl_links": list(hw.pfl_links),
-            "position_loop": None if hw.position_loop is None else hw.position_loop._asdict()}
+            "position_loop": None if hw.position_loop is None else hw.position_loop._asdict(),
+            "guard_detection": hw.guard_detection}

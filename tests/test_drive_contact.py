@@ -35,9 +35,11 @@ def _case(seed: int, speed: float = 1.0, tau_scale: float = 5.0) -> tuple[DriveC
     ju = rng.normal(size=9) * 0.1
     Minv = np.linalg.inv(M)
     m = 1.0 / (ju @ Minv @ ju)
+    thd = rng.normal(size=9)
+    thd *= speed / (ju @ thd)  # the point at ``speed`` along u
     case = DriveCase(Minv[None], ju[None], np.array([speed]),
                      rng.uniform(-tau_scale, tau_scale, (1, 9)), np.full(9, 10.0),
-                     np.array([HAND.mass]), np.array([HAND.stiffness]))
+                     np.array([HAND.mass]), np.array([HAND.stiffness]), thd[None])
     return case, m * HAND.mass / (m + HAND.mass)
 
 
@@ -52,9 +54,11 @@ def test_with_the_torques_held_the_peak_is_the_two_body_models(seed: int) -> Non
         got, rel=1e-12)
 
 
-def _ode_peak(case: DriveCase, loop: PositionLoop, rate: float, phase: float) -> float:
+def _ode_peak(case: DriveCase, loop: PositionLoop, rate: float, phase: float,
+              stop: float = np.inf) -> float:
     """The same contact by scipy's solver: the loop's command sampled each tick from the
-    error and the encoder's difference, clipped to the cap, held over the tick."""
+    error and the encoder's difference, clipped to the cap, held over the tick; the
+    reference standing from ``stop`` on (a tick's boundary: a drive's update)."""
     Minv, ju, v = case.Minv[0], case.ju[0], float(case.speed[0])
     tau, cap = case.tau[0], case.cap
     mH, kH = float(case.mass[0]), float(case.stiffness[0])
@@ -64,21 +68,23 @@ def _ode_peak(case: DriveCase, loop: PositionLoop, rate: float, phase: float) ->
     t0, peak = 0.0, 0.0
 
     def force(t: float, s: np.ndarray) -> float:
-        return kH * max(v * t + ju @ s[:9] - s[18], 0.0)
+        return kH * max(v * min(t, stop) + ju @ s[:9] - s[18], 0.0)
 
     def rhs(t: float, s: np.ndarray) -> np.ndarray:
         f = force(t, s)
         return np.r_[s[9:18], Minv @ (dtau - ju * f), s[19], f / mH]
 
     t1 = (1.0 - phase) * tick
-    while t0 < 0.02:
+    while t0 < min(0.02, stop + 0.01):
+        if abs(t0 - stop) < 1e-9:
+            state[9:18] += case.rates[0]  # the reference stands: e' = theta'
         sol = solve_ivp(rhs, (t0, t1), state, rtol=1e-10, atol=1e-14, max_step=tick / 50,
                         dense_output=True)
         ts = np.linspace(t0, t1, 200)
         f = [force(t, sol.sol(t)) for t in ts]
         peak = max(peak, *f)
         state = sol.y[:, -1]
-        if peak > 0 and f[-1] == 0.0:
+        if peak > 0 and f[-1] == 0.0 and np.isfinite(mH):
             break
         e = state[:9]
         dtau = np.clip(-loop.kp * e - loop.kd * (e - e_prev) * rate, -cap - tau, cap - tau)
@@ -110,8 +116,22 @@ def test_a_broken_case_is_unsafe_not_silent() -> None:
     case, _ = _case(6)
     bad = case._replace(Minv=np.full((1, 9, 9), np.nan))
     assert contact_peaks(bad, PositionLoop(3000, 30), 1000.0)[0] == np.inf
-    with pytest.raises(ValueError, match="free regions"):
-        contact_peaks(case._replace(mass=np.array([np.inf])), PositionLoop(1, 0), 1000.0)
+
+
+@pytest.mark.parametrize("phase", [0.0, 0.5])
+def test_a_clamp_with_its_reference_stopped_agrees_with_an_ode_solver(phase: float) -> None:
+    """A clamp (m_H infinite): the loop presses on until the reference stands (here at
+    the drive's fourth update after the onset), then toward the standing reference."""
+    case, _ = _case(7, speed=0.6)
+    case = case._replace(mass=np.array([np.inf]))
+    loop = PositionLoop(3000.0, 30.0)
+    stop = (1.0 - phase) * 1e-3 + 3e-3
+    got = contact_peaks(case, loop, 1000.0, phases=(phase,), stop=stop)[0]
+    assert got == pytest.approx(_ode_peak(case, loop, 1000.0, phase, stop), rel=3e-3)
+    # a guard never: the same as one after the horizon (where a slower guard meets more:
+    # test_the_rows_take_the_loop)
+    assert contact_peaks(case, loop, 1000.0, phases=(phase,), stop=1.0)[0] == \
+        contact_peaks(case, loop, 1000.0, phases=(phase,))[0]
 
 
 def test_a_site_declares_its_position_loop(tmp_path) -> None:
@@ -120,6 +140,7 @@ def test_a_site_declares_its_position_loop(tmp_path) -> None:
     hw = hardware.load_hardware(ok)
     assert hw.position_loop == PositionLoop(3000.0, 30.0)
     assert hardware.envelope_record(hw)["position_loop"] == {"kp": 3000.0, "kd": 30.0}
+    assert hw.guard_detection == hardware.GUARD_DETECTION
     assert hardware.Hardware().position_loop is None
     for bad in ("{kp: 3000}", "{kp: .nan, kd: 1}", "{kp: -1, kd: 1}", "{kp: 1, kd: true}",
                 "{kp: 1, kd: 1, ki: 2}", "[3000, 30]"):
@@ -127,6 +148,12 @@ def test_a_site_declares_its_position_loop(tmp_path) -> None:
         f.write_text(f"position_loop: {bad}\n")
         with pytest.raises(GeometryError, match="position_loop"):
             hardware.load_hardware(f)
+    for bad in ("0.002", ".nan", "2", "fast"):  # a faster guard than measured: refused
+        f.write_text(f"guard_detection: {bad}\n")
+        with pytest.raises(GeometryError, match="guard_detection"):
+            hardware.load_hardware(f)
+    f.write_text("guard_detection: 0.02\n")
+    assert hardware.load_hardware(f).guard_detection == 0.02
 
 
 ROBOT = Robot.default()
@@ -150,7 +177,7 @@ def test_the_gates_drive_ratio_is_at_least_the_held_ones_and_grows_with_the_loop
     Jp = Jth[:, 0]
     v = np.einsum("nij,nj->ni", Jp, thd)
     u = v / np.linalg.norm(v)
-    args = (Jp, M, v, np.zeros((1, 9)), np.full(9, 10.0), HAND)
+    args = (Jp, M, thd, np.zeros((1, 9)), np.full(9, 10.0), HAND)
     held, soft, stiff = (drive_ratio(*args, PositionLoop(kp, kd), 1000.0, [u])[0]
                          for kp, kd in ((0, 0), (300, 6), (3000, 30)))
     A = Jp[0] @ np.linalg.solve(M[0], Jp[0].T)
@@ -161,9 +188,10 @@ def test_the_gates_drive_ratio_is_at_least_the_held_ones_and_grows_with_the_loop
     assert held < soft < stiff
 
 
-def test_the_rows_take_the_loop_for_free_regions_only() -> None:
-    """The NLP's C with a declared loop: larger for a hand, unchanged for a clamp (the
-    guard's reaction decides there), and the two-body C with a loop of zero gains."""
+def test_the_rows_take_the_loop() -> None:
+    """The NLP's C with a declared loop: the two-body C with a loop of zero gains (and a
+    clamp's then too, its reference standing), larger with a stiff loop, for a clamp
+    larger still with a slower guard."""
     x, _, _ = _states()
     point = pfl_points(ROBOT, link_names(["legs"]))[1]  # leg0's vertices
     free, clamp = regions(["hand"]), regions(["hand-clamped"])
@@ -171,8 +199,18 @@ def test_the_rows_take_the_loop_for_free_regions_only() -> None:
     hardware.use(hardware.Hardware(position_loop=PositionLoop(0.0, 0.0)))
     np.testing.assert_allclose(pfl_matrices(ROBOT, x, free, point), C0, rtol=4e-3,
                                atol=1e-12)
+    np.testing.assert_allclose(pfl_matrices(ROBOT, x, clamp, point), K0, rtol=4e-3,
+                               atol=1e-12)
     hardware.use(hardware.Hardware(position_loop=PositionLoop(3000.0, 30.0)))
-    C1 = pfl_matrices(ROBOT, x, free, point)
-    np.testing.assert_array_equal(pfl_matrices(ROBOT, x, clamp, point), K0)
-    grow = np.trace(C1, axis1=-2, axis2=-1) / np.trace(C0, axis1=-2, axis2=-1)
-    assert np.all(grow > 1.0)
+    C1, K1 = pfl_matrices(ROBOT, x, free, point), pfl_matrices(ROBOT, x, clamp, point)
+    hardware.use(hardware.Hardware(position_loop=PositionLoop(3000.0, 30.0),
+                                   guard_detection=0.05))
+    K2 = pfl_matrices(ROBOT, x, clamp, point)
+
+    def trace(C: np.ndarray) -> np.ndarray:
+        return np.trace(C, axis1=-2, axis2=-1)
+
+    assert np.all(trace(C1) > trace(C0))
+    assert np.all(trace(K1) > trace(K0))
+    # a slower guard: never less, more where the press outlasts the first impact
+    assert np.all(trace(K2) >= trace(K1)) and np.any(trace(K2) > 1.05 * trace(K1))

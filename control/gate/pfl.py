@@ -17,6 +17,7 @@ effective masses from Pinocchio's reduced inertia (rotors included).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -143,29 +144,31 @@ def _worst(A: np.ndarray, v: np.ndarray, regs: tuple[BodyRegion, ...]
     return np.nan_to_num(ratio, nan=np.inf), mass
 
 
-def _with_drive(ratio: np.ndarray, Jp: np.ndarray, M: np.ndarray, v: np.ndarray,
+def _with_drive(ratio: np.ndarray, Jp: np.ndarray, M: np.ndarray, thd: np.ndarray,
                 tau: np.ndarray, cap: np.ndarray, regs: tuple[BodyRegion, ...],
                 rate: float) -> np.ndarray:
-    """``ratio`` (n, R) with each free region's contact judged with the site's
-    position loop in it too (:func:`sixplus3.dynamics.drive_contact.drive_ratio`),
-    along the two-body model's worst direction and the direction of motion: the larger
-    of the two models.  No loop declared: ``ratio`` itself."""
-    loop = hardware.active().position_loop
-    if loop is None:
+    """``ratio`` (n, R) with each region's contact judged with the site's position loop
+    in it too (:func:`sixplus3.dynamics.drive_contact.drive_ratio`; a clamp's reference
+    stands after the guard's detection and one tick), along the two-body model's worst
+    direction and the direction of motion: the larger of the two models.  No loop
+    declared: ``ratio`` itself."""
+    hw = hardware.active()
+    if hw.position_loop is None:
         return ratio
     ratio = ratio.copy()
+    v = np.einsum("nij,nj->ni", Jp, thd)
     A = Jp @ np.linalg.solve(M, np.swapaxes(Jp, 1, 2))
     with np.errstate(all="ignore"):
         along = v / np.linalg.norm(v, axis=1, keepdims=True)
     for k, r in enumerate(regs):
-        if not np.isfinite(r.mass):
-            continue  # a clamp: the guard's reaction decides (docs/safety.md)
+        inv_m = 1.0 / r.mass if np.isfinite(r.mass) else 0.0
         with np.errstate(all="ignore"):
-            y = np.einsum("nij,nj->ni", np.linalg.pinv(A + np.eye(3) / r.mass,
+            y = np.einsum("nij,nj->ni", np.linalg.pinv(A + np.eye(3) * inv_m,
                                                        rcond=RCOND, hermitian=True), v)
             worst = y / np.linalg.norm(y, axis=1, keepdims=True)
+        stop = math.inf if np.isfinite(r.mass) else hw.guard_detection + 1.0 / rate
         ratio[:, k] = np.maximum(ratio[:, k], drive_ratio(
-            Jp, M, v, tau, cap, r, loop, rate, [worst, along]))
+            Jp, M, thd, tau, cap, r, hw.position_loop, rate, [worst, along], stop))
     return ratio
 
 
@@ -202,8 +205,8 @@ def pfl_profile(rep: ValidationReport, robot: Robot, motion: Motion, what: Judge
             ratio[sl, j], mass[sl, j] = _worst(A, v, what.regions)
             if drive:
                 Jp, M = point_jacobian(dyn, cfg, point)
-                ratio[sl, j] = _with_drive(ratio[sl, j], Jp, M, v, tau[sl], cap,
-                                           what.regions, motion.rate)
+                ratio[sl, j] = _with_drive(ratio[sl, j], Jp, M, motion.theta_dot[sl],
+                                           tau[sl], cap, what.regions, motion.rate)
         if verts:
             pos, Jth, M = vertex_jacobians(dyn, cfg.q, verts)
             vel, A = rates_from(Jth, M, motion.theta_dot[sl])
@@ -213,8 +216,9 @@ def pfl_profile(rep: ValidationReport, robot: Robot, motion: Motion, what: Judge
                 speed[sl, j] = np.linalg.norm(vel[:, k], axis=1)
                 ratio[sl, j], mass[sl, j] = _worst(A[:, k], vel[:, k], what.regions)
                 if drive:
-                    ratio[sl, j] = _with_drive(ratio[sl, j], Jth[:, k], M, vel[:, k],
-                                               tau[sl], cap, what.regions, motion.rate)
+                    ratio[sl, j] = _with_drive(ratio[sl, j], Jth[:, k], M,
+                                               motion.theta_dot[sl], tau[sl], cap,
+                                               what.regions, motion.rate)
     speed = np.nan_to_num(speed, nan=np.inf)
     return PflProfile(labels, what.regions, position, speed, mass,
                       np.nan_to_num(ratio, nan=np.inf))

@@ -159,8 +159,23 @@ def safety_report(path: str | Path, robot: Robot) -> dict[str, Any]:
                           "speed [m/s]": float(prof.speed[k, prof.points.index(where)])}
     out["stop"] = _stop(rep, robot, motion, prof)
     out["guard"] = _guard()
-    out["assumptions"] = list(ASSUMPTIONS)
+    out["assumptions"] = list(ASSUMPTIONS) + _loop_assumption()
     return out
+
+
+def _loop_assumption() -> list[str]:
+    """What the site's declared position loop adds to the assumptions (none: nothing)."""
+    hw = hardware.active()
+    if hw.position_loop is None:
+        return ["The site declares no position loop: the two-body model (torques held) "
+                "alone. A stiff loop meets harder (docs/safety.md, 'The drive in the "
+                "contact')."]
+    return [f"The site's position loop (Kp {hw.position_loop.kp:g} N m/rad, Kd "
+            f"{hw.position_loop.kd:g} N m s/rad, at the file's rate, within the drive's "
+            "limit) is in every contact too, the larger of the two models judged "
+            "(dynamics/drive_contact.py); the reference runs on through a free contact "
+            f"and stands {hw.guard_detection * 1e3:g} ms and one tick after a clamp's "
+            "onset: a clamp is judged safe only with the contact guard running."]
 
 
 def _stop(rep: Any, robot: Robot, motion: Any, prof: Any) -> dict[str, Any]:
