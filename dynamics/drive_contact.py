@@ -47,8 +47,9 @@ from sixplus3.robot_description.hardware import PositionLoop
 
 #: Where in a tick the contact begins (a share of the tick after the drive's update).
 PHASES = (0.0, 1.0 / 3.0, 2.0 / 3.0)
-#: Integration steps per tick, at least (semi-implicit Euler).
-STEPS_PER_TICK = 200
+#: The integration's step, at most [s] (semi-implicit Euler): 1/200 of a 1 kHz tick,
+#: 1/20 of a 10 kHz one, and at most 1/300 of the contact's own period.
+MAX_STEP = 5e-6
 #: The longest contact followed [s] (a free region's contact lasts a few ms; the
 #: transient window of the simulated person, control/drive/person.py).
 HORIZON = 0.05
@@ -86,7 +87,7 @@ def _peak(Minv: np.ndarray, ju: np.ndarray, v: float, tau: np.ndarray, cap: np.n
         for j in range(9):
             inv_m += ju[i] * Minv[i, j] * ju[j]
     w_c = math.sqrt(kH * (inv_m + 1.0 / mH))  # the contact's own frequency
-    dt = min(tick / STEPS_PER_TICK, 0.02 / w_c)
+    dt = min(MAX_STEP, 0.02 / w_c)
     clamp = not (mH < np.inf)
     horizon = min(HORIZON, t_stop + AFTER_STOP) if clamp else HORIZON
     w = np.zeros(9)  # M^-1 J^T u
@@ -209,5 +210,5 @@ def drive_ratio(Jp: np.ndarray, M: np.ndarray, thd: np.ndarray, tau: np.ndarray,
     return out
 
 
-__all__ = ["AFTER_STOP", "HORIZON", "PHASES", "STEPS_PER_TICK", "DriveCase", "contact_peaks",
+__all__ = ["AFTER_STOP", "HORIZON", "MAX_STEP", "PHASES", "DriveCase", "contact_peaks",
            "drive_ratio"]
