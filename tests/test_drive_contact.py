@@ -216,3 +216,23 @@ def test_the_rows_take_the_loop() -> None:
     assert np.all(trace(K1) > trace(K0))
     # a slower guard: never less, more where the press outlasts the first impact
     assert np.all(trace(K2) >= trace(K1)) and np.any(trace(K2) > 1.05 * trace(K1))
+
+
+def test_the_simulated_drive_defaults_to_the_sites_loop(tmp_path) -> None:
+    """`simulate` and `validate --simulate` run the site's declared loop unless --kp or
+    --kd is given; without a declaration the default drive (300 / 6)."""
+    import click
+    from click.testing import CliRunner
+
+    from sixplus3.cli.app import drive_gains
+
+    @click.command()
+    @drive_gains
+    def show(kp: float, kd: float) -> None:
+        click.echo(f"{kp:g} {kd:g}")
+
+    runner = CliRunner()
+    assert runner.invoke(show, []).output.strip() == "300 6"
+    hardware.use(hardware.Hardware(position_loop=PositionLoop(3000.0, 30.0)))
+    assert runner.invoke(show, []).output.strip() == "3000 30"
+    assert runner.invoke(show, ["--kp", "500"]).output.strip() == "500 30"

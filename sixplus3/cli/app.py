@@ -273,11 +273,27 @@ def task_robot(task_file: str | None) -> Robot:
     return load_task(task_file).robot_for(robot)
 
 
+def _site_gain(ctx: click.Context, param: click.Parameter, value: float | None) -> float:
+    """A gain not given: the site's declared position loop's (--hardware), else the
+    default drive's (300 / 6)."""
+    if value is not None:
+        return value
+    from sixplus3.control.drive.loop import KD, KP  # deferred: the CLI starts light
+    from sixplus3.robot_description import hardware  # deferred: the CLI starts light
+
+    loop = hardware.active().position_loop
+    if loop is None:
+        return KP if param.name == "kp" else KD
+    return loop.kp if param.name == "kp" else loop.kd
+
+
 _gain_options = [
-    click.option("--kp", default=300.0, show_default=True, type=FLOAT,
-                 help="PD stiffness of the replay [N m/rad]."),
-    click.option("--kd", default=6.0, show_default=True, type=FLOAT,
-                 help="PD damping of the replay [N m s/rad]."),
+    click.option("--kp", default=None, type=FLOAT, callback=_site_gain,
+                 help="PD stiffness of the replay [N m/rad]. Default: the site's "
+                      "position_loop (--hardware), else 300."),
+    click.option("--kd", default=None, type=FLOAT, callback=_site_gain,
+                 help="PD damping of the replay [N m s/rad]. Default: the site's "
+                      "position_loop, else 6."),
 ]
 
 
