@@ -250,6 +250,44 @@ def test_a_site_requires_regions_no_file_can_drop(plans, tmp_path) -> None:
         hardware.use(None)
 
 
+def test_a_site_that_declares_its_loop_is_judged_and_planned_with_it(plans, tmp_path
+                                                                   ) -> None:
+    """A site with a stiff position loop (docs/safety.md, "The drive in the contact"):
+    the hand plan made without it is judged harder; planned for the site, the plan is
+    no faster and holds the limit with the loop in it; validate --json names the loop."""
+    import json
+
+    from click.testing import CliRunner
+
+    from sixplus3.cli import main as cli
+    from sixplus3.control.gate.validation import validate_file
+    from sixplus3.control.pipeline import run_plan
+    from sixplus3.planner.task import task_from_dict
+    from sixplus3.robot_description import hardware
+
+    held = validate_file(plans[1], ROBOT)
+    site = tmp_path / "stiff.yaml"
+    site.write_text("position_loop: {kp: 3000, kd: 30}\n")
+    try:
+        hardware.use(hardware.load_hardware(site))
+        stiff = validate_file(plans[1], ROBOT)
+        assert stiff.max_pfl_ratio > held.max_pfl_ratio
+        doc = {"name": "move", "nodes_per_segment": 6, "pfl": ["hand"], "waypoints": [
+            {"position": [-0.06, 0.0, 0.58]}, {"position": [0.06, 0.0, 0.58]}]}
+        out = run_plan(task_from_dict(doc), tmp_path / "stiff", ROBOT, html=False,
+                       plots=False)
+        mine = validate_file(out.csv, ROBOT)
+        assert mine.ok and mine.max_pfl_ratio <= 1.0
+        assert mine.duration >= held.duration
+        res = CliRunner().invoke(cli, ["--hardware", str(site), "validate", "--json",
+                                       str(out.csv)])
+        assert res.exit_code == 0, res.output
+        assert json.loads(res.output)["envelope"]["position_loop"] == {"kp": 3000.0,
+                                                                       "kd": 30.0}
+    finally:
+        hardware.use(None)
+
+
 def test_the_gates_ratio_is_bounded_by_the_directional_and_isotropic_forms(plans) -> None:
     """The gate's worst-direction ratio, recomputed here sample by sample, lies between
     the two-body model along the direction of motion (a lower bound: one direction of
