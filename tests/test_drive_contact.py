@@ -236,3 +236,19 @@ def test_the_simulated_drive_defaults_to_the_sites_loop(tmp_path) -> None:
     hardware.use(hardware.Hardware(position_loop=PositionLoop(3000.0, 30.0)))
     assert runner.invoke(show, []).output.strip() == "3000 30"
     assert runner.invoke(show, ["--kp", "500"]).output.strip() == "500 30"
+
+
+def test_a_person_met_on_a_stiffer_drive_than_judged_is_told(capsys) -> None:
+    """`simulate --contact` on a drive stiffer than the loop the gate judged with (the
+    site's, else the default drive) says so on stderr; as stiff or softer: silent."""
+    from sixplus3.cli.contact import _stiffer_than_judged
+
+    _stiffer_than_judged(300.0, 6.0, True)
+    assert capsys.readouterr().err == ""
+    _stiffer_than_judged(3000.0, 30.0, True)
+    assert "stiffer than the loop" in capsys.readouterr().err
+    _stiffer_than_judged(3000.0, 30.0, False)  # nobody in the way
+    assert capsys.readouterr().err == ""
+    hardware.use(hardware.Hardware(position_loop=PositionLoop(3000.0, 30.0)))
+    _stiffer_than_judged(3000.0, 30.0, True)
+    assert capsys.readouterr().err == ""

@@ -14,6 +14,23 @@ import click
 from sixplus3.cli.app import check_output, fail
 
 
+def _stiffer_than_judged(kp: float, kd: float, person: bool) -> None:
+    """Say so (stderr) when a person meets a drive stiffer than the loop the gate judged
+    the contact with: the site's declared ``position_loop``, else the default drive
+    (docs/safety.md, "The drive in the contact")."""
+    from sixplus3.control.drive.loop import KD, KP  # deferred: the CLI starts light
+    from sixplus3.robot_description import hardware  # deferred: the CLI starts light
+
+    loop = hardware.active().position_loop
+    judged = (KP, KD) if loop is None else (loop.kp, loop.kd)
+    whose = "the default drive" if loop is None else "the site's position_loop"
+    if person and (kp > judged[0] or kd > judged[1]):
+        click.echo(f"note: this drive (Kp {kp:g}, Kd {kd:g}) is stiffer than the loop the "
+                   f"contact was judged with ({whose}, Kp {judged[0]:g}, Kd "
+                   f"{judged[1]:g}): the gate's limits hold for that loop; declare this "
+                   "one in the site file (position_loop) to plan for it", err=True)
+
+
 def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
                      log_file: str | None, contact_file: str | None, guard: bool, seed: int,
                      noise: float, hold: float, force: bool, kp: float, kd: float,
@@ -41,6 +58,7 @@ def simulate_contact(csv_file: str, robot: Any, plant_file: str | None,
         from sixplus3.cli.interaction import _load_parameters
 
         cov = _load_parameters(parameters_file)
+    _stiffer_than_judged(kp, kd, contact is not None)
     run = run_contact(csv_file, robot, plant, contact, guard=guard, kp=kp, kd=kd,
                       after=max(hold, 0.5), reaction=reaction, parameter_cov=cov,
                       drive=DriveSettings(seed=seed, torque_noise=noise))
