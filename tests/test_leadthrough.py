@@ -469,6 +469,7 @@ def test_warmup_runs_every_first_use_path(tmp_path) -> None:
     assert set(secs) == {"the wrench estimator (sixplus3 wrench)",
                          "the identification's check (identify check)",
                          "the motors' directions (commission directions)",
-                         "lead-through and the streaming observer"}
+                         "lead-through and the streaming observer",
+                         "the drive's contact model (a site's position_loop)"}
     res = CliRunner().invoke(cli, ["warmup"])
     assert res.exit_code == 0 and "compiled in" in res.output, res.output

@@ -47,7 +47,8 @@ def warm(robot: Any, trajectory: str | Path | None = None,
          say: Callable[[str], None] = print) -> dict[str, float]:
     """Run once each path whose kernels compile on first use: the wrench estimator, the
     identification's check, the commissioning's directions, the streaming observer
-    (compiled), lead-through, and with a ``trajectory`` file the contact guard.  Returns
+    (compiled), lead-through, the drive's contact model (the gate's, for a site that
+    declares its position loop), and with a ``trajectory`` file the contact guard.  Returns
     the seconds each took (a warm cache: well under a second each)."""
     from sixplus3.identification.commission import check_directions
     from sixplus3.identification.identify import check
@@ -74,6 +75,17 @@ def warm(robot: Any, trajectory: str | Path | None = None,
             lt.step(log.theta[k], log.tau[k])
 
     step("lead-through and the streaming observer", lead)
+
+    def drive_contact() -> None:
+        from sixplus3.dynamics.drive_contact import DriveCase, contact_peaks
+        from sixplus3.robot_description.hardware import PositionLoop
+
+        one = np.ones((1, 9))
+        case = DriveCase(np.eye(9)[None], 0.1 * one, np.ones(1), 0.0 * one,
+                         np.full(9, 10.0), np.full(1, 0.6), np.full(1, 75e3), 0.0 * one)
+        contact_peaks(case, PositionLoop(3000.0, 30.0), 1000.0, stop=0.01)
+
+    step("the drive's contact model (a site's position_loop)", drive_contact)
     if trajectory is not None and Path(trajectory).is_file():
         from sixplus3.interaction.contact.guard import ContactGuard
 
