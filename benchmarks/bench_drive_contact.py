@@ -26,12 +26,11 @@ from sixplus3.control.drive.person import contact_from_dict  # noqa: E402
 from sixplus3.control.file.file_format import columns, motion_of  # noqa: E402
 from sixplus3.control.gate.validation import validate_file  # noqa: E402
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics  # noqa: E402
-from sixplus3.dynamics.drive_contact import DriveCase, contact_peaks  # noqa: E402
+from sixplus3.dynamics.drive_contact import DriveCase, contact_peaks, drive_cap  # noqa: E402
 from sixplus3.dynamics.leg_points import vertex_jacobians  # noqa: E402
 from sixplus3.interaction.people.person import run_contact  # noqa: E402
 from sixplus3.kinematics import rotations as rot  # noqa: E402
 from sixplus3.kinematics.robot import robot_ik  # noqa: E402
-from sixplus3.robot_description import hardware  # noqa: E402
 from sixplus3.robot_description.body_regions import REGIONS  # noqa: E402
 from sixplus3.robot_description.hardware import PositionLoop  # noqa: E402
 
@@ -44,7 +43,7 @@ def main() -> None:
     ap.add_argument("--region", default=None, help="default: the file's first region")
     ap.add_argument("--clamp", action="store_true", help="a clamp, with the guard")
     args = ap.parse_args()
-    cap = np.full(9, hardware.catalogue_envelope(hardware.active().drive_train).torque)
+    cap = drive_cap()
     for f in args.files:
         path = Path(f)
         robot = file_robot(path)

@@ -42,6 +42,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from sixplus3.robot_description import hardware
 from sixplus3.robot_description.body_regions import BodyRegion
 from sixplus3.robot_description.hardware import PositionLoop
 
@@ -151,6 +152,20 @@ def _peaks(Minv: np.ndarray, ju: np.ndarray, speed: np.ndarray, tau: np.ndarray,
     return out
 
 
+def drive_cap() -> np.ndarray:
+    """(9,) [N m] what the drives can ask for in a contact: the site's drive train's
+    catalogue torque, whatever its envelope (the loop's command is clipped there)."""
+    return np.full(9, hardware.catalogue_envelope(hardware.active().drive_train).torque)
+
+
+def reference_stop(region: BodyRegion, rate: float) -> float:
+    """[s] when the reference stands after a contact's onset: never for a free region
+    (no guard is assumed), the site's ``guard_detection`` and one tick for a clamp."""
+    if np.isfinite(region.mass):
+        return math.inf
+    return hardware.active().guard_detection + 1.0 / rate
+
+
 def contact_peaks(case: DriveCase, loop: PositionLoop, rate: float,
                   phases: tuple[float, ...] = PHASES, stop: float = math.inf
                   ) -> np.ndarray:
@@ -211,4 +226,4 @@ def drive_ratio(Jp: np.ndarray, M: np.ndarray, thd: np.ndarray, tau: np.ndarray,
 
 
 __all__ = ["AFTER_STOP", "HORIZON", "MAX_STEP", "PHASES", "DriveCase", "contact_peaks",
-           "drive_ratio"]
+           "drive_cap", "drive_ratio", "reference_stop"]

@@ -21,14 +21,18 @@ mass has rank 1: C takes 0 along the directions it cannot move in.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.dynamics.drive_contact import DriveCase, contact_peaks
+from sixplus3.dynamics.drive_contact import (
+    DriveCase,
+    contact_peaks,
+    drive_cap,
+    reference_stop,
+)
 from sixplus3.dynamics.effective_mass import (
     RCOND,
     point_inverse_mass,
@@ -192,7 +196,7 @@ def _with_loop(c: np.ndarray, U: np.ndarray, Jp: np.ndarray, M: np.ndarray,
     if hw.position_loop is None:
         return
     m, k = Jp.shape[:2]
-    cap = np.full(9, hardware.catalogue_envelope(hw.drive_train).torque)
+    cap = drive_cap()
     Minv = np.repeat(np.linalg.inv(M), k * 3, axis=0)
     ju = np.einsum("mkji,mkjd->mkdi", Jp, U).reshape(-1, 9)  # J^T u per direction
     pinv = np.repeat(np.linalg.pinv(Jp, rcond=RCOND), 3, axis=1).reshape(-1, 9, 3)
@@ -205,8 +209,8 @@ def _with_loop(c: np.ndarray, U: np.ndarray, Jp: np.ndarray, M: np.ndarray,
         case = DriveCase(Minv, ju, speed, np.zeros((len(cr), 9)), cap,
                          np.full(len(cr), region.mass), np.full(len(cr), region.stiffness),
                          thd)
-        stop = math.inf if np.isfinite(region.mass) else hw.guard_detection + 1.0 / NLP_RATE
-        f = contact_peaks(case, hw.position_loop, NLP_RATE, stop=stop) / region.transient_force
+        f = contact_peaks(case, hw.position_loop, NLP_RATE,
+                          stop=reference_stop(region, NLP_RATE)) / region.transient_force
         c[:, :, r, :] = np.where(cr > 0, cr * f * f, cr).reshape(m, k, 3)
 
 

@@ -17,7 +17,6 @@ effective masses from Pinocchio's reduced inertia (rotors included).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -25,7 +24,7 @@ import numpy as np
 from sixplus3.control.gate.findings import finding
 from sixplus3.control.report import Finding, ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
-from sixplus3.dynamics.drive_contact import drive_ratio
+from sixplus3.dynamics.drive_contact import drive_cap, drive_ratio, reference_stop
 from sixplus3.dynamics.effective_mass import (
     RCOND,
     point_inverse_mass,
@@ -166,9 +165,9 @@ def _with_drive(ratio: np.ndarray, Jp: np.ndarray, M: np.ndarray, thd: np.ndarra
             y = np.einsum("nij,nj->ni", np.linalg.pinv(A + np.eye(3) * inv_m,
                                                        rcond=RCOND, hermitian=True), v)
             worst = y / np.linalg.norm(y, axis=1, keepdims=True)
-        stop = math.inf if np.isfinite(r.mass) else hw.guard_detection + 1.0 / rate
         ratio[:, k] = np.maximum(ratio[:, k], drive_ratio(
-            Jp, M, thd, tau, cap, r, hw.position_loop, rate, [worst, along], stop))
+            Jp, M, thd, tau, cap, r, hw.position_loop, rate, [worst, along],
+            reference_stop(r, rate)))
     return ratio
 
 
@@ -189,8 +188,7 @@ def pfl_profile(rep: ValidationReport, robot: Robot, motion: Motion, what: Judge
     position = np.empty((n, P, 3))
     drive = hardware.active().position_loop is not None
     tau = np.zeros((n, 9)) if rep.tau is None else np.asarray(rep.tau, dtype=float)
-    # the drives' own limit (the catalogue's): the loop may ask up to it in a contact
-    cap = np.full(9, hardware.catalogue_envelope(hardware.active().drive_train).torque)
+    cap = drive_cap()  # the drives' own limit: the loop may ask up to it in a contact
     for i in range(0, n, CHUNK):
         sl = slice(i, min(n, i + CHUNK))
         R_ = rot.matrix_from_quat(rep.quaternion[sl])
