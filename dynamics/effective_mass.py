@@ -131,6 +131,25 @@ def effective_mass(A: np.ndarray, u: np.ndarray) -> np.ndarray:
     return 1.0 / np.einsum("...i,...ij,...j->...", u, A, u)
 
 
+def _worst_y(A: np.ndarray, v: np.ndarray, region: BodyRegion) -> np.ndarray:
+    """(n, 3) y = (A + I/m_H)^+ v (a pseudo-inverse, :data:`RCOND`): the worst
+    direction's vector (:func:`worst_direction`)."""
+    A = np.asarray(A, dtype=float)
+    v = np.asarray(v, dtype=float)
+    B = A + np.eye(3) / region.mass
+    with np.errstate(all="ignore"):
+        return np.einsum("nij,nj->ni", np.linalg.pinv(B, rcond=RCOND, hermitian=True), v)
+
+
+def worst_normal(A: np.ndarray, v: np.ndarray, region: BodyRegion) -> np.ndarray:
+    """(n, 3) the unit direction n* of the worst contact with ``region`` of points with
+    inverse mass A (n, 3, 3) moving at v (n, 3) (:func:`worst_direction`; NaN at
+    rest)."""
+    y = _worst_y(A, v, region)
+    with np.errstate(all="ignore"):
+        return y / np.linalg.norm(y, axis=1, keepdims=True)
+
+
 def worst_direction(A: np.ndarray, v: np.ndarray, region: BodyRegion
                     ) -> tuple[np.ndarray, np.ndarray]:
     """(energy (n,) [J], effective mass (n,) [kg]) of the worst contact with ``region``
@@ -141,9 +160,8 @@ def worst_direction(A: np.ndarray, v: np.ndarray, region: BodyRegion
     theta_dot, A = J M^-1 J^T), so the energy is finite."""
     A = np.asarray(A, dtype=float)
     v = np.asarray(v, dtype=float)
-    B = A + np.eye(3) / region.mass
+    y = _worst_y(A, v, region)
     with np.errstate(all="ignore"):
-        y = np.einsum("nij,nj->ni", np.linalg.pinv(B, rcond=RCOND, hermitian=True), v)
         u = y / np.linalg.norm(y, axis=1, keepdims=True)
         mass = 1.0 / np.einsum("ni,nij,nj->n", u, A, u)
     return 0.5 * np.einsum("ni,ni->n", v, y), mass
@@ -174,4 +192,4 @@ def worst_speed(A: np.ndarray, region: BodyRegion) -> np.ndarray:
 
 __all__ = ["RCOND", "contact_energy", "effective_mass", "inverse_mass", "link_inverse_mass",
            "pfl_ratio", "point_inverse_mass", "point_jacobian", "point_map",
-           "worst_direction", "worst_speed"]
+           "worst_direction", "worst_normal", "worst_speed"]

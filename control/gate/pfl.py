@@ -26,11 +26,11 @@ from sixplus3.control.report import Finding, ValidationReport
 from sixplus3.dynamics.closed_loop import ClosedLoopDynamics
 from sixplus3.dynamics.drive_contact import drive_cap, drive_ratio, reference_stop
 from sixplus3.dynamics.effective_mass import (
-    RCOND,
     point_inverse_mass,
     point_jacobian,
     point_map,
     worst_direction,
+    worst_normal,
 )
 from sixplus3.dynamics.leg_points import rates_from, vertex_jacobians
 from sixplus3.errors import InputError
@@ -156,18 +156,13 @@ def _with_drive(ratio: np.ndarray, Jp: np.ndarray, M: np.ndarray, thd: np.ndarra
         return ratio
     ratio = ratio.copy()
     v = np.einsum("nij,nj->ni", Jp, thd)
-    A = Jp @ np.linalg.solve(M, np.swapaxes(Jp, 1, 2))
+    A = rates_from(Jp[:, None], M, thd)[1][:, 0]
     with np.errstate(all="ignore"):
         along = v / np.linalg.norm(v, axis=1, keepdims=True)
     for k, r in enumerate(regs):
-        inv_m = 1.0 / r.mass if np.isfinite(r.mass) else 0.0
-        with np.errstate(all="ignore"):
-            y = np.einsum("nij,nj->ni", np.linalg.pinv(A + np.eye(3) * inv_m,
-                                                       rcond=RCOND, hermitian=True), v)
-            worst = y / np.linalg.norm(y, axis=1, keepdims=True)
         ratio[:, k] = np.maximum(ratio[:, k], drive_ratio(
-            Jp, M, thd, tau, cap, r, hw.position_loop, rate, [worst, along],
-            reference_stop(r, rate)))
+            Jp, M, thd, tau, cap, r, hw.position_loop, rate,
+            [worst_normal(A, v, r), along], reference_stop(r, rate)))
     return ratio
 
 
@@ -175,7 +170,7 @@ def pfl_profile(rep: ValidationReport, robot: Robot, motion: Motion, what: Judge
                 ) -> PflProfile:
     """:class:`PflProfile` of ``motion``'s samples (a report whose forward kinematics
     went through: ``rep.position``, ``rep.quaternion``, ``rep.psi``).  A site that
-    declares its drives' position loop has free regions judged with it too
+    declares its drives' position loop has every region judged with it too
     (:func:`_with_drive`), on the gate's own torques (``rep.tau``)."""
     assert rep.position is not None and rep.quaternion is not None and rep.psi is not None
     dyn = ClosedLoopDynamics(robot)
