@@ -143,20 +143,19 @@ def _worst(A: np.ndarray, v: np.ndarray, regs: tuple[BodyRegion, ...]
     return np.nan_to_num(ratio, nan=np.inf), mass
 
 
-def _with_drive(ratio: np.ndarray, Jp: np.ndarray, M: np.ndarray, thd: np.ndarray,
-                tau: np.ndarray, cap: np.ndarray, regs: tuple[BodyRegion, ...],
-                rate: float) -> np.ndarray:
+def _with_drive(ratio: np.ndarray, Jp: np.ndarray, M: np.ndarray, A: np.ndarray,
+                thd: np.ndarray, tau: np.ndarray, cap: np.ndarray,
+                regs: tuple[BodyRegion, ...], rate: float) -> np.ndarray:
     """``ratio`` (n, R) with each region's contact judged with the site's position loop
     in it too (:func:`sixplus3.dynamics.drive_contact.drive_ratio`; a clamp's reference
     stands after the guard's detection and one tick), along the two-body model's worst
     direction and the direction of motion: the larger of the two models.  No loop
-    declared: ``ratio`` itself."""
+    declared: ``ratio`` itself.  A: the points' inverse mass (n, 3, 3), from Jp and M."""
     hw = hardware.active()
     if hw.position_loop is None:
         return ratio
     ratio = ratio.copy()
     v = np.einsum("nij,nj->ni", Jp, thd)
-    A = rates_from(Jp[:, None], M, thd)[1][:, 0]
     with np.errstate(all="ignore"):
         along = v / np.linalg.norm(v, axis=1, keepdims=True)
     for k, r in enumerate(regs):
@@ -190,15 +189,18 @@ def pfl_profile(rep: ValidationReport, robot: Robot, motion: Motion, what: Judge
         cfg = robot_ik(rep.position[sl], R_, rep.psi[sl], robot, platform_margins=False)
         twist = platform_twist(cfg, motion.theta_dot[sl])
         for j, (_, point) in enumerate(plat):
-            A = point_inverse_mass(dyn, cfg, point=point)
+            if drive:  # the point's Jacobian and M once: the loop's model needs them too
+                Jp, M = point_jacobian(dyn, cfg, point)
+                A = rates_from(Jp[:, None], M, motion.theta_dot[sl])[1][:, 0]
+            else:
+                A = point_inverse_mass(dyn, cfg, point=point)
             r = np.einsum("nij,j->ni", cfg.rotation, np.asarray(point, dtype=float))
             v = np.einsum("nij,nj->ni", point_map(r), twist)
             position[sl, j] = cfg.position + r
             speed[sl, j] = np.linalg.norm(v, axis=1)
             ratio[sl, j], mass[sl, j] = _worst(A, v, what.regions)
             if drive:
-                Jp, M = point_jacobian(dyn, cfg, point)
-                ratio[sl, j] = _with_drive(ratio[sl, j], Jp, M, motion.theta_dot[sl],
+                ratio[sl, j] = _with_drive(ratio[sl, j], Jp, M, A, motion.theta_dot[sl],
                                            tau[sl], cap, what.regions, motion.rate)
         if verts:
             pos, Jth, M = vertex_jacobians(dyn, cfg.q, verts)
@@ -209,7 +211,7 @@ def pfl_profile(rep: ValidationReport, robot: Robot, motion: Motion, what: Judge
                 speed[sl, j] = np.linalg.norm(vel[:, k], axis=1)
                 ratio[sl, j], mass[sl, j] = _worst(A[:, k], vel[:, k], what.regions)
                 if drive:
-                    ratio[sl, j] = _with_drive(ratio[sl, j], Jth[:, k], M,
+                    ratio[sl, j] = _with_drive(ratio[sl, j], Jth[:, k], M, A[:, k],
                                                motion.theta_dot[sl], tau[sl], cap,
                                                what.regions, motion.rate)
     speed = np.nan_to_num(speed, nan=np.inf)
